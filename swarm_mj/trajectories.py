@@ -1,0 +1,110 @@
+"""Reference trajectories with analytic position, velocity and acceleration (SPEC §3).
+
+Every trajectory is a callable ``traj(t)`` taking a scalar or an array of times (k,) and
+returning a :class:`Reference` whose arrays have the time axis first: ``pos (k, 3)``,
+``vel (k, 3)``, ``acc (k, 3)``, ``yaw (k,)``, ``yaw_rate (k,)``, ``yaw_acc (k,)``.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UserError
+
+
+@dataclass(frozen=True)
+class Reference:
+    pos: np.ndarray       # (k, 3)
+    vel: np.ndarray       # (k, 3)
+    acc: np.ndarray       # (k, 3)
+    yaw: np.ndarray       # (k,)
+    yaw_rate: np.ndarray  # (k,)
+    yaw_acc: np.ndarray   # (k,)
+
+
+def _t(t) -> np.ndarray:
+    return np.atleast_1d(np.asarray(t, dtype=float))
+
+
+def _constant(t, pos, yaw) -> Reference:
+    t = _t(t)
+    k = len(t)
+    z = np.zeros((k, 3))
+    return Reference(np.tile(np.asarray(pos, float), (k, 1)), z, z.copy(), np.full(k, float(yaw)),
+                     np.zeros(k), np.zeros(k))
+
+
+def step(target=(1.0, 1.0, 1.0), yaw_deg: float = 25.0) -> Callable[[np.ndarray], Reference]:
+    """Step of SPEC §3: x_d = y_d = z_d = 1 m, ψ_d = 25° from t = 0 (derivatives zero)."""
+    return lambda t: _constant(t, target, np.deg2rad(yaw_deg))
+
+
+def hover(position=(0.0, 0.0, 2.0), yaw_deg: float = 0.0) -> Callable[[np.ndarray], Reference]:
+    """Hold a fixed point."""
+    return lambda t: _constant(t, position, np.deg2rad(yaw_deg))
+
+
+def _harmonic(t, amp, omega, phase_cos: bool):
+    """a·sin(ωt) (or a·cos(ωt)) with its first two derivatives."""
+    if phase_cos:
+        return amp * np.cos(omega * t), -amp * omega * np.sin(omega * t), -amp * omega**2 * np.cos(omega * t)
+    return amp * np.sin(omega * t), amp * omega * np.cos(omega * t), -amp * omega**2 * np.sin(omega * t)
+
+
+def lemniscate(amplitude: float = 2.5, omega: float = 0.08, altitude: float = 2.0,
+               center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+    """Paper eq. (30): x = 2.5 sin(0.08t), y = 2.5 sin(0.04t), z = 2."""
+    def f(t):
+        t = _t(t)
+        k = len(t)
+        x = _harmonic(t, amplitude, omega, False)
+        y = _harmonic(t, amplitude, omega / 2, False)
+        pos = np.column_stack([x[0] + center[0], y[0] + center[1], np.full(k, altitude)])
+        vel = np.column_stack([x[1], y[1], np.zeros(k)])
+        acc = np.column_stack([x[2], y[2], np.zeros(k)])
+        return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+    return f
+
+
+def circle(radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, climb_rate: float = 0.0,
+           center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+    """SPEC §3 circle: x = 2.5 sin(0.08t), y = 2.5 cos(0.08t), z = altitude + climb_rate·t."""
+    def f(t):
+        t = _t(t)
+        k = len(t)
+        x = _harmonic(t, radius, omega, False)
+        y = _harmonic(t, radius, omega, True)
+        pos = np.column_stack([x[0] + center[0], y[0] + center[1], altitude + climb_rate * t])
+        vel = np.column_stack([x[1], y[1], np.full(k, climb_rate)])
+        acc = np.column_stack([x[2], y[2], np.zeros(k)])
+        return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+    return f
+
+
+def ascending_orbit(radius: float = 2.5, omega: float = 0.08, altitude: float = 1.0,
+                    climb_rate: float = 0.02, center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+    """SPEC §3 ascending orbit: the circle with z = 1 + 0.02t."""
+    return circle(radius, omega, altitude, climb_rate, center)
+
+
+TRAJECTORIES: dict[str, Callable[..., Callable[[np.ndarray], Reference]]] = {
+    "step": step,
+    "hover": hover,
+    "lemniscate": lemniscate,
+    "circle": circle,
+    "ascending_orbit": ascending_orbit,
+}
+
+
+def make_trajectory(name: str, params: dict | None = None, where: str = "trajectory"):
+    """Build a trajectory by name with keyword parameters from a scenario file."""
+    if name not in TRAJECTORIES:
+        raise UserError(f"unknown trajectory {name!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
+                        where=where)
+    try:
+        return TRAJECTORIES[name](**(params or {}))
+    except TypeError as exc:
+        raise UserError(f"bad parameters for trajectory {name!r}: {exc}", where=where) from None

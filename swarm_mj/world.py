@@ -1,0 +1,175 @@
+"""MJCF composition of the swarm with dm_control's PyMJCF (DESIGN "world").
+
+PyMJCF is used only to build XML: the XML is compiled with ``mujoco.MjModel``
+directly, because ``dm_control.mjcf.Physics`` is broken with mujoco 4
+(PLATFORM.md). Each drone is ``assets/quadrotor.xml`` attached under its own
+namespace (``leader/``, ``follower1/``, ...), so names come out scoped
+(``leader/U1``, ``follower3/body``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import mujoco
+import numpy as np
+from dm_control import mjcf
+
+from .errors import UserError
+from .params import DEFAULT_PARAMS, QuadParams
+from .resources import QUADROTOR_XML
+
+LEADER_RGBA = (0.85, 0.15, 0.15, 1.0)
+FOLLOWER_RGBA = (0.15, 0.45, 0.85, 1.0)
+INTEGRATORS = {"RK4": mujoco.mjtIntegrator.mjINT_RK4, "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
+
+
+def default_names(n_drones: int) -> list[str]:
+    """``leader`` then ``follower1..n-1`` (the paper's UAV_L, UAV_F1..)."""
+    return ["leader"] + [f"follower{k}" for k in range(1, n_drones)]
+
+
+@dataclass
+class World:
+    """A compiled swarm model and what is needed to address each drone in it."""
+
+    model: mujoco.MjModel
+    names: list[str]                 # (n,)
+    params: QuadParams
+    body_ids: np.ndarray             # (n,) id of each drone's massive body (xfrc_applied row)
+    geom_drone: np.ndarray           # (ngeom,) drone index owning each geom, -1 for the world
+    initial_positions: np.ndarray    # (n, 3)
+    initial_yaws: np.ndarray         # (n,)
+    xml: str
+
+    @property
+    def n_drones(self) -> int:
+        return len(self.names)
+
+
+def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Path) -> mjcf.RootElement:
+    if not asset.exists():
+        raise UserError(f"quadrotor asset not found: {asset}")
+    try:
+        drone = mjcf.from_path(str(asset))
+    except Exception as exc:  # malformed XML
+        raise UserError(f"cannot read quadrotor asset {asset}: {exc}") from None
+    drone.model = name
+    body = drone.find("body", "body")
+    if body is None or drone.find("site", "com") is None:
+        raise UserError(f"quadrotor asset {asset} must define body 'body' and site 'com'")
+    body.inertial.mass = params.m
+    body.inertial.diaginertia = [params.Ix, params.Iy, params.Iz]
+    L = params.L
+    gears = {"U1": [0, 0, 1, 0, 0, 0], "U2": [0, 0, 0, L, 0, 0],
+             "U3": [0, 0, 0, 0, L, 0], "U4": [0, 0, 0, 0, 0, L]}
+    for act, gear in gears.items():
+        motor = drone.find("actuator", act)
+        if motor is None:
+            raise UserError(f"quadrotor asset {asset} must define motor actuator {act}")
+        motor.gear = gear
+    for k, (x, y) in enumerate([(0, -L), (L, 0), (0, L), (-L, 0)], start=1):
+        rotor = drone.find("geom", f"rotor{k}")
+        if rotor is not None:
+            rotor.pos = [x, y, rotor.pos[2] if rotor.pos is not None else 0.0]
+    for geom in drone.find_all("geom"):
+        if geom.name in ("hub",):
+            geom.rgba = list(rgba)
+    for arm in ("arm_x", "arm_y"):
+        g = drone.find("geom", arm)
+        if g is not None:
+            g.size = [L if arm == "arm_x" else g.size[0], L if arm == "arm_y" else g.size[1], g.size[2]]
+    return drone
+
+
+def build_world(
+    n_drones: int = 6,
+    *,
+    positions: np.ndarray | Sequence[Sequence[float]] | None = None,
+    yaws: np.ndarray | Sequence[float] | None = None,
+    names: Sequence[str] | None = None,
+    params: QuadParams = DEFAULT_PARAMS,
+    timestep: float = 0.005,
+    integrator: str = "RK4",
+    collisions: bool = True,
+    asset: str | Path | None = None,
+    floor: bool = True,
+) -> World:
+    """Compose ``n_drones`` quadrotors into one MuJoCo model.
+
+    positions: (n, 3) initial centre-of-mass positions (default: a row 1 m apart).
+    collisions: False disables all contacts (used for independent copies, e.g. FPA).
+    """
+    if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
+        raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
+    if not (np.isfinite(timestep) and timestep > 0):
+        raise UserError(f"timestep must be a positive number of seconds, got {timestep!r}")
+    if integrator not in INTEGRATORS:
+        raise UserError(f"unknown integrator {integrator!r}; choose one of {sorted(INTEGRATORS)}")
+    names = list(names) if names is not None else default_names(n_drones)
+    if len(names) != n_drones or len(set(names)) != n_drones:
+        raise UserError(f"need {n_drones} distinct drone names, got {names!r}")
+    if positions is None:
+        positions = np.column_stack([np.arange(n_drones, dtype=float), np.zeros(n_drones), np.zeros(n_drones)])
+    positions = np.asarray(positions, dtype=float)
+    if positions.shape != (n_drones, 3) or not np.isfinite(positions).all():
+        raise UserError(f"positions must be a finite ({n_drones}, 3) array, got shape {positions.shape}")
+    yaws = np.zeros(n_drones) if yaws is None else np.asarray(yaws, dtype=float).reshape(n_drones)
+    asset_path = Path(asset) if asset is not None else QUADROTOR_XML
+
+    arena = mjcf.RootElement(model="swarm")
+    arena.option.timestep = timestep
+    arena.option.integrator = integrator
+    arena.option.gravity = [0.0, 0.0, -params.g]
+    arena.option.density = 0.0      # fluid model off: drag enters through xfrc_applied
+    arena.option.viscosity = 0.0
+    if not collisions:
+        arena.option.flag.contact = "disable"
+    arena.visual.headlight.ambient = [0.4, 0.4, 0.4]
+    arena.visual.headlight.diffuse = [0.6, 0.6, 0.6]
+    arena.visual.quality.shadowsize = 2048
+    getattr(arena.visual, "global").offwidth = 1920
+    getattr(arena.visual, "global").offheight = 1080
+    arena.asset.add("texture", name="grid", type="2d", builtin="checker", rgb1=[0.82, 0.85, 0.88],
+                    rgb2=[0.72, 0.75, 0.78], width=512, height=512, mark="edge", markrgb=[0.6, 0.6, 0.65])
+    arena.asset.add("material", name="grid", texture="grid", texrepeat=[1, 1], texuniform=True, reflectance=0.05)
+    arena.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=[0.55, 0.7, 0.9],
+                    rgb2=[0.95, 0.97, 1.0], width=256, height=256)
+    if floor:
+        # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
+        # and a drone below the floor is reported as a divergence by the simulator.
+        arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
+                            contype=0, conaffinity=0, group=0)
+    arena.worldbody.add("light", name="sun", pos=[0, 0, 12], dir=[0, 0, -1], directional=True,
+                        diffuse=[0.6, 0.6, 0.6], castshadow=True)
+
+    frames = []
+    for k, name in enumerate(names):
+        rgba = LEADER_RGBA if k == 0 else FOLLOWER_RGBA
+        drone = _drone_mjcf(name, params, rgba, asset_path)
+        frame = arena.worldbody.attach(drone)
+        frame.pos = positions[k]
+        c, s = np.cos(yaws[k] / 2), np.sin(yaws[k] / 2)
+        frame.quat = [c, 0.0, 0.0, s]
+        frame.add("freejoint", name=f"{name}_free")
+        frames.append(frame)
+    arena.worldbody.add("camera", name="track", mode="targetbodycom", target=frames[0],
+                        pos=[-7.0, -7.0, 6.0], fovy=50)
+
+    xml = arena.to_xml_string()
+    try:
+        model = mujoco.MjModel.from_xml_string(xml, arena.get_assets())
+    except Exception as exc:
+        raise UserError(f"MuJoCo could not compile the swarm model: {exc}") from None
+
+    body_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{n}/body") for n in names])
+    if (body_ids < 0).any():
+        raise UserError("compiled model lacks a drone body named '<drone>/body'")
+    geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
+    for k, bid in enumerate(body_ids):
+        geom_drone[model.geom_bodyid == bid] = k
+    return World(model=model, names=names, params=params, body_ids=body_ids, geom_drone=geom_drone,
+                 initial_positions=positions.copy(), initial_yaws=yaws.copy(), xml=xml)
