@@ -1,0 +1,57 @@
+"""``swarm-mj`` command line: thin — parse, call, print (DESIGN "cli").
+
+Each subcommand lives in ``swarm_mj/commands/<name>.py`` with ``add_parser(subparsers)``
+and ``main(args) -> int``. Errors: a :class:`~swarm_mj.errors.UserError` prints one line
+and exits 2; a divergence or missing renderer prints one line and exits 1; Ctrl-C exits 130.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from . import __version__
+from .errors import SwarmError
+
+COMMANDS = ["run", "list", "tune", "video", "sweep", "report"]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="swarm-mj",
+        description="MuJoCo quadrotor swarm: backstepping control, FPA gain tuning, pentagon formation, "
+                    "anti-collision and wind. Try: swarm-mj run circle")
+    parser.add_argument("--version", action="version", version=f"swarm-mj {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in COMMANDS:
+        try:
+            mod = importlib.import_module(f".commands.{name}", __package__)
+        except ModuleNotFoundError as exc:
+            if exc.name and exc.name.endswith(f"commands.{name}"):
+                continue  # subcommand not shipped in this build
+            raise
+        mod.add_parser(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 0
+    try:
+        return int(args.func(args) or 0)
+    except SwarmError as exc:
+        print(f"swarm-mj: error: {exc}", file=sys.stderr)
+        return exc.exit_code
+    except KeyboardInterrupt:
+        print("swarm-mj: interrupted", file=sys.stderr)
+        return 130
+    except BrokenPipeError:
+        return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

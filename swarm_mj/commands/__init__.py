@@ -1,0 +1,1 @@
+"""Subcommands of ``swarm-mj`` (one module each: ``add_parser(sub)`` and ``main(args)``)."""

@@ -1,0 +1,234 @@
+"""The swarm as a ``dm_env.Environment`` (DESIGN "env"): the one loop everything drives.
+
+One :meth:`SwarmEnv.step` is one control period T. ``swarm-mj run``, the tuner's checks,
+the Gymnasium/PettingZoo wrappers and user code all step this class; they differ only
+in the policy they plug in and in what they observe.
+
+Observation (a dict of arrays, drone axis first; ``n`` drones, leader = row 0):
+
+=================  ============  ==========================================================
+key                shape         meaning
+=================  ============  ==========================================================
+time               ()            simulated time (s)
+pos, vel           (n, 3)        world position (m) and velocity (m/s) of the centre of mass
+quat               (n, 4)        attitude quaternion (w, x, y, z), body → world
+rpy, rpy_rate      (n, 3)        Z-Y-X Euler angles (φ, θ, ψ) (rad) and their rates (rad/s)
+body_rates         (n, 3)        angular velocity in the body frame (rad/s)
+setpoint           (n, 3)        formation setpoint: leader = its trajectory, followers = slot
+setpoint_vel/acc   (n, 3)        its velocity / acceleration reference
+setpoint_yaw       (n,)          yaw reference (rad)
+leader_pos         (3,)          the leader's position (the only swarm-wide information)
+neighbours         (n, n, 3)     position of drone j relative to drone i, zero outside sensing range
+neighbour_mask     (n, n)        1 where drone j is within ``sensing_range`` of drone i (i ≠ j)
+wind_force         (n, 3)        the wind force on each drone when the scenario gives the
+                                 controller the wind (feedforward), else zeros
+=================  ============  ==========================================================
+
+Actions (``action="thrust"``, default): U1..U4 per drone, shape (n, 4), bounded by what
+the rotors can deliver; values outside ``action_spec()`` are clipped by the per-rotor
+saturation (documented, never NaN physics); a non-finite action raises ``UserError``.
+With ``action="setpoint"`` the action is a position setpoint (n, 3) handed to the
+backstepping controller (velocity and acceleration references zero).
+
+Reward (formation keeping), per step, summed over followers:
+``−mean ‖p_i − slot_i‖ − 10·(number of pairs closer than 0.5 m) − 100·(new contacts)``.
+Termination on a drone–drone contact (``terminate_on_contact``) or divergence;
+truncation at the scenario's duration.
+"""
+
+from __future__ import annotations
+
+import dm_env
+import numpy as np
+from dm_env import specs
+
+from .control.backstepping import Backstepping
+from .errors import SimulationDiverged, UserError
+from .formation.slots import DiameterSchedule, polygon_offsets
+from .scenario import Scenario, load_scenario
+from .sim import Sim
+from .state import body_rates_to_euler_rates, quat_to_euler
+from .wind import WindField
+from .world import build_world
+
+CLOSE_PASS_M = 0.5
+
+
+class SwarmEnv(dm_env.Environment):
+    """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``."""
+
+    def __init__(self, scenario: Scenario | str, *, action: str = "thrust", terminate_on_contact: bool = True,
+                 raise_on_divergence: bool = False, seed: int | None = None) -> None:
+        self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        if action not in ("thrust", "setpoint"):
+            raise UserError(f"action must be 'thrust' or 'setpoint', got {action!r}")
+        self.action_mode = action
+        self.terminate_on_contact = terminate_on_contact
+        self.raise_on_divergence = raise_on_divergence
+        self.seed = sc.seed if seed is None else int(seed)
+        self.n = n = sc.n_drones
+        self.names = sc.names
+        self.T = sc.control_period
+        self.n_steps = int(round(sc.duration / self.T))
+        self.world = build_world(n, positions=sc.initial_positions(), names=sc.names,
+                                 yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
+                                 timestep=sc.timestep, integrator=sc.integrator)
+        self.sim = Sim(self.world, self.T)
+        self.params = self.world.params
+        # Leader reference, precomputed at every control instant (analytic, SPEC §3).
+        self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)
+        self.reference = sc.make_trajectory()(self.times)
+        self.D = DiameterSchedule(sc.diameter)(self.times)                       # (K+1,)
+        self.unit_offsets = polygon_offsets(n - 1, 1.0)                         # (n-1, 3)
+        self._setpoint_ctl: Backstepping | None = None
+        if action == "setpoint":
+            self._setpoint_ctl = Backstepping(n, sc.gains, params=self.params, control_period=self.T,
+                                              wind_feedforward=sc.wind_feedforward,
+                                              attitude_map=sc.attitude_map)
+        f = self.params.f_max
+        self._u_low = np.tile([0.0, -f, -f, -2 * f], (n, 1))
+        self._u_high = np.tile([4 * f, f, f, 2 * f], (n, 1))
+        self._upper = np.triu(np.ones((n, n), dtype=bool), 1)
+        self.reset()
+
+    # ------------------------------------------------------------------ dm_env API
+    def reset(self, seed: int | None = None) -> dm_env.TimeStep:
+        if seed is not None:
+            self.seed = int(seed)
+        self.k = 0
+        self.sim.reset()
+        self.wind = WindField(self.scenario.wind, dt=self.T, seed=self.seed).sample(self.times)
+        self._wind_known = self.scenario.wind.enabled and self.scenario.wind_feedforward
+        self._prev_leader = self.sim.pos[0].copy()
+        self._leader_vel = np.zeros(3)
+        self._contacts_seen = 0
+        self.last_wind_force = np.zeros((self.n, 3))
+        if self._setpoint_ctl is not None:
+            self._setpoint_ctl.reset()
+        self._done = False
+        self._obs = self._observe()
+        return dm_env.restart(self._obs)
+
+    def step(self, action: np.ndarray) -> dm_env.TimeStep:
+        if self._done:
+            return self.reset()
+        a = np.asarray(action, dtype=float)
+        if self.action_mode == "setpoint":
+            if a.shape != (self.n, 3):
+                raise UserError(f"setpoint action must have shape ({self.n}, 3), got {a.shape}")
+            if not np.isfinite(a).all():
+                raise UserError("action contains NaN or inf")
+            o = self._obs
+            z = np.zeros((self.n, 3))
+            U = self._setpoint_ctl.compute(o["rpy"], o["rpy_rate"], o["pos"], o["vel"], a, z, z,
+                                           o["setpoint_yaw"], wind_force=o["wind_force"],
+                                           omega_body=o["body_rates"])
+        else:
+            if a.shape != (self.n, 4):
+                raise UserError(f"thrust action must have shape ({self.n}, 4), got {a.shape}")
+            if not np.isfinite(a).all():
+                raise UserError("action contains NaN or inf")
+            U = a
+        force = self._wind_force_now()
+        self.sim.step(U, force)
+        self.k += 1
+        diverged = None
+        try:
+            self.sim.check()
+        except SimulationDiverged as exc:
+            if self.raise_on_divergence:
+                raise
+            diverged = exc
+        self._obs = obs = self._observe()
+        new_contacts = self.sim.contact_events - self._contacts_seen
+        self._contacts_seen = self.sim.contact_events
+        reward = self._reward(obs, new_contacts)
+        if diverged is not None or (self.terminate_on_contact and new_contacts > 0):
+            self._done = True
+            return dm_env.termination(reward=-1000.0 if diverged is not None else reward, observation=obs)
+        if self.k >= self.n_steps:
+            self._done = True
+            return dm_env.truncation(reward=reward, observation=obs)
+        return dm_env.transition(reward=reward, observation=obs)
+
+    def observation_spec(self):
+        n = self.n
+        a = lambda shape, name: specs.Array(shape, np.float64, name)  # noqa: E731
+        return {
+            "time": a((), "time"), "pos": a((n, 3), "pos"), "vel": a((n, 3), "vel"),
+            "quat": a((n, 4), "quat"), "rpy": a((n, 3), "rpy"), "rpy_rate": a((n, 3), "rpy_rate"),
+            "body_rates": a((n, 3), "body_rates"), "setpoint": a((n, 3), "setpoint"),
+            "setpoint_vel": a((n, 3), "setpoint_vel"), "setpoint_acc": a((n, 3), "setpoint_acc"),
+            "setpoint_yaw": a((n,), "setpoint_yaw"), "leader_pos": a((3,), "leader_pos"),
+            "neighbours": a((n, n, 3), "neighbours"), "neighbour_mask": a((n, n), "neighbour_mask"),
+            "wind_force": a((n, 3), "wind_force"),
+        }
+
+    def action_spec(self):
+        if self.action_mode == "setpoint":
+            return specs.BoundedArray((self.n, 3), np.float64, -1e3, 1e3, "setpoint")
+        return specs.BoundedArray((self.n, 4), np.float64, self._u_low, self._u_high, "U")
+
+    def reward_spec(self):
+        return specs.Array((), np.float64, "reward")
+
+    # ------------------------------------------------------------------ internals
+    @property
+    def time(self) -> float:
+        return self.k * self.T
+
+    def _wind_force_now(self) -> np.ndarray:
+        """World wind force (n, 3) during the coming control period (zero-order hold)."""
+        w = self.wind
+        if w.relative_airspeed:
+            f = w.drone_forces(self.k, self.sim.vel)
+        else:
+            f = np.broadcast_to(w.force[self.k], (self.n, 3))
+        self.last_wind_force = f
+        return f
+
+    def _observe(self) -> dict:
+        sim, k, n = self.sim, self.k, self.n
+        pos = sim.pos.copy()
+        vel = sim.vel.copy()
+        quat = sim.quat.copy()
+        omega = sim.omega.copy()
+        rpy = quat_to_euler(quat)
+        rpy_rate = body_rates_to_euler_rates(rpy, omega)
+        leader = pos[0]
+        if k > 0:
+            self._leader_vel = (leader - self._prev_leader) / self.T
+        self._prev_leader = leader.copy()
+        ref = self.reference
+        sp = np.empty((n, 3))
+        sp_vel = np.empty((n, 3))
+        sp_acc = np.zeros((n, 3))
+        sp[0], sp_vel[0], sp_acc[0] = ref.pos[k], ref.vel[k], ref.acc[k]
+        if n > 1:
+            # Formation (paper §4): slots from the leader's CURRENT position and D only.
+            sp[1:] = leader + self.D[k] * self.unit_offsets
+            sp_vel[1:] = self._leader_vel
+        yaw = np.zeros(n)
+        yaw[0] = ref.yaw[k]
+        rel = pos[None, :, :] - pos[:, None, :]                     # (n, n, 3): j relative to i
+        dist = np.sqrt(np.einsum("ijk,ijk->ij", rel, rel))
+        mask = dist < self.scenario.sensing_range
+        np.fill_diagonal(mask, False)
+        rel *= mask[:, :, None]
+        if self._wind_known:
+            w = self.wind
+            wf = w.drone_forces(k, vel) if w.relative_airspeed else np.broadcast_to(w.force[k], (n, 3)).copy()
+        else:
+            wf = np.zeros((n, 3))
+        self._dist = dist
+        return {"time": np.float64(k * self.T), "pos": pos, "vel": vel, "quat": quat, "rpy": rpy,
+                "rpy_rate": rpy_rate, "body_rates": omega, "setpoint": sp, "setpoint_vel": sp_vel,
+                "setpoint_acc": sp_acc, "setpoint_yaw": yaw, "leader_pos": leader.copy(),
+                "neighbours": rel, "neighbour_mask": mask.astype(np.float64), "wind_force": wf}
+
+    def _reward(self, obs: dict, new_contacts: int) -> float:
+        if self.n == 1:
+            return float(-np.linalg.norm(obs["pos"][0] - obs["setpoint"][0]))
+        err = np.linalg.norm(obs["pos"][1:] - obs["setpoint"][1:], axis=1).mean()
+        close = int((self._dist[self._upper] < CLOSE_PASS_M).sum())
+        return float(-err - 10.0 * close - 100.0 * new_contacts)

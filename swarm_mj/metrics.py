@@ -1,0 +1,104 @@
+"""Metrics of SPEC §7, as pure functions on logged arrays (time axis first)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Weights of eq. (25) on e_x, e_y, e_z, e_φ, e_θ, e_ψ.
+ISE_WEIGHTS = np.array([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])
+
+
+def step_metrics(t: np.ndarray, y: np.ndarray, target: float, y0: float | None = None,
+                 band: float = 0.02) -> dict[str, float]:
+    """Overshoot (%), 2 % settling time (s) and steady-state error of a step response.
+
+    t: (k,), y: (k,). Overshoot is the largest excursion past the target, as a percentage
+    of the step size |target − y0|; settling is the first time after which y stays within
+    ``band``·|target − y0| of the target; the steady-state error is |y(end) − target|.
+    """
+    y0 = float(y[0]) if y0 is None else float(y0)
+    size = abs(target - y0)
+    if size == 0:
+        return {"overshoot_pct": 0.0, "settling_s": 0.0, "steady_state_error": float(abs(y[-1] - target))}
+    sign = np.sign(target - y0)
+    over = max(0.0, float(np.max(sign * (y - target))))
+    outside = np.abs(y - target) > band * size
+    if not outside.any():
+        settle = float(t[0])
+    elif outside[-1]:
+        settle = float("inf")
+    else:
+        settle = float(t[np.flatnonzero(outside)[-1] + 1])
+    return {"overshoot_pct": 100.0 * over / size, "settling_s": settle - float(t[0]),
+            "steady_state_error": float(abs(y[-1] - target))}
+
+
+def rmse(err: np.ndarray, axis: int = 0) -> np.ndarray:
+    """Root mean square error, eq. (38): sqrt(1/k Σ e²) along ``axis`` (the time axis)."""
+    err = np.asarray(err, dtype=float)
+    return np.sqrt(np.mean(err * err, axis=axis))
+
+
+def ise(errors: np.ndarray, dt: float, weights: np.ndarray = ISE_WEIGHTS) -> np.ndarray:
+    """Integral squared error, eq. (25), by the rectangle rule at the sample period dt.
+
+    errors: (k, ..., 6) errors e_x, e_y, e_z (m), e_φ, e_θ, e_ψ (rad) → (...,) ISE.
+    """
+    return dt * np.einsum("k...j,j->...", errors * errors, weights)
+
+
+def min_separation(pos: np.ndarray) -> tuple[float, float, tuple[int, int]]:
+    """Smallest 3D centre distance over time and pairs; pos: (k, n, 3) → (distance, time index, pair)."""
+    n = pos.shape[1]
+    if n < 2:
+        return float("inf"), -1, (-1, -1)
+    i, j = np.triu_indices(n, 1)
+    d = np.linalg.norm(pos[:, i, :] - pos[:, j, :], axis=-1)      # (k, pairs)
+    flat = int(np.argmin(d))
+    kk, pp = divmod(flat, d.shape[1])
+    return float(d[kk, pp]), kk, (int(i[pp]), int(j[pp]))
+
+
+def leader_distances(pos: np.ndarray) -> np.ndarray:
+    """Horizontal leader–follower distances (k, n−1) from pos (k, n, 3) (paper Fig. 14, left)."""
+    return np.linalg.norm(pos[:, 1:, :2] - pos[:, :1, :2], axis=-1)
+
+
+def follower_distances(pos: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int]]]:
+    """Horizontal follower–follower distances (k, pairs) and the pairs (paper Fig. 14, right)."""
+    n = pos.shape[1]
+    i, j = np.triu_indices(n - 1, 1)
+    i, j = i + 1, j + 1
+    return np.linalg.norm(pos[:, i, :2] - pos[:, j, :2], axis=-1), list(zip(i.tolist(), j.tolist()))
+
+
+def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_times: np.ndarray,
+                       tol: float = 0.05) -> tuple[list[float], float]:
+    """Settling time after each change of D and the largest distance error once settled.
+
+    dist: (k, n_f) leader–follower distances; D: (k,) desired. For the segment starting at
+    each change time, the settling time is the first instant after which every |dist − D|
+    stays within ``tol`` until the segment ends (inf if never). Returns (settling per change,
+    max |dist − D| over the settled parts).
+    """
+    err = np.abs(dist - D[:, None]).max(axis=1)                     # (k,)
+    bounds = list(change_times) + [np.inf]
+    settling, settled_err = [], [0.0]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        seg = (t >= a - 1e-9) & (t < b - 1e-9)
+        if not seg.any():
+            continue
+        ts, es = t[seg], err[seg]
+        bad = es > tol
+        if not bad.any():
+            s = 0.0
+            first = 0
+        elif bad[-1]:
+            settling.append(float("inf"))
+            continue
+        else:
+            first = np.flatnonzero(bad)[-1] + 1
+            s = float(ts[first] - a)
+        settling.append(s)
+        settled_err.append(float(es[first:].max()))
+    return settling, max(settled_err)

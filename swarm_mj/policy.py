@@ -1,0 +1,54 @@
+"""The paper's stack as a policy: formation setpoints → anti-collision → backstepping.
+
+A policy is any callable ``policy(observation) -> action`` for :class:`~swarm_mj.env.SwarmEnv`;
+this one returns U1..U4 (n, 4) and is what ``swarm-mj run`` plugs in.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .control.backstepping import Backstepping
+from .formation.anticollision import make_rule
+from .params import DEFAULT_PARAMS, QuadParams
+from .scenario import Scenario
+
+
+class BacksteppingPolicy:
+    """Backstepping (eqs. 17–24) on formation setpoints adjusted by the anti-collision rule."""
+
+    def __init__(self, scenario: Scenario, params: QuadParams = DEFAULT_PARAMS, *,
+                 gains: np.ndarray | None = None, anti_collision: str | None = None) -> None:
+        sc = scenario
+        self.n = sc.n_drones
+        self.controller = Backstepping(self.n, sc.gains if gains is None else gains, params=params,
+                                       control_period=sc.control_period, wind_feedforward=sc.wind_feedforward,
+                                       attitude_map=sc.attitude_map)
+        self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **sc.anti_collision_params)
+        self.pos_d = np.zeros((self.n, 3))    # (n, 3) last commanded position (after anti-collision)
+        self._started = False
+
+    def reset(self) -> None:
+        self.controller.reset()
+        self._started = False
+
+    @property
+    def events(self) -> list[dict]:
+        return self.rule.events
+
+    def __call__(self, obs: dict) -> np.ndarray:
+        if not self._started:
+            self.rule.reset(obs["pos"])
+            self._started = True
+        pos_d, vel_d, acc_d = obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"]
+        if self.n > 1:
+            pos_d, hold = self.rule.update(float(obs["time"]), obs["pos"], pos_d, float(obs["leader_pos"][2]))
+            if hold.any():
+                vel_d = vel_d.copy()
+                acc_d = acc_d.copy()
+                vel_d[hold] = 0.0
+                acc_d[hold] = 0.0
+        self.pos_d = pos_d
+        return self.controller.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
+                                       obs["setpoint_yaw"], wind_force=obs["wind_force"],
+                                       omega_body=obs["body_rates"])

@@ -1,0 +1,319 @@
+"""Scenario files: TOML data in ``scenarios/``, validated into dataclasses (DESIGN "Scenario").
+
+A scenario names the drones and their starts, the leader's trajectory, the D schedule,
+the anti-collision rule, the controller gains, the wind, the duration, the control
+period, the physics timestep and the seed. Code never branches on a scenario's name.
+Every mistake is reported as one :class:`~swarm_mj.errors.UserError` naming the file and
+the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got -1 m``.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
+from .errors import UserError
+from .formation.anticollision import ANTI_COLLISION_RULES
+from .formation.slots import DiameterSchedule
+from .resources import SCENARIOS_DIR
+from .trajectories import TRAJECTORIES, make_trajectory
+from .wind import WindConfig
+
+_TOP_KEYS = {"name", "description", "duration", "control_period", "timestep", "integrator", "seed",
+             "steady_after", "leader", "followers", "formation", "controller", "wind"}
+_LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
+_FOLLOWER_KEYS = {"count", "start", "random_start"}
+_RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
+_FORMATION_KEYS = {"diameter", "anti_collision", "safety_distance", "hop", "hysteresis", "arrive",
+                   "sensing_range"}
+_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map"}
+
+
+@dataclass(frozen=True)
+class RandomStart:
+    """Seeded random follower starts on the ground around the leader (issue: random crossing starts)."""
+
+    radius: float = 3.0
+    min_spacing: float = 0.6
+    seed: int = 0
+    max_tries: int = 20000
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    description: str
+    duration: float
+    control_period: float
+    timestep: float
+    integrator: str
+    seed: int
+    steady_after: float
+    trajectory: str
+    trajectory_params: dict[str, Any]
+    leader_start: np.ndarray          # (3,)
+    leader_yaw_deg: float
+    n_followers: int
+    follower_starts: np.ndarray | None  # (n_f, 3) or None when random
+    random_start: RandomStart | None
+    diameter: Any                     # float or [[t, D], ...]
+    anti_collision: str
+    anti_collision_params: dict[str, float]
+    sensing_range: float
+    gains: np.ndarray                 # (12,) or (n, 12)
+    gains_source: str
+    wind_feedforward: bool
+    attitude_map: str
+    wind: WindConfig
+    path: str = ""
+    raw: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @property
+    def n_drones(self) -> int:
+        return 1 + self.n_followers
+
+    @property
+    def names(self) -> list[str]:
+        return ["leader"] + [f"follower{k}" for k in range(1, self.n_followers + 1)]
+
+    def diameter_schedule(self) -> DiameterSchedule:
+        return DiameterSchedule(self.diameter)
+
+    def make_trajectory(self):
+        return make_trajectory(self.trajectory, self.trajectory_params, where=f"{self.path}: leader.trajectory")
+
+    def initial_positions(self) -> np.ndarray:
+        """(n, 3) start positions: leader first, then followers (random ones drawn with their seed)."""
+        if self.n_followers == 0:
+            return self.leader_start[None, :].copy()
+        if self.follower_starts is not None:
+            return np.vstack([self.leader_start, self.follower_starts])
+        return np.vstack([self.leader_start, random_follower_starts(self.leader_start, self.n_followers,
+                                                                    self.random_start, where=self.path)])
+
+    def with_overrides(self, **kw) -> "Scenario":
+        """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``)."""
+        return replace(self, **kw)
+
+
+def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
+    """n follower starts (n, 3) on the ground within ``radius`` of the leader, all (leader
+    included) at least ``min_spacing`` apart; rejection sampling, seeded."""
+    check_random_start_feasible(n, rs, where)
+    rng = np.random.default_rng(rs.seed)
+    pts = [np.asarray(leader[:2], float)]
+    tries = 0
+    while len(pts) < n + 1:
+        tries += 1
+        if tries > rs.max_tries:
+            raise UserError(f"could not place {n} followers at least {rs.min_spacing} m apart within "
+                            f"{rs.radius} m of the leader after {rs.max_tries} tries; lower min_spacing "
+                            f"or raise radius", where=f"{where}: followers.random_start")
+        r = rs.radius * np.sqrt(rng.uniform())
+        a = rng.uniform(0, 2 * np.pi)
+        p = pts[0] + r * np.array([np.cos(a), np.sin(a)])
+        if min(np.hypot(*(p - q)) for q in pts) >= rs.min_spacing:
+            pts.append(p)
+    xy = np.array(pts[1:])
+    return np.column_stack([xy, np.full(n, float(leader[2]))])
+
+
+def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> None:
+    """Refuse, before anything is simulated, a request no placement can meet.
+
+    Disks of radius s/2 around n + 1 points that lie within r of the leader fit in a disk
+    of radius r + s/2, so (n + 1)·(s/2)² ≤ 0.9069·(r + s/2)² is necessary (hexagonal packing
+    density π/√12 ≈ 0.9069).
+    """
+    s, r = rs.min_spacing, rs.radius
+    if r <= 0 or s <= 0:
+        raise UserError("radius and min_spacing must be positive", where=f"{where}: followers.random_start")
+    if (n + 1) * (s / 2) ** 2 > 0.9069 * (r + s / 2) ** 2:
+        raise UserError(f"cannot place {n} followers at least {s} m apart (and from the leader) within "
+                        f"{r} m of the leader: not enough room", where=f"{where}: followers.random_start")
+
+
+def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
+    if not isinstance(table, dict):
+        raise UserError("must be a table", where=where)
+    unknown = set(table) - allowed
+    if unknown:
+        raise UserError(f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}",
+                        where=where)
+    return table
+
+
+def _number(table: dict, key: str, default, where: str, *, positive: bool = False, minimum=None,
+            integer: bool = False):
+    if key not in table:
+        if default is None:
+            raise UserError("missing field", where=f"{where}{key}")
+        return default
+    v = table[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
+        raise UserError(f"must be {'an integer' if integer else 'a number'}, got {v!r}", where=f"{where}{key}")
+    if not np.isfinite(v):
+        raise UserError(f"must be finite, got {v!r}", where=f"{where}{key}")
+    if positive and v <= 0:
+        raise UserError(f"must be positive, got {v!r}", where=f"{where}{key}")
+    if minimum is not None and v < minimum:
+        raise UserError(f"must be >= {minimum}, got {v!r}", where=f"{where}{key}")
+    return v
+
+
+def _vec(v, n: int | None, where: str) -> np.ndarray:
+    try:
+        a = np.asarray(v, dtype=float)
+    except (TypeError, ValueError):
+        raise UserError(f"must be numbers, got {v!r}", where=where) from None
+    if not np.isfinite(a).all():
+        raise UserError("must be finite numbers", where=where)
+    if n is not None and a.shape != (n,):
+        raise UserError(f"must be a list of {n} numbers, got {v!r}", where=where)
+    return a
+
+
+def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None) -> Scenario:
+    """Validate a parsed TOML document into a :class:`Scenario`."""
+    base = Path(path).parent if path and not path.startswith("<") else Path.cwd()
+    _check_keys(data, _TOP_KEYS, path)
+    w = f"{path}: "
+    duration = float(_number(data, "duration", None, w, positive=True))
+    T = float(_number(data, "control_period", 0.01, w, positive=True))
+    dt = float(_number(data, "timestep", 0.005, w, positive=True))
+    nsub = round(T / dt)
+    if nsub < 1 or abs(nsub * dt - T) > 1e-9:
+        raise UserError(f"must divide control_period = {T} s (got {dt} s)", where=f"{w}timestep")
+    integrator = data.get("integrator", "RK4")
+    if integrator not in ("RK4", "Euler", "implicitfast"):
+        raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast",
+                        where=f"{w}integrator")
+    seed = int(_number(data, "seed", 0, w, integer=True, minimum=0))
+    steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
+
+    leader = _check_keys(data.get("leader", None) if "leader" in data else _missing(w + "leader"),
+                         _LEADER_KEYS, w + "leader")
+    if "trajectory" not in leader:
+        raise UserError("missing field", where=f"{w}leader.trajectory")
+    traj = leader["trajectory"]
+    if traj not in TRAJECTORIES:
+        raise UserError(f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
+                        where=f"{w}leader.trajectory")
+    tparams = leader.get("params", {})
+    if not isinstance(tparams, dict):
+        raise UserError("must be a table", where=f"{w}leader.params")
+    make_trajectory(traj, tparams, where=f"{w}leader.params")   # validates the parameters
+    leader_start = _vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{w}leader.start")
+    yaw_deg = float(_number(leader, "yaw_deg", 0.0, f"{w}leader."))
+
+    fol = _check_keys(data.get("followers", {"count": 0}), _FOLLOWER_KEYS, w + "followers")
+    if "start" in fol and "random_start" in fol:
+        raise UserError("give either start or random_start, not both", where=f"{w}followers")
+    default_count = len(fol["start"]) if isinstance(fol.get("start"), list) else None
+    n_f = int(_number(fol, "count", default_count if default_count is not None else None,
+                      f"{w}followers.", integer=True, minimum=0))
+    starts = None
+    rstart = None
+    if n_f > 0:
+        if "start" in fol:
+            starts = _vec(fol["start"], None, f"{w}followers.start")
+            if starts.shape != (n_f, 3):
+                raise UserError(f"must be {n_f} [x, y, z] positions, got shape {starts.shape}",
+                                where=f"{w}followers.start")
+        elif "random_start" in fol:
+            r = _check_keys(fol["random_start"], _RANDOM_KEYS, f"{w}followers.random_start")
+            wr = f"{w}followers.random_start."
+            rstart = RandomStart(radius=float(_number(r, "radius", 3.0, wr, positive=True)),
+                                 min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
+                                 seed=int(_number(r, "seed", seed, wr, integer=True, minimum=0)),
+                                 max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)))
+            check_random_start_feasible(n_f, rstart, path)
+        else:
+            raise UserError("followers need start positions or random_start", where=f"{w}followers")
+
+    form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
+    diameter = form.get("diameter", 1.0)
+    DiameterSchedule(diameter, where=f"{w}formation.diameter")
+    rule = form.get("anti_collision", "layers")
+    if rule not in ANTI_COLLISION_RULES:
+        raise UserError(f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
+                        where=f"{w}formation.anti_collision")
+    wf = f"{w}formation."
+    ac_params = {k: float(_number(form, k, d, wf, positive=True)) for k, d in
+                 (("safety_distance", 0.8), ("hop", 0.4), ("hysteresis", 0.05), ("arrive", 0.2))}
+    sensing = float(_number(form, "sensing_range", 2.0, wf, positive=True))
+
+    ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
+    g = ctl.get("gains", "table4")
+    if isinstance(g, str):
+        if g == "table4":
+            gains, source = TABLE4_GAINS.copy(), "table4"
+        else:
+            gpath = (base / g) if not Path(g).is_absolute() else Path(g)
+            gains, source = load_gains(gpath), str(gpath)
+    else:
+        gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
+    ff = ctl.get("wind_feedforward", True)
+    if not isinstance(ff, bool):
+        raise UserError(f"must be true or false, got {ff!r}", where=f"{w}controller.wind_feedforward")
+    amap = ctl.get("attitude_map", "exact")
+    if amap not in ("exact", "paper"):
+        raise UserError(f"must be 'exact' or 'paper', got {amap!r}", where=f"{w}controller.attitude_map")
+
+    wind_table = data.get("wind", {"enabled": False})
+    if not isinstance(wind_table, dict):
+        raise UserError("must be a table", where=f"{w}wind")
+    wind = WindConfig.from_dict(wind_table, where=path)
+
+    nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
+    return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
+                    control_period=T, timestep=dt, integrator=integrator, seed=seed, steady_after=steady_after,
+                    trajectory=traj, trajectory_params=dict(tparams), leader_start=leader_start,
+                    leader_yaw_deg=yaw_deg, n_followers=n_f, follower_starts=starts, random_start=rstart,
+                    diameter=diameter, anti_collision=rule, anti_collision_params=ac_params,
+                    sensing_range=sensing, gains=gains, gains_source=source, wind_feedforward=ff,
+                    attitude_map=amap, wind=wind, path=path, raw=data)
+
+
+def _missing(where: str):
+    raise UserError("missing table", where=where)
+
+
+def bundled_scenarios() -> dict[str, Path]:
+    """Bundled scenario files by name (file stem)."""
+    return {p.stem: p for p in sorted(SCENARIOS_DIR.glob("*.toml"))}
+
+
+def resolve(name_or_path: str) -> Path:
+    """A bundled scenario name or a path to a TOML file."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists() or "/" in name_or_path:
+        if not p.exists():
+            raise UserError("scenario file not found", where=str(p))
+        if p.is_dir():
+            raise UserError("is a folder, not a scenario file", where=str(p))
+        return p
+    found = bundled_scenarios()
+    if name_or_path not in found:
+        raise UserError(f"unknown scenario {name_or_path!r}; bundled: {', '.join(found) or 'none'} "
+                        f"(or give a path to a .toml file)")
+    return found[name_or_path]
+
+
+def load_scenario(name_or_path: str | Path) -> Scenario:
+    """Load and validate a scenario by bundled name or path."""
+    path = resolve(str(name_or_path))
+    try:
+        text = path.read_text()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise UserError(f"cannot read: {exc}", where=str(path)) from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise UserError(f"TOML syntax error: {exc}", where=str(path)) from None
+    return parse_scenario(data, str(path), name=path.stem)
