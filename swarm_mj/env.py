@@ -45,9 +45,9 @@ from dm_env import specs
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
+from .kernels import formation_reward, observe_kernel
 from .scenario import Scenario, load_scenario
 from .sim import Sim
-from .state import body_rates_to_euler_rates, quat_to_euler
 from .wind import WindField
 from .world import build_world
 
@@ -88,7 +88,7 @@ class SwarmEnv(dm_env.Environment):
         f = self.params.f_max
         self._u_low = np.tile([0.0, -f, -f, -2 * f], (n, 1))
         self._u_high = np.tile([4 * f, f, f, 2 * f], (n, 1))
-        self._upper = np.triu(np.ones((n, n), dtype=bool), 1)
+        self._zero_wind = np.zeros((n, 3))
         self.reset()
 
     # ------------------------------------------------------------------ dm_env API
@@ -189,12 +189,8 @@ class SwarmEnv(dm_env.Environment):
 
     def _observe(self) -> dict:
         sim, k, n = self.sim, self.k, self.n
-        pos = sim.pos.copy()
-        vel = sim.vel.copy()
-        quat = sim.quat.copy()
-        omega = sim.omega.copy()
-        rpy = quat_to_euler(quat)
-        rpy_rate = body_rates_to_euler_rates(rpy, omega)
+        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(
+            sim.qpos, sim.qvel, self.scenario.sensing_range)
         leader = pos[0]
         if k > 0:
             self._leader_vel = (leader - self._prev_leader) / self.T
@@ -210,25 +206,20 @@ class SwarmEnv(dm_env.Environment):
             sp_vel[1:] = self._leader_vel
         yaw = np.zeros(n)
         yaw[0] = ref.yaw[k]
-        rel = pos[None, :, :] - pos[:, None, :]                     # (n, n, 3): j relative to i
-        dist = np.sqrt(np.einsum("ijk,ijk->ij", rel, rel))
-        mask = dist < self.scenario.sensing_range
-        np.fill_diagonal(mask, False)
-        rel *= mask[:, :, None]
         if self._wind_known:
             w = self.wind
             wf = w.drone_forces(k, vel) if w.relative_airspeed else np.broadcast_to(w.force[k], (n, 3)).copy()
         else:
-            wf = np.zeros((n, 3))
+            wf = self._zero_wind
         self._dist = dist
         return {"time": np.float64(k * self.T), "pos": pos, "vel": vel, "quat": quat, "rpy": rpy,
                 "rpy_rate": rpy_rate, "body_rates": omega, "setpoint": sp, "setpoint_vel": sp_vel,
                 "setpoint_acc": sp_acc, "setpoint_yaw": yaw, "leader_pos": leader.copy(),
-                "neighbours": rel, "neighbour_mask": mask.astype(np.float64), "wind_force": wf}
+                "neighbours": rel, "neighbour_mask": mask, "wind_force": wf}
 
     def _reward(self, obs: dict, new_contacts: int) -> float:
         if self.n == 1:
-            return float(-np.linalg.norm(obs["pos"][0] - obs["setpoint"][0]))
-        err = np.linalg.norm(obs["pos"][1:] - obs["setpoint"][1:], axis=1).mean()
-        close = int((self._dist[self._upper] < CLOSE_PASS_M).sum())
+            d = obs["pos"][0] - obs["setpoint"][0]
+            return -float(np.sqrt(d @ d))
+        err, close = formation_reward(obs["pos"], obs["setpoint"], self._dist, CLOSE_PASS_M)
         return float(-err - 10.0 * close - 100.0 * new_contacts)

@@ -21,7 +21,8 @@ import mujoco
 import numpy as np
 
 from .errors import SimulationDiverged, UserError
-from .mixing import saturate
+from .kernels import saturate_kernel, state_ok
+from .mixing import _MIX_T, _UNMIX_T
 from .world import World
 
 
@@ -73,6 +74,7 @@ class Sim:
             raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
         self._geom_drone = world.geom_drone
         self.rotor_thrust = np.zeros((self.n, 4))        # (n, 4) F1..F4 of the last step
+        self._u_buf = np.zeros((self.n, 4))
         self.ext_force = np.zeros((self.n, 3))           # (n, 3) last external force
         self.reset()
 
@@ -108,9 +110,9 @@ class Sim:
         U is mapped to rotor thrusts, clipped to [f_min, f_max] per rotor and mapped back
         (SPEC §1); the result is held in ``ctrl`` for the whole period.
         """
-        U_applied, F = saturate(U, self._f_min, self._f_max)
-        self.ctrl[:] = U_applied
-        self.rotor_thrust[:] = F
+        U = np.asarray(U, dtype=np.float64)
+        saturate_kernel(U, _UNMIX_T, _MIX_T, self._f_min, self._f_max, self._u_buf, self.rotor_thrust)
+        self.ctrl[:] = self._u_buf
         if ext_force is None:
             self.ext_force[:] = 0.0
         else:
@@ -126,18 +128,19 @@ class Sim:
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` on NaN, a drone below the floor or far away."""
+        code = state_ok(self.qpos, self.qvel, self.floor_z, self.max_distance)
+        if code == 0:
+            return
         pos = self.pos
-        if not np.isfinite(pos).all() or not np.isfinite(self.qvel).all():
+        if code == 1:
             raise SimulationDiverged(f"simulation diverged at t = {self.time:.2f} s: non-finite state")
-        zmin = pos[:, 2].min()
-        if zmin < self.floor_z:
+        if code == 2:
             k = int(np.argmin(pos[:, 2]))
             raise SimulationDiverged(
                 f"simulation diverged at t = {self.time:.2f} s: {self.world.names[k]} fell through the floor "
-                f"(z = {zmin:.2f} m)")
-        if np.abs(pos).max() > self.max_distance:
-            raise SimulationDiverged(f"simulation diverged at t = {self.time:.2f} s: a drone flew beyond "
-                                     f"{self.max_distance:g} m")
+                f"(z = {pos[k, 2]:.2f} m)")
+        raise SimulationDiverged(f"simulation diverged at t = {self.time:.2f} s: a drone flew beyond "
+                                 f"{self.max_distance:g} m")
 
     # ------------------------------------------------------------------ contacts
     def _count_contacts(self) -> None:

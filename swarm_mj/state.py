@@ -7,21 +7,53 @@ for a free joint, the angular velocity ω = (p, q, r) in the BODY frame. The pap
 * angles:  φ = atan2(2(wx + yz), 1 − 2(x² + y²)),  θ = asin(2(wy − zx)),
            ψ = atan2(2(wz + xy), 1 − 2(y² + z²))
 * rates:   φ̇ = p + (q sinφ + r cosφ) tanθ,  θ̇ = q cosφ − r sinφ,  ψ̇ = (q sinφ + r cosφ)/cosθ
+
+The kernels take 2-D arrays (m, 4) / (m, 3) (reshape (k, n, 4) to (−1, 4)); the public
+wrappers accept any leading shape.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
+from ._jit import jit
+
+
+@jit
+def _quat_to_euler(quat: np.ndarray) -> np.ndarray:
+    w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
+    out = np.empty((quat.shape[0], 3))
+    out[:, 0] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+    out[:, 1] = np.arcsin(np.minimum(np.maximum(2.0 * (w * y - z * x), -1.0), 1.0))
+    out[:, 2] = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+    return out
+
+
+@jit
+def _body_rates_to_euler_rates(rpy: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    sphi, cphi = np.sin(rpy[:, 0]), np.cos(rpy[:, 0])
+    ctheta = np.cos(rpy[:, 1])
+    ttheta = np.tan(rpy[:, 1])
+    p, q, r = omega[:, 0], omega[:, 1], omega[:, 2]
+    a = q * sphi + r * cphi
+    out = np.empty((omega.shape[0], 3))
+    out[:, 0] = p + a * ttheta
+    out[:, 1] = q * cphi - r * sphi
+    out[:, 2] = a / ctheta
+    return out
+
 
 def quat_to_euler(quat: np.ndarray) -> np.ndarray:
     """Z-Y-X Euler angles (…, 3) = (φ, θ, ψ) from quaternions (…, 4) in MuJoCo's (w, x, y, z) order."""
-    w, x, y, z = quat[..., 0], quat[..., 1], quat[..., 2], quat[..., 3]
-    out = np.empty(quat.shape[:-1] + (3,))
-    out[..., 0] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-    out[..., 1] = np.arcsin(np.clip(2.0 * (w * y - z * x), -1.0, 1.0))
-    out[..., 2] = np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-    return out
+    q = np.ascontiguousarray(quat, dtype=np.float64)
+    return _quat_to_euler(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3,))
+
+
+def body_rates_to_euler_rates(rpy: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
+    """Euler-angle rates (…, 3) = (φ̇, θ̇, ψ̇) from body angular velocity (…, 3) = (p, q, r)."""
+    r = np.ascontiguousarray(rpy, dtype=np.float64)
+    w = np.ascontiguousarray(omega_body, dtype=np.float64)
+    return _body_rates_to_euler_rates(r.reshape(-1, 3), w.reshape(-1, 3)).reshape(w.shape)
 
 
 def euler_to_quat(rpy: np.ndarray) -> np.ndarray:
@@ -36,20 +68,6 @@ def euler_to_quat(rpy: np.ndarray) -> np.ndarray:
         cr * sp * cy + sr * cp * sy,
         cr * cp * sy - sr * sp * cy,
     ], axis=-1)
-
-
-def body_rates_to_euler_rates(rpy: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
-    """Euler-angle rates (…, 3) = (φ̇, θ̇, ψ̇) from body angular velocity (…, 3) = (p, q, r)."""
-    sphi, cphi = np.sin(rpy[..., 0]), np.cos(rpy[..., 0])
-    ctheta = np.cos(rpy[..., 1])
-    ttheta = np.tan(rpy[..., 1])
-    p, q, r = omega_body[..., 0], omega_body[..., 1], omega_body[..., 2]
-    a = q * sphi + r * cphi
-    out = np.empty(omega_body.shape)
-    out[..., 0] = p + a * ttheta
-    out[..., 1] = q * cphi - r * sphi
-    out[..., 2] = a / ctheta
-    return out
 
 
 def quat_to_rotmat(quat: np.ndarray) -> np.ndarray:

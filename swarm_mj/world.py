@@ -117,7 +117,9 @@ def build_world(
     positions = np.asarray(positions, dtype=float)
     if positions.shape != (n_drones, 3) or not np.isfinite(positions).all():
         raise UserError(f"positions must be a finite ({n_drones}, 3) array, got shape {positions.shape}")
-    yaws = np.zeros(n_drones) if yaws is None else np.asarray(yaws, dtype=float).reshape(n_drones)
+    yaws = np.zeros(n_drones) if yaws is None else np.asarray(yaws, dtype=float)
+    if yaws.shape != (n_drones,) or not np.isfinite(yaws).all():
+        raise UserError(f"yaws must be a finite ({n_drones},) array, got {yaws.tolist()!r}")
     asset_path = Path(asset) if asset is not None else QUADROTOR_XML
 
     arena = mjcf.RootElement(model="swarm")

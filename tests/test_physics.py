@@ -110,16 +110,32 @@ def zyx_from_R(R: np.ndarray) -> np.ndarray:
 
 
 def newton_euler(y: np.ndarray, U: np.ndarray, F_ext: np.ndarray) -> np.ndarray:
-    """d/dt of y = [p(3), v(3), q(4), ω_body(3)] (n, 13) for a rigid body with
-    body-z thrust U1, body torques L·(U2, U3, U4), world drag −K·v and external force."""
-    v, q, w = y[:, 3:6], y[:, 6:10], y[:, 10:13]
-    thrust = np.zeros_like(v)
-    thrust[:, 2] = U[:, 0]
-    dv = (rotate(q, thrust) - K * v + F_ext) / M + GRAV
-    dq = 0.5 * qmul(q, np.concatenate([np.zeros((len(y), 1)), w], axis=1))
-    tau = L * U[:, 1:4]
-    dw = (tau - np.cross(w, INERTIA * w)) / INERTIA
-    return np.concatenate([v, dv, dq, dw], axis=1)
+    """d/dt of y = [p(3), v(3), q(4), ω_body(3)] (n, 13) for a rigid body with body-z thrust U1,
+    body torques L·(U2, U3, U4), world drag −K·v and an external world force F_ext (n, 3):
+
+        ṗ = v,   m·v̇ = U1·R(q)·e_z − K·v + F_ext + m·g,   q̇ = ½ q ⊗ (0, ω),   I·ω̇ = τ − ω × I·ω
+
+    (written out component-wise: this runs 80 000 times per test)."""
+    w, x, yq, z = y[:, 6], y[:, 7], y[:, 8], y[:, 9]
+    p, q, r = y[:, 10], y[:, 11], y[:, 12]
+    U1 = U[:, 0]
+    out = np.empty_like(y)
+    out[:, 0:3] = y[:, 3:6]
+    # R(q)·e_z = third column of the rotation matrix = q ⊗ (0, 0, 0, 1) ⊗ q* (checked in test_rotation_convention)
+    out[:, 3] = U1 * 2.0 * (x * z + w * yq)
+    out[:, 4] = U1 * 2.0 * (yq * z - w * x)
+    out[:, 5] = U1 * (1.0 - 2.0 * (x * x + yq * yq))
+    out[:, 3:6] += F_ext - K * y[:, 3:6]
+    out[:, 3:6] /= M
+    out[:, 5] -= G
+    out[:, 6] = 0.5 * (-x * p - yq * q - z * r)
+    out[:, 7] = 0.5 * (w * p + yq * r - z * q)
+    out[:, 8] = 0.5 * (w * q + z * p - x * r)
+    out[:, 9] = 0.5 * (w * r + x * q - yq * p)
+    out[:, 10] = (L * U[:, 1] - (IZ - IY) * q * r) / IX
+    out[:, 11] = (L * U[:, 2] - (IX - IZ) * r * p) / IY
+    out[:, 12] = (L * U[:, 3] - (IY - IX) * p * q) / IZ
+    return out
 
 
 def eq1(x: np.ndarray, U: np.ndarray, Ix=IX, Iy=IY, Iz=IZ) -> np.ndarray:
@@ -317,7 +333,7 @@ def test_drag_decay(v0):
     # margin, while a wrong coefficient (Kz for Kx: 14 % of the loss), drag applied twice or not at
     # all (the loss is 5.6-6.4 % of v0 here) fails by orders of magnitude.
     np.testing.assert_allclose(sim.vel[0], v_exp, rtol=1e-5, atol=1e-12)
-    np.testing.assert_allclose(sim.pos[0], p_exp, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(sim.pos[0] - p0, p_exp - p0, rtol=1e-5, atol=1e-12)   # measured 8e-7
     moving = v0 != 0
     lost = 1.0 - sim.vel[0][moving] / v0[moving]
     assert np.all(lost > 0.05)                             # the decay itself is measurable
@@ -371,6 +387,17 @@ def _geometric_controller(p, v, q, w, target, yaw_t):
 
 
 def test_mujoco_matches_newton_euler_reference():
+    """10 s of random flight (three drones, seeded): MuJoCo at the product defaults against an
+    independent quaternion Newton–Euler integration (RK4 at 0.5 ms, continuous drag −K·v).
+
+    The inputs are zero-order held for 10 ms: a test controller keeps the drones in an envelope
+    (waypoints within ±3 m, random headings, tilts up to ~45°), random thrust/torque noise and a
+    random wind force are added; the reference replays exactly the U that MuJoCo received (after
+    rotor saturation). What remains is the product's drag, held over each 5-ms physics step
+    (SPEC §1): it lags by h/2, a relative error ≈ h·K/(2m) ≈ 3e-5 of the distance flown
+    (measured 0.17 mm here; with the drag held the same way in the reference the two agree to
+    2 µm and 1e-6°). Tolerances as asked: 1 mm, 0.1°.
+    """
     n = 3
     home = np.array([[0.0, 0.0, 5.0], [30.0, 0.0, 5.0], [0.0, 30.0, 5.0]])
     sim = Sim(build_world(n, positions=home))              # product defaults: RK4, 5 ms, drag via xfrc
@@ -415,7 +442,7 @@ def _small_angle_controller(pos, vel, ang, dang, target, noise):
     a = -1.5 * (pos - target) - 2.0 * vel
     phi, th, psi = ang.T
     U1 = M * (G + a[:, 2]) / (np.cos(phi) * np.cos(th))
-    lim = np.radians(6.0)
+    lim = np.radians(5.0)
     th_d = np.clip((a[:, 0] * np.cos(psi) + a[:, 1] * np.sin(psi)) / G, -lim, lim)
     phi_d = np.clip((a[:, 0] * np.sin(psi) - a[:, 1] * np.cos(psi)) / G, -lim, lim)
     err = ang - np.column_stack([phi_d, th_d, np.zeros_like(psi)])
@@ -436,14 +463,20 @@ def _mujoco_to_eq1_state(sim):
 
 def test_mujoco_matches_eq1_near_hover():
     """MuJoCo and eq. (1), each in closed loop with the same test controller and the same random
-    setpoints and random input perturbations, near hover (|angles| ≲ 6°).
+    setpoints and random input perturbations, near hover (commanded |roll|, |pitch| <= 5°).
 
-    Eq. (1) is the Newton–Euler model with Euler-angle rates in place of body rates: the two
-    differ by terms of the size (angle × rate), second order near hover. Open loop the attitude
-    is a double integrator and such a difference grows without bound, so the comparison is
-    made in closed loop (as eq. (1) is used in the paper). Tolerance (measured with this seed:
-    ~0.2 mm, ~0.005°): 2 mm and 0.05°. The same comparison against eq. (1) with Ix, Iy 10 % off
-    gives several times more, so the tolerance can tell a wrong model apart.
+    Why closed loop: eq. (1) is the Newton–Euler model with Euler-angle rates in place of body
+    rates. Open loop the attitude is a double integrator, so any difference between the two grows
+    without bound; the paper uses eq. (1) under feedback, and so does this test.
+
+    Why these tolerances: the kinematic difference is (rate × angle): ψ̇ − r ≈ q·φ, φ̇ − p ≈ r·θ,
+    θ̇ − q ≈ −r·φ. Roll and pitch are held by the feedback, so their difference stays small
+    (measured 0.03°; tolerance 0.1°). Yaw integrates q·φ ≈ θ̇·φ, an area in the (φ, θ) plane:
+    second order, of the size tilt² (measured 0.14° at 5.5° tilt, where tilt² = 0.53°; tolerance
+    tilt²). A roll/pitch difference δ tilts the thrust: a horizontal acceleration g·δ that the
+    position loop (ω ≈ 1 rad/s) turns into ≈ g·δ/ω² ≈ 5 mm at δ = 0.03° worst case (measured
+    1.7 mm; tolerance 3 mm). The same run against eq. (1) with Ix, Iy 10 % too large gives
+    6–10 mm and 0.16–0.25°, outside these tolerances: the comparison can see a wrong model.
     """
     n = 2
     home = np.array([[0.0, 0.0, 3.0], [5.0, 0.0, 3.0]])
@@ -454,36 +487,38 @@ def test_mujoco_matches_eq1_near_hover():
     x[:, 6], x[:, 8], x[:, 10] = np.tile(home[:, 0], 2), np.tile(home[:, 1], 2), np.tile(home[:, 2], 2)
     Ix = np.array([IX] * n + [1.1 * IX] * n)
     Iy = np.array([IY] * n + [1.1 * IY] * n)
-    h_ref, sub = 0.0005, 20
-    max_dp = max_dang = max_ang = 0.0
-    max_dp_off = 0.0
+    h_ref, sub = 0.0005, 20                                # eq. (1) by RK4 at 0.5 ms
+    err_p = np.zeros(2 * n)                                # max |Δposition| (m), nominal then 10 % off
+    err_a = np.zeros((2 * n, 3))                           # max |Δ(φ, θ, ψ)| (rad)
+    tilt = 0.0
     target = home.copy()
-    for k in range(1000):                                  # 10 s
+    for k in range(1000):                                  # 10 s, zero-order hold at 10 ms
         if k % 100 == 0:
             target = home + rng.uniform(-1.0, 1.0, size=(n, 3))
         noise = np.column_stack([rng.normal(0, 0.2, n), rng.normal(0, 0.02, (n, 3))])
         ang, dang = _mujoco_to_eq1_state(sim)
-        U = _small_angle_controller(sim.pos, sim.vel, ang, dang, target, noise)
-        sim.step(U)
+        sim.step(_small_angle_controller(sim.pos, sim.vel, ang, dang, target, noise))
         Ue = _small_angle_controller(x[:, 6:12:2], x[:, 7:12:2], x[:, 0:6:2], x[:, 1:6:2],
                                      np.tile(target, (2, 1)), np.tile(noise, (2, 1)))
-        Ue = mixing_saturate_independent(Ue)
+        Ue = mixing_saturate_independent(Ue)               # the same rotor limits as the product
         for _ in range(sub):
             x = rk4(eq1, x, h_ref, Ue, Ix, Iy, IZ)
         ang, _ = _mujoco_to_eq1_state(sim)
-        dp = np.abs(sim.pos - x[:n, 6:12:2]).max()
-        max_dp = max(max_dp, dp)
-        max_dp_off = max(max_dp_off, np.abs(sim.pos - x[n:, 6:12:2]).max())
-        dang_err = np.abs((ang - x[:n, 0:6:2] + np.pi) % (2 * np.pi) - np.pi).max()
-        max_dang = max(max_dang, dang_err)
-        max_ang = max(max_ang, np.abs(ang[:, :2]).max())
+        ang2 = np.tile(ang, (2, 1))
+        err_p = np.maximum(err_p, np.abs(np.tile(sim.pos, (2, 1)) - x[:, 6:12:2]).max(axis=1))
+        err_a = np.maximum(err_a, np.abs((ang2 - x[:, 0:6:2] + np.pi) % (2 * np.pi) - np.pi))
+        tilt = max(tilt, np.abs(ang[:, :2]).max())
     sim.check()
-    print(f"\neq. (1): max |dp| {max_dp * 1e3:.4f} mm, max angle error {np.degrees(max_dang):.2e} deg, "
-          f"max |roll|,|pitch| {np.degrees(max_ang):.2f} deg; with Ix, Iy +10 %: {max_dp_off * 1e3:.3f} mm")
-    assert np.degrees(max_ang) > 2.0                       # the flight is not trivial
-    assert max_dp < 2e-3, f"position error {max_dp:.3e} m"
-    assert np.degrees(max_dang) < 0.05, f"angle error {np.degrees(max_dang):.3e} deg"
-    assert max_dp_off > 2.0 * 2e-3                         # the comparison can see a wrong model
+    ep, ea = err_p[:n].max(), np.degrees(err_a[:n].max(axis=0))
+    ep_off, ea_off = err_p[n:].max(), np.degrees(err_a[n:, :2].max())
+    print(f"\neq. (1): max |dp| {ep * 1e3:.3f} mm, max |d roll|, |d pitch|, |d yaw| "
+          f"{ea[0]:.4f}, {ea[1]:.4f}, {ea[2]:.4f} deg at max tilt {np.degrees(tilt):.2f} deg; "
+          f"eq. (1) with Ix, Iy +10 %: {ep_off * 1e3:.2f} mm, {ea_off:.3f} deg")
+    assert np.degrees(tilt) > 3.0                          # the flight is not trivial
+    assert ep < 3e-3, f"position error {ep:.3e} m"
+    assert max(ea[0], ea[1]) < 0.1, f"roll/pitch error {ea[:2]} deg"
+    assert ea[2] < np.degrees(tilt**2), f"yaw error {ea[2]:.3e} deg > tilt² {np.degrees(tilt**2):.3f} deg"
+    assert ep_off > 3e-3 and ea_off > 0.1                  # ... and a 10 % inertia error is caught
 
 
 def mixing_saturate_independent(U: np.ndarray) -> np.ndarray:

@@ -36,7 +36,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..params import DEFAULT_PARAMS, QuadParams
-from ..state import wrap_angle
+from .._jit import jit
 
 #: Paper Table 4: α1..α12 (roll, pitch, yaw, x, y, z pairs).
 TABLE4_GAINS = np.array([4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141,
@@ -95,7 +95,11 @@ class Backstepping:
         # Column layout (n, 3): attitude (φ, θ, ψ) and position (x, y, z).
         self._a_att, self._b_att = g[:, [0, 2, 4]].copy(), g[:, [1, 3, 5]].copy()
         self._a_pos, self._b_pos = g[:, [6, 8, 10]].copy(), g[:, [7, 9, 11]].copy()
-        self._a2_att, self._a2_pos = self._a_att ** 2, self._a_pos ** 2
+        # v = ẍ_d + (1 − a²)·e1 + (a + b)·e2 is the common part written with fewer operations
+        self._c1_att, self._c2_att = 1.0 - self._a_att ** 2, self._a_att + self._b_att
+        self._c1_pos, self._c2_pos = 1.0 - self._a_pos ** 2, self._a_pos + self._b_pos
+        self._zeros3 = np.zeros((n, 3))
+        self._zeros1 = np.zeros(n)
         p = params
         self._inertia = np.array([p.Ix, p.Iy, p.Iz])
         # Coriolis coefficients of eqs. (17), (19), (20).
@@ -112,82 +116,113 @@ class Backstepping:
 
     def compute(self, rpy: np.ndarray, rpy_rate: np.ndarray, pos: np.ndarray, vel: np.ndarray,
                 pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray,
-                yaw_d: np.ndarray, yaw_rate_d: np.ndarray | float = 0.0, yaw_acc_d: np.ndarray | float = 0.0,
+                yaw_d: np.ndarray | float, yaw_rate_d: np.ndarray | float = 0.0,
+                yaw_acc_d: np.ndarray | float = 0.0,
                 wind_force: np.ndarray | None = None, omega_body: np.ndarray | None = None) -> np.ndarray:
-        """U1..U4 (n, 4) for all drones.
+        """U1..U4 (n, 4) for all drones (eqs. 17–24).
 
         rpy, rpy_rate: (n, 3) Euler angles (φ, θ, ψ) and their rates; pos, vel: (n, 3) world;
-        pos_d, vel_d, acc_d: (n, 3) reference; yaw_d (n,) or scalar; wind_force: (n, 3) or (3,) known F^w.
+        pos_d, vel_d, acc_d: (n, 3) reference; yaw_d, yaw_rate_d, yaw_acc_d: (n,) or scalars;
+        wind_force: (n, 3) or (3,) known F^w (used when ``wind_feedforward``); omega_body: (n, 3)
+        body rates (needed by ``attitude_map="exact"``; without it the paper's map is used).
         """
+        n = self.n
+        yaw = _per_drone(yaw_d, n)
+        yaw_rate = self._zeros1 if isinstance(yaw_rate_d, float) and yaw_rate_d == 0.0 else _per_drone(yaw_rate_d, n)
+        yaw_acc = self._zeros1 if isinstance(yaw_acc_d, float) and yaw_acc_d == 0.0 else _per_drone(yaw_acc_d, n)
+        use_wind = self.wind_feedforward and wind_force is not None
+        wind = _per_drone3(wind_force, n) if use_wind else self._zeros3
+        exact = self.attitude_map == "exact" and omega_body is not None
+        omega = omega_body if exact else self._zeros3
+        first = self._prev_att_d is None
+        if first:
+            self._prev_att_d = np.zeros((n, 2))
         p = self.params
-        # ---- position loop (x, y, z): eqs. (18), (23), (24)
-        e1 = pos_d - pos
-        e2 = vel_d + self._a_pos * e1 - vel
-        v = acc_d + e1 + self._a_pos * e2 - self._a2_pos * e1 + self._b_pos * e2
-        v += self._drag_over_m * vel
-        if self.wind_feedforward and wind_force is not None:
-            v -= wind_force / p.m
-        cphi, ctheta = np.cos(rpy[:, 0]), np.cos(rpy[:, 1])
-        U1 = p.m * (v[:, 2] + p.g) / (cphi * ctheta)
-        np.maximum(U1, U1_FLOOR, out=U1)
-        k = p.m / U1
-        Ux, Uy = k * v[:, 0], k * v[:, 1]
-        # ---- attitude correction: eqs. (21), (22)
-        psi_d = np.broadcast_to(yaw_d, (self.n,))
-        s, c = np.sin(psi_d), np.cos(psi_d)
-        phi_d = np.arcsin(np.clip(Ux * s - Uy * c, -1.0, 1.0))
-        np.clip(phi_d, -MAX_TILT, MAX_TILT, out=phi_d)
-        theta_d = np.arcsin(np.clip((Ux * c + Uy * s) / np.cos(phi_d), -1.0, 1.0))
-        np.clip(theta_d, -MAX_TILT, MAX_TILT, out=theta_d)
-        att_d = self.att_d
-        att_d[:, 0], att_d[:, 1], att_d[:, 2] = phi_d, theta_d, psi_d
-        # desired attitude derivatives (SPEC §2): finite difference over T for φ_d, θ_d
-        att_rate_d = np.empty((self.n, 3))
-        if self._prev_att_d is None:
-            att_rate_d[:, :2] = 0.0
-            self._prev_att_d = att_d[:, :2].copy()
-        else:
-            np.subtract(att_d[:, :2], self._prev_att_d, out=att_rate_d[:, :2])
-            att_rate_d[:, :2] /= self.T
-            self._prev_att_d[:] = att_d[:, :2]
-        att_rate_d[:, 2] = yaw_rate_d
-        # ---- attitude loop (φ, θ, ψ): eqs. (17), (19), (20)
-        ea1 = att_d - rpy
-        ea1[:, 2] = wrap_angle(ea1[:, 2])
-        ea2 = att_rate_d + self._a_att * ea1 - rpy_rate
-        va = ea1 + self._a_att * ea2 - self._a2_att * ea1 + self._b_att * ea2
-        va[:, 2] += yaw_acc_d
-        U = np.empty((self.n, 4))
-        U[:, 0] = U1
-        if self.attitude_map == "paper" or omega_body is None:
-            # eq. (1): Euler-angle accelerations = L/I·U minus the Coriolis terms (θ̇ψ̇, φ̇ψ̇, φ̇θ̇)
-            r = rpy_rate
-            va[:, 0] -= self._cor[0] * r[:, 1] * r[:, 2]
-            va[:, 1] -= self._cor[1] * r[:, 0] * r[:, 2]
-            va[:, 2] -= self._cor[2] * r[:, 0] * r[:, 1]
-            np.multiply(va, self._torque_scale, out=U[:, 1:4])
-        else:
-            U[:, 1:4] = self._exact_torque(rpy, rpy_rate, omega_body, va)
+        U = _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw, yaw_rate, yaw_acc,
+                                 wind, use_wind, self._a_pos, self._c1_pos, self._c2_pos, self._a_att,
+                                 self._c1_att, self._c2_att, self._drag_over_m, p.m, p.g, self._inertia,
+                                 self._torque_scale, self._cor, p.L, self.T, self._prev_att_d, first, exact,
+                                 self.att_d)
+        self.U = U
         return U
 
-    def _exact_torque(self, rpy: np.ndarray, rpy_rate: np.ndarray, omega: np.ndarray,
-                      eta_dd: np.ndarray) -> np.ndarray:
-        """Body torques / L (n, 3) that give the Euler-angle accelerations ``eta_dd`` on the rigid body.
 
-        Eq. (1) treats (φ̈, θ̈, ψ̈) as (L/I)·U minus approximate Coriolis terms, which holds
-        near hover only. MuJoCo integrates the exact Newton–Euler equations, so here the
-        commanded Euler accelerations are mapped exactly: ω = W⁻¹η̇, ω̇ = W⁻¹η̈ + (dW⁻¹/dt)η̇,
-        τ = I·ω̇ + ω × (I·ω), U = τ / L. Near hover this equals the paper's map.
-        """
-        sphi, cphi = np.sin(rpy[:, 0]), np.cos(rpy[:, 0])
-        sth, cth = np.sin(rpy[:, 1]), np.cos(rpy[:, 1])
-        pd, td, yd = rpy_rate[:, 0], rpy_rate[:, 1], rpy_rate[:, 2]
-        a, b, c = eta_dd[:, 0], eta_dd[:, 1], eta_dd[:, 2]
-        wd = np.empty_like(eta_dd)
-        wd[:, 0] = a - sth * c - cth * td * yd
-        wd[:, 1] = cphi * b + sphi * cth * c - sphi * pd * td + (cphi * cth * pd - sphi * sth * td) * yd
-        wd[:, 2] = -sphi * b + cphi * cth * c - cphi * pd * td - (sphi * cth * pd + cphi * sth * td) * yd
-        I = self._inertia
-        Iw = omega * I
-        tau = wd * I + np.cross(omega, Iw)
-        return tau / self.params.L
+def _per_drone(v, n: int) -> np.ndarray:
+    if isinstance(v, np.ndarray) and v.shape == (n,) and v.dtype == np.float64:
+        return v
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (n,)))
+
+
+def _per_drone3(v, n: int) -> np.ndarray:
+    if isinstance(v, np.ndarray) and v.shape == (n, 3) and v.dtype == np.float64:
+        return v
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (n, 3)))
+
+
+@jit
+def _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw_d, yaw_rate_d, yaw_acc_d,
+                         wind, use_wind, a_pos, c1_pos, c2_pos, a_att, c1_att, c2_att, drag_over_m, m, g,
+                         inertia, torque_scale, cor, L, T, prev_att_d, first, exact, att_d):
+    """Eqs. (17)–(24) for n drones; see the module docstring. Writes att_d (n, 3), updates prev_att_d."""
+    n = rpy.shape[0]
+    # ---- position loop (x, y, z): v = ẍ_d + (1 − a²)e1 + (a + b)e2, e2 = ẋ_d + a·e1 − ẋ
+    e1 = pos_d - pos
+    e2 = vel_d - vel + a_pos * e1
+    v = acc_d + c1_pos * e1 + c2_pos * e2 + drag_over_m * vel
+    if use_wind:
+        v = v - wind / m
+    cphi = np.cos(rpy[:, 0])
+    ctheta = np.cos(rpy[:, 1])
+    U = np.empty((n, 4))
+    U1 = np.maximum(m * (v[:, 2] + g) / (cphi * ctheta), U1_FLOOR)            # eq. (18)
+    U[:, 0] = U1
+    k = m / U1
+    Ux = k * v[:, 0]                                                            # eq. (23)
+    Uy = k * v[:, 1]                                                            # eq. (24)
+    # ---- attitude correction: eqs. (21), (22), clipped (SPEC §2)
+    s = np.sin(yaw_d)
+    c = np.cos(yaw_d)
+    phi_d = np.arcsin(np.minimum(np.maximum(Ux * s - Uy * c, -1.0), 1.0))
+    phi_d = np.minimum(np.maximum(phi_d, -MAX_TILT), MAX_TILT)
+    theta_d = np.arcsin(np.minimum(np.maximum((Ux * c + Uy * s) / np.cos(phi_d), -1.0), 1.0))
+    theta_d = np.minimum(np.maximum(theta_d, -MAX_TILT), MAX_TILT)
+    att_d[:, 0] = phi_d
+    att_d[:, 1] = theta_d
+    att_d[:, 2] = yaw_d
+    # desired attitude derivatives (SPEC §2): finite difference of φ_d, θ_d over T
+    rate_d = np.empty((n, 3))
+    if first:
+        rate_d[:, 0] = 0.0
+        rate_d[:, 1] = 0.0
+    else:
+        rate_d[:, 0] = (phi_d - prev_att_d[:, 0]) / T
+        rate_d[:, 1] = (theta_d - prev_att_d[:, 1]) / T
+    prev_att_d[:, 0] = phi_d
+    prev_att_d[:, 1] = theta_d
+    rate_d[:, 2] = yaw_rate_d
+    # ---- attitude loop (φ, θ, ψ): eqs. (17), (19), (20)
+    ea1 = att_d - rpy
+    ea1[:, 2] = (ea1[:, 2] + np.pi) % (2.0 * np.pi) - np.pi
+    ea2 = rate_d - rpy_rate + a_att * ea1
+    va = c1_att * ea1 + c2_att * ea2
+    va[:, 2] += yaw_acc_d
+    pd, td, yd = rpy_rate[:, 0], rpy_rate[:, 1], rpy_rate[:, 2]
+    if not exact:
+        # eq. (1): Euler accelerations = (L/I)·U minus the Coriolis terms (θ̇ψ̇, φ̇ψ̇, φ̇θ̇)
+        U[:, 1] = torque_scale[0] * (va[:, 0] - cor[0] * td * yd)
+        U[:, 2] = torque_scale[1] * (va[:, 1] - cor[1] * pd * yd)
+        U[:, 3] = torque_scale[2] * (va[:, 2] - cor[2] * pd * td)
+        return U
+    # exact map on the rigid body (see Backstepping): ω̇ = W⁻¹η̈ + (dW⁻¹/dt)η̇, τ = Iω̇ + ω × Iω
+    sphi = np.sin(rpy[:, 0])
+    sth = np.sin(rpy[:, 1])
+    a, b, cc = va[:, 0], va[:, 1], va[:, 2]
+    w0 = a - sth * cc - ctheta * td * yd
+    w1 = cphi * b + sphi * ctheta * cc - sphi * pd * td + (cphi * ctheta * pd - sphi * sth * td) * yd
+    w2 = -sphi * b + cphi * ctheta * cc - cphi * pd * td - (sphi * ctheta * pd + cphi * sth * td) * yd
+    p, q, r = omega[:, 0], omega[:, 1], omega[:, 2]
+    Ix, Iy, Iz = inertia[0], inertia[1], inertia[2]
+    U[:, 1] = (Ix * w0 + (Iz - Iy) * q * r) / L
+    U[:, 2] = (Iy * w1 + (Ix - Iz) * p * r) / L
+    U[:, 3] = (Iz * w2 + (Iy - Ix) * p * q) / L
+    return U

@@ -1,0 +1,116 @@
+"""Per-step kernels of the environment loop, compiled by Numba when available (see ``_jit``).
+
+Each is a pure function on (n_drones, ...) arrays, written so that the same source runs
+as plain numpy.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._jit import jit
+from .state import _body_rates_to_euler_rates, _quat_to_euler
+
+
+@jit
+def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
+    """From the free-joint state qpos (n, 7), qvel (n, 6): pos, vel, quat, body rates (copies),
+    Euler angles and rates (n, 3), neighbours (n, n, 3) = p_j − p_i within ``sensing_range``
+    (zero elsewhere), the mask (n, n) and the 3D distances (n, n) (+inf on the diagonal)."""
+    n = qpos.shape[0]
+    pos = qpos[:, 0:3].copy()
+    quat = qpos[:, 3:7].copy()
+    vel = qvel[:, 0:3].copy()
+    omega = qvel[:, 3:6].copy()
+    rpy = _quat_to_euler(quat)
+    rpy_rate = _body_rates_to_euler_rates(rpy, omega)
+    rel = np.zeros((n, n, 3))
+    mask = np.zeros((n, n))
+    dist = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            dz = pos[j, 2] - pos[i, 2]
+            d = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if i == j:
+                dist[i, j] = np.inf
+                continue
+            dist[i, j] = d
+            if d < sensing_range:
+                mask[i, j] = 1.0
+                rel[i, j, 0] = dx
+                rel[i, j, 1] = dy
+                rel[i, j, 2] = dz
+    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist
+
+
+@jit
+def horizontal_distances(pos: np.ndarray) -> np.ndarray:
+    """Pairwise horizontal distances (n, n) of positions (n, 3), +inf on the diagonal."""
+    n = pos.shape[0]
+    h = np.empty((n, n))
+    for i in range(n):
+        h[i, i] = np.inf
+        for j in range(i + 1, n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            d = np.sqrt(dx * dx + dy * dy)
+            h[i, j] = d
+            h[j, i] = d
+    return h
+
+
+@jit
+def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, close: float) -> tuple[float, int]:
+    """Mean follower distance to its slot and the number of pairs closer than ``close`` (3D)."""
+    n = pos.shape[0]
+    err = 0.0
+    for i in range(1, n):
+        dx = pos[i, 0] - setpoint[i, 0]
+        dy = pos[i, 1] - setpoint[i, 1]
+        dz = pos[i, 2] - setpoint[i, 2]
+        err += np.sqrt(dx * dx + dy * dy + dz * dz)
+    pairs = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if dist[i, j] < close:
+                pairs += 1
+    return err / max(n - 1, 1), pairs
+
+
+@jit
+def saturate_kernel(U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float,
+                    U_out: np.ndarray, F_out: np.ndarray) -> None:
+    """Rotor mixing with per-rotor clipping (eqs. 26–29, SPEC §1): F = clip(U·UNMIXᵀ), U_out = F·MIXᵀ."""
+    n = U.shape[0]
+    for i in range(n):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = min(max(f, f_min), f_max)
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += F_out[i, c] * mix_t[c, r]
+            U_out[i, r] = u
+
+
+@jit
+def state_ok(qpos: np.ndarray, qvel: np.ndarray, floor_z: float, max_distance: float) -> int:
+    """0 if the state is sane, 1 if non-finite, 2 if a drone is below ``floor_z``, 3 if too far."""
+    n = qpos.shape[0]
+    for i in range(n):
+        for c in range(7):
+            if not np.isfinite(qpos[i, c]):
+                return 1
+        for c in range(6):
+            if not np.isfinite(qvel[i, c]):
+                return 1
+        if qpos[i, 2] < floor_z:
+            return 2
+        for c in range(3):
+            if abs(qpos[i, c]) > max_distance:
+                return 3
+    return 0
