@@ -52,6 +52,9 @@ def format_summary(summary: dict, scenario) -> str:
                 lines.append(f"{'paper (Table 5)':<16} {paper['x']:>9.4f} {paper['y']:>9.4f} {'':>9} "
                              f"{paper['roll_deg']:>10.4f} {paper['pitch_deg']:>10.4f}   "
                              f"({traj}, {'with' if s.get('wind') else 'without'} wind)")
+                if s.get("wind") and not s.get("wind_feedforward", True):
+                    lines.append("  (ours with the wind feedforward OFF: the controller does not know the wind; "
+                                 "the paper's figures use it, so these are reported only)")
                 lines.append("  (whole-run RMSE is dominated by the flight from the start onto the path; "
                              "'>10s' is from t = 10 s on, SPEC §7)")
     if s["n_drones"] > 1:

@@ -160,6 +160,9 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
         bar.close()
     wall = _time.perf_counter() - wall0
     n_samples = k + 1 if error is None else k
+    if error is None and k > 0:
+        # the last sample has no following period: hold the last inputs (zero-order hold)
+        log.U[k], log.rotor[k], log.wind_force[k] = log.U[k - 1], log.rotor[k - 1], log.wind_force[k - 1]
     log = log.truncated(max(n_samples, 1))
     summary = summarize(sc, log, env, policy, wall)
     if error is not None:

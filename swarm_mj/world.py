@@ -13,9 +13,24 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+import os
+
 import mujoco
 import numpy as np
-from dm_control import mjcf
+
+# dm_control is used only for PyMJCF. Its renderer module opens an EGL display when it is
+# imported with MUJOCO_GL=egl and raises ImportError where EGL is missing, which would make
+# the whole package unusable (and opens a second EGL display for nothing). MuJoCo has
+# already read MUJOCO_GL above; import dm_control with its rendering disabled.
+_mujoco_gl = os.environ.get("MUJOCO_GL")
+os.environ["MUJOCO_GL"] = "disable"
+try:
+    from dm_control import mjcf
+finally:
+    if _mujoco_gl is None:
+        del os.environ["MUJOCO_GL"]
+    else:
+        os.environ["MUJOCO_GL"] = _mujoco_gl
 
 from .errors import UserError
 from .params import DEFAULT_PARAMS, QuadParams

@@ -1,5 +1,11 @@
-"""Gain tuning: a general Flower Pollination Algorithm optimiser (SPEC §6)."""
+"""Gain tuning (SPEC §6): a general Flower Pollination Algorithm optimiser and the ISE cost
+of eq. (25) over the step manoeuvre, evaluated for a whole population in batched MuJoCo
+models, in-process, over local worker processes or over a Ray cluster."""
 
+from .cost import (BatchEvaluator, StepCostSettings, TuneOptions, TuneOutcome, evaluate_batch,
+                   make_population_cost, step_ise, table4_ise, tune_gains)
 from .fpa import FPAResult, fpa, levy_steps, random_search
 
-__all__ = ["FPAResult", "fpa", "levy_steps", "random_search"]
+__all__ = ["FPAResult", "fpa", "levy_steps", "random_search",
+           "BatchEvaluator", "StepCostSettings", "TuneOptions", "TuneOutcome", "evaluate_batch",
+           "make_population_cost", "step_ise", "table4_ise", "tune_gains"]

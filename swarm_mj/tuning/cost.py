@@ -41,10 +41,11 @@ import math
 import multiprocessing as mp
 import os
 import signal
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
 
+import mujoco
 import numpy as np
 
 from ..control.backstepping import TABLE4_GAINS, Backstepping
@@ -54,9 +55,13 @@ from ..params import DEFAULT_PARAMS, QuadParams
 from ..sim import Sim
 from ..state import body_rates_to_euler_rates, quat_to_euler, wrap_angle
 from ..world import INTEGRATORS, build_world
+from .fpa import FPAResult, fpa
 
 __all__ = [
     "StepCostSettings",
+    "TuneOptions",
+    "TuneOutcome",
+    "tune_gains",
     "BatchEvaluator",
     "PopulationCost",
     "InProcessCost",
@@ -129,33 +134,110 @@ class StepCostSettings:
 # --------------------------------------------------------------------------- one batched model
 
 
+#: Copies per MuJoCo model. MuJoCo's site transmission (the motors carrying U1..U4 on the
+#: site "com") builds a dense 3×nv Jacobian per actuator and forward pass, i.e. O(m²) work
+#: for m copies in one model (measured: ``mj_transmission`` 4 µs at 10 copies, 156 µs at 50).
+#: A batch is therefore flown as blocks of at most this many copies, each its own model and
+#: ``Sim``, all driven by ONE vectorised controller call; with the torque motors moved to
+#: joint transmissions (:func:`joint_torque_transmission`) 15–25 copies per model was
+#: the cheapest per drone-step on the development machine.
+DEFAULT_BLOCK = 20
+
+
+def joint_torque_transmission(model: mujoco.MjModel) -> int:
+    """Move the pure-torque site motors (U2..U4) onto the drone's free joint; returns how many.
+
+    A site motor with gear (0, 0, 0, τx, τy, τz) applies the torque L·U about the site's axes;
+    a joint motor on a free joint with the same gear applies it about the joint body's axes
+    (MuJoCo's free-joint rotational dofs are in the local frame). When the site's frame is the
+    free body's frame (checked; otherwise the motor is left as it is) the two are the same
+    wrench, computed in O(1) instead of through a 3×nv Jacobian: the trajectories agree to
+    rounding (relative 1e-15 on the step; tested against ``runner.run``). U1 (thrust along body
+    z) stays a site motor: a free joint's translational dofs are in the world frame.
+    """
+    changed = 0
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    data.qpos[:] = model.qpos0
+    for j in range(model.njnt):           # a generic attitude, to compare frames
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
+            q = rng.normal(size=4)
+            data.qpos[model.jnt_qposadr[j] + 3:model.jnt_qposadr[j] + 7] = q / np.linalg.norm(q)
+    mujoco.mj_kinematics(model, data)
+    for a in range(model.nu):
+        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_SITE or model.actuator_trnid[a, 1] >= 0:
+            continue
+        gear = model.actuator_gear[a]
+        if np.any(gear[0:3] != 0.0):
+            continue                      # a force: needs the site (world-frame translation dofs)
+        site = model.actuator_trnid[a, 0]
+        body = model.site_bodyid[site]
+        while body > 0 and not (model.body_jntnum[body] == 1
+                                and model.jnt_type[model.body_jntadr[body]] == mujoco.mjtJoint.mjJNT_FREE):
+            if model.body_jntnum[body] != 0:
+                body = 0
+                break
+            body = model.body_parentid[body]
+        if body <= 0:
+            continue
+        if not np.array_equal(data.site_xmat[site], data.xmat[body]):
+            continue                      # the site is rotated relative to the free body
+        model.actuator_trntype[a] = mujoco.mjtTrn.mjTRN_JOINT
+        model.actuator_trnid[a] = (model.body_jntadr[body], -1)
+        changed += 1
+    return changed
+
+
 class BatchEvaluator:
-    """m independent copies of one drone in ONE MuJoCo model, flying the step together.
+    """m independent copies of one drone flying the step together, in blocks of ONE model each.
 
     ``evaluate(gains (m, 12)) -> (m,)`` ISE of eq. (25), ``inf`` for a diverged copy.
-    The model is built once and reused (``Sim.reset`` between batches).
+    The models are built once and reused (``Sim.reset`` between batches). ``block`` copies
+    at most per model (see :data:`DEFAULT_BLOCK`); ``block >= m`` gives one model for all.
     """
 
-    def __init__(self, m: int, settings: StepCostSettings = StepCostSettings()) -> None:
+    def __init__(self, m: int, settings: StepCostSettings = StepCostSettings(), *,
+                 block: int = DEFAULT_BLOCK) -> None:
         if not isinstance(m, (int, np.integer)) or m < 1:
             raise UserError(f"batch size must be an integer >= 1, got {m!r}")
+        if not isinstance(block, (int, np.integer)) or block < 1:
+            raise UserError(f"block must be an integer >= 1, got {block!r}")
         s = settings
         self.m = int(m)
         self.settings = s
-        starts = np.tile(np.asarray(s.start, float), (self.m, 1))          # (m, 3) all at the same point
-        # collisions=False: contacts are off, so the overlapping copies never touch.
-        self.world = build_world(self.m, positions=starts, collisions=False, floor=False, params=s.params,
-                                 timestep=s.timestep, integrator=s.integrator)
-        self.sim = Sim(self.world, s.control_period, floor_z=s.floor_z, max_distance=s.max_distance)
+        n_blocks = -(-self.m // int(block))
+        sizes = [len(c) for c in np.array_split(np.arange(self.m), n_blocks)]
+        bounds = np.cumsum([0] + sizes)
+        self.slices = [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+        worlds = {}
+        self.sims: list[Sim] = []
+        for b in sizes:
+            if b not in worlds:
+                starts = np.tile(np.asarray(s.start, float), (b, 1))        # (b, 3) all at the same point
+                # collisions=False: contacts are off, so the overlapping copies never touch.
+                worlds[b] = build_world(b, positions=starts, collisions=False, floor=False, params=s.params,
+                                        timestep=s.timestep, integrator=s.integrator)
+                joint_torque_transmission(worlds[b].model)
+            self.sims.append(Sim(worlds[b], s.control_period, floor_z=s.floor_z, max_distance=s.max_distance))
         self.K = s.n_samples
         self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))   # (m, 3) step set-point
         self._zero3 = np.zeros((self.m, 3))                                # (m, 3) v_d = a_d = 0
         self._yaw_d = np.full(self.m, np.deg2rad(s.yaw_deg))               # (m,)
         self._max_tilt = np.deg2rad(s.max_tilt_deg)
-        self._park_qpos = self.sim.qpos.copy()                             # (m, 7) the start, at rest
+        self._park_qpos = np.concatenate([sim.qpos for sim in self.sims])  # (m, 7) the start, at rest
+        self._qpos = np.empty((self.m, 7))                                 # (m, 7) gathered state
+        self._qvel = np.empty((self.m, 6))                                 # (m, 6)
         self._errors = np.empty((self.K, self.m, 6))                       # (K, m, 6) e_x..e_ψ
         #: (m,) control period at which each copy of the last batch diverged (-1: never).
         self.diverged_at = np.full(self.m, -1, dtype=np.int64)
+
+    def _gather(self) -> tuple[np.ndarray, np.ndarray]:
+        """Current qpos (m, 7) and qvel (m, 6) of all copies (views when there is one block)."""
+        if len(self.sims) == 1:
+            return self.sims[0].qpos, self.sims[0].qvel
+        np.concatenate([sim.qpos for sim in self.sims], out=self._qpos)
+        np.concatenate([sim.qvel for sim in self.sims], out=self._qvel)
+        return self._qpos, self._qvel
 
     def _kill(self, alive: np.ndarray, bad: np.ndarray, k: int) -> None:
         """Mark copies newly ``bad`` (m,) as diverged at control period k (``alive`` updated in place)."""
@@ -169,20 +251,22 @@ class BatchEvaluator:
         g = np.asarray(gains, dtype=float)
         if g.shape != (self.m, 12):
             raise UserError(f"gains must have shape ({self.m}, 12), got {g.shape}")
-        m, sim, s = self.m, self.sim, self.settings
+        m, s = self.m, self.settings
         alive = np.isfinite(g).all(axis=1) & (g > 0).all(axis=1)          # (m,)
         self.diverged_at[:] = -1
         self.diverged_at[~alive] = 0
         g = np.where(alive[:, None], g, TABLE4_GAINS)                     # placeholders for the dead
         ctl = Backstepping(m, g, params=s.params, control_period=s.control_period,
                            attitude_map=s.attitude_map)
-        sim.reset()
+        for sim in self.sims:
+            sim.reset()
         pos_d, zero3, yaw_d, max_tilt = self._pos_d, self._zero3, self._yaw_d, self._max_tilt
         errors = self._errors
-        qpos, qvel, pos = sim.qpos, sim.qvel, sim.pos
+        blocks = list(zip(self.sims, self.slices))
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             for k in range(self.K + 1):
-                quat, omega = sim.quat, sim.omega
+                qpos, qvel = self._gather()
+                pos, quat, vel, omega = qpos[:, 0:3], qpos[:, 3:7], qvel[:, 0:3], qvel[:, 3:6]
                 rpy = quat_to_euler(quat)                                  # (m, 3)
                 # Divergence (SPEC §6), on the state at every sample and at the end of the run.
                 bad = ~(np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
@@ -192,7 +276,7 @@ class BatchEvaluator:
                     self._kill(alive, bad, k)
                     break
                 rate = body_rates_to_euler_rates(rpy, omega)               # (m, 3)
-                U = ctl.compute(rpy, rate, pos, sim.vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
+                U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
                 bad |= ~np.isfinite(U).all(axis=1)
                 e = errors[k]                                              # (m, 6)
                 np.subtract(pos_d, pos, out=e[:, 0:3])
@@ -204,9 +288,13 @@ class BatchEvaluator:
                         break
                     dead = ~alive
                     U[dead] = 0.0                                          # no input ...
-                    qpos[dead] = self._park_qpos[dead]                     # ... parked at rest
-                    qvel[dead] = 0.0
-                sim.step(U)
+                    for sim, sl in blocks:                                 # ... parked at rest
+                        d = dead[sl]
+                        if d.any():
+                            sim.qpos[d] = self._park_qpos[sl][d]
+                            sim.qvel[d] = 0.0
+                for sim, sl in blocks:
+                    sim.step(U[sl])
         cost = ise(errors, s.control_period)                               # (m,) eq. (25)
         cost[~alive] = np.inf
         cost[~np.isfinite(cost)] = np.inf
@@ -303,6 +391,15 @@ def _worker_init() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
+def _pool_context() -> mp.context.BaseContext:
+    """``fork`` where the platform has it: the workers start at once, inherit the compiled
+    kernels, and a script calling :func:`tune_gains` needs no ``if __name__ == "__main__"``
+    guard. Each worker builds its own MuJoCo models after the fork (none is shared).
+    Elsewhere ``spawn``."""
+    methods = mp.get_all_start_methods()
+    return mp.get_context("fork" if "fork" in methods else "spawn")
+
+
 def _worker_eval(args: tuple[StepCostSettings, np.ndarray]) -> np.ndarray:
     settings, X = args
     return evaluate_batch(X, settings)
@@ -318,8 +415,7 @@ class ProcessPoolCost(_Closing):
         self.workers = default_workers() if workers is None else int(workers)
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
-        ctx = mp.get_context("spawn")    # a fresh interpreter: no inherited MuJoCo or thread state
-        self._pool = ctx.Pool(self.workers, initializer=_worker_init)
+        self._pool = _pool_context().Pool(self.workers, initializer=_worker_init)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         X = np.asarray(X, dtype=float)
@@ -430,12 +526,108 @@ def make_population_cost(settings: StepCostSettings = StepCostSettings(), *, wor
     return ProcessPoolCost(settings, w)
 
 
-# --------------------------------------------------------------------------- helpers for callers
+# --------------------------------------------------------------------------- the whole tune
 
 
-def split_sizes(m: int, parts: int) -> Sequence[int]:
-    """Sizes of the contiguous chunks a population of m is split into over ``parts`` workers."""
-    return [len(c) for c in _chunks(np.empty((m, 0)), parts)]
+@dataclass(frozen=True)
+class TuneOptions:
+    """FPA settings of a tune (paper Table 2 defaults; SPEC §6: a small positive lower bound)."""
+
+    population: int = 50
+    iterations: int = 14
+    p: float = 0.04
+    gamma: float = 0.02
+    lower: float = 0.1
+    upper: float = 12.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name, minimum in (("population", 4), ("iterations", 1)):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < minimum:
+                raise UserError(f"{name} must be an integer >= {minimum}, got {v!r}")
+        if not (_finite(self.p) and 0.0 <= self.p <= 1.0):
+            raise UserError(f"switch probability p must be in [0, 1], got {self.p!r}")
+        if not (_finite(self.gamma) and self.gamma > 0.0):
+            raise UserError(f"step size gamma must be a number > 0, got {self.gamma!r}")
+        if not (_finite(self.lower) and _finite(self.upper)):
+            raise UserError(f"bounds must be finite numbers, got lower={self.lower!r}, upper={self.upper!r}")
+        if self.lower <= 0.0:
+            raise UserError(f"lower bound must be > 0 (the gains must be positive, paper: α_s > 0), "
+                            f"got {self.lower!r}")
+        if self.lower >= self.upper:
+            raise UserError(f"bounds inverted: lower {self.lower!r} must be below upper {self.upper!r}")
+        if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
+            raise UserError(f"seed must be an integer >= 0, got {self.seed!r}")
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lower (12,), upper (12,)) box of α1..α12."""
+        return np.full(12, float(self.lower)), np.full(12, float(self.upper))
 
 
-Evaluator = Callable[[np.ndarray], np.ndarray]
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float, np.integer, np.floating)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+@dataclass(frozen=True)
+class TuneOutcome:
+    """A finished (or interrupted: ``complete`` False) tune."""
+
+    result: FPAResult | None          # None when interrupted before the first evaluation ended
+    best_x: np.ndarray                # (12,) best gains found
+    best_ise: float
+    initial_ise: float                # best ISE of the initial population
+    table4_ise: float                 # ISE of paper Table 4 gains, same cost
+    history: np.ndarray               # (iterations done + 1,) best ISE after each iteration
+    options: TuneOptions
+    settings: StepCostSettings
+    backend: str
+    workers: int
+    wall_s: float
+    complete: bool
+
+    @property
+    def improvement_pct(self) -> float:
+        """(initial − final) / initial, in % (paper Table 3: 10.7–35.5 %)."""
+        if not (math.isfinite(self.initial_ise) and self.initial_ise > 0 and math.isfinite(self.best_ise)):
+            return float("nan")
+        return 100.0 * (self.initial_ise - self.best_ise) / self.initial_ise
+
+    @property
+    def beats_table4(self) -> bool:
+        return bool(self.best_ise < self.table4_ise)
+
+
+TuneCallback = Callable[["TuneOutcome"], None]
+
+
+def tune_gains(options: TuneOptions = TuneOptions(), settings: StepCostSettings = StepCostSettings(), *,
+               workers: int | None = None, ray_address: str | None = None,
+               on_iteration: TuneCallback | None = None) -> TuneOutcome:
+    """Tune α1..α12 by FPA (paper §3.2, Fig. 3, Table 2) on the ISE of eq. (25) over the step.
+
+    ``on_iteration(outcome)`` is called after the initial population (iteration 0) and after
+    every iteration with the best so far (``complete`` False until the end) — e.g. to write
+    the gains file, so that an interruption leaves the best gains found. A Ctrl-C propagates
+    (KeyboardInterrupt) after the workers are stopped.
+    """
+    import time
+
+    t0 = time.perf_counter()
+    t4 = table4_ise(settings)      # in-process: same cost, bitwise, whatever the backend
+    with make_population_cost(settings, workers=workers, ray_address=ray_address) as cost:
+        state: dict[str, Any] = {}
+
+        def progress(iteration: int, best_x: np.ndarray, best_cost: float, history: np.ndarray) -> None:
+            out = TuneOutcome(None, best_x, float(best_cost), float(history[0]), t4, history, options,
+                              settings, cost.backend, cost.workers, time.perf_counter() - t0, False)
+            state["last"] = out
+            if on_iteration is not None:
+                on_iteration(out)
+
+        res = fpa(cost, options.bounds, population=options.population, iterations=options.iterations,
+                  p=options.p, gamma=options.gamma, seed=options.seed, callback=progress)
+        backend, n_workers = cost.backend, cost.workers
+    return TuneOutcome(res, res.best_x, float(res.best_cost), float(res.initial_best_cost), t4, res.history,
+                       options, settings, backend, n_workers, time.perf_counter() - t0, True)

@@ -1,7 +1,9 @@
 """The swarm as a ``gymnasium.Env``: a thin face over :class:`~swarm_mj.env.SwarmEnv`.
 
     from swarm_mj.wrappers.gymnasium import SwarmGymEnv
-    env = SwarmGymEnv("circle")                       # or gymnasium.make("swarm_mj/Swarm-v0", scenario="circle")
+    env = SwarmGymEnv("circle")
+    # or, registered on import of this module:
+    # gymnasium.make("swarm_mj.wrappers.gymnasium:swarm_mj/Swarm-v0", scenario="circle")
     obs, info = env.reset(seed=0)
     obs, reward, terminated, truncated, info = env.step(env.action_space.sample())
 
@@ -77,13 +79,17 @@ def fresh_observation(obs: dict) -> dict[str, np.ndarray]:
     return {key: np.array(value, dtype=np.float64) for key, value in obs.items()}
 
 
-def step_info(env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool) -> dict[str, Any]:
-    """The info dict of a step: time, contacts, separation and why an episode terminated."""
+def step_info(env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool,
+              pairs: tuple[np.ndarray, np.ndarray]) -> dict[str, Any]:
+    """The info dict of a step: time, contacts, separation and why an episode terminated.
+
+    ``pairs`` is ``np.triu_indices(n, 1)`` (precomputed: this runs every step).
+    """
     contacts = int(env.sim.contact_events)
     pos = obs["pos"]
     if env.n > 1:
-        d = np.linalg.norm(pos[:, None, :] - pos[None, :, :], axis=-1)
-        min_sep = float(d[np.triu_indices(env.n, 1)].min())
+        d = pos[pairs[0]] - pos[pairs[1]]
+        min_sep = float(np.sqrt(np.einsum("ij,ij->i", d, d).min()))
     else:
         min_sep = float("inf")
     info: dict[str, Any] = {"time": float(obs["time"]), "contacts": contacts,
@@ -124,6 +130,7 @@ class SwarmGymEnv(gymnasium.Env):
         self.action_space = action_space(self.env)
         self.wind_seed: int | None = None
         self._done = True
+        self._pairs = np.triu_indices(self.env.n, 1)
 
     @property
     def scenario(self) -> Scenario:
@@ -155,7 +162,7 @@ class SwarmGymEnv(gymnasium.Env):
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
         self._done = terminated or truncated
-        info = step_info(self.env, self._contacts, ts.observation, terminated)
+        info = step_info(self.env, self._contacts, ts.observation, terminated, self._pairs)
         self._contacts = info["contacts"]
         return self._obs(ts.observation), float(ts.reward), terminated, truncated, info
 

@@ -88,6 +88,8 @@ class SwarmParallelEnv(ParallelEnv):
         hi = np.broadcast_to(spec.maximum, spec.shape)
         self._act_spaces = {name: spaces.Box(lo[i].astype(np.float64), hi[i].astype(np.float64), dtype=np.float64)
                             for name, i in self._index.items()}
+        self._width = spec.shape[1]
+        self._pairs = np.triu_indices(env.n, 1)
         self._rng = None
         self.wind_seed: int | None = None
         self._last: dict | None = None
@@ -127,7 +129,7 @@ class SwarmParallelEnv(ParallelEnv):
         extra = [a for a in actions if a not in self._index]
         if missing or extra:
             raise UserError(f"actions needed for every live agent: missing {missing}, unknown {extra}")
-        width = self.env.action_spec().shape[1]
+        width = self._width
         U = np.empty((self.env.n, width))
         for name, i in self._index.items():
             a = np.asarray(actions[name], dtype=np.float64)
@@ -137,7 +139,7 @@ class SwarmParallelEnv(ParallelEnv):
         ts = self.env.step(U)
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
-        info = step_info(self.env, self._contacts, ts.observation, terminated)
+        info = step_info(self.env, self._contacts, ts.observation, terminated, self._pairs)
         self._contacts = info["contacts"]
         self._last = ts.observation
         agents = self.agents
@@ -158,9 +160,14 @@ class SwarmParallelEnv(ParallelEnv):
 
     # ------------------------------------------------------------------ internals
     def _split(self, obs: dict) -> dict[str, dict[str, np.ndarray]]:
+        """Agent i gets row i of a fresh copy of each per-drone array (its own memory, new every
+        step) and its own copy of the shared entries."""
+        rows = {key: np.array(obs[key], dtype=np.float64) for key in _PER_DRONE}
+        shared = {key: value for key, value in obs.items() if key not in rows}
         out = {}
         for name in self.agents:
             i = self._index[name]
-            out[name] = {key: np.array(value[i] if key in _PER_DRONE else value, dtype=np.float64)
-                         for key, value in obs.items()}
+            o = {key: np.array(value, dtype=np.float64) for key, value in shared.items()}
+            o.update({key: value[i, ...] for key, value in rows.items()})   # [i, ...]: 0-d arrays, not scalars
+            out[name] = o
         return out

@@ -1,0 +1,231 @@
+"""``swarm-mj tune``: tune the 12 backstepping gains with the Flower Pollination Algorithm.
+
+Paper §3.2, Fig. 3, Table 2 (SPEC §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
+gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (SPEC §3),
+t_sim = 10 s. Writes a gains TOML file (``gains = [α1..α12]`` plus the ISEs and the
+settings) that ``swarm-mj run step --gains FILE`` and scenario files
+(``[controller] gains = "FILE"``) read. The file is rewritten atomically after every
+iteration, so an interrupted tune leaves the best gains so far, never a half-written file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import tempfile
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+PAPER_IMPROVEMENT_PCT = (10.67, 35.45)   # paper Table 3, min and max over its runs
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser(
+        "tune", help="tune the 12 backstepping gains with the Flower Pollination Algorithm",
+        description="Tune α1..α12 with the Flower Pollination Algorithm (paper §3.2, Table 2) on the ISE "
+                    "of eq. (25) over the step (x = y = z = 1 m, ψ = 25°). Writes a gains TOML file for "
+                    "'swarm-mj run step --gains FILE'. The population is simulated in batched MuJoCo "
+                    "models, split over local worker processes (--workers) or a Ray cluster (--ray).")
+    p.add_argument("--population", type=int, default=50, help="flowers N (default 50, Table 2)")
+    p.add_argument("--iterations", type=int, default=14, help="iterations (default 14, Table 2)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    p.add_argument("--t-sim", type=float, default=10.0, help="simulated seconds of the step (default 10)")
+    p.add_argument("--p", type=float, default=0.04, help="switch probability (default 0.04, Table 2)")
+    p.add_argument("--gamma", type=float, default=0.02, help="global step size γ = c (default 0.02, Table 2)")
+    p.add_argument("--lower", type=float, default=0.1, help="lower bound of every gain (default 0.1; > 0)")
+    p.add_argument("--upper", type=float, default=12.0, help="upper bound of every gain (default 12)")
+    p.add_argument("-o", "--output", default="tuned_gains.toml", help="gains file (default tuned_gains.toml)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes (default: one per CPU; 1 = in this process); with --ray: actors "
+                        "(default: one per cluster CPU)")
+    p.add_argument("--ray", metavar="ADDRESS", default=None,
+                   help="evaluate on a Ray cluster: 'local' starts one here, 'auto' or ray://HOST:PORT "
+                        "joins one (needs: pip install 'swarm-mj[ray]')")
+    p.add_argument("--quiet", action="store_true", help="print nothing but errors")
+    p.set_defaults(func=main)
+
+
+# --------------------------------------------------------------------------- the gains file
+
+
+def _toml_value(v: Any) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        return repr(float(v))          # shortest round-trip; inf/nan are valid TOML
+    if isinstance(v, str):
+        return json.dumps(v)           # a TOML basic string
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def gains_toml(outcome, created: datetime | None = None) -> str:
+    """The gains file for a :class:`~swarm_mj.tuning.cost.TuneOutcome` (read by ``load_gains``)."""
+    from .. import __version__
+
+    o, s = outcome.options, outcome.settings
+    created = created or datetime.now(timezone.utc)
+    done = len(outcome.history) - 1
+    lines = [
+        "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
+        "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
+        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (SPEC §3, §6).",
+        "# Use: swarm-mj run step --gains FILE, or [controller] gains = \"FILE\" in a scenario.",
+        f"gains = {_toml_value([float(g) for g in outcome.best_x])}",
+        f"ise = {_toml_value(outcome.best_ise)}",
+        f"initial_ise = {_toml_value(outcome.initial_ise)}",
+        f"improvement_pct = {_toml_value(outcome.improvement_pct)}",
+        f"table4_ise = {_toml_value(outcome.table4_ise)}",
+        f"beats_table4 = {_toml_value(outcome.beats_table4)}",
+        f"seed = {_toml_value(int(o.seed))}",
+        f"iterations_done = {done}",
+        f"complete = {_toml_value(outcome.complete)}",
+        f"history = {_toml_value([float(h) for h in outcome.history])}",
+        f"wall_time_s = {_toml_value(round(outcome.wall_s, 3))}",
+        f"created = {created.isoformat(timespec='seconds')}",
+        "",
+        "[settings]",
+        f"population = {o.population}",
+        f"iterations = {o.iterations}",
+        f"p = {_toml_value(float(o.p))}",
+        f"gamma = {_toml_value(float(o.gamma))}",
+        f"lower = {_toml_value(float(o.lower))}",
+        f"upper = {_toml_value(float(o.upper))}",
+        f"t_sim = {_toml_value(float(s.t_sim))}",
+        f"control_period = {_toml_value(float(s.control_period))}",
+        f"timestep = {_toml_value(float(s.timestep))}",
+        f"integrator = {_toml_value(s.integrator)}",
+        f"target = {_toml_value(list(s.target))}",
+        f"yaw_deg = {_toml_value(float(s.yaw_deg))}",
+        f"max_tilt_deg = {_toml_value(float(s.max_tilt_deg))}",
+        f"ise_weights = {_toml_value([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])}",
+        f"backend = {_toml_value(outcome.backend)}",
+        f"workers = {int(outcome.workers)}",
+        f"swarm_mj_version = {_toml_value(__version__)}",
+        "",
+    ]
+    return "\n".join(lines)
+
+
+def write_text_atomic(path: str | Path, text: str) -> None:
+    """Write ``text`` to ``path`` through a temporary file in the same folder and ``os.replace``:
+    a reader (or an interruption) sees the old file or the new one, never half of one."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        try:
+            os.unlink(tmp)
+        except OSError:
+            pass
+        raise
+
+
+def write_gains_file(path: str | Path, outcome) -> None:
+    """Atomically write the gains file of ``outcome`` (see :func:`gains_toml`)."""
+    write_text_atomic(path, gains_toml(outcome))
+
+
+# --------------------------------------------------------------------------- the command
+
+
+def _check_output(path: Path) -> None:
+    from ..errors import UserError
+
+    if path.is_dir():
+        raise UserError("is a folder; give a file name such as tuned_gains.toml", where=str(path))
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise UserError(f"folder {parent} does not exist", where=str(path))
+    if not os.access(parent, os.W_OK):
+        raise UserError(f"folder {parent} is not writable", where=str(path))
+
+
+def main(args: argparse.Namespace) -> int:
+    from ..errors import UserError
+    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
+
+    # Validate everything before any worker starts.
+    opts = TuneOptions(population=args.population, iterations=args.iterations, p=args.p, gamma=args.gamma,
+                       lower=args.lower, upper=args.upper, seed=args.seed)
+    if not (math.isfinite(args.t_sim) and args.t_sim > 0):
+        raise UserError(f"--t-sim must be a positive number of seconds, got {args.t_sim}")
+    settings = StepCostSettings(t_sim=float(args.t_sim))
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be >= 1, got {args.workers}")
+    if args.ray is not None:
+        if not args.ray.strip():
+            raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
+        from ..tuning.cost import _import_ray
+        _import_ray()                       # one clear line if Ray is missing
+    out = Path(args.output)
+    _check_output(out)
+    quiet = args.quiet
+
+    def say(msg: str) -> None:
+        if not quiet:
+            print(msg, file=sys.stderr, flush=True)
+
+    if args.ray is not None:
+        where = f"Ray at {args.ray}" + (f", {args.workers} actors" if args.workers else "")
+    else:
+        w = default_workers() if args.workers is None else args.workers
+        where = "in this process" if w == 1 else f"{w} worker processes"
+    say(f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
+        f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}")
+    t0 = time.perf_counter()
+    last: list = []
+
+    def on_iteration(o) -> None:
+        last[:] = [o]
+        write_gains_file(out, o)
+        it = len(o.history) - 1
+        say(f"  iteration {it:3d}/{opts.iterations}  best ISE {o.best_ise:10.5f}  "
+            f"elapsed {time.perf_counter() - t0:7.1f} s")
+
+    try:
+        res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+    except KeyboardInterrupt:
+        if last:
+            print(f"swarm-mj: interrupted after iteration {len(last[0].history) - 1}; best gains so far "
+                  f"(ISE {last[0].best_ise:.5f}) are in {out}", file=sys.stderr)
+        raise
+    write_gains_file(out, res)
+    if not quiet:
+        print(format_outcome(res, out))
+    return 0
+
+
+def format_outcome(res, out: Path | str) -> str:
+    """The end-of-tune table: initial and final ISE, improvement, Table 4 under the same cost."""
+    lo, hi = PAPER_IMPROVEMENT_PCT
+    t4, best = res.table4_ise, res.best_ise
+    rel = 100.0 * (t4 - best) / t4 if math.isfinite(t4) and t4 > 0 else float("nan")
+    verdict = (f"yes, {rel:.1f} % lower ISE" if res.beats_table4 else f"no, {-rel:.1f} % higher ISE")
+    gains = ", ".join(f"{g:.4f}" for g in res.best_x)
+    rows = [
+        f"FPA tune finished in {res.wall_s:.1f} s ({res.backend}, {res.workers} worker(s))",
+        f"  initial best ISE   {res.initial_ise:10.5f}",
+        f"  final ISE          {best:10.5f}",
+        f"  improvement        {res.improvement_pct:9.2f} %   (paper Table 3: {lo:.1f}–{hi:.1f} %)",
+        f"  Table 4 gains ISE  {t4:10.5f}   (same cost)",
+        f"  beats Table 4      {verdict}",
+        f"  gains α1..α12      [{gains}]",
+        f"written: {out}   (try: swarm-mj run step --gains {out})",
+    ]
+    return "\n".join(rows)

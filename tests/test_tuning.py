@@ -1,0 +1,320 @@
+"""Gain tuning (issue 6, SPEC §6): the ISE cost of eq. (25) over the step, its batched and
+parallel evaluation, ``swarm-mj tune`` and its gains file."""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import tomllib
+from pathlib import Path
+
+import mujoco
+import numpy as np
+import pytest
+
+from swarm_mj.cli import main as cli_main
+from swarm_mj.control.backstepping import TABLE4_GAINS, load_gains
+from swarm_mj.errors import UserError
+from swarm_mj.runner import run
+from swarm_mj.scenario import load_scenario
+from swarm_mj.tuning import BatchEvaluator, StepCostSettings, TuneOptions, step_ise, tune_gains
+from swarm_mj.tuning import cost as cost_mod
+from swarm_mj.world import build_world
+
+REPO = Path(__file__).resolve().parents[1]
+SEED1_FILE = REPO / "scenarios" / "gains" / "fpa_seed1.toml"
+SHORT = StepCostSettings(t_sim=2.0)
+HAS_RAY = importlib.util.find_spec("ray") is not None
+
+
+def _random_gains(n: int, seed: int) -> np.ndarray:
+    """(n, 12) uniform in the default box [0.1, 12], like the FPA's initial population."""
+    return 0.1 + np.random.default_rng(seed).random((n, 12)) * 11.9
+
+
+DIVERGING = np.full(12, 100.0)     # far outside the box: the 10-ms loop goes unstable and flips
+
+
+# --------------------------------------------------------------------------- the cost itself
+
+
+def test_cost_is_eq25_on_the_runner_loop():
+    """The batched ISE equals eq. (25) computed here, by hand, from ``runner.run`` of the step."""
+    settings = StepCostSettings(t_sim=3.0)
+    res = run("step", gains=TABLE4_GAINS, progress=False, duration=settings.t_sim)
+    assert res.error is None
+    K = settings.n_samples
+    log = res.log
+    e = np.empty((K, 6))                                  # samples t = 0, T, ..., (K-1)T
+    e[:, 0:3] = np.array([1.0, 1.0, 1.0]) - log.pos[:K, 0]
+    e[:, 3:5] = log.att_d[:K, 0, 0:2] - log.rpy[:K, 0, 0:2]
+    dpsi = np.deg2rad(25.0) - log.rpy[:K, 0, 2]
+    e[:, 5] = np.arctan2(np.sin(dpsi), np.cos(dpsi))
+    by_hand = 0.01 * np.sum(e**2 @ np.array([3.0, 3.0, 1.0, 2.0, 2.0, 1.0]))
+    assert step_ise(TABLE4_GAINS, settings) == pytest.approx(by_hand, rel=1e-9)
+
+
+def test_batched_cost_equals_each_candidate_alone():
+    X = np.vstack([TABLE4_GAINS, _random_gains(6, seed=3)])          # (7, 12)
+    alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X])
+    one_model = BatchEvaluator(len(X), SHORT, block=len(X)).evaluate(X)
+    blocks = BatchEvaluator(len(X), SHORT, block=3).evaluate(X)      # three models of 3, 2, 2
+    assert np.isfinite(alone).all()
+    np.testing.assert_allclose(one_model, alone, rtol=1e-9, atol=0)
+    np.testing.assert_allclose(blocks, alone, rtol=1e-9, atol=0)
+
+
+def test_overlapping_copies_never_touch():
+    """All copies start at the same point: contacts must be off in the batched model."""
+    ev = BatchEvaluator(4, SHORT)
+    assert ev.sims[0].model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT
+    ev.evaluate(np.tile(TABLE4_GAINS, (4, 1)))
+    assert ev.sims[0].data.ncon == 0 and ev.sims[0].contact_events == 0
+
+
+def test_diverging_candidate_costs_inf_and_does_not_touch_the_others():
+    good = np.vstack([TABLE4_GAINS, _random_gains(2, seed=5)])        # (3, 12)
+    alone = np.array([BatchEvaluator(1, SHORT).evaluate(g[None])[0] for g in good])
+    bad_nan = TABLE4_GAINS.copy()
+    bad_nan[4] = np.nan
+    X = np.vstack([good[0], DIVERGING, good[1], bad_nan, good[2]])    # (5, 12)
+    ev = BatchEvaluator(len(X), SHORT)
+    c = ev.evaluate(X)
+    assert math.isinf(c[1]) and c[1] > 0 and math.isinf(c[3])
+    assert ev.diverged_at[1] > 0 and ev.diverged_at[3] == 0
+    assert (ev.diverged_at[[0, 2, 4]] == -1).all()
+    np.testing.assert_allclose(c[[0, 2, 4]], alone, rtol=1e-9, atol=0)
+    for sim in ev.sims:                                   # MuJoCo never saw a bad state
+        assert sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
+        assert np.isfinite(sim.data.qpos).all()
+
+
+def test_torque_motors_moved_to_the_free_joint_give_the_same_wrench():
+    w = build_world(2, positions=np.zeros((2, 3)), collisions=False)
+    model = w.model
+    site = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}/{a}")
+            for n in w.names for a in ("U1", "U2", "U3", "U4")]
+    ref = mujoco.MjData(model)
+    rng = np.random.default_rng(0)
+    q = rng.normal(size=(2, 4))
+    ref.qpos.reshape(2, 7)[:, 3:7] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    ref.qvel[:] = rng.normal(size=12)
+    ref.ctrl[:] = rng.normal(size=8)
+    state = (ref.qpos.copy(), ref.qvel.copy(), ref.ctrl.copy())
+    mujoco.mj_forward(model, ref)
+    assert cost_mod.joint_torque_transmission(model) == 6           # U2..U4 of both drones
+    assert all(model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_SITE for a in site[0::4])
+    new = mujoco.MjData(model)
+    new.qpos[:], new.qvel[:], new.ctrl[:] = state
+    mujoco.mj_forward(model, new)
+    np.testing.assert_allclose(new.qfrc_actuator, ref.qfrc_actuator, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(new.qacc, ref.qacc, rtol=1e-12, atol=1e-10)
+
+
+def test_bad_cost_settings_are_user_errors():
+    with pytest.raises(UserError):
+        StepCostSettings(t_sim=0)
+    with pytest.raises(UserError):
+        StepCostSettings(max_tilt_deg=95)
+    with pytest.raises(UserError):
+        BatchEvaluator(2, SHORT).evaluate(np.ones((3, 12)))
+
+
+# --------------------------------------------------------------------------- parallel, deterministic
+
+
+def test_same_tune_whatever_the_number_of_workers():
+    opts = TuneOptions(population=6, iterations=2, seed=4)
+    one = tune_gains(opts, SHORT, workers=1)
+    two = tune_gains(opts, SHORT, workers=2)
+    three = tune_gains(opts, SHORT, workers=3)            # uneven chunks 2, 2, 2 ... and 6 = 2+2+2
+    assert one.backend == "in-process" and two.backend == "processes" and two.workers == 2
+    for other in (two, three):
+        np.testing.assert_array_equal(other.best_x, one.best_x)
+        np.testing.assert_array_equal(other.history, one.history)
+        np.testing.assert_array_equal(other.result.population, one.result.population)
+        np.testing.assert_array_equal(other.result.costs, one.result.costs)
+    assert one.table4_ise == two.table4_ise
+
+
+def test_process_pool_chunks_are_evaluated_in_order():
+    X = _random_gains(5, seed=8)                          # 5 over 2 workers: chunks of 3 and 2
+    with cost_mod.make_population_cost(SHORT, workers=2) as cost:
+        assert isinstance(cost, cost_mod.ProcessPoolCost)
+        par = cost(X)
+    np.testing.assert_array_equal(par, cost_mod.evaluate_batch(X, SHORT))
+
+
+@pytest.mark.skipif(not HAS_RAY, reason="Ray is not installed (optional extra: pip install 'swarm-mj[ray]')")
+def test_tiny_tune_on_a_local_ray_instance():
+    import ray
+
+    opts = TuneOptions(population=6, iterations=2, seed=4)
+    local = tune_gains(opts, SHORT, workers=1)
+    try:
+        on_ray = tune_gains(opts, SHORT, workers=2, ray_address="local")
+    finally:
+        if ray.is_initialized():
+            ray.shutdown()
+    assert on_ray.backend == "ray" and on_ray.workers == 2
+    np.testing.assert_array_equal(on_ray.best_x, local.best_x)
+    np.testing.assert_array_equal(on_ray.history, local.history)
+
+
+def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path, capsys):
+    monkeypatch.setitem(__import__("sys").modules, "ray", None)      # `import ray` fails
+    out = tmp_path / "g.toml"
+    rc = cli_main(["tune", "--ray", "local", "--population", "4", "--iterations", "1", "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2 and len(err) == 1
+    assert "pip install 'swarm-mj[ray]'" in err[0]
+    assert not out.exists()
+
+
+# --------------------------------------------------------------------------- the command and its file
+
+
+def _tiny_tune(tmp_path: Path, *extra: str) -> tuple[int, Path]:
+    out = tmp_path / "tuned.toml"
+    rc = cli_main(["tune", "--population", "6", "--iterations", "2", "--t-sim", "3", "--seed", "2",
+                   "--workers", "1", "-o", str(out), *extra])
+    return rc, out
+
+
+def test_tiny_tune_end_to_end(tmp_path, capsys):
+    rc, out = _tiny_tune(tmp_path)
+    cap = capsys.readouterr()
+    assert rc == 0
+    data = tomllib.loads(out.read_text())
+    assert data["complete"] is True and data["iterations_done"] == 2
+    assert data["ise"] <= data["initial_ise"]
+    assert np.all(np.diff(data["history"]) <= 0) and data["history"][0] == data["initial_ise"]
+    assert data["beats_table4"] == (data["ise"] < data["table4_ise"])
+    assert data["settings"]["population"] == 6 and data["settings"]["t_sim"] == 3.0 and data["seed"] == 2
+    # progress per iteration on stderr, the result table on stdout
+    assert cap.err.count("iteration") >= 3
+    for word in ("initial best ISE", "final ISE", "improvement", "Table 4", "beats Table 4"):
+        assert word in cap.out
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_gains_file_round_trip(tmp_path):
+    rc, out = _tiny_tune(tmp_path, "--quiet")
+    assert rc == 0
+    data = tomllib.loads(out.read_text())
+    gains = load_gains(out)
+    np.testing.assert_array_equal(gains, np.array(data["gains"]))
+    # the recorded ISE is the cost of the recorded gains (full float precision in the file)
+    assert step_ise(gains, StepCostSettings(t_sim=3.0)) == pytest.approx(data["ise"], rel=1e-12)
+    assert step_ise(TABLE4_GAINS, StepCostSettings(t_sim=3.0)) == pytest.approx(data["table4_ise"], rel=1e-12)
+    # a scenario file can point at it
+    sc_file = tmp_path / "step_tuned.toml"
+    sc_file.write_text('duration = 1.0\n[leader]\ntrajectory = "step"\n'
+                       'params = { target = [1.0, 1.0, 1.0], yaw_deg = 25.0 }\n'
+                       f'[controller]\ngains = "{out.name}"\n')
+    np.testing.assert_array_equal(load_scenario(str(sc_file)).gains, gains)
+    # and so can `swarm-mj run step --gains FILE`
+    assert cli_main(["run", "step", "--gains", str(out), "--duration", "0.5", "--no-record", "--quiet"]) == 0
+
+
+@pytest.mark.parametrize("args", [
+    ["--population", "3"],
+    ["--iterations", "0"],
+    ["--lower", "5", "--upper", "1"],
+    ["--lower", "2", "--upper", "2"],
+    ["--lower", "0"],
+    ["--p", "1.5"],
+    ["--p", "-0.1"],
+    ["--gamma", "0"],
+    ["--t-sim", "-1"],
+    ["--workers", "0"],
+])
+def test_bad_settings_exit_2_with_one_line(args, tmp_path, capsys):
+    out = tmp_path / "g.toml"
+    rc = cli_main(["tune", *args, "-o", str(out)])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert rc == 2
+    assert len(err) == 1 and err[0].startswith("swarm-mj: error:")
+    assert not out.exists()
+
+
+def test_output_in_a_missing_folder_exits_2(tmp_path, capsys):
+    rc = cli_main(["tune", "--population", "4", "--iterations", "1", "-o", str(tmp_path / "no" / "g.toml")])
+    assert rc == 2 and "does not exist" in capsys.readouterr().err
+
+
+def test_interrupted_tune_leaves_the_best_gains_so_far(tmp_path, monkeypatch, capsys):
+    calls = {"n": 0}
+    real = cost_mod.InProcessCost.__call__
+
+    def interrupt_on_third_batch(self, X):
+        calls["n"] += 1
+        if calls["n"] == 3:                               # initial population, iteration 1, then Ctrl-C
+            raise KeyboardInterrupt
+        return real(self, X)
+
+    monkeypatch.setattr(cost_mod.InProcessCost, "__call__", interrupt_on_third_batch)
+    rc, out = _tiny_tune(tmp_path)
+    assert rc == 130
+    assert "best gains so far" in capsys.readouterr().err
+    data = tomllib.loads(out.read_text())
+    assert data["complete"] is False and data["iterations_done"] == 1
+    np.testing.assert_array_equal(load_gains(out), np.array(data["gains"]))
+    assert not list(tmp_path.glob("*.partial"))
+
+
+def test_atomic_write_keeps_the_old_file_when_interrupted(tmp_path, monkeypatch):
+    from swarm_mj.commands import tune as tune_cmd
+
+    path = tmp_path / "g.toml"
+    tune_cmd.write_text_atomic(path, "gains = [1.0]\n")
+
+    def boom(fd):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(tune_cmd.os, "fsync", boom)
+    with pytest.raises(KeyboardInterrupt):
+        tune_cmd.write_text_atomic(path, "gains = [2.0]\n" * 1000)
+    assert path.read_text() == "gains = [1.0]\n"
+    assert [p.name for p in tmp_path.iterdir()] == ["g.toml"]
+
+
+# --------------------------------------------------------------------------- the shipped tuned gains
+
+
+def test_shipped_seed1_gains_file_is_what_the_code_computes():
+    """scenarios/gains/fpa_seed1.toml was written by `swarm-mj tune --seed 1`; its ISEs must be the
+    current cost of its gains (else the controller or the physics changed: re-tune)."""
+    data = tomllib.loads(SEED1_FILE.read_text())
+    s = data["settings"]
+    assert (s["population"], s["iterations"], s["p"], s["gamma"], s["t_sim"], data["seed"]) == \
+        (50, 14, 0.04, 0.02, 10.0, 1)
+    gains = load_gains(SEED1_FILE)
+    assert ((gains >= s["lower"]) & (gains <= s["upper"])).all()
+    assert step_ise(gains) == pytest.approx(data["ise"], rel=1e-9)
+    assert step_ise(TABLE4_GAINS) == pytest.approx(data["table4_ise"], rel=1e-9)
+    assert data["ise"] <= data["initial_ise"] and data["complete"] is True
+
+
+def _step_metrics(gains_file: Path) -> dict:
+    res = run("step", gains=load_gains(gains_file), progress=False)
+    assert res.error is None
+    return res.summary["drones"]["leader"]["step"]
+
+
+@pytest.mark.slow
+def test_shipped_tuned_gains_meet_the_step_bars_except_y_settling():
+    st = _step_metrics(SEED1_FILE)
+    for ax in ("x", "y", "z", "psi"):
+        assert st[ax]["overshoot_pct"] <= 1.0, ax
+        assert st[ax]["steady_state_error"] <= 1e-3, ax
+    assert st["x"]["settling_s"] <= 2.0
+    assert st["z"]["settling_s"] <= 1.5
+    assert st["psi"]["settling_s"] <= 2.0
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="the ISE of eq. (25) does not weigh settling: the seed-1 optimum trades "
+                                       "a slower y (2 % settling just over 2 s) for a lower ISE")
+def test_shipped_tuned_gains_settle_y_within_2_s():
+    assert _step_metrics(SEED1_FILE)["y"]["settling_s"] <= 2.0

@@ -1,0 +1,413 @@
+"""Every performance figure of swarm-mj, each beside a baseline measured in the same run.
+
+The baseline is raw ``mujoco.mj_step`` on the same compiled model (ctrl at hover thrust, a
+constant ``xfrc_applied``, the drones in the air), doing the same number of physics steps;
+each row gives our time and the raw time for the same simulated work and their ratio
+("× raw": how many times the raw physics' time ours takes; 1.0 would be free). Rows:
+
+* machine: CPU model (/proc/cpuinfo), cores, Python / MuJoCo / NumPy / Numba versions;
+* core: ``Sim.step`` (saturation, drag, external force, contacts) on 6 drones;
+* runs: real-time factor of ``runner.run`` for ``lemniscate_single`` and ``circle`` (180 s;
+  30 s with --quick), without and with recording (``recording.write_recording`` to a temp
+  file; overhead in %);
+* env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
+* tuning: ``tuning.cost.tune_gains`` (paper Table 2: population 50, 14 iterations) on one
+  worker and on all CPUs (speed-up); baseline: raw mj_step on a 10-copy model (the cost's
+  block size) for the same drone-seconds;
+* video: ``video.render_video`` frames per second (640x360, H.264), beside a bare
+  ``mujoco.Renderer`` on the same model (if rendering is available);
+* scaling: ``runner.run`` of a circle with N = 6, 25, 100 drones (followers starting on
+  their slots of an (N−1)-gon, adjacent slots ≥ 1.2 m apart), wall time per simulated
+  second, beside raw mj_step on the same model.
+
+If ``tools/bench_tune.py``, ``bench_video.py``, ``bench_env.py`` or ``bench_core.py``
+defines ``measure(quick: bool) -> list[dict]`` (rows with the keys below), its rows are
+added under "extra".
+
+    .venv/bin/python tools/bench.py [--quick] [--json PATH] [--skip tuning video ...]
+
+Prints the rows as they come, then a Markdown table; ``--json`` writes the same rows.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
+import mujoco
+
+SECTIONS = ("core", "runs", "env", "tuning", "video", "scaling")
+ROWS: list[dict] = []
+
+
+def row(section: str, name: str, ours_s: float | None, raw_s: float | None, *, value: float | None = None,
+        unit: str = "", note: str = "", **extra) -> dict:
+    """One figure: our wall time and the raw baseline's for the same work, and a headline value."""
+    r = {"section": section, "name": name, "value": value, "unit": unit, "ours_s": ours_s, "raw_s": raw_s,
+         "ratio": (ours_s / raw_s) if (ours_s and raw_s) else None, "note": note, **extra}
+    ROWS.append(r)
+    v = f"{value:,.1f} {unit}" if value is not None else ""
+    rat = f"{r['ratio']:.2f}× raw" if r["ratio"] is not None else ""
+    print(f"  {section:<8} {name:<52} {v:>22} {rat:>12}  {note}", flush=True)
+    return r
+
+
+# --------------------------------------------------------------------------- machine
+
+
+def machine() -> dict:
+    cpu = platform.processor() or platform.machine()
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    try:
+        usable = len(os.sched_getaffinity(0))
+    except (AttributeError, OSError):
+        usable = os.cpu_count()
+    try:
+        import numba
+        nb = numba.__version__
+    except ImportError:
+        nb = None
+    from swarm_mj import _jit
+
+    return {"cpu": cpu, "cores": os.cpu_count(), "usable_cores": usable, "python": platform.python_version(),
+            "mujoco": mujoco.__version__, "numpy": np.__version__, "numba": nb, "jit": bool(_jit.AVAILABLE),
+            "platform": platform.platform(), "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
+
+
+# --------------------------------------------------------------------------- raw baseline
+
+
+def raw_seconds(world, n_steps: int, *, lift: float = 2.0) -> float:
+    """Wall time of ``n_steps`` raw mj_step on ``world.model`` from its initial state with the
+    drones lifted to ``lift`` m (no floor contact): hover ctrl, a constant external force."""
+    model = world.model
+    d = mujoco.MjData(model)
+    n = world.n_drones
+    q = d.qpos.reshape(n, 7)
+    q[:, 2] = np.maximum(q[:, 2], lift)
+    d.ctrl[:] = np.tile([world.params.hover_thrust, 0.0, 0.0, 0.0], n)
+    d.xfrc_applied[world.body_ids, 0:3] = (0.05, -0.03, 0.0)
+    mujoco.mj_forward(model, d)
+    step = mujoco.mj_step
+    t0 = time.perf_counter()
+    for _ in range(n_steps):
+        step(model, d)
+    return time.perf_counter() - t0
+
+
+# --------------------------------------------------------------------------- sections
+
+
+def bench_core(quick: bool, repeats: int) -> None:
+    from swarm_mj.sim import Sim
+    from swarm_mj.world import build_world
+
+    n = 6
+    world = build_world(n, positions=np.column_stack([2.0 * np.arange(n), np.zeros(n), np.full(n, 2.0)]))
+    sim = Sim(world)
+    U = np.tile([world.params.hover_thrust, 0.0, 0.0, 0.0], (n, 1))
+    F = np.array([0.05, -0.03, 0.0])
+    n_ctrl = int((5.0 if quick else 10.0) / sim.control_period)
+    ours, raw = [], []
+    for _ in range(min(n_ctrl, 100)):                                     # warm-up (JIT cache load)
+        sim.step(U, F)
+    for _ in range(repeats):
+        sim.reset()
+        t0 = time.perf_counter()
+        for _ in range(n_ctrl):
+            sim.step(U, F)
+        ours.append(time.perf_counter() - t0)
+        raw.append(raw_seconds(world, n_ctrl * sim.n_substeps))
+    sim_s = n_ctrl * sim.control_period
+    row("core", f"Sim.step, {n} drones ({sim_s:g} s simulated)", min(ours), min(raw), value=sim_s / min(ours),
+        unit="× real time", note=f"raw mj_step {sim_s / min(raw):,.0f}× real time; best of {repeats}")
+
+
+def bench_runs(quick: bool, repeats: int) -> None:
+    from swarm_mj.recording import write_recording
+    from swarm_mj.runner import run
+    from swarm_mj.scenario import load_scenario
+
+    dur = 30.0 if quick else 180.0
+    for name in ("lemniscate_single", "circle"):
+        sc = load_scenario(name).with_overrides(duration=dur)
+        warm = run(sc.with_overrides(duration=1.0), progress=False)            # warm-up (JIT cache, imports,
+        with tempfile.TemporaryDirectory() as tmp:                              # the recorder's start-up)
+            write_recording(warm, Path(tmp) / "warm.rrd")
+        t_run, t_rec, t_raw = [], [], []
+        for _ in range(repeats):
+            t0 = time.perf_counter()
+            res = run(sc, progress=False)
+            t_run.append(time.perf_counter() - t0)
+            with tempfile.TemporaryDirectory() as tmp:
+                t0 = time.perf_counter()
+                write_recording(res, Path(tmp) / f"{name}.rrd")
+                t_rec.append(time.perf_counter() - t0)
+            from swarm_mj.world import build_world
+
+            w = build_world(sc.n_drones, positions=sc.initial_positions(), timestep=sc.timestep,
+                            integrator=sc.integrator)
+            n_phys = int(round(dur / sc.timestep))
+            t_raw.append(raw_seconds(w, n_phys))
+        a, r, raw = min(t_run), min(t_rec), min(t_raw)
+        label = f"{name} ({sc.n_drones} drone{'s' if sc.n_drones > 1 else ''}, {dur:g} s)"
+        row("runs", f"runner.run {label}", a, raw, value=dur / a, unit="× real time",
+            note=f"raw mj_step {dur / raw:,.0f}× real time")
+        row("runs", f"runner.run + recording {label}", a + r, raw, value=dur / (a + r), unit="× real time",
+            note=f"recording overhead {100 * r / a:.0f} % (write_recording {r:.2f} s)",
+            recording_overhead_pct=100 * r / a)
+
+
+def bench_env(quick: bool, repeats: int) -> None:
+    from swarm_mj.env import SwarmEnv
+    from swarm_mj.policy import BacksteppingPolicy
+    from swarm_mj.scenario import load_scenario
+
+    secs = 5.0 if quick else 10.0
+    sc = load_scenario("circle").with_overrides(duration=secs)
+    env = SwarmEnv(sc, terminate_on_contact=False)
+    n, K, nsub = env.n, env.n_steps, env.sim.n_substeps
+    p = env.params
+    rng = np.random.default_rng(0)
+    U = np.empty((K, n, 4))
+    U[..., 0] = p.hover_thrust * rng.uniform(0.95, 1.10, (K, n))
+    U[..., 1:] = rng.uniform(-0.002, 0.002, (K, n, 3))
+    t_rand, t_pol, t_raw = [], [], []
+    for _ in range(repeats):
+        env.reset()
+        t0 = time.perf_counter()
+        k = 0
+        while k < K:
+            ts = env.step(U[k])
+            k += 1
+            if ts.last():
+                env.reset()
+        t_rand.append(time.perf_counter() - t0)
+        pol = BacksteppingPolicy(sc, env.params)
+        ts = env.reset()
+        t0 = time.perf_counter()
+        for _ in range(K):
+            ts = env.step(pol(ts.observation))
+            if ts.last():
+                break
+        t_pol.append(time.perf_counter() - t0)
+        t_raw.append(raw_seconds(env.world, K * nsub))
+    raw = min(t_raw)
+    row("env", f"SwarmEnv.step, random U near hover ({n} drones)", min(t_rand), raw, value=K / min(t_rand),
+        unit="steps/s", note=f"raw mj_step {K / raw:,.0f} env-steps/s ({nsub} mj_step each)")
+    row("env", f"SwarmEnv.step + BacksteppingPolicy ({n} drones)", min(t_pol), raw, value=K / min(t_pol),
+        unit="steps/s")
+
+
+def bench_tuning(quick: bool, repeats: int) -> None:
+    from swarm_mj.tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
+    from swarm_mj.world import build_world
+
+    pop, iters = (20, 2) if quick else (50, 14)
+    opts = TuneOptions(population=pop, iterations=iters, seed=1)
+    settings = StepCostSettings()
+    evals = pop * (iters + 1) + 1                                   # + the Table 4 reference
+    drone_s = evals * settings.t_sim
+    block = 10
+    w = build_world(block, positions=np.column_stack([np.zeros(block), np.zeros(block), np.full(block, 2.0)]),
+                    collisions=False)
+    probe_s = 5.0 if quick else 20.0
+    t_probe = raw_seconds(w, int(probe_s / settings.timestep))
+    raw_equiv = t_probe * drone_s / (block * probe_s)
+    nw = default_workers()
+    times = {}
+    for workers in sorted({1, nw}):
+        t0 = time.perf_counter()
+        out = tune_gains(opts, settings, workers=workers)
+        times[workers] = time.perf_counter() - t0
+        row("tuning", f"tune_gains N={pop}, {iters} it., {workers} worker(s)", times[workers], raw_equiv,
+            value=evals / times[workers], unit="ISE evals/s",
+            note=f"{times[workers]:.1f} s; best ISE {out.best_ise:.4f} ({out.backend})")
+    if nw > 1:
+        row("tuning", f"tune speed-up, {nw} workers vs 1", None, None, value=times[1] / times[nw], unit="×",
+            note=f"ideal {nw}×")
+    else:
+        row("tuning", "tune speed-up", None, None, note="one CPU: no speed-up to measure")
+
+
+def bench_video(quick: bool, repeats: int) -> None:
+    try:
+        from swarm_mj.video import render_video
+    except ImportError as exc:
+        row("video", "render_video", None, None, note=f"skipped: swarm_mj.video unavailable ({exc})")
+        return
+    from swarm_mj.runner import run
+
+    res = run("circle", duration=6.0, progress=False)
+    frames = 30 if quick else 90
+    fps = 30.0
+    size = (640, 360)
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            t0 = time.perf_counter()
+            render_video(res, Path(tmp) / "b.mp4", fps=fps, size=size, start=1.0, end=1.0 + frames / fps,
+                         progress=False)
+            t_vid = time.perf_counter() - t0
+        from swarm_mj.world import build_world
+
+        sc = res.scenario
+        w = build_world(sc.n_drones, positions=sc.initial_positions())
+        d = mujoco.MjData(w.model)
+        r = mujoco.Renderer(w.model, height=size[1], width=size[0])
+        mujoco.mj_forward(w.model, d)
+        r.update_scene(d)
+        r.render()
+        t0 = time.perf_counter()
+        for k in range(frames):
+            d.qpos[2::7] = 1.0 + 0.01 * k
+            mujoco.mj_forward(w.model, d)
+            r.update_scene(d)
+            r.render()
+        t_raw = time.perf_counter() - t0
+        r.close()
+    except Exception as exc:  # noqa: BLE001 - no EGL on this machine
+        row("video", "render_video", None, None, note=f"skipped: {type(exc).__name__}: {exc}")
+        return
+    row("video", f"render_video {size[0]}x{size[1]} H.264 ({frames} frames)", t_vid, t_raw, value=frames / t_vid,
+        unit="frames/s", note=f"baseline: bare mujoco.Renderer {frames / t_raw:,.0f} frames/s "
+                              f"(not mj_step); {frames / t_vid / fps:.2f}× playback speed")
+
+
+def polygon_scenario(n_drones: int, duration: float, rule: str = "paper"):
+    """Circle with n_drones: followers start on the ground on their slots, adjacent slots >= 1.2 m apart."""
+    from swarm_mj.formation.slots import polygon_offsets
+    from swarm_mj.scenario import parse_scenario
+
+    nf = n_drones - 1
+    D = max(1.0, 0.6 / np.sin(np.pi / nf)) if nf > 1 else 1.0
+    leader = np.array([0.0, 2.5, 0.0])
+    starts = leader + polygon_offsets(nf, D)
+    data = {"duration": float(duration), "leader": {"trajectory": "circle", "start": leader.tolist()},
+            "followers": {"start": starts.tolist()},
+            "formation": {"diameter": float(D), "anti_collision": rule}}
+    return parse_scenario(data, "<bench>", name=f"polygon{n_drones}"), D
+
+
+def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
+    from swarm_mj.runner import run
+    from swarm_mj.world import build_world
+
+    dur = 2.0 if quick else 10.0
+    for n in sizes:
+        sc, D = polygon_scenario(n, dur)
+        t0 = time.perf_counter()
+        res = run(sc, progress=False)
+        wall = time.perf_counter() - t0
+        setup = wall - res.summary["wall_time_s"]
+        loop = res.summary["wall_time_s"]
+        w = build_world(n, positions=sc.initial_positions())
+        raw = raw_seconds(w, int(round(dur / sc.timestep)))
+        row("scaling", f"{n} drones: runner.run per simulated second", loop / dur, raw / dur,
+            value=1000 * loop / dur, unit="ms per sim s",
+            note=f"{1000 * loop / dur / n:.1f} ms per drone; raw {1000 * raw / dur:,.0f} ms; set-up {setup:.2f} s; "
+                 f"D = {D:.1f} m; contacts {res.summary['contacts']}" + (
+                     f"; STOPPED {res.summary['stopped']}" if res.summary.get("stopped") else ""),
+            n_drones=n)
+
+
+def extra(quick: bool) -> None:
+    here = Path(__file__).resolve().parent
+    for name in ("bench_core", "bench_env", "bench_tune", "bench_video"):
+        p = here / f"{name}.py"
+        if not p.exists():
+            continue
+        spec = importlib.util.spec_from_file_location(f"_swarm_bench_{name}", p)
+        mod = importlib.util.module_from_spec(spec)
+        try:
+            spec.loader.exec_module(mod)
+        except Exception as exc:  # noqa: BLE001
+            print(f"  extra    {name}: cannot import ({exc})")
+            continue
+        fn = getattr(mod, "measure", None)
+        if fn is None:
+            continue
+        for r in fn(quick=quick) or []:
+            row("extra", f"{name}: {r.get('name', '?')}", r.get("ours_s"), r.get("raw_s"), value=r.get("value"),
+                unit=r.get("unit", ""), note=r.get("note", ""))
+
+
+# --------------------------------------------------------------------------- output
+
+
+def markdown(rows: list[dict], mach: dict) -> str:
+    out = [f"Machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
+           f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']} (JIT {'on' if mach['jit'] else 'off'})",
+           "", "| section | figure | value | ours (s) | raw mj_step (s) | × raw | note |", "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        v = f"{r['value']:,.1f} {r['unit']}" if r["value"] is not None else ""
+        o = f"{r['ours_s']:.3f}" if r["ours_s"] is not None else ""
+        b = f"{r['raw_s']:.3f}" if r["raw_s"] is not None else ""
+        x = f"{r['ratio']:.2f}" if r["ratio"] is not None else ""
+        out.append(f"| {r['section']} | {r['name']} | {v} | {o} | {b} | {x} | {r['note']} |")
+    return "\n".join(out)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--quick", action="store_true", help="short runs (30 s instead of 180 s, a small tune)")
+    ap.add_argument("--json", metavar="PATH", help="write the machine and every row as JSON")
+    ap.add_argument("--repeats", type=int, default=None, help="repeats of the short figures (best kept)")
+    ap.add_argument("--skip", nargs="+", default=[], choices=SECTIONS, help="sections to leave out")
+    ap.add_argument("--sizes", nargs="+", type=int, default=[6, 25, 100], help="swarm sizes for scaling")
+    args = ap.parse_args(argv)
+    repeats = args.repeats or (1 if args.quick else 3)
+    if repeats < 1 or any(s < 2 for s in args.sizes):
+        ap.error("--repeats must be >= 1 and --sizes >= 2")
+    mach = machine()
+    print(f"machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
+          f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
+          flush=True)
+    t0 = time.perf_counter()
+    for sec in SECTIONS:
+        if sec in args.skip:
+            continue
+        t = time.perf_counter()
+        if sec == "core":
+            bench_core(args.quick, repeats)
+        elif sec == "runs":
+            bench_runs(args.quick, 1)
+        elif sec == "env":
+            bench_env(args.quick, repeats)
+        elif sec == "tuning":
+            bench_tuning(args.quick, 1)
+        elif sec == "video":
+            bench_video(args.quick, 1)
+        elif sec == "scaling":
+            bench_scaling(args.quick, 1, tuple(args.sizes))
+        print(f"  ({sec}: {time.perf_counter() - t:.0f} s)", flush=True)
+    extra(args.quick)
+    total = time.perf_counter() - t0
+    print()
+    print(markdown(ROWS, mach))
+    print(f"\nbench: {total:.0f} s")
+    if args.json:
+        data = {"machine": mach, "quick": args.quick, "repeats": repeats, "wall_s": total, "rows": ROWS}
+        tmp = Path(args.json).with_name(Path(args.json).name + ".partial")
+        tmp.write_text(json.dumps(data, indent=2) + "\n")
+        os.replace(tmp, args.json)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
