@@ -89,6 +89,31 @@ def test_diverging_candidate_costs_inf_and_does_not_touch_the_others():
         assert np.isfinite(sim.data.qpos).all()
 
 
+def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
+    """A controller output turning NaN for one copy (as U1 = …/(cos φ cos θ) would near 90°) marks
+    that copy diverged; MuJoCo must never see it (a bad acceleration resets the whole MjData)."""
+    X = np.vstack([TABLE4_GAINS, TABLE4_GAINS * 1.1, _random_gains(1, seed=9)])   # (3, 12)
+    alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X[[0, 2]]])
+
+    class NaNFromStep50(cost_mod.Backstepping):
+        calls = 0
+
+        def compute(self, *args, **kwargs):
+            U = super().compute(*args, **kwargs)
+            NaNFromStep50.calls += 1
+            if NaNFromStep50.calls > 50:
+                U[1] = np.nan
+            return U
+
+    monkeypatch.setattr(cost_mod, "Backstepping", NaNFromStep50)
+    ev = BatchEvaluator(3, SHORT)
+    c = ev.evaluate(X)
+    assert math.isinf(c[1]) and ev.diverged_at[1] == 50
+    np.testing.assert_allclose(c[[0, 2]], alone, rtol=1e-9, atol=0)
+    for sim in ev.sims:
+        assert sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
+
+
 def test_torque_motors_moved_to_the_free_joint_give_the_same_wrench():
     w = build_world(2, positions=np.zeros((2, 3)), collisions=False)
     model = w.model

@@ -18,18 +18,22 @@ or input, |roll| or |pitch| beyond ``max_tilt_deg`` (80° by default: a flip, we
 ≈ 51° pitch the step normally reaches, SPEC §2), the drone below ``floor_z`` or farther than
 ``max_distance`` from the origin.
 
-**One model for the population.** A batch of m candidates flies as m independent drones in
-ONE MuJoCo model (``build_world(m, collisions=False)``: contacts off, so the copies may all
-start at the same point and fly through each other), stepped by one ``Sim.step`` per control
-period with one vectorised ``Backstepping.compute`` (gains (m, 12)). The copies do not
-interact: a free body's dynamics depend only on its own state and inputs, so a candidate's
-cost does not depend on which batch it is in (tested: batched == alone). A copy that
-diverges is parked at rest at the start with zero input for the rest of the run, so that
-NaN never reaches MuJoCo (which would reset the *whole* ``MjData`` on a bad acceleration).
+**Batched models, one controller call.** A batch of m candidates flies as m independent
+drones built by ``build_world(b, collisions=False)`` — contacts off, so the copies all start
+at the same point and fly through each other — in blocks of at most :data:`DEFAULT_BLOCK`
+copies per MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), each
+block stepped by one ``Sim.step`` per control period, all m driven by ONE vectorised
+``Backstepping.compute`` (gains (m, 12)). The torque motors of these private models are moved
+onto the free joint (:func:`joint_torque_transmission`: the same wrench, cheaper). The copies
+do not interact: a free body's dynamics depend only on its own state and inputs, so a
+candidate's cost does not depend on its batch, block or worker (tested: batched == alone,
+bit for bit on the development machine; and == eq. (25) from ``runner.run`` to 1e-9). A copy
+that diverges is parked at rest at the start with zero input for the rest of the run, so
+that NaN never reaches MuJoCo (which resets the *whole* ``MjData`` on a bad acceleration).
 
 **Beyond one process.** :func:`make_population_cost` returns a batched cost ``(m, 12) →
 (m,)`` for :func:`swarm_mj.tuning.fpa` that evaluates in-process (``workers=1``), splits
-the population over local worker processes (each chunk one batched model), or over a Ray
+the population over local worker processes (each chunk its own batched models), or over a Ray
 cluster (``ray_address``; optional extra ``swarm-mj[ray]``). Chunks are contiguous and
 results are gathered in order, so the costs — and the whole tune — are the same whatever
 the number of workers.
@@ -41,6 +45,8 @@ import math
 import multiprocessing as mp
 import os
 import signal
+from concurrent.futures import ProcessPoolExecutor
+from concurrent.futures import TimeoutError as FuturesTimeout
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field
 from typing import Any, Protocol
@@ -63,6 +69,8 @@ __all__ = [
     "TuneOutcome",
     "tune_gains",
     "BatchEvaluator",
+    "DEFAULT_BLOCK",
+    "joint_torque_transmission",
     "PopulationCost",
     "InProcessCost",
     "ProcessPoolCost",
@@ -374,7 +382,7 @@ class _Closing:
 
 
 class InProcessCost(_Closing):
-    """The whole population in one batched model in this process (``--workers 1``)."""
+    """The whole population in batched models in this process (``--workers 1``)."""
 
     backend = "in-process"
     workers = 1
@@ -406,7 +414,11 @@ def _worker_eval(args: tuple[StepCostSettings, np.ndarray]) -> np.ndarray:
 
 
 class ProcessPoolCost(_Closing):
-    """The population split in ``workers`` contiguous chunks, one batched model per local process."""
+    """The population split in ``workers`` contiguous chunks, each evaluated by a local worker
+    process in its own batched models (built once per worker and chunk size, then reused).
+
+    A worker that dies (e.g. killed) raises ``BrokenProcessPool`` here instead of hanging.
+    """
 
     backend = "processes"
 
@@ -415,25 +427,35 @@ class ProcessPoolCost(_Closing):
         self.workers = default_workers() if workers is None else int(workers)
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
-        self._pool = _pool_context().Pool(self.workers, initializer=_worker_init)
+        self._pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
+            self.workers, mp_context=_pool_context(), initializer=_worker_init)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
+        if self._pool is None:
+            raise RuntimeError("this ProcessPoolCost is closed")
         X = np.asarray(X, dtype=float)
-        parts = _chunks(X, self.workers)
-        pending = self._pool.map_async(_worker_eval, [(self.settings, c) for c in parts], chunksize=1)
-        while True:   # a timed wait keeps Ctrl-C responsive in the parent
-            try:
-                results = pending.get(timeout=0.5)
-                break
-            except mp.TimeoutError:
-                continue
+        futures = [self._pool.submit(_worker_eval, (self.settings, c)) for c in _chunks(X, self.workers)]
+        results = []
+        for f in futures:                 # in chunk order: the same result whatever the timing
+            while True:                   # a timed wait keeps Ctrl-C responsive in the parent
+                try:
+                    results.append(f.result(timeout=0.5))
+                    break
+                except FuturesTimeout:
+                    continue
         return np.concatenate(results) if results else np.empty(0)
 
     def close(self) -> None:
         pool, self._pool = getattr(self, "_pool", None), None
-        if pool is not None:
-            pool.terminate()
-            pool.join()
+        if pool is None:
+            return
+        procs = list((getattr(pool, "_processes", None) or {}).values())
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:                # do not wait for chunks still running (Ctrl-C)
+            if proc.is_alive():
+                proc.terminate()
+        for proc in procs:
+            proc.join(timeout=5)
 
 
 def _import_ray():
@@ -455,7 +477,7 @@ class _RayWorker:
 
 
 class RayCost(_Closing):
-    """The population split over Ray actors, one batched model each.
+    """The population split over Ray actors, each evaluating its chunk in its own batched models.
 
     address: ``"local"`` starts a private Ray instance on this machine (``workers`` CPUs);
     anything else is passed to ``ray.init(address=...)`` (``"auto"``, ``"ray://host:10001"``).
@@ -574,7 +596,7 @@ def _finite(v: Any) -> bool:
 class TuneOutcome:
     """A finished (or interrupted: ``complete`` False) tune."""
 
-    result: FPAResult | None          # None when interrupted before the first evaluation ended
+    result: FPAResult | None          # the FPA result at the end; None in per-iteration snapshots
     best_x: np.ndarray                # (12,) best gains found
     best_ise: float
     initial_ise: float                # best ISE of the initial population
