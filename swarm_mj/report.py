@@ -29,7 +29,7 @@ import platform
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
@@ -41,6 +41,9 @@ from .scenario import Scenario, load_scenario, parse_scenario
 from .sweep import SweepTask, apply_param, compute_stats, default_workers, run_parallel, run_task
 
 GAINS_FILE = Path("scenarios/gains/fpa_seed1.toml")
+ALL_FIGURES = {"fig07_step.png", "fig08_rotors.png", "fig09_lemniscate.png", "fig15_wind.png", "swarm_paths_3d.png",
+               "fig14_variable_d.png", "fig16_anticollision.png", "wind_robustness.png", "wind_sigma.png",
+               "fpa_convergence.png", "snapshot_scenario1.png"}
 
 #: Paper Table 3: run, initial ISE, final ISE, improvement (%).
 PAPER_TABLE3 = [(1, 59.24, 52.92, 10.67), (2, 60.47, 51.84, 14.27), (3, 60.34, 45.15, 25.17),
@@ -489,6 +492,9 @@ def build_report(out_dir: str | Path = "report", *, plan: Plan | None = None, qu
     if plan.snapshot and "snapshot/scenario1" in by_key:
         figures += draw_snapshot(out, by_key["snapshot/scenario1"]["log"], say)
     R["figures"] = figures
+    made = {f["file"] for f in figures}
+    for name in ALL_FIGURES - made:           # a stale figure of an earlier report would mislead
+        (out / name).unlink(missing_ok=True)
     R["meta"]["wall_s"] = time.perf_counter() - t_start
     R["meta"]["jobs_wall_s"] = jobs_wall
     R["meta"]["cpu_s_in_runs"] = float(sum(r.get("wall_s", 0.0) for r in results_by_index if isinstance(r, dict)))

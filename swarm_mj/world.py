@@ -90,6 +90,9 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
         rotor = drone.find("geom", f"rotor{k}")
         if rotor is not None:
             rotor.pos = [x, y, rotor.pos[2] if rotor.pos is not None else 0.0]
+    plane = drone.find("geom", "rotor_plane")
+    if plane is not None:
+        plane.size = [L, plane.size[1]]
     for geom in drone.find_all("geom"):
         if geom.name in ("hub",):
             geom.rgba = list(rgba)

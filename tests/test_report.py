@@ -172,3 +172,62 @@ def test_report_quick_writes_readme_json_and_pngs(tmp_path, monkeypatch, capsys)
         assert (out / name).stat().st_size > 10_000
         assert float(np.std(img[..., :3])) > 0.01          # not blank
         assert f"({name})" in readme
+
+
+# --------------------------------------------------------------------------- Ray (optional extra)
+
+
+def test_ray_missing_is_one_line(monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", None)          # import ray -> ImportError
+    assert cli_main(["sweep", "wind_lemniscate", "--seeds", "1", "--duration", "0.2", "--ray", "auto"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "swarm-mj[ray]" in err
+
+
+class _Ref:
+    def __init__(self, value):
+        self.value = value
+
+
+class _FakeRay:
+    """Just enough of Ray's API, run in-process, completing in reverse order."""
+
+    def __init__(self):
+        self.inited = False
+
+    def is_initialized(self):
+        return self.inited
+
+    def init(self, **kw):
+        self.inited = True
+
+    def shutdown(self):
+        self.inited = False
+
+    def remote(self, **kw):
+        def wrap(fn):
+            class R:
+                @staticmethod
+                def remote(x):
+                    return _Ref(fn(x))
+            return R
+        return wrap
+
+    def wait(self, pending, num_returns=1):
+        return [pending[-1]], pending[:-1]
+
+    def get(self, ref):
+        return ref.value
+
+
+def test_ray_backend_gives_the_same_stats(monkeypatch):
+    import sys
+
+    monkeypatch.setitem(sys.modules, "ray", _FakeRay())
+    sc = _windy(0.6)
+    a = sweep(sc, 2, workers=1)
+    b = sweep(sc, 2, ray_address="local")
+    assert b.backend == "ray" and a.stats == b.stats
+    assert [r["seed"] for r in b.runs] == [0, 1]

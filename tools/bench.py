@@ -244,6 +244,23 @@ def bench_tuning(quick: bool, repeats: int) -> None:
             note=f"ideal {nw}×")
     else:
         row("tuning", "tune speed-up", None, None, note="one CPU: no speed-up to measure")
+    # Speed-up over evaluating candidates one at a time with the product's loop (tools/bench_tune.py).
+    bt = _load_tool("bench_tune")
+    if bt is None or not hasattr(bt, "runner_ise"):
+        row("tuning", "speed-up over runner.run per candidate", None, None,
+            note="skipped: tools/bench_tune.py (runner_ise) not found")
+        return
+    rng = np.random.default_rng(1)
+    sample = rng.uniform(opts.lower, opts.upper, (2 if quick else 5, 12))
+    t0 = time.perf_counter()
+    for g in sample:
+        bt.runner_ise(g, settings)
+    per = (time.perf_counter() - t0) / len(sample)
+    one_by_one = per * evals
+    row("tuning", f"one at a time: runner.run per candidate, x{evals} (extrapolated)", one_by_one, raw_equiv,
+        value=one_by_one / times[nw], unit="× slower than the tune",
+        note=f"{per:.3f} s per candidate over {len(sample)}; the batched tune on {nw} worker(s) is "
+             f"{one_by_one / times[nw]:.1f}× faster")
 
 
 def bench_video(quick: bool, repeats: int) -> None:
@@ -326,18 +343,25 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
             n_drones=n)
 
 
+def _load_tool(name: str):
+    """tools/NAME.py as a module, or None when absent or broken."""
+    p = Path(__file__).resolve().parent / f"{name}.py"
+    if not p.exists():
+        return None
+    spec = importlib.util.spec_from_file_location(f"_swarm_bench_{name}", p)
+    mod = importlib.util.module_from_spec(spec)
+    try:
+        spec.loader.exec_module(mod)
+    except Exception as exc:  # noqa: BLE001
+        print(f"  extra    {name}: cannot import ({exc})")
+        return None
+    return mod
+
+
 def extra(quick: bool) -> None:
-    here = Path(__file__).resolve().parent
     for name in ("bench_core", "bench_env", "bench_tune", "bench_video"):
-        p = here / f"{name}.py"
-        if not p.exists():
-            continue
-        spec = importlib.util.spec_from_file_location(f"_swarm_bench_{name}", p)
-        mod = importlib.util.module_from_spec(spec)
-        try:
-            spec.loader.exec_module(mod)
-        except Exception as exc:  # noqa: BLE001
-            print(f"  extra    {name}: cannot import ({exc})")
+        mod = _load_tool(name)
+        if mod is None:
             continue
         fn = getattr(mod, "measure", None)
         if fn is None:
