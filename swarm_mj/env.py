@@ -32,8 +32,12 @@ backstepping controller (velocity and acceleration references zero).
 
 Reward (formation keeping), per step, summed over followers:
 ``−mean ‖p_i − slot_i‖ − 10·(number of pairs closer than 0.5 m) − 100·(new contacts)``.
-Termination on a drone–drone contact (``terminate_on_contact``) or divergence;
-truncation at the scenario's duration.
+Termination on a drone–drone contact (``terminate_on_contact``) or divergence
+(``last_termination`` says which; after a non-finite divergence the observation is the
+last finite one); truncation at the scenario's duration. ``reset(seed)`` seeds the wind
+turbulence; random follower starts keep the scenario's own seed. ``reset()`` without a
+seed replays the last one. The backstepping policy often asks for more than
+``action_spec()`` allows (e.g. U1 up to ~27 N at take-off): the rotors' saturation clips it.
 """
 
 from __future__ import annotations
@@ -88,7 +92,6 @@ class SwarmEnv(dm_env.Environment):
         f = self.params.f_max
         self._u_low = np.tile([0.0, -f, -f, -2 * f], (n, 1))
         self._u_high = np.tile([4 * f, f, f, 2 * f], (n, 1))
-        self._zero_wind = np.zeros((n, 3))
         self.reset()
 
     # ------------------------------------------------------------------ dm_env API
@@ -106,6 +109,8 @@ class SwarmEnv(dm_env.Environment):
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
         self._done = False
+        self.last_termination: str | None = None   # "contact" or "diverged" once an episode terminates
+        self.last_error: Exception | None = None
         self._obs = self._observe()
         return dm_env.restart(self._obs)
 
@@ -139,12 +144,16 @@ class SwarmEnv(dm_env.Environment):
             if self.raise_on_divergence:
                 raise
             diverged = exc
-        self._obs = obs = self._observe()
+        if diverged is None or np.isfinite(self.sim.qpos).all():
+            self._obs = self._observe()
+        obs = self._obs          # after a non-finite divergence: the last finite observation
         new_contacts = self.sim.contact_events - self._contacts_seen
         self._contacts_seen = self.sim.contact_events
         reward = self._reward(obs, new_contacts)
         if diverged is not None or (self.terminate_on_contact and new_contacts > 0):
             self._done = True
+            self.last_termination = "diverged" if diverged is not None else "contact"
+            self.last_error = diverged
             return dm_env.termination(reward=-1000.0 if diverged is not None else reward, observation=obs)
         if self.k >= self.n_steps:
             self._done = True
@@ -210,7 +219,7 @@ class SwarmEnv(dm_env.Environment):
             w = self.wind
             wf = w.drone_forces(k, vel) if w.relative_airspeed else np.broadcast_to(w.force[k], (n, 3)).copy()
         else:
-            wf = self._zero_wind
+            wf = np.zeros((n, 3))
         self._dist = dist
         return {"time": np.float64(k * self.T), "pos": pos, "vel": vel, "quat": quat, "rpy": rpy,
                 "rpy_rate": rpy_rate, "body_rates": omega, "setpoint": sp, "setpoint_vel": sp_vel,

@@ -162,7 +162,8 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     n_samples = k + 1 if error is None else k
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)
-        log.U[k], log.rotor[k], log.wind_force[k] = log.U[k - 1], log.rotor[k - 1], log.wind_force[k - 1]
+        log.U[k], log.rotor[k] = log.U[k - 1], log.rotor[k - 1]
+        log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
     log = log.truncated(max(n_samples, 1))
     summary = summarize(sc, log, env, policy, wall)
     if error is not None:

@@ -255,7 +255,10 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             gains, source = TABLE4_GAINS.copy(), "table4"
         else:
             gpath = (base / g) if not Path(g).is_absolute() else Path(g)
-            gains, source = load_gains(gpath), str(gpath)
+            try:
+                gains, source = load_gains(gpath), str(gpath)
+            except UserError as exc:
+                raise UserError(str(exc), where=f"{w}controller.gains") from None
     else:
         gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
     ff = ctl.get("wind_feedforward", True)
