@@ -85,13 +85,19 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
     log = result.log
     names = log.names
     rec = rr.RecordingStream("swarm-mj", recording_id=f"{result.scenario.name}-{os.getpid()}")
-    with rec:
-        rr.save(tmp, default_blueprint=blueprint(names))
-        if spawn:
-            rr.spawn(connect=True)
-        _log_run(result, names, L, safety_distance)
-        rec.flush()
-        rr.disconnect()
+    try:
+        with rec:
+            rr.save(tmp, default_blueprint=blueprint(names))
+            if spawn:
+                rr.spawn(connect=True)
+            _log_run(result, names, L, safety_distance)
+            rec.flush()
+            rr.disconnect()
+    except BaseException:
+        # a failed or interrupted write leaves the previous recording as it was and no .partial
+        rec.disconnect()
+        tmp.unlink(missing_ok=True)
+        raise
     os.replace(tmp, path)
     return path
 

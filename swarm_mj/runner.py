@@ -220,6 +220,10 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         ev = policy.events
         out["anti_collision"] = {"rule": policy.rule.name, "events": len(ev),
                                  "yields": sum(1 for e in ev if e["action"] in ("up", "down"))}
+    else:  # the stable keys exist for one drone too
+        out["min_separation_m"] = None
+        out["formation"] = None
+        out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0}
     return out
 
 

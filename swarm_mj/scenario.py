@@ -101,41 +101,65 @@ class Scenario:
         return replace(self, **kw)
 
 
+#: Centre distance below which two level drones may already touch on the ground: rotor tip
+#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (SPEC §1
+#: geometry), plus 2 cm. Measured in MuJoCo: two followers 0.60 m or 0.65 m apart along x
+#: are in contact from the first physics step; 0.70 m apart they are not.
+START_CLEARANCE_M = 0.70
+
+
 def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
-    """n follower starts (n, 3) on the ground within ``radius`` of the leader, all (leader
-    included) at least ``min_spacing`` apart; rejection sampling, seeded."""
+    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (SPEC §4's
+    "seeded random crossing starts"), every two drones (leader included) at least
+    max(``rs.min_spacing``, :data:`START_CLEARANCE_M`) apart; rejection sampling, seeded.
+
+    The floor of 0.70 m keeps a start from being a contact before anything flies: with a
+    smaller spacing two drones lined up along x or y would overlap their rotors at t = 0,
+    and MuJoCo would count that against whatever rule is flown.
+    """
     check_random_start_feasible(n, rs, where)
+    spacing = max(rs.min_spacing, START_CLEARANCE_M)
     rng = np.random.default_rng(rs.seed)
-    pts = [np.asarray(leader[:2], float)]
-    tries = 0
-    while len(pts) < n + 1:
+    pts = np.empty((n + 1, 2))                  # (n + 1, 2) leader first
+    pts[0] = np.asarray(leader[:2], float)
+    placed, tries = 1, 0
+    while placed < n + 1:
         tries += 1
         if tries > rs.max_tries:
-            raise UserError(f"could not place {n} followers at least {rs.min_spacing} m apart within "
-                            f"{rs.radius} m of the leader after {rs.max_tries} tries; lower min_spacing "
+            raise UserError(f"could not place {n} followers at least {spacing:g} m apart within "
+                            f"{rs.radius:g} m of the leader after {rs.max_tries} tries; lower min_spacing "
                             f"or raise radius", where=f"{where}: followers.random_start")
         r = rs.radius * np.sqrt(rng.uniform())
         a = rng.uniform(0, 2 * np.pi)
         p = pts[0] + r * np.array([np.cos(a), np.sin(a)])
-        if min(np.hypot(*(p - q)) for q in pts) >= rs.min_spacing:
-            pts.append(p)
-    xy = np.array(pts[1:])
-    return np.column_stack([xy, np.full(n, float(leader[2]))])
+        if np.hypot(*(pts[:placed] - p).T).min() >= spacing:
+            pts[placed] = p
+            placed += 1
+    return np.column_stack([pts[1:], np.full(n, float(leader[2]))])
 
 
 def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> None:
     """Refuse, before anything is simulated, a request no placement can meet.
 
-    Disks of radius s/2 around n + 1 points that lie within r of the leader fit in a disk
-    of radius r + s/2, so (n + 1)·(s/2)² ≤ 0.9069·(r + s/2)² is necessary (hexagonal packing
-    density π/√12 ≈ 0.9069).
+    Disks of radius s/2 around n + 1 points (the leader and n followers, s the effective
+    spacing max(min_spacing, :data:`START_CLEARANCE_M`)) that lie within r of the leader
+    fit in a disk of radius r + s/2 without overlapping, so (n + 1)·(s/2)² ≤
+    0.9069·(r + s/2)² is necessary (0.9069 = π/√12, the densest packing of equal disks in
+    the plane). Requests that pass may still be too tight for rejection sampling; those
+    are refused after ``max_tries`` draws, still before anything flies.
     """
     s, r = rs.min_spacing, rs.radius
-    if r <= 0 or s <= 0:
-        raise UserError("radius and min_spacing must be positive", where=f"{where}: followers.random_start")
-    if (n + 1) * (s / 2) ** 2 > 0.9069 * (r + s / 2) ** 2:
-        raise UserError(f"cannot place {n} followers at least {s} m apart (and from the leader) within "
-                        f"{r} m of the leader: not enough room", where=f"{where}: followers.random_start")
+    wr = f"{where}: followers.random_start"
+    if not (np.isfinite(r) and np.isfinite(s)) or r <= 0 or s <= 0:
+        raise UserError("radius and min_spacing must be positive", where=wr)
+    if n < 0:
+        raise UserError(f"follower count must be >= 0, got {n}", where=wr)
+    se = max(s, START_CLEARANCE_M)
+    if (n + 1) * (se / 2) ** 2 > 0.9069 * (r + se / 2) ** 2:
+        raise UserError(f"cannot place {n} followers {se:g} m apart (and from the leader) within "
+                        f"{r:g} m of the leader: not enough room (the packing bound allows at most "
+                        f"{max(int(0.9069 * (r + se / 2) ** 2 / (se / 2) ** 2) - 1, 0)} followers); lower min_spacing "
+                        f"or raise radius", where=wr)
 
 
 def _check_keys(table: Any, allowed: set[str], where: str) -> dict:

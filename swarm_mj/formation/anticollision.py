@@ -1,18 +1,23 @@
-"""Anti-collision by altitude changes (paper Fig. 5, §5.3; SPEC §4).
+"""Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; SPEC §4).
 
 Every rule has the same small interface, vectorised over drones (index 0 is the leader):
 
     rule.reset(positions (n, 3))
-    pos_d, hold = rule.update(t, positions (n, 3), pos_d (n, 3), formation_alt)
+    pos_d, steer = rule.update(t, positions (n, 3), pos_d (n, 3), formation_alt)
 
-``pos_d`` are the formation setpoints (slot of each follower; the leader's own reference
-in row 0) and come back adjusted; ``hold`` (n,) flags drones told to keep their (x, y)
-(their velocity reference should then be zero). Each rule appends its decisions to
-``rule.events`` as dicts ``{t, drone, other, action}`` (action: up, down, release, climb,
-cross, drop, hold).
+``pos_d`` are the formation setpoints (slot of each follower, paper §4; the leader's own
+reference in row 0) and come back adjusted. ``steer`` (n,) flags the drones whose velocity
+and acceleration references the rule sets itself: ``rule.vel_d`` (n, 3) and ``rule.acc_d``
+(n, 3) (zero for a drone told to hold its (x, y)); the others keep the formation's
+references. Each rule appends its decisions to ``rule.events`` as dicts
+``{t, drone, other, action}`` (action: up, down, release, climb, cross, hold, drop).
 
-Decentralised: a drone's decision uses only its own state, the leader's position (through
-its slot and the formation altitude) and the positions of drones within its sensing range.
+Decentralised (SPEC §4): a drone's decision uses only its own state, the leader's position
+(through its slot and the formation altitude) and the positions of drones within its
+sensing range (velocities of neighbours are estimated from their successive positions).
+No rule looks at another drone's internal state except through what it can see: its
+position, and — for the layered rule — its altitude layer, which is a fixed function of
+its index (every drone knows every index's layer).
 """
 
 from __future__ import annotations
@@ -30,11 +35,15 @@ class NoRule:
     def __init__(self, n: int, **_: float) -> None:
         self.n = n
         self.events: list[dict] = []
+        self.vel_d = np.zeros((n, 3))
+        self.acc_d = np.zeros((n, 3))
 
     def reset(self, positions: np.ndarray) -> None:
         self.events = []
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float):
+    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
+               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
 
 
@@ -47,13 +56,14 @@ def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
 
 
 class PaperRule:
-    """The paper's rule exactly as printed (Fig. 5), with the details SPEC §4 fixes.
+    """The paper's rule exactly as printed (Fig. 5, §4), with the details SPEC §4 fixes.
 
     When two drones are closer than the safety distance D̄ = 0.8 m in the horizontal
     plane, the one with the higher index yields (a follower always yields to the leader):
     its altitude setpoint moves by ``hop`` = 0.4 m, up if it is not below the other drone,
     else down, its (x, y) setpoint unchanged. It returns to the formation altitude once
-    every drone it yields to is back beyond D̄ + ``hysteresis``.
+    every drone it yields to is back beyond D̄ + ``hysteresis`` (SPEC §4: "a little
+    hysteresis"; the paper does not say when a drone returns).
     """
 
     name = "paper"
@@ -65,6 +75,8 @@ class PaperRule:
         self.hop = float(hop)
         self.hysteresis = float(hysteresis)
         self._lower = np.tril(np.ones((n, n), dtype=bool), -1)  # [i, j]: j < i, so i yields to j
+        self.vel_d = np.zeros((n, 3))      # (n, 3) velocity reference of steered drones
+        self.acc_d = np.zeros((n, 3))      # (n, 3) acceleration reference of steered drones
         self.reset(np.zeros((n, 3)))
 
     def reset(self, positions: np.ndarray) -> None:
@@ -72,7 +84,7 @@ class PaperRule:
         self.events: list[dict] = []
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
-        """Trigger and release the altitude offsets of the drones flagged ``active`` (n,)."""
+        """Fig. 5: trigger and release the altitude offsets of the drones flagged ``active`` (n,)."""
         yields = (h < self.safety) & self._lower & active[:, None] & active[None, :]
         trig = yields.any(axis=1) & (self.offset == 0.0)
         if trig.any():
@@ -84,12 +96,14 @@ class PaperRule:
                 self.events.append({"t": t, "drone": int(i), "other": j, "action": "up" if up else "down"})
         held = self.offset != 0.0
         if held.any():
-            clear = ~((h < self.safety + self.hysteresis) & self._lower).any(axis=1)
+            clear = ~((h < self.safety + self.hysteresis) & self._lower & active[None, :]).any(axis=1)
             for i in np.flatnonzero(held & clear):
                 self.offset[i] = 0.0
                 self.events.append({"t": t, "drone": int(i), "other": -1, "action": "release"})
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float):
+    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
+               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Fig. 5 on every drone: altitude offsets only, (x, y) setpoints unchanged."""
         h = _horizontal_distances(positions)
         self._react(t, positions, h, np.ones(self.n, dtype=bool))
         pos_d = pos_d.copy()
@@ -105,75 +119,210 @@ class LayeredRule(PaperRule):
 
     Why: at 2–4 m/s closing speed the paper's 0.8 m trigger leaves 0.1–0.2 s, while a
     0.4 m altitude hop needs about 0.5 s, so the printed rule lets drones touch while the
-    swarm forms up (SPEC §4, measured). What is the paper's: altitude changes only, the
-    0.8 m safety distance, the 0.4 m step, higher index yields, and the reactive rule once
-    formed. What is ours:
+    swarm forms up (SPEC §4, measured; ``swarm-mj stress`` shows it in MuJoCo).
 
-    1. climb — follower k first climbs in place to its own layer, formation altitude + k·hop;
-    2. cross — it crosses to its slot on that layer; it holds its (x, y) while a drone of
-       lower index (or one not crossing) is within D̄ horizontally and within ``hop`` vertically;
-    3. drop — within ``arrive`` of its slot it drops to the formation altitude, but only when
-       no drone within D̄ horizontally is between its layer and the formation altitude;
-    4. formed — the paper's reactive rule among formed drones and the leader.
+    What is the paper's: collisions are avoided by altitude changes, with the safety
+    distance D̄ = 0.8 m, the 0.4 m step (``hop``), the higher index yielding and a
+    follower always yielding to the leader; once a follower has joined the formation the
+    printed reactive rule (:class:`PaperRule`) is what protects it.
+
+    What is ours (the transition from the start to the slot), per follower k (1-based):
+
+    1. **climb** — climb in place towards its own layer, formation altitude + k·``hop``
+       (SPEC §4's design). While the leader, which flies its trajectory and yields to
+       nobody, is (or will be within ``horizon`` s) within D̄ horizontally and not more
+       than ``clearance`` below, the follower does not climb through the leader's altitude:
+       it stays ``hop`` below it until the leader has passed.
+    2. **cross** — once within ``climb_tolerance`` of its layer (it need not finish the
+       climb: the layers below are already ``hop`` − ``climb_tolerance`` away) it flies to
+       its slot on its layer along a speed- and acceleration-limited path (≤ ``max_speed``
+       relative to the leader, ≤ ``max_accel``), whose position, velocity and acceleration
+       it hands to its controller. Unlimited, the backstepping loop flies a 4 m transfer at
+       5 m/s and 45° of tilt, and nothing can stop it in D̄. It brakes to a stop (holds its
+       (x, y)) while a drone it gives way to — the leader, a lower index, or any drone not
+       crossing (climbing or dropping through the layers) — is within ``clearance``
+       vertically and within D̄ plus its braking distance horizontally, closing in.
+    3. **drop** — within ``arrive`` of its slot it descends to the formation altitude, but
+       only when no drone that has not yet joined the formation is within D̄ horizontally
+       between its layer and the formation altitude (SPEC §4: the one failure of the layered
+       design was a drone dropping through another's layer). Its horizontal setpoint is
+       the slot from then on.
+    4. **formed** — the paper's reactive rule among formed followers and the leader.
+
+    Settling (every leader distance within 5 cm of D) is a horizontal criterion, so a
+    follower counts as in place while still on its layer; the drop happens after that.
     """
 
     name = "layers"
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 arrive: float = 0.2, climb_tolerance: float = 0.15, **_: float) -> None:
+                 arrive: float = 0.2, climb_tolerance: float = 0.2, clearance: float = 0.3,
+                 max_speed: float = 3.0, max_accel: float = 4.0, horizon: float = 1.0,
+                 **_: float) -> None:
         self.arrive = float(arrive)
         self.climb_tol = float(climb_tolerance)
+        self.clearance = float(clearance)
+        self.v_max = float(max_speed)
+        self.a_max = float(max_accel)
+        self.horizon = float(horizon)
         super().__init__(n, safety_distance, hop, hysteresis)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
-        self.phase = np.full(self.n, CLIMB, dtype=np.int64)
+        n = self.n
+        self.phase = np.full(n, CLIMB, dtype=np.int64)
         self.phase[0] = FORMED                      # the leader flies its own trajectory
         self.start_xy = positions[:, :2].copy()     # (n, 2) where each follower climbs in place
-        self.hold_xy = positions[:, :2].copy()      # (n, 2) position held while waiting
-        self.layer_index = np.arange(self.n, dtype=float)
+        self.path_p = positions[:, :2].copy()       # (n, 2) crossing path: position
+        self.path_v = np.zeros((n, 2))              # (n, 2) crossing path: velocity
+        self.path_a = np.zeros((n, 2))              # (n, 2) crossing path: acceleration
+        self.blocked = np.zeros(n, dtype=bool)      # (n,) braking for another drone
+        self.asides = np.zeros(n, dtype=np.int64)   # (n,) times stepped out from under a drone
+        self.layer_index = np.arange(n, dtype=float)
+        self._prev_pos = positions.copy()
+        self._prev_t: float | None = None
+        self.vel = np.zeros((n, 3))                 # (n, 3) velocities estimated from positions
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float):
+    # ------------------------------------------------------------------ helpers
+    def _approach(self, positions: np.ndarray, horizon: float) -> np.ndarray:
+        """(n, n) smallest horizontal distance of each pair over the next ``horizon`` s,
+        predicting the relative motion as a straight line (velocities estimated from
+        positions); +inf on the diagonal."""
+        d = positions[None, :, :2] - positions[:, None, :2]               # (n, n, 2) j − i
+        dv = self.vel[None, :, :2] - self.vel[:, None, :2]                # (n, n, 2)
+        vv = np.einsum("ijk,ijk->ij", dv, dv)
+        tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon)
+        m = d + tc[:, :, None] * dv
+        out = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
+        np.fill_diagonal(out, np.inf)
+        return out
+
+    def _vertical_overlap(self, z: np.ndarray, tau: float) -> np.ndarray:
+        """(n, n) the altitude bands swept over the next ``tau`` s (estimated vertical
+        velocity), widened by ``clearance``, overlap."""
+        z2 = z + self.vel[:, 2] * tau
+        lo, hi = np.minimum(z, z2) - 0.5 * self.clearance, np.maximum(z, z2) + 0.5 * self.clearance
+        return (lo[None, :] < hi[:, None]) & (lo[:, None] < hi[None, :])
+
+    def _advance_paths(self, dt: float, goal: np.ndarray, goal_vel: np.ndarray, mask: np.ndarray) -> None:
+        """Move the crossing paths of ``mask`` (n,) towards ``goal`` (n, 2) (moving at
+        ``goal_vel`` (2,)): speed ≤ max_speed relative to the goal, braking profile
+        v = √(2·0.8·a·e), acceleration ≤ max_accel; blocked drones brake to rest."""
+        if dt <= 0.0 or not mask.any():
+            self.path_a[mask] = 0.0
+            return
+        e = goal - self.path_p                                             # (n, 2)
+        dist = np.linalg.norm(e, axis=1)
+        speed = np.minimum.reduce([np.full(self.n, self.v_max), np.sqrt(1.6 * self.a_max * dist), 3.0 * dist])
+        v_des = goal_vel[None, :] + e * (speed / np.maximum(dist, 1e-9))[:, None]
+        v_des[self.blocked] = 0.0
+        dv = v_des - self.path_v
+        nrm = np.linalg.norm(dv, axis=1)
+        scale = np.minimum(1.0, self.a_max * dt / np.maximum(nrm, 1e-12))
+        acc = dv * (scale / dt)[:, None]
+        m = mask
+        self.path_a[m] = acc[m]
+        self.path_v[m] += acc[m] * dt
+        self.path_p[m] += self.path_v[m] * dt
+
+    # ------------------------------------------------------------------ the rule
+    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
+               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
+        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
+        if dt > 0.0:
+            self.vel = (positions - self._prev_pos) / dt
+        self._prev_t, self._prev_pos = float(t), positions.copy()
+        n = self.n
         if (self.phase == FORMED).all():
             return super().update(t, positions, pos_d, formation_alt)
+
         h = _horizontal_distances(positions)
-        pos_d = pos_d.copy()
-        hold = np.zeros(self.n, dtype=bool)
-        layer = formation_alt + self.hop * self.layer_index          # (n,)
         z = positions[:, 2]
-        # 1. climb in place
+        pos_d = pos_d.copy()
+        steer = np.zeros(n, dtype=bool)
+        self.vel_d[:] = 0.0
+        self.acc_d[:] = 0.0
+        layer = formation_alt + self.hop * self.layer_index                # (n,)
+        idx = np.arange(n)
+        soon = self._approach(positions, self.horizon)                     # (n, n)
+        vband = self._vertical_overlap(z, 0.5)                             # (n, n)
+
+        # 1. climb in place; under a passing leader, wait hop below it (stepping aside if it stays)
         climbing = self.phase == CLIMB
-        done = climbing & (z >= layer - self.climb_tol)
-        for i in np.flatnonzero(done):
+        ready = climbing & (z >= layer - self.climb_tol)
+        for i in np.flatnonzero(ready):
             self.phase[i] = CROSS
+            self.path_p[i] = positions[i, :2]
+            self.path_v[i] = 0.0
             self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
         climbing = self.phase == CLIMB
-        pos_d[climbing, :2] = self.start_xy[climbing]
-        pos_d[climbing, 2] = layer[climbing]
-        hold |= climbing
-        # 2. cross on the layer, holding (x, y) for a lower-index or non-crossing drone nearby
+        if climbing.any():
+            z_target = layer.copy()
+            # never climb through the altitude of a drone within D̄ (now or soon) above: wait hop below
+            above = (soon < self.safety) & (z[None, :] > z[:, None]) & (z[None, :] < layer[:, None] + self.clearance)
+            above &= climbing[:, None]
+            zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
+            guard = np.isfinite(zmin)
+            z_target[guard] = np.minimum(layer[guard], np.maximum(zmin[guard] - self.hop, 0.0))
+            # one that stays within D̄ (a hovering leader, a drone waiting over its slot): step aside
+            slow = np.linalg.norm(self.vel[:, :2], axis=1) < 0.3                # (n,)
+            stuck = above & (h < self.safety) & slow[None, :]
+            done = np.linalg.norm(positions[:, :2] - self.start_xy, axis=1) < 0.1
+            aside = stuck.any(axis=1) & done & (self.asides < 3)
+            for i in np.flatnonzero(aside):
+                j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
+                away = positions[i, :2] - positions[j, :2]
+                away /= max(float(np.linalg.norm(away)), 1e-9)
+                self.start_xy[i] = positions[j, :2] + (self.safety + 0.2) * away
+                self.asides[i] += 1
+                self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
+            pos_d[climbing, :2] = self.start_xy[climbing]
+            pos_d[climbing, 2] = z_target[climbing]
+            steer |= climbing
+
+        # 2. cross on the layer along a limited path, braking for drones it gives way to
         crossing = self.phase == CROSS
         if crossing.any():
-            near = (h < self.safety) & (np.abs(z[:, None] - z[None, :]) < self.hop)
-            idx = np.arange(self.n)
-            priority = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
-            blocked = crossing & (near & priority).any(axis=1)
-            free = crossing & ~blocked
-            self.hold_xy[free] = positions[free, :2]
+            goal = pos_d[:, :2].copy()
+            speed = np.linalg.norm(self.vel[:, :2], axis=1)
+            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
+            d = positions[None, :, :2] - positions[:, None, :2]
+            dv = self.vel[None, :, :2] - self.vel[:, None, :2]
+            vv = np.einsum("ijk,ijk->ij", dv, dv)
+            tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
+            m = d + tc[:, :, None] * dv
+            near = np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety
+            np.fill_diagonal(near, False)
+            gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
+            conflict = near & vband & gives_way
+            blocked = crossing & conflict.any(axis=1)
+            for i in np.flatnonzero(blocked & ~self.blocked):
+                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
+            self.blocked = blocked
+            self._advance_paths(dt, goal, self.vel[0, :2], crossing)
+            pos_d[crossing, :2] = self.path_p[crossing]
             pos_d[crossing, 2] = layer[crossing]
-            pos_d[blocked, :2] = self.hold_xy[blocked]
-            hold |= blocked
-            # 3. drop when over the slot and nobody is underneath
-            at_slot = crossing & (np.hypot(*(positions[:, :2] - pos_d[:, :2]).T) < self.arrive)
-            for i in np.flatnonzero(at_slot):
-                below = (h[i] < self.safety) & (z <= z[i] + 0.05) & (z >= formation_alt - self.hop)
-                if not below.any():
+            self.vel_d[crossing, :2] = self.path_v[crossing]
+            self.acc_d[crossing, :2] = self.path_a[crossing]
+            steer |= crossing
+            # 3. drop once over the slot, if no drone still in transit is (or will be) under it
+            there = crossing & (np.linalg.norm(positions[:, :2] - goal, axis=1) < self.arrive) \
+                & (np.linalg.norm(self.path_p - goal, axis=1) < self.arrive)
+            for i in np.flatnonzero(there):
+                under = (soon[i] < self.safety) & (self.phase != FORMED) & (z < z[i] + self.clearance)
+                if not under.any():
                     self.phase[i] = FORMED
+                    self.blocked[i] = False
+                    steer[i] = False
+                    pos_d[i, :2] = goal[i]
                     self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
+
+        # 4. formed: the paper's reactive rule among formed drones and the leader
         formed = self.phase == FORMED
         self._react(t, positions, h, formed)
         pos_d[formed, 2] += self.offset[formed]
-        return pos_d, hold
+        return pos_d, steer
 
 
 ANTI_COLLISION_RULES = {"layers": LayeredRule, "paper": PaperRule, "off": NoRule}
