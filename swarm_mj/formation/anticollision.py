@@ -158,13 +158,16 @@ class LayeredRule(PaperRule):
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
                  arrive: float = 0.2, climb_tolerance: float = 0.2, clearance: float = 0.3,
                  max_speed: float = 3.0, max_accel: float = 4.0, horizon: float = 1.0,
-                 **_: float) -> None:
+                 climb_speed: float = 4.0, climb_accel: float = 8.0, descent_speed: float = 1.5,
+                 descent_accel: float = 5.0, **_: float) -> None:
         self.arrive = float(arrive)
         self.climb_tol = float(climb_tolerance)
         self.clearance = float(clearance)
         self.v_max = float(max_speed)
         self.a_max = float(max_accel)
         self.horizon = float(horizon)
+        self.z_up = (float(climb_speed), float(climb_accel))
+        self.z_down = (float(descent_speed), float(descent_accel))
         super().__init__(n, safety_distance, hop, hysteresis)
 
     def reset(self, positions: np.ndarray) -> None:
@@ -179,6 +182,9 @@ class LayeredRule(PaperRule):
         self.blocked = np.zeros(n, dtype=bool)      # (n,) braking for another drone
         self.asides = np.zeros(n, dtype=np.int64)   # (n,) times stepped out from under a drone
         self.layer_index = np.arange(n, dtype=float)
+        self.zp = positions[:, 2].copy()            # (n,) altitude path: position
+        self.zv = np.zeros(n)                       # (n,) altitude path: velocity
+        self.za = np.zeros(n)                       # (n,) altitude path: acceleration
         self._prev_pos = positions.copy()
         self._prev_t: float | None = None
         self.vel = np.zeros((n, 3))                 # (n, 3) velocities estimated from positions
@@ -204,26 +210,49 @@ class LayeredRule(PaperRule):
         lo, hi = np.minimum(z, z2) - 0.5 * self.clearance, np.maximum(z, z2) + 0.5 * self.clearance
         return (lo[None, :] < hi[:, None]) & (lo[:, None] < hi[None, :])
 
-    def _advance_paths(self, dt: float, goal: np.ndarray, goal_vel: np.ndarray, mask: np.ndarray) -> None:
-        """Move the crossing paths of ``mask`` (n,) towards ``goal`` (n, 2) (moving at
-        ``goal_vel`` (2,)): speed ≤ max_speed relative to the goal, braking profile
-        v = √(2·0.8·a·e), acceleration ≤ max_accel; blocked drones brake to rest."""
-        if dt <= 0.0 or not mask.any():
-            self.path_a[mask] = 0.0
+    def _advance_paths(self, dt: float, goal: np.ndarray, goal_vel: np.ndarray) -> None:
+        """Move every follower's horizontal path towards ``goal`` (n, 2), which moves at
+        ``goal_vel`` (n, 2): speed ≤ ``max_speed`` relative to the goal with a braking
+        profile v = √(2·0.8·a·e), acceleration ≤ ``max_accel``; blocked drones brake to rest."""
+        if dt <= 0.0:
+            self.path_a[:] = 0.0
             return
         e = goal - self.path_p                                             # (n, 2)
         dist = np.linalg.norm(e, axis=1)
         speed = np.minimum.reduce([np.full(self.n, self.v_max), np.sqrt(1.6 * self.a_max * dist), 3.0 * dist])
-        v_des = goal_vel[None, :] + e * (speed / np.maximum(dist, 1e-9))[:, None]
+        v_des = goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None]
         v_des[self.blocked] = 0.0
         dv = v_des - self.path_v
         nrm = np.linalg.norm(dv, axis=1)
         scale = np.minimum(1.0, self.a_max * dt / np.maximum(nrm, 1e-12))
-        acc = dv * (scale / dt)[:, None]
-        m = mask
-        self.path_a[m] = acc[m]
-        self.path_v[m] += acc[m] * dt
-        self.path_p[m] += self.path_v[m] * dt
+        self.path_a = dv * (scale / dt)[:, None]
+        self.path_v = self.path_v + self.path_a * dt
+        self.path_p = self.path_p + self.path_v * dt
+
+    def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: float) -> None:
+        """Move the altitude paths (n,) towards ``target`` (n,) (moving at ``target_vel``).
+
+        Why a path and not a step: the backstepping thrust (eq. 18) falls to its floor when a
+        drone is told to drop by a metre at once, and with U1 at the floor the desired roll
+        and pitch of eqs. (21)–(22) saturate at 45° (measured: a follower dropping 1.1 m as a
+        step flew off sideways at 10 m/s). So upward accelerations (more thrust) may reach
+        ``climb_accel``, downward ones (less thrust) only ``descent_accel``; the speed is
+        capped at ``climb_speed`` up and ``descent_speed`` down.
+        """
+        if dt <= 0.0:
+            self.za[:] = 0.0
+            return
+        (vu, au), (vd, ad) = self.z_up, self.z_down
+        e = target - self.zp
+        up = e >= 0
+        # speed from which the path can still stop at the target with the opposite acceleration
+        v_stop = np.where(up, np.sqrt(2.0 * 0.8 * ad * np.abs(e)), np.sqrt(2.0 * 0.8 * au * np.abs(e)))
+        speed = np.minimum.reduce([np.where(up, vu, vd), v_stop, 4.0 * np.abs(e)])
+        v_des = np.clip(target_vel + np.sign(e) * speed, -vd, vu)
+        a = np.clip((v_des - self.zv) / dt, -ad, au)
+        self.za = a
+        self.zv = self.zv + a * dt
+        self.zp = self.zp + self.zv * dt
 
     # ------------------------------------------------------------------ the rule
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
@@ -234,42 +263,43 @@ class LayeredRule(PaperRule):
             self.vel = (positions - self._prev_pos) / dt
         self._prev_t, self._prev_pos = float(t), positions.copy()
         n = self.n
-        if (self.phase == FORMED).all():
-            return super().update(t, positions, pos_d, formation_alt)
-
         h = _horizontal_distances(positions)
         z = positions[:, 2]
         pos_d = pos_d.copy()
-        steer = np.zeros(n, dtype=bool)
+        steer = np.ones(n, dtype=bool)
+        steer[0] = False                                                    # the leader: its trajectory
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
         layer = formation_alt + self.hop * self.layer_index                # (n,)
+        z_target = layer.copy()                                             # (n,)
+        lead_v = self.vel[0]                                                # (3,) the slots' velocity
         idx = np.arange(n)
         soon = self._approach(positions, self.horizon)                     # (n, n)
         vband = self._vertical_overlap(z, 0.5)                             # (n, n)
 
-        # 1. climb in place; under a passing leader, wait hop below it (stepping aside if it stays)
+        # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
         ready = climbing & (z >= layer - self.climb_tol)
         for i in np.flatnonzero(ready):
             self.phase[i] = CROSS
-            self.path_p[i] = positions[i, :2]
-            self.path_v[i] = 0.0
             self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
         climbing = self.phase == CLIMB
         if climbing.any():
-            z_target = layer.copy()
-            # never climb through the altitude of a drone within D̄ (now or soon) above: wait hop below
             above = (soon < self.safety) & (z[None, :] > z[:, None]) & (z[None, :] < layer[:, None] + self.clearance)
             above &= climbing[:, None]
             zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
-            guard = np.isfinite(zmin)
+            # where the altitude path can stop, braking at the descent acceleration
+            vz = np.maximum(self.zv, 0.0)
+            z_stop = self.zp + vz * vz / (2.0 * 0.8 * self.z_down[1])
+            guard = np.isfinite(zmin) & (z_stop < zmin - self.hop + 0.1)
             z_target[guard] = np.minimum(layer[guard], np.maximum(zmin[guard] - self.hop, 0.0))
+            over = np.isfinite(zmin) & ~guard                                 # too late to wait: climb over
+            z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
             # one that stays within D̄ (a hovering leader, a drone waiting over its slot): step aside
             slow = np.linalg.norm(self.vel[:, :2], axis=1) < 0.3                # (n,)
             stuck = above & (h < self.safety) & slow[None, :]
-            done = np.linalg.norm(positions[:, :2] - self.start_xy, axis=1) < 0.1
-            aside = stuck.any(axis=1) & done & (self.asides < 3)
+            there = np.linalg.norm(positions[:, :2] - self.start_xy, axis=1) < 0.1
+            aside = stuck.any(axis=1) & there & (self.asides < 3)
             for i in np.flatnonzero(aside):
                 j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
                 away = positions[i, :2] - positions[j, :2]
@@ -277,14 +307,15 @@ class LayeredRule(PaperRule):
                 self.start_xy[i] = positions[j, :2] + (self.safety + 0.2) * away
                 self.asides[i] += 1
                 self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
-            pos_d[climbing, :2] = self.start_xy[climbing]
-            pos_d[climbing, 2] = z_target[climbing]
-            steer |= climbing
 
         # 2. cross on the layer along a limited path, braking for drones it gives way to
         crossing = self.phase == CROSS
+        goal = pos_d[:, :2].copy()                                          # (n, 2) slots
+        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()               # (n, 2) their velocity
+        goal[climbing] = self.start_xy[climbing]
+        goal_vel[climbing] = 0.0
+        self.blocked &= crossing
         if crossing.any():
-            goal = pos_d[:, :2].copy()
             speed = np.linalg.norm(self.vel[:, :2], axis=1)
             horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
             d = positions[None, :, :2] - positions[:, None, :2]
@@ -300,12 +331,6 @@ class LayeredRule(PaperRule):
             for i in np.flatnonzero(blocked & ~self.blocked):
                 self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
             self.blocked = blocked
-            self._advance_paths(dt, goal, self.vel[0, :2], crossing)
-            pos_d[crossing, :2] = self.path_p[crossing]
-            pos_d[crossing, 2] = layer[crossing]
-            self.vel_d[crossing, :2] = self.path_v[crossing]
-            self.acc_d[crossing, :2] = self.path_a[crossing]
-            steer |= crossing
             # 3. drop once over the slot, if no drone still in transit is (or will be) under it
             there = crossing & (np.linalg.norm(positions[:, :2] - goal, axis=1) < self.arrive) \
                 & (np.linalg.norm(self.path_p - goal, axis=1) < self.arrive)
@@ -314,14 +339,32 @@ class LayeredRule(PaperRule):
                 if not under.any():
                     self.phase[i] = FORMED
                     self.blocked[i] = False
-                    steer[i] = False
-                    pos_d[i, :2] = goal[i]
                     self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
 
-        # 4. formed: the paper's reactive rule among formed drones and the leader
+        # 4. formed: slot (x, y) with the leader's velocity; the paper's reactive rule among
+        #    formed drones and the leader sets the altitude offset
         formed = self.phase == FORMED
         self._react(t, positions, h, formed)
-        pos_d[formed, 2] += self.offset[formed]
+        formed[0] = False
+        z_target[formed] = formation_alt + self.offset[formed]
+        # a formed drone still descending never descends onto a drone in transit within D̄
+        # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
+        below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
+            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance)
+        if below.any():
+            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)           # (n,) highest such drone
+            z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
+
+        # every follower flies limited paths: horizontal (to its start while climbing, to its
+        # slot after) and vertical (see _advance_paths, _advance_altitude)
+        self._advance_paths(dt, goal, goal_vel)
+        self._advance_altitude(dt, z_target, float(lead_v[2]))
+        pos_d[1:, :2] = self.path_p[1:]
+        self.vel_d[1:, :2] = self.path_v[1:]
+        self.acc_d[1:, :2] = self.path_a[1:]
+        pos_d[1:, 2] = self.zp[1:]
+        self.vel_d[1:, 2] = self.zv[1:]
+        self.acc_d[1:, 2] = self.za[1:]
         return pos_d, steer
 
 
