@@ -192,8 +192,9 @@ class SwarmEnv(dm_env.Environment):
         if w.relative_airspeed:
             f = w.drone_forces(self.k, self.sim.vel)
         else:
-            f = np.broadcast_to(w.force[self.k], (self.n, 3))
-        self.last_wind_force = f
+            f = np.empty((self.n, 3))
+            f[:] = w.force[self.k]
+        self.last_wind_force = f          # (n, 3)
         return f
 
     def _observe(self) -> dict:

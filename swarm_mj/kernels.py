@@ -114,3 +114,12 @@ def state_ok(qpos: np.ndarray, qvel: np.ndarray, floor_z: float, max_distance: f
             if abs(qpos[i, c]) > max_distance:
                 return 3
     return 0
+
+
+@jit
+def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.ndarray) -> None:
+    """out (n, 3) = −K·v (n, 3) + F_ext (n, 3): linear drag of eq. (1) plus the wind force."""
+    n = vel.shape[0]
+    for i in range(n):
+        for c in range(3):
+            out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]

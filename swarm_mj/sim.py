@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 
 from .errors import SimulationDiverged, UserError
-from .kernels import saturate_kernel, state_ok
+from .kernels import drag_kernel, saturate_kernel, state_ok
 from .mixing import _MIX_T, _UNMIX_T
 from .world import World
 
@@ -120,8 +120,7 @@ class Sim:
         m, d = self.model, self.data
         xf, vel, ext, k = self._xfrc_force, self.vel, self.ext_force, self._neg_drag
         for _ in range(self.n_substeps):
-            np.multiply(vel, k, out=xf)
-            xf += ext
+            drag_kernel(vel, k, ext, xf)      # xf = −K·v + F_ext (world frame, at the CoM)
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
