@@ -24,7 +24,8 @@ class BacksteppingPolicy:
         self.controller = Backstepping(self.n, sc.gains if gains is None else gains, params=params,
                                        control_period=sc.control_period, wind_feedforward=sc.wind_feedforward,
                                        attitude_map=sc.attitude_map)
-        self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **sc.anti_collision_params)
+        self.rule = make_rule(anti_collision or sc.anti_collision, self.n,
+                              **{"sensing_range": sc.sensing_range, **sc.anti_collision_params})
         self.pos_d = np.zeros((self.n, 3))    # (n, 3) last commanded position (after anti-collision)
         self._started = False
 

@@ -8,7 +8,12 @@ this prints: starts flown, starts with any drone–drone contact (counted by MuJ
 contacts, the smallest 3D centre distance seen while every drone was airborne, and the
 median and worst formation settling time (every leader distance within 5 cm of D).
 
+Each drone sees the others within ``--sensing-range`` (default 4 m; the layered rule caps
+its speeds so that it can stop within it, see ``formation.anticollision.LayeredRule``).
+Short runs (``--duration`` 15 s) are enough to form up.
+
     swarm-mj stress --rule layers --rule paper --starts 100 --followers 5
+    python -m swarm_mj.commands.stress ...      (the same, before "stress" is in cli.COMMANDS)
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ class StressCase:
     radius: float
     min_spacing: float
     duration: float
+    sensing_range: float = 4.0
     trajectory: str = "circle"
     diameter: float = 1.0
 
@@ -49,7 +55,8 @@ def stress_scenario(case: StressCase):
             "followers": {"count": case.followers,
                           "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
                                            "seed": case.seed}},
-            "formation": {"diameter": case.diameter, "anti_collision": case.rule}}
+            "formation": {"diameter": case.diameter, "anti_collision": case.rule,
+                          "sensing_range": case.sensing_range}}
     return parse_scenario(data, "<stress>")
 
 
@@ -81,7 +88,8 @@ def summarize_rule(rows: list[dict]) -> dict:
 
 
 def stress(rules: list[str], starts: int, followers: int, radius: float, min_spacing: float,
-           duration: float, seed0: int = 0, workers: int | None = None) -> tuple[dict, list[dict]]:
+           duration: float, seed0: int = 0, workers: int | None = None,
+           sensing_range: float = 4.0) -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows)."""
     from ..errors import UserError
     from ..scenario import RandomStart, check_random_start_feasible
@@ -90,8 +98,12 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
         raise UserError("--starts and --followers must be at least 1")
     if duration <= 0:
         raise UserError("--duration must be positive")
+    if sensing_range <= 0:
+        raise UserError("--sensing-range must be positive")
+    if workers is not None and workers < 1:
+        raise UserError("--workers must be at least 1")
     check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
-    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration)
+    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range)
              for rule in rules for k in range(starts)]
     workers = max(1, min(workers or os.cpu_count() or 1, len(cases)))
     if workers == 1:
@@ -129,6 +141,9 @@ def add_parser(sub) -> None:
     p.add_argument("--min-spacing", type=float, default=0.6, help="minimum start spacing (m, default 0.6)")
     p.add_argument("--duration", type=float, default=15.0, help="simulated seconds per start (default 15)")
     p.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
+    p.add_argument("--sensing-range", type=float, default=4.0,
+                   help="how far each drone sees the others (m, default 4; the layered rule's speeds "
+                        "are capped so that it can stop within it)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: os.cpu_count())")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.set_defaults(func=main)
@@ -137,7 +152,7 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
-                         args.seed0, args.workers)
+                         args.seed0, args.workers, args.sensing_range)
     print(format_table(table, args.followers))
     if args.json:
         from .run import write_json_atomic
@@ -148,7 +163,7 @@ def main(args: argparse.Namespace) -> int:
 
 
 if __name__ == "__main__":          # usable before "stress" is listed in cli.COMMANDS
-    from ..cli import SwarmError
+    from ..errors import SwarmError
 
     ap = argparse.ArgumentParser(prog="swarm-mj stress")
     add_parser(ap.add_subparsers())

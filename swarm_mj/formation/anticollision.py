@@ -10,14 +10,16 @@ reference in row 0) and come back adjusted. ``steer`` (n,) flags the drones whos
 and acceleration references the rule sets itself: ``rule.vel_d`` (n, 3) and ``rule.acc_d``
 (n, 3) (zero for a drone told to hold its (x, y)); the others keep the formation's
 references. Each rule appends its decisions to ``rule.events`` as dicts
-``{t, drone, other, action}`` (action: up, down, release, climb, cross, hold, drop).
+``{t, drone, other, action}``: up, down, release (the paper's rule); cross, hold, aside,
+drop (the layered rule's transition).
 
 Decentralised (SPEC §4): a drone's decision uses only its own state, the leader's position
 (through its slot and the formation altitude) and the positions of drones within its
 sensing range (velocities of neighbours are estimated from their successive positions).
-No rule looks at another drone's internal state except through what it can see: its
-position, and — for the layered rule — its altitude layer, which is a fixed function of
-its index (every drone knows every index's layer).
+No rule reads another drone's internal state; the layered rule uses the other drones'
+indices (the priority of Fig. 5: higher index yields) and whether they are still in
+transit to their slot, which a drone broadcasts or which its neighbours can tell from
+its altitude (a formed drone flies at the formation altitude).
 """
 
 from __future__ import annotations
@@ -45,6 +47,19 @@ class NoRule:
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
         """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
+
+
+def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
+    """Rows of v (n, k) scaled down to a norm of at most ``limit``."""
+    nrm = np.linalg.norm(v, axis=1)
+    return v * np.minimum(1.0, limit / np.maximum(nrm, 1e-12))[:, None]
+
+
+def _stoppable_speed(room: float, accel: float, lag: float) -> float:
+    """Largest v with v²/(2·0.8·accel) + v·lag ≤ room (room floored at 0.1 m)."""
+    k = 1.0 / (1.6 * accel)
+    room = max(room, 0.1)
+    return float((-lag + np.sqrt(lag * lag + 4.0 * k * room)) / (2.0 * k))
 
 
 def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
@@ -112,54 +127,73 @@ class PaperRule:
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
+G = 9.81            # m/s², SPEC §1
+HOVER_MIN_M = 0.3   # a waiting follower lifts off the ground to this height when there is room
+FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (SPEC §1 geometry), rounded up
 
 
 class LayeredRule(PaperRule):
-    """Ours (the default): altitude layers for the transition, then the paper's rule.
+    """Ours (the default, ``anti_collision = "layers"``): altitude layers for the transition
+    from the start to the slot, then the paper's rule.
 
-    Why: at 2–4 m/s closing speed the paper's 0.8 m trigger leaves 0.1–0.2 s, while a
-    0.4 m altitude hop needs about 0.5 s, so the printed rule lets drones touch while the
-    swarm forms up (SPEC §4, measured; ``swarm-mj stress`` shows it in MuJoCo).
+    **Why not the printed rule alone** (SPEC §4, and measured here in MuJoCo with
+    ``swarm-mj stress``): drones close at 2–4 m/s while forming up, so the 0.8 m trigger
+    leaves 0.1–0.2 s, and a 0.4 m altitude hop takes about 0.5 s: the printed rule lets them
+    touch.
 
-    What is the paper's: collisions are avoided by altitude changes, with the safety
-    distance D̄ = 0.8 m, the 0.4 m step (``hop``), the higher index yielding and a
-    follower always yielding to the leader; once a follower has joined the formation the
-    printed reactive rule (:class:`PaperRule`) is what protects it.
+    **What is the paper's** (Fig. 5, §4): collisions are avoided by changes of altitude
+    while each follower keeps aiming at its (x, y) slot; the safety distance D̄ = 0.8 m;
+    the 0.4 m step (``hop``); the higher index yields and a follower always yields to the
+    leader; once a follower has joined the formation, the printed reactive rule
+    (:class:`PaperRule`) among formed followers and the leader is what protects it.
 
-    What is ours (the transition from the start to the slot), per follower k (1-based):
+    **What is ours**, per follower k (1-based), each decision using only the leader's
+    position and the drones within ``sensing_range`` (3D):
 
-    1. **climb** — climb in place towards its own layer, formation altitude + k·``hop``
-       (SPEC §4's design). While the leader, which flies its trajectory and yields to
-       nobody, is (or will be within ``horizon`` s) within D̄ horizontally and not more
-       than ``clearance`` below, the follower does not climb through the leader's altitude:
-       it stays ``hop`` below it until the leader has passed.
-    2. **cross** — once within ``climb_tolerance`` of its layer (it need not finish the
-       climb: the layers below are already ``hop`` − ``climb_tolerance`` away) it flies to
-       its slot on its layer along a speed- and acceleration-limited path (≤ ``max_speed``
-       relative to the leader, ≤ ``max_accel``), whose position, velocity and acceleration
-       it hands to its controller. Unlimited, the backstepping loop flies a 4 m transfer at
-       5 m/s and 45° of tilt, and nothing can stop it in D̄. It brakes to a stop (holds its
-       (x, y)) while a drone it gives way to — the leader, a lower index, or any drone not
-       crossing (climbing or dropping through the layers) — is within ``clearance``
-       vertically and within D̄ plus its braking distance horizontally, closing in.
-    3. **drop** — within ``arrive`` of its slot it descends to the formation altitude, but
-       only when no drone that has not yet joined the formation is within D̄ horizontally
-       between its layer and the formation altitude (SPEC §4: the one failure of the layered
-       design was a drone dropping through another's layer). Its horizontal setpoint is
-       the slot from then on.
-    4. **formed** — the paper's reactive rule among formed followers and the leader.
+    1. *climb* — in place, to its own layer: formation altitude + k·``hop`` (SPEC §4's
+       design). It does not climb into a drone above it that is (or, predicted over
+       ``horizon`` s, will be) within D̄ + 0.2 m horizontally — 2·FOOTPRINT + 0.1 m for a
+       follower that hovers — nor into the leader when level with it: it waits ``hop``
+       under it (no higher than it is: it does not chase a climbing drone), or climbs over
+       if it can no longer stop below and the other is not straight overhead. Waiting under
+       one that stays (a hovering leader, a follower over its slot), it steps aside.
+    2. *cross* — once within ``climb_tolerance`` of its layer, it flies to its slot on the
+       layer along a limited path (speed ≤ ``max_speed``, acceleration ≤ ``max_accel`` and
+       ≤ what ``max_tilt_deg`` of tilt gives at the current thrust, jerk ≤ ``jerk``) whose
+       position, velocity and acceleration go to the controller. Why: unshaped, the
+       backstepping loop flies a 4 m transfer at 5 m/s and 45–60° of tilt, nothing can stop
+       it within D̄, and tilted rotors reach 0.3 m up or down, most of a layer. It brakes to
+       rest while a drone it gives way to — the leader, a lower index, or any drone not
+       crossing — is predicted within D̄ horizontally before it could stop, in an altitude
+       band it sweeps (``clearance``).
+    3. *drop* — within ``arrive`` of its slot it descends to the formation altitude, but
+       only when no drone still in transit is (or will be) within D̄ under it, and while
+       descending it never comes within ``hop`` above one (SPEC §4: the one failure of the
+       layered design on the independent model was a drone dropping through another's
+       layer).
+    4. *formed* — the paper's reactive rule.
+
+    Every follower's altitude also follows a limited path (see :meth:`_advance_altitude`:
+    a 1 m step down puts eq. (18)'s thrust on its floor and the drone flies off sideways).
+    Speeds are capped so that a drone can stop within what it senses (climbing, ``hop``
+    under a drone first seen straight above; crossing, D̄ + 0.2 m short of one first seen
+    ahead): with ``sensing_range`` = 4 m the caps are the 4 m/s defaults; at 2 m they fall to
+    2.7 m/s (climb) and 2.35 m/s (cross), and then the leader, which climbs at 3.5 m/s and
+    yields to nobody, catches followers climbing beside its path (measured: 5 of 100 random
+    starts touch at 2 m, 0 of 300 at 4 m).
 
     Settling (every leader distance within 5 cm of D) is a horizontal criterion, so a
-    follower counts as in place while still on its layer; the drop happens after that.
+    follower counts as in place while still on its layer; the drop comes after.
     """
 
     name = "layers"
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 arrive: float = 0.2, climb_tolerance: float = 0.2, clearance: float = 0.3,
-                 max_speed: float = 3.0, max_accel: float = 4.0, horizon: float = 1.0,
+                 arrive: float = 0.2, climb_tolerance: float = 0.35, clearance: float = 0.3,
+                 max_speed: float = 4.0, max_accel: float = 6.0, horizon: float = 1.0,
                  climb_speed: float = 4.0, climb_accel: float = 8.0, descent_speed: float = 1.5,
-                 descent_accel: float = 5.0, **_: float) -> None:
+                 descent_accel: float = 5.0, jerk: float = 120.0, velocity_gain: float = 15.0,
+                 max_tilt_deg: float = 30.0, sensing_range: float = 4.0, **_: float) -> None:
         self.arrive = float(arrive)
         self.climb_tol = float(climb_tolerance)
         self.clearance = float(clearance)
@@ -168,6 +202,21 @@ class LayeredRule(PaperRule):
         self.horizon = float(horizon)
         self.z_up = (float(climb_speed), float(climb_accel))
         self.z_down = (float(descent_speed), float(descent_accel))
+        self.jerk = float(jerk)
+        self.k_v = float(velocity_gain)
+        self.tan_tilt = float(np.tan(np.radians(max_tilt_deg)))
+        self.sensing_range = float(sensing_range)
+        # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop
+        # under a drone first seen straight above; crossing, D̄ + 0.2 m short of a drone first
+        # seen ahead. Braking at a, with the acceleration turning round in ``lag`` s:
+        # v²/(2·0.8·a) + v·lag ≤ room.
+        ad = self.z_down[1]
+        self.z_up = (min(self.z_up[0], _stoppable_speed(self.sensing_range - float(hop) - 0.2, ad,
+                                                        (self.z_up[1] + ad) / self.jerk + 1.0 / self.k_v)),
+                     self.z_up[1])
+        a_h = min(self.a_max, G * self.tan_tilt)
+        self.v_max = min(self.v_max, _stoppable_speed(self.sensing_range - float(safety_distance) - 0.2, a_h,
+                                                      2.0 * self.a_max / self.jerk + 1.0 / self.k_v))
         super().__init__(n, safety_distance, hop, hysteresis)
 
     def reset(self, positions: np.ndarray) -> None:
@@ -219,18 +268,23 @@ class LayeredRule(PaperRule):
             return
         e = goal - self.path_p                                             # (n, 2)
         dist = np.linalg.norm(e, axis=1)
-        speed = np.minimum.reduce([np.full(self.n, self.v_max), np.sqrt(1.6 * self.a_max * dist), 3.0 * dist])
+        lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v                   # turn-round of the acceleration
+        e_eff = np.maximum(dist - np.linalg.norm(self.path_v - goal_vel, axis=1) * lag, 0.0)
+        speed = np.minimum.reduce([np.full(self.n, self.v_max), np.sqrt(1.6 * self.a_max * e_eff), 3.0 * dist])
         v_des = goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None]
+        vn = np.linalg.norm(v_des, axis=1)
+        v_des *= np.minimum(1.0, self.v_max / np.maximum(vn, 1e-9))[:, None]   # ≤ max_speed over ground too
         v_des[self.blocked] = 0.0
-        dv = v_des - self.path_v
-        nrm = np.linalg.norm(dv, axis=1)
-        scale = np.minimum(1.0, self.a_max * dt / np.maximum(nrm, 1e-12))
-        self.path_a = dv * (scale / dt)[:, None]
+        # the thrust sets the tilt a horizontal acceleration costs: ≤ max_tilt at (g + z̈) of lift
+        a_lim = np.minimum(self.a_max, np.maximum(G + self.za, 1.0) * self.tan_tilt)     # (n,)
+        a_des = self.k_v * (v_des - self.path_v)                                # velocity loop
+        a_des *= np.minimum(1.0, a_lim / np.maximum(np.linalg.norm(a_des, axis=1), 1e-12))[:, None]
+        self.path_a = self.path_a + _clip_norm(a_des - self.path_a, self.jerk * dt)  # jerk-limited
         self.path_v = self.path_v + self.path_a * dt
         self.path_p = self.path_p + self.path_v * dt
 
-    def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: float) -> None:
-        """Move the altitude paths (n,) towards ``target`` (n,) (moving at ``target_vel``).
+    def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
+        """Move the altitude paths (n,) towards ``target`` (n,) (moving at ``target_vel`` (n,)).
 
         Why a path and not a step: the backstepping thrust (eq. 18) falls to its floor when a
         drone is told to drop by a metre at once, and with U1 at the floor the desired roll
@@ -246,12 +300,15 @@ class LayeredRule(PaperRule):
         e = target - self.zp
         up = e >= 0
         # speed from which the path can still stop at the target with the opposite acceleration
-        v_stop = np.where(up, np.sqrt(2.0 * 0.8 * ad * np.abs(e)), np.sqrt(2.0 * 0.8 * au * np.abs(e)))
+        # (less the distance flown while the jerk-limited acceleration turns round)
+        lag = (au + ad) / self.jerk + 1.0 / self.k_v
+        e_eff = np.maximum(np.abs(e) - np.abs(self.zv) * lag, 0.0)
+        v_stop = np.where(up, np.sqrt(2.0 * 0.8 * ad * e_eff), np.sqrt(2.0 * 0.8 * au * e_eff))
         speed = np.minimum.reduce([np.where(up, vu, vd), v_stop, 4.0 * np.abs(e)])
         v_des = np.clip(target_vel + np.sign(e) * speed, -vd, vu)
-        a = np.clip((v_des - self.zv) / dt, -ad, au)
-        self.za = a
-        self.zv = self.zv + a * dt
+        a_des = np.clip(self.k_v * (v_des - self.zv), -ad, au)
+        self.za = self.za + np.clip(a_des - self.za, -self.jerk * dt, self.jerk * dt)
+        self.zv = self.zv + self.za * dt
         self.zp = self.zp + self.zv * dt
 
     # ------------------------------------------------------------------ the rule
@@ -272,10 +329,17 @@ class LayeredRule(PaperRule):
         self.acc_d[:] = 0.0
         layer = formation_alt + self.hop * self.layer_index                # (n,)
         z_target = layer.copy()                                             # (n,)
+        z_target_vel = np.full(n, float(self.vel[0, 2]))                   # (n,) layers move with the leader
         lead_v = self.vel[0]                                                # (3,) the slots' velocity
         idx = np.arange(n)
-        soon = self._approach(positions, self.horizon)                     # (n, n)
-        vband = self._vertical_overlap(z, 0.5)                             # (n, n)
+        # decentralised: drone i sees drone j only within the sensing range (the leader's
+        # position it always has: the slots are built from it)
+        rel = positions[None, :, :] - positions[:, None, :]
+        seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
+        seen[:, 0] = True
+        np.fill_diagonal(seen, False)
+        soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
+        vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
 
         # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
@@ -285,30 +349,47 @@ class LayeredRule(PaperRule):
             self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
         climbing = self.phase == CLIMB
         if climbing.any():
-            above = (soon < self.safety) & (z[None, :] > z[:, None]) & (z[None, :] < layer[:, None] + self.clearance)
+            # drones it must not climb into: above it (up to its layer) and, horizontally,
+            # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
+            # hover (a drone climbing in place passes a hovering one that close unharmed);
+            # and the leader while the follower's column lies on its line of flight
+            hovering = np.linalg.norm(self.vel[:, :2], axis=1) < 0.5               # (n,)
+            hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
+            radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
+            vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
+            vertical[:, 0] |= z[0] > z - self.clearance                          # the leader: level counts
+            above = (soon < radius) & vertical
             above &= climbing[:, None]
             zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
-            # where the altitude path can stop, braking at the descent acceleration
+            # below it: wait (brake as hard as it can) no higher than now — it does not chase a
+            # climbing drone from below — and hop under it, or on the ground. About level with
+            # it already: climb over it, unless it is straight above (footprints overlap).
+            z_wait = np.maximum(np.minimum(np.maximum(self.zp, HOVER_MIN_M), zmin - self.hop), 0.0)
+            overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
             vz = np.maximum(self.zv, 0.0)
-            z_stop = self.zp + vz * vz / (2.0 * 0.8 * self.z_down[1])
-            guard = np.isfinite(zmin) & (z_stop < zmin - self.hop + 0.1)
-            z_target[guard] = np.minimum(layer[guard], np.maximum(zmin[guard] - self.hop, 0.0))
-            over = np.isfinite(zmin) & ~guard                                 # too late to wait: climb over
+            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])                 # where it could stop
+            late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
+            over = np.isfinite(zmin) & late & ~overhead
+            wait = np.isfinite(zmin) & ~over
+            z_target[wait] = np.minimum(layer[wait], z_wait[wait])
+            z_target_vel[wait] = 0.0
             z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
-            # one that stays within D̄ (a hovering leader, a drone waiting over its slot): step aside
-            slow = np.linalg.norm(self.vel[:, :2], axis=1) < 0.3                # (n,)
-            stuck = above & (h < self.safety) & slow[None, :]
+            # waiting, airborne, under a drone that hovers there (the leader hovering, or a
+            # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
+            slow = np.linalg.norm(self.vel[:, :2], axis=1) < 0.5                   # (n,), the leader too
+            stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
             there = np.linalg.norm(positions[:, :2] - self.start_xy, axis=1) < 0.1
-            aside = stuck.any(axis=1) & there & (self.asides < 3)
+            aside = stuck.any(axis=1) & there & wait
             for i in np.flatnonzero(aside):
                 j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
                 away = positions[i, :2] - positions[j, :2]
                 away /= max(float(np.linalg.norm(away)), 1e-9)
-                self.start_xy[i] = positions[j, :2] + (self.safety + 0.2) * away
+                self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
                 self.asides[i] += 1
                 self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
 
         # 2. cross on the layer along a limited path, braking for drones it gives way to
+        climbing = self.phase == CLIMB
         crossing = self.phase == CROSS
         goal = pos_d[:, :2].copy()                                          # (n, 2) slots
         goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()               # (n, 2) their velocity
@@ -323,8 +404,7 @@ class LayeredRule(PaperRule):
             vv = np.einsum("ijk,ijk->ij", dv, dv)
             tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
             m = d + tc[:, :, None] * dv
-            near = np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety
-            np.fill_diagonal(near, False)
+            near = (np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety) & seen
             gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
             conflict = near & vband & gives_way
             blocked = crossing & conflict.any(axis=1)
@@ -358,7 +438,7 @@ class LayeredRule(PaperRule):
         # every follower flies limited paths: horizontal (to its start while climbing, to its
         # slot after) and vertical (see _advance_paths, _advance_altitude)
         self._advance_paths(dt, goal, goal_vel)
-        self._advance_altitude(dt, z_target, float(lead_v[2]))
+        self._advance_altitude(dt, z_target, z_target_vel)
         pos_d[1:, :2] = self.path_p[1:]
         self.vel_d[1:, :2] = self.path_v[1:]
         self.acc_d[1:, :2] = self.path_a[1:]
