@@ -17,6 +17,7 @@ import numpy as np
 
 from .env import SwarmEnv
 from .errors import SimulationDiverged
+from .kernels import warm_up
 from .metrics import (follower_distances, formation_settling, leader_distances, min_separation, rmse,
                       step_metrics)
 from .policy import BacksteppingPolicy
@@ -116,6 +117,9 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
         sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
     if anti_collision is not None:
         sc = sc.with_overrides(anti_collision=anti_collision)
+    compile_s = warm_up()
+    if compile_s > 1.0 and progress is not False:
+        print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed)
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps

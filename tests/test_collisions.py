@@ -13,12 +13,13 @@ Durations are cut to what each check needs; the whole file runs in well under tw
 
 from __future__ import annotations
 
+import argparse
 import json
 
 import numpy as np
 import pytest
 
-from swarm_mj.commands.stress import StressCase, format_table, stress, stress_scenario
+from swarm_mj.commands.stress import StressCase, add_parser, format_table, main, stress, stress_scenario
 from swarm_mj.runner import run
 from swarm_mj.scenario import load_scenario
 from swarm_mj.wind import ALWAYS_ON, WindConfig
@@ -120,9 +121,6 @@ def test_stress_tool_table_and_json(tmp_path):
     np.testing.assert_array_equal(a, b)
     text = format_table(table, 5)
     assert "layers" in text and "paper" in text
-    from swarm_mj.commands.stress import add_parser, main
-    import argparse
-
     ap = argparse.ArgumentParser()
     add_parser(ap.add_subparsers())
     out = tmp_path / "s.json"

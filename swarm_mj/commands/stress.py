@@ -5,8 +5,9 @@ leader, at least ``--min-spacing`` apart (``scenario.random_follower_starts``, s
 ``--seed0``, ``--seed0`` + 1, ...), the leader flying the circle (SPEC §3). The same starts
 are flown with every ``--rule``, in parallel over ``--workers`` processes, and for each rule
 this prints: starts flown, starts with any drone–drone contact (counted by MuJoCo), total
-contacts, the smallest 3D centre distance seen while every drone was airborne, and the
-median and worst formation settling time (every leader distance within 5 cm of D).
+contacts, runs that crashed (a drone knocked into the floor: the run stops there), the
+smallest 3D centre distance seen while every drone was airborne, and the median and worst
+formation settling time (every leader distance within 5 cm of D; inf: never settled).
 
 Each drone sees the others within ``--sensing-range`` (default 4 m; the layered rule caps
 its speeds so that it can stop within it, see ``formation.anticollision.LayeredRule``).
@@ -19,7 +20,6 @@ Short runs (``--duration`` 15 s) are enough to form up.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from concurrent.futures import ProcessPoolExecutor
@@ -117,13 +117,13 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
 
 def format_table(table: dict, followers: int) -> str:
     """The per-rule table as text."""
-    head = (f"{'rule':<8} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'min sep (m)':>11} "
+    head = (f"{'rule':<8} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'min sep (m)':>11} "
             f"{'settle med (s)':>14} {'settle worst (s)':>16}   ({followers} followers)")
     lines = [head]
     for rule, r in table.items():
         lines.append(f"{rule:<8} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
-                     f"{r['min_separation_airborne_m']:>11.3f} {r['settling_median_s']:>14.2f} "
-                     f"{r['settling_worst_s']:>16.2f}")
+                     f"{len(r['stopped']):>7} {r['min_separation_airborne_m']:>11.3f} "
+                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f}")
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
             lines.append(f"         seeds with contact: {', '.join(map(str, seeds[:20]))}"

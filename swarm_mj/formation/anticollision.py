@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
+from ..kernels import horizontal_distances
 
 
 class NoRule:
@@ -49,9 +50,14 @@ class NoRule:
         return pos_d, np.zeros(self.n, dtype=bool)
 
 
+def _rownorm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of v (n, k) (_rownorm(v), without its overhead)."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
 def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     """Rows of v (n, k) scaled down to a norm of at most ``limit``."""
-    nrm = np.linalg.norm(v, axis=1)
+    nrm = _rownorm(v)
     return v * np.minimum(1.0, limit / np.maximum(nrm, 1e-12))[:, None]
 
 
@@ -64,10 +70,7 @@ def _stoppable_speed(room: float, accel: float, lag: float) -> float:
 
 def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
     """Pairwise horizontal distances (n, n), +inf on the diagonal."""
-    d = positions[:, None, :2] - positions[None, :, :2]
-    h = np.sqrt(np.einsum("ijk,ijk->ij", d, d))
-    np.fill_diagonal(h, np.inf)
-    return h
+    return horizontal_distances(np.ascontiguousarray(positions, dtype=np.float64))
 
 
 class PaperRule:
@@ -267,18 +270,18 @@ class LayeredRule(PaperRule):
             self.path_a[:] = 0.0
             return
         e = goal - self.path_p                                             # (n, 2)
-        dist = np.linalg.norm(e, axis=1)
+        dist = _rownorm(e)
         lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v                   # turn-round of the acceleration
-        e_eff = np.maximum(dist - np.linalg.norm(self.path_v - goal_vel, axis=1) * lag, 0.0)
-        speed = np.minimum.reduce([np.full(self.n, self.v_max), np.sqrt(1.6 * self.a_max * e_eff), 3.0 * dist])
+        e_eff = np.maximum(dist - _rownorm(self.path_v - goal_vel) * lag, 0.0)
+        speed = np.minimum(np.minimum(self.v_max, np.sqrt(1.6 * self.a_max * e_eff)), 3.0 * dist)
         v_des = goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None]
-        vn = np.linalg.norm(v_des, axis=1)
+        vn = _rownorm(v_des)
         v_des *= np.minimum(1.0, self.v_max / np.maximum(vn, 1e-9))[:, None]   # ≤ max_speed over ground too
         v_des[self.blocked] = 0.0
         # the thrust sets the tilt a horizontal acceleration costs: ≤ max_tilt at (g + z̈) of lift
         a_lim = np.minimum(self.a_max, np.maximum(G + self.za, 1.0) * self.tan_tilt)     # (n,)
         a_des = self.k_v * (v_des - self.path_v)                                # velocity loop
-        a_des *= np.minimum(1.0, a_lim / np.maximum(np.linalg.norm(a_des, axis=1), 1e-12))[:, None]
+        a_des *= np.minimum(1.0, a_lim / np.maximum(_rownorm(a_des), 1e-12))[:, None]
         self.path_a = self.path_a + _clip_norm(a_des - self.path_a, self.jerk * dt)  # jerk-limited
         self.path_v = self.path_v + self.path_a * dt
         self.path_p = self.path_p + self.path_v * dt
@@ -304,7 +307,7 @@ class LayeredRule(PaperRule):
         lag = (au + ad) / self.jerk + 1.0 / self.k_v
         e_eff = np.maximum(np.abs(e) - np.abs(self.zv) * lag, 0.0)
         v_stop = np.where(up, np.sqrt(2.0 * 0.8 * ad * e_eff), np.sqrt(2.0 * 0.8 * au * e_eff))
-        speed = np.minimum.reduce([np.where(up, vu, vd), v_stop, 4.0 * np.abs(e)])
+        speed = np.minimum(np.minimum(np.where(up, vu, vd), v_stop), 4.0 * np.abs(e))
         v_des = np.clip(target_vel + np.sign(e) * speed, -vd, vu)
         a_des = np.clip(self.k_v * (v_des - self.zv), -ad, au)
         self.za = self.za + np.clip(a_des - self.za, -self.jerk * dt, self.jerk * dt)
@@ -334,12 +337,14 @@ class LayeredRule(PaperRule):
         idx = np.arange(n)
         # decentralised: drone i sees drone j only within the sensing range (the leader's
         # position it always has: the slots are built from it)
-        rel = positions[None, :, :] - positions[:, None, :]
-        seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
-        seen[:, 0] = True
-        np.fill_diagonal(seen, False)
-        soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-        vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
+        in_transit = bool((self.phase != FORMED).any())
+        if in_transit:   # once every follower is formed, only the reactive rule and the paths run
+            rel = positions[None, :, :] - positions[:, None, :]
+            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
+            seen[:, 0] = True
+            np.fill_diagonal(seen, False)
+            soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
+            vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
 
         # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
@@ -352,8 +357,8 @@ class LayeredRule(PaperRule):
             # drones it must not climb into: above it (up to its layer) and, horizontally,
             # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
             # hover (a drone climbing in place passes a hovering one that close unharmed);
-            # and the leader while the follower's column lies on its line of flight
-            hovering = np.linalg.norm(self.vel[:, :2], axis=1) < 0.5               # (n,)
+            # the leader, which yields to nobody, also when about level with it
+            hovering = _rownorm(self.vel[:, :2]) < 0.5               # (n,)
             hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
             radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
             vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
@@ -376,9 +381,9 @@ class LayeredRule(PaperRule):
             z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
             # waiting, airborne, under a drone that hovers there (the leader hovering, or a
             # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-            slow = np.linalg.norm(self.vel[:, :2], axis=1) < 0.5                   # (n,), the leader too
+            slow = _rownorm(self.vel[:, :2]) < 0.5                   # (n,), the leader too
             stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
-            there = np.linalg.norm(positions[:, :2] - self.start_xy, axis=1) < 0.1
+            there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
             aside = stuck.any(axis=1) & there & wait
             for i in np.flatnonzero(aside):
                 j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
@@ -397,7 +402,7 @@ class LayeredRule(PaperRule):
         goal_vel[climbing] = 0.0
         self.blocked &= crossing
         if crossing.any():
-            speed = np.linalg.norm(self.vel[:, :2], axis=1)
+            speed = _rownorm(self.vel[:, :2])
             horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
             d = positions[None, :, :2] - positions[:, None, :2]
             dv = self.vel[None, :, :2] - self.vel[:, None, :2]
@@ -412,8 +417,8 @@ class LayeredRule(PaperRule):
                 self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
             self.blocked = blocked
             # 3. drop once over the slot, if no drone still in transit is (or will be) under it
-            there = crossing & (np.linalg.norm(positions[:, :2] - goal, axis=1) < self.arrive) \
-                & (np.linalg.norm(self.path_p - goal, axis=1) < self.arrive)
+            there = crossing & (_rownorm(positions[:, :2] - goal) < self.arrive) \
+                & (_rownorm(self.path_p - goal) < self.arrive)
             for i in np.flatnonzero(there):
                 under = (soon[i] < self.safety) & (self.phase != FORMED) & (z < z[i] + self.clearance)
                 if not under.any():
@@ -430,8 +435,8 @@ class LayeredRule(PaperRule):
         # a formed drone still descending never descends onto a drone in transit within D̄
         # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
         below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
-            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance)
-        if below.any():
+            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance) if in_transit else None
+        if below is not None and below.any():
             zmax = np.where(below, z[None, :], -np.inf).max(axis=1)           # (n,) highest such drone
             z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
