@@ -270,7 +270,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     wf = f"{w}formation."
     ac_params = {k: float(_number(form, k, d, wf, positive=True)) for k, d in
                  (("safety_distance", 0.8), ("hop", 0.4), ("hysteresis", 0.05), ("arrive", 0.2))}
-    sensing = float(_number(form, "sensing_range", 2.0, wf, positive=True))
+    sensing = float(_number(form, "sensing_range", 4.0, wf, positive=True))
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
     g = ctl.get("gains", "table4")

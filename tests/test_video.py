@@ -208,8 +208,10 @@ def test_video_decodes_with_the_drones_where_the_log_says(short_run, tmp_path, c
             for i in range(len(px)):
                 pix = _drone_pixels(seg, rep.world, i)
                 assert len(pix) > 20, (f, i)
-                # the replayed model put drone i where the log says ...
-                assert np.linalg.norm(np.median(pix, axis=0) - px[i]) < 3, (f, i)
+                # the replayed model put drone i where the log says (the silhouette's median sits
+                # off its centre's projection by a few pixels when the drone is tilted, as it is
+                # while crossing at t ≈ 3 s) ...
+                assert np.linalg.norm(np.median(pix, axis=0) - px[i]) < 4, (f, i)
                 # ... and the decoded video shows it there, in its colour (leader red, followers blue)
                 seen = frames[f][pix[:, 1], pix[:, 0]].astype(float)
                 own, other = (LEADER, FOLLOWER) if i == 0 else (FOLLOWER, LEADER)
