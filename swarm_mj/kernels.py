@@ -157,3 +157,66 @@ def warm_up() -> float:
                                  g, np.ones(3), 0.5, 9.81, np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01,
                                  np.zeros((n, 2)), first, exact, np.zeros((n, 3)))
     return time.perf_counter() - t0
+
+
+@jit
+def advance_paths_kernel(dt: float, goal: np.ndarray, goal_vel: np.ndarray, p: np.ndarray, v: np.ndarray,
+                         a: np.ndarray, blocked: np.ndarray, za: np.ndarray, a_max: float, jerk: float,
+                         k_v: float, v_max: float, tan_tilt: float, g: float) -> None:
+    """One step of the layered rule's horizontal paths (see LayeredRule._advance_paths), in place:
+    p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2)."""
+    n = p.shape[0]
+    lag = 2.0 * a_max / jerk + 1.0 / k_v
+    for i in range(n):
+        ex = goal[i, 0] - p[i, 0]
+        ey = goal[i, 1] - p[i, 1]
+        dist = np.sqrt(ex * ex + ey * ey)
+        rx = v[i, 0] - goal_vel[i, 0]
+        ry = v[i, 1] - goal_vel[i, 1]
+        e_eff = max(dist - np.sqrt(rx * rx + ry * ry) * lag, 0.0)
+        speed = min(min(v_max, np.sqrt(1.6 * a_max * e_eff)), 3.0 * dist)
+        k = speed / max(dist, 1e-9)
+        vx = goal_vel[i, 0] + ex * k
+        vy = goal_vel[i, 1] + ey * k
+        s = min(1.0, v_max / max(np.sqrt(vx * vx + vy * vy), 1e-9))
+        vx *= s
+        vy *= s
+        if blocked[i]:
+            vx = 0.0
+            vy = 0.0
+        a_lim = min(a_max, max(g + za[i], 1.0) * tan_tilt)
+        ax = k_v * (vx - v[i, 0])
+        ay = k_v * (vy - v[i, 1])
+        s = min(1.0, a_lim / max(np.sqrt(ax * ax + ay * ay), 1e-12))
+        ax *= s
+        ay *= s
+        dx = ax - a[i, 0]
+        dy = ay - a[i, 1]
+        s = min(1.0, jerk * dt / max(np.sqrt(dx * dx + dy * dy), 1e-12))
+        a[i, 0] += dx * s
+        a[i, 1] += dy * s
+        v[i, 0] += a[i, 0] * dt
+        v[i, 1] += a[i, 1] * dt
+        p[i, 0] += v[i, 0] * dt
+        p[i, 1] += v[i, 1] * dt
+
+
+@jit
+def advance_altitude_kernel(dt: float, target: np.ndarray, target_vel: np.ndarray, zp: np.ndarray, zv: np.ndarray,
+                            za: np.ndarray, vu: float, au: float, vd: float, ad: float, jerk: float,
+                            k_v: float) -> None:
+    """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place."""
+    n = zp.shape[0]
+    lag = (au + ad) / jerk + 1.0 / k_v
+    for i in range(n):
+        e = target[i] - zp[i]
+        up = e >= 0.0
+        e_eff = max(abs(e) - abs(zv[i]) * lag, 0.0)
+        v_stop = np.sqrt(2.0 * 0.8 * ad * e_eff) if up else np.sqrt(2.0 * 0.8 * au * e_eff)
+        speed = min(min(vu if up else vd, v_stop), 4.0 * abs(e))
+        sgn = 1.0 if e > 0.0 else (-1.0 if e < 0.0 else 0.0)
+        v_des = min(max(target_vel[i] + sgn * speed, -vd), vu)
+        a_des = min(max(k_v * (v_des - zv[i]), -ad), au)
+        za[i] += min(max(a_des - za[i], -jerk * dt), jerk * dt)
+        zv[i] += za[i] * dt
+        zp[i] += zv[i] * dt

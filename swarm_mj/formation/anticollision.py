@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..kernels import horizontal_distances
+from ..kernels import advance_altitude_kernel, advance_paths_kernel, horizontal_distances
 
 
 class NoRule:
@@ -103,6 +103,8 @@ class PaperRule:
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
         """Fig. 5: trigger and release the altitude offsets of the drones flagged ``active`` (n,)."""
+        if not self.offset.any() and not (h < self.safety).any():
+            return                     # nobody held, nobody inside D̄: nothing to trigger or release
         yields = (h < self.safety) & self._lower & active[:, None] & active[None, :]
         trig = yields.any(axis=1) & (self.offset == 0.0)
         if trig.any():
@@ -269,22 +271,10 @@ class LayeredRule(PaperRule):
         if dt <= 0.0:
             self.path_a[:] = 0.0
             return
-        e = goal - self.path_p                                             # (n, 2)
-        dist = _rownorm(e)
-        lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v                   # turn-round of the acceleration
-        e_eff = np.maximum(dist - _rownorm(self.path_v - goal_vel) * lag, 0.0)
-        speed = np.minimum(np.minimum(self.v_max, np.sqrt(1.6 * self.a_max * e_eff)), 3.0 * dist)
-        v_des = goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None]
-        vn = _rownorm(v_des)
-        v_des *= np.minimum(1.0, self.v_max / np.maximum(vn, 1e-9))[:, None]   # ≤ max_speed over ground too
-        v_des[self.blocked] = 0.0
-        # the thrust sets the tilt a horizontal acceleration costs: ≤ max_tilt at (g + z̈) of lift
-        a_lim = np.minimum(self.a_max, np.maximum(G + self.za, 1.0) * self.tan_tilt)     # (n,)
-        a_des = self.k_v * (v_des - self.path_v)                                # velocity loop
-        a_des *= np.minimum(1.0, a_lim / np.maximum(_rownorm(a_des), 1e-12))[:, None]
-        self.path_a = self.path_a + _clip_norm(a_des - self.path_a, self.jerk * dt)  # jerk-limited
-        self.path_v = self.path_v + self.path_a * dt
-        self.path_p = self.path_p + self.path_v * dt
+        advance_paths_kernel(float(dt), np.ascontiguousarray(goal, dtype=np.float64),
+                             np.ascontiguousarray(goal_vel, dtype=np.float64), self.path_p, self.path_v,
+                             self.path_a, self.blocked, self.za, self.a_max, self.jerk, self.k_v, self.v_max,
+                             self.tan_tilt, G)
 
     def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
         """Move the altitude paths (n,) towards ``target`` (n,) (moving at ``target_vel`` (n,)).
@@ -300,19 +290,9 @@ class LayeredRule(PaperRule):
             self.za[:] = 0.0
             return
         (vu, au), (vd, ad) = self.z_up, self.z_down
-        e = target - self.zp
-        up = e >= 0
-        # speed from which the path can still stop at the target with the opposite acceleration
-        # (less the distance flown while the jerk-limited acceleration turns round)
-        lag = (au + ad) / self.jerk + 1.0 / self.k_v
-        e_eff = np.maximum(np.abs(e) - np.abs(self.zv) * lag, 0.0)
-        v_stop = np.where(up, np.sqrt(2.0 * 0.8 * ad * e_eff), np.sqrt(2.0 * 0.8 * au * e_eff))
-        speed = np.minimum(np.minimum(np.where(up, vu, vd), v_stop), 4.0 * np.abs(e))
-        v_des = np.clip(target_vel + np.sign(e) * speed, -vd, vu)
-        a_des = np.clip(self.k_v * (v_des - self.zv), -ad, au)
-        self.za = self.za + np.clip(a_des - self.za, -self.jerk * dt, self.jerk * dt)
-        self.zv = self.zv + self.za * dt
-        self.zp = self.zp + self.zv * dt
+        advance_altitude_kernel(float(dt), np.ascontiguousarray(target, dtype=np.float64),
+                                np.ascontiguousarray(target_vel, dtype=np.float64), self.zp, self.zv, self.za,
+                                vu, au, vd, ad, self.jerk, self.k_v)
 
     # ------------------------------------------------------------------ the rule
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
@@ -322,6 +302,8 @@ class LayeredRule(PaperRule):
         if dt > 0.0:
             self.vel = (positions - self._prev_pos) / dt
         self._prev_t, self._prev_pos = float(t), positions.copy()
+        if (self.phase == FORMED).all():
+            return self._update_formed(t, positions, pos_d, formation_alt, dt)
         n = self.n
         h = _horizontal_distances(positions)
         z = positions[:, 2]
@@ -451,6 +433,40 @@ class LayeredRule(PaperRule):
         self.vel_d[1:, 2] = self.zv[1:]
         self.acc_d[1:, 2] = self.za[1:]
         return pos_d, steer
+
+
+
+
+def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, pos_d: np.ndarray,
+                        formation_alt: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """:meth:`LayeredRule.update` once every follower is formed (nobody in transit): the same
+    steps with the climb / cross / drop parts, which then do nothing, left out."""
+    n = rule.n
+    h = _horizontal_distances(positions)
+    rule._react(t, positions, h, np.ones(n, dtype=bool))            # 4. Fig. 5 among all drones
+    rule.blocked[:] = False
+    z_target = formation_alt + rule.offset                            # (n,)
+    z_target_vel = np.full(n, float(rule.vel[0, 2]))                 # (n,) moving with the leader
+    goal = np.ascontiguousarray(pos_d[:, :2], dtype=np.float64)       # (n, 2) slots
+    goal_vel = np.empty((n, 2))
+    goal_vel[:] = rule.vel[0, :2]
+    rule._advance_paths(dt, goal, goal_vel)
+    rule._advance_altitude(dt, z_target, z_target_vel)
+    out = pos_d.copy()
+    out[1:, :2] = rule.path_p[1:]
+    out[1:, 2] = rule.zp[1:]
+    rule.vel_d[:] = 0.0
+    rule.acc_d[:] = 0.0
+    rule.vel_d[1:, :2] = rule.path_v[1:]
+    rule.acc_d[1:, :2] = rule.path_a[1:]
+    rule.vel_d[1:, 2] = rule.zv[1:]
+    rule.acc_d[1:, 2] = rule.za[1:]
+    steer = np.ones(n, dtype=bool)
+    steer[0] = False
+    return out, steer
+
+
+LayeredRule._update_formed = _update_formed_impl
 
 
 ANTI_COLLISION_RULES = {"layers": LayeredRule, "paper": PaperRule, "off": NoRule}
