@@ -97,6 +97,23 @@ def anticollision(r: dict) -> str:
     return "\n".join(rows)
 
 
+def stress(paths: list[Path]) -> str:
+    """The ``swarm-mj stress --json`` tables (random crossing starts, leader flying the circle)."""
+    rows = ["| random starts | rule | starts | starts with a contact | contacts | runs that crashed | "
+            "min separation (airborne) | settling median / worst |", "|---|---|---|---|---|---|---|---|"]
+    for path in paths:
+        if not path.exists():
+            continue
+        d = json.loads(path.read_text())
+        st = d["settings"]
+        for rule, r in d["table"].items():
+            rows.append(f"| {st['followers']} followers within {st['radius']:g} m, ≥ {st['min_spacing']:g} m apart | "
+                        f"`{rule}` | {r['starts']} | {r['starts_with_contact']} | {r['contacts']} | "
+                        f"{len(r['stopped'])} | {f(r['min_separation_airborne_m'], '{:.2f}')} m | "
+                        f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |")
+    return "\n".join(rows)
+
+
 def performance(b: dict) -> str:
     m = b["machine"]
     rows = [f"Measured by `python tools/bench.py` on {m['cpu']}, {m['cores']} cores, Python {m['python']}, "
@@ -119,12 +136,13 @@ def main() -> None:
     r = json.loads(Path(a.results).read_text())
     b = json.loads(Path(a.bench).read_text())
     text = Path(a.readme).read_text()
+    stress_files = [Path(a.results).parent / "stress5.json", Path(a.results).parent / "stress8.json"]
     for name, body in (("reproduction", reproduction(r)), ("anticollision", anticollision(r)),
-                       ("performance", performance(b))):
-        pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(\n<!-- /tables:{name} -->)", re.S)
+                       ("stress", stress(stress_files)), ("performance", performance(b))):
+        pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
         if not pat.search(text):
             raise SystemExit(f"README has no <!-- tables:{name} --> markers")
-        text = pat.sub(lambda mm: mm.group(1) + body + mm.group(2), text)
+        text = pat.sub(lambda mm: mm.group(1) + body + "\n" + mm.group(2), text)
     Path(a.readme).write_text(text)
     print(f"updated {a.readme}")
 
