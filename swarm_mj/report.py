@@ -25,7 +25,6 @@ import datetime as _dt
 import json
 import math
 import os
-import platform
 import sys
 import time
 from collections.abc import Callable
@@ -38,6 +37,7 @@ import numpy as np
 from .errors import UserError
 from .runner import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .scenario import Scenario, load_scenario, parse_scenario
+from .parallel import machine_description
 from .sweep import SweepTask, apply_param, compute_stats, default_workers, run_parallel, run_task
 
 GAINS_FILE = Path("scenarios/gains/fpa_seed1.toml")
@@ -220,22 +220,6 @@ def _num(v: Any) -> float:
     if isinstance(v, str):
         return float(v)
     return float(v)
-
-
-def machine_description() -> dict[str, Any]:
-    import mujoco
-
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "usable_cores": default_workers(),
-            "python": platform.python_version(), "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "platform": platform.platform()}
 
 
 def _find_gains_file() -> Path | None:

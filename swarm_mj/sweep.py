@@ -30,7 +30,6 @@ inherited MuJoCo or thread state), or over Ray with ``ray_address``, in order.
 from __future__ import annotations
 
 import math
-import os
 import signal
 import sys
 import time
@@ -42,9 +41,9 @@ from typing import Any
 import numpy as np
 
 from .errors import UserError
+from .parallel import default_workers, import_ray, init_ray
 from .scenario import Scenario, load_scenario, parse_scenario
 
-RAY_INSTALL_HINT = "pip install 'swarm-mj[ray]'"
 
 #: (key, label, worst, swarm only). ``worst`` is "max" (an error: bigger is worse) or "min".
 METRICS: list[tuple[str, str, str, bool]] = [
@@ -248,24 +247,9 @@ def seeded(sc: Scenario, seed: int) -> Scenario:
 # --------------------------------------------------------------------------- executor
 
 
-def default_workers() -> int:
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 def _worker_init() -> None:
     # Ctrl-C reaches the whole process group: only the parent handles it (and stops us).
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def _import_ray():
-    try:
-        import ray  # noqa: PLC0415 - optional extra, imported only when asked for
-    except ImportError:
-        raise UserError(f"--ray needs Ray, which is not installed: {RAY_INSTALL_HINT}") from None
-    return ray
 
 
 def run_parallel(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
@@ -325,18 +309,8 @@ def run_parallel(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int
 
 
 def _run_ray(fn, items, address, workers, on_result):
-    ray = _import_ray()
-    started = False
-    if not ray.is_initialized():
-        try:
-            if address == "local":
-                ray.init(num_cpus=workers or default_workers(), include_dashboard=False,
-                         log_to_driver=False, configure_logging=False)
-            else:
-                ray.init(address=address, log_to_driver=False, configure_logging=False)
-        except Exception as exc:  # noqa: BLE001 - connection refused, bad address, ...
-            raise UserError(f"cannot start or reach the Ray cluster at {address!r}: {exc}") from None
-        started = True
+    ray = import_ray()
+    started = init_ray(ray, address, workers)
     try:
         remote = ray.remote(num_cpus=1)(fn)
         refs = [remote.remote(x) for x in items]

@@ -35,7 +35,6 @@ import argparse
 import importlib.util
 import json
 import os
-import platform
 import sys
 import tempfile
 import time
@@ -66,28 +65,17 @@ def row(section: str, name: str, ours_s: float | None, raw_s: float | None, *, v
 
 
 def machine() -> dict:
-    cpu = platform.processor() or platform.machine()
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    except OSError:
-        pass
-    try:
-        usable = len(os.sched_getaffinity(0))
-    except (AttributeError, OSError):
-        usable = os.cpu_count()
+    """The machine (swarm_mj.parallel.machine_description) plus Numba and the load average."""
+    from swarm_mj import _jit
+    from swarm_mj.parallel import machine_description
+
     try:
         import numba
         nb = numba.__version__
     except ImportError:
         nb = None
-    from swarm_mj import _jit
-
-    return {"cpu": cpu, "cores": os.cpu_count(), "usable_cores": usable, "python": platform.python_version(),
-            "mujoco": mujoco.__version__, "numpy": np.__version__, "numba": nb, "jit": bool(_jit.AVAILABLE),
-            "platform": platform.platform(), "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
+    return {**machine_description(), "numba": nb, "jit": bool(_jit.AVAILABLE),
+            "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
 
 
 # --------------------------------------------------------------------------- raw baseline

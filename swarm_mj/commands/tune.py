@@ -171,8 +171,8 @@ def main(args: argparse.Namespace) -> int:
     if args.ray is not None:
         if not args.ray.strip():
             raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
-        from ..tuning.cost import _import_ray
-        _import_ray()                       # one clear line if Ray is missing
+        from ..parallel import import_ray
+        import_ray()                       # one clear line if Ray is missing
     out = Path(args.output)
     _check_output(out)
     quiet = args.quiet

@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import math
 import multiprocessing as mp
-import os
 import signal
 from concurrent.futures import ProcessPoolExecutor
 from concurrent.futures import TimeoutError as FuturesTimeout
@@ -57,6 +56,7 @@ import numpy as np
 from ..control.backstepping import TABLE4_GAINS, Backstepping
 from ..errors import UserError
 from ..metrics import ise
+from ..parallel import RAY_INSTALL_HINT, default_workers, import_ray, init_ray  # noqa: F401 (re-exported)
 from ..params import DEFAULT_PARAMS, QuadParams
 from ..sim import Sim
 from ..state import body_rates_to_euler_rates, quat_to_euler, wrap_angle
@@ -83,7 +83,6 @@ __all__ = [
     "table4_ise",
 ]
 
-RAY_INSTALL_HINT = "pip install 'swarm-mj[ray]'"
 
 
 # --------------------------------------------------------------------------- settings
@@ -357,14 +356,6 @@ class PopulationCost(Protocol):
     def close(self) -> None: ...
 
 
-def default_workers() -> int:
-    """Local worker processes by default: the CPUs this process may use."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except (AttributeError, OSError):
-        return max(1, os.cpu_count() or 1)
-
-
 def _chunks(X: np.ndarray, parts: int) -> list[np.ndarray]:
     """Contiguous, nearly equal, non-empty chunks of the rows of X (m, d), in order."""
     return [c for c in np.array_split(X, min(parts, max(len(X), 1))) if len(c)]
@@ -458,14 +449,6 @@ class ProcessPoolCost(_Closing):
             proc.join(timeout=5)
 
 
-def _import_ray():
-    try:
-        import ray  # noqa: PLC0415 - optional extra, imported only when asked for
-    except ImportError:
-        raise UserError(f"--ray needs Ray, which is not installed: {RAY_INSTALL_HINT}") from None
-    return ray
-
-
 class _RayWorker:
     """A Ray actor holding batched models (built once, reused every iteration)."""
 
@@ -488,20 +471,10 @@ class RayCost(_Closing):
 
     def __init__(self, settings: StepCostSettings = StepCostSettings(), address: str = "local",
                  workers: int | None = None) -> None:
-        ray = _import_ray()
+        ray = import_ray()
         self._ray = ray
         self.settings = settings
-        self._started = False
-        if not ray.is_initialized():
-            try:
-                if address == "local":
-                    ray.init(num_cpus=workers or default_workers(), include_dashboard=False,
-                             log_to_driver=False, configure_logging=False)
-                else:
-                    ray.init(address=address, log_to_driver=False, configure_logging=False)
-            except Exception as exc:  # connection refused, bad address, ...
-                raise UserError(f"cannot start or reach the Ray cluster at {address!r}: {exc}") from None
-            self._started = True
+        self._started = init_ray(ray, address, workers)
         cpus = int(ray.cluster_resources().get("CPU", 1))
         self.workers = int(workers) if workers else max(1, cpus)
         if self.workers < 1:
