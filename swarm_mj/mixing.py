@@ -33,7 +33,11 @@ def saturate(U: np.ndarray, f_min: float, f_max: float) -> tuple[np.ndarray, np.
     """Map commanded U (n, 4) to rotors, clip each rotor to [f_min, f_max], map back.
 
     Returns (U_applied (n, 4), F (n, 4)): the wrench the motors can deliver and the rotor thrusts.
+    The arithmetic is :func:`swarm_mj.kernels.saturate_kernel`, the one the simulator runs.
     """
-    F = U @ _UNMIX_T
-    np.clip(F, f_min, f_max, out=F)
-    return F @ _MIX_T, F
+    from .kernels import saturate_kernel
+
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    U_out, F = np.empty_like(U), np.empty_like(U)
+    saturate_kernel(U, _UNMIX_T, _MIX_T, float(f_min), float(f_max), U_out, F)
+    return U_out, F

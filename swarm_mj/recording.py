@@ -38,9 +38,7 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
                                  end=rrb.TimeRangeBoundary.cursor_relative())
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="/world", name="swarm", contents=["/world/**"],
-                              overrides={"/world/trails": [trail]} if False else None,
-                              time_ranges=[trail]),
+            rrb.Spatial3DView(origin="/world", name="swarm", contents=["/world/**"], time_ranges=[trail]),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="/plots/error", name="position error (m)"),
                 rrb.TimeSeriesView(origin="/plots/distance", name="distances (m, Fig. 14)"),
