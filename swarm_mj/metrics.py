@@ -14,23 +14,40 @@ def step_metrics(t: np.ndarray, y: np.ndarray, target: float, y0: float | None =
 
     t: (k,), y: (k,). Overshoot is the largest excursion past the target, as a percentage
     of the step size |target − y0|; settling is the first time after which y stays within
-    ``band``·|target − y0| of the target; the steady-state error is |y(end) − target|.
+    ``band``·|target − y0| of the target (``inf`` if y is outside at the end); the
+    steady-state error is |y(end) − target|. One response of :func:`step_metrics_batch`.
     """
+    y = np.asarray(y, dtype=float)
     y0 = float(y[0]) if y0 is None else float(y0)
-    size = abs(target - y0)
-    if size == 0:
-        return {"overshoot_pct": 0.0, "settling_s": 0.0, "steady_state_error": float(abs(y[-1] - target))}
+    m = step_metrics_batch(t, y[:, None], np.array([float(target)]), np.array([y0]), band)
+    return {key: float(v[0]) for key, v in m.items()}
+
+
+def step_metrics_batch(t: np.ndarray, y: np.ndarray, target: np.ndarray | float, y0: np.ndarray | float,
+                       band: float = 0.02) -> dict[str, np.ndarray]:
+    """:func:`step_metrics` of m responses at once: t (k,), y (k, m), target and y0 (m,) or scalars.
+
+    Returns ``overshoot_pct``, ``settling_s``, ``steady_state_error``, each (m,). A response
+    whose step size is zero has no overshoot and settles at once.
+    """
+    t = np.asarray(t, dtype=float)                                   # (k,)
+    y = np.asarray(y, dtype=float)                                   # (k, m)
+    m = y.shape[1]
+    target = np.broadcast_to(np.asarray(target, dtype=float), (m,))  # (m,)
+    y0 = np.broadcast_to(np.asarray(y0, dtype=float), (m,))          # (m,)
+    size = np.abs(target - y0)                                       # (m,)
     sign = np.sign(target - y0)
-    over = max(0.0, float(np.max(sign * (y - target))))
-    outside = np.abs(y - target) > band * size
-    if not outside.any():
-        settle = float(t[0])
-    elif outside[-1]:
-        settle = float("inf")
-    else:
-        settle = float(t[np.flatnonzero(outside)[-1] + 1])
-    return {"overshoot_pct": 100.0 * over / size, "settling_s": settle - float(t[0]),
-            "steady_state_error": float(abs(y[-1] - target))}
+    dev = y - target                                                 # (k, m)
+    over = np.maximum(0.0, np.max(sign * dev, axis=0))
+    outside = np.abs(dev) > band * size                              # (k, m)
+    last = len(t) - 1 - np.argmax(outside[::-1], axis=0)             # last sample outside
+    settle = np.where(outside.any(axis=0), t[np.minimum(last + 1, len(t) - 1)], t[0]) - t[0]
+    settle = np.where(outside[-1], np.inf, settle)
+    zero = size == 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        over_pct = np.where(zero, 0.0, 100.0 * over / np.where(zero, 1.0, size))
+    return {"overshoot_pct": over_pct, "settling_s": np.where(zero, 0.0, settle),
+            "steady_state_error": np.abs(y[-1] - target)}
 
 
 def rmse(err: np.ndarray, axis: int = 0) -> np.ndarray:

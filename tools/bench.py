@@ -249,6 +249,19 @@ def bench_tuning(quick: bool, repeats: int) -> None:
         value=one_by_one / times[nw], unit="× slower than the tune",
         note=f"{per:.3f} s per candidate over {len(sample)}; the batched tune on {nw} worker(s) is "
              f"{one_by_one / times[nw]:.1f}× faster")
+    # The stricter baseline: the tune's own evaluator flying one copy per model (batching alone).
+    from swarm_mj.tuning.cost import evaluate_batch
+
+    evaluate_batch(sample[:1], settings)                            # builds the 1-copy model
+    t0 = time.perf_counter()
+    for g in sample:
+        evaluate_batch(g[None], settings)
+    per1 = (time.perf_counter() - t0) / len(sample)
+    alone = per1 * evals
+    row("tuning", f"one at a time: the tune's evaluator, one copy per model, x{evals} (extrapolated)", alone,
+        raw_equiv, value=alone / times[nw], unit="× slower than the tune",
+        note=f"{per1 * 1e3:.1f} ms per candidate over {len(sample)}; batching alone (1 worker): "
+             f"{alone / times[1]:.1f}×")
 
 
 def bench_video(quick: bool, repeats: int) -> None:

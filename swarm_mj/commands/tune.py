@@ -2,7 +2,10 @@
 
 Paper §3.2, Fig. 3, Table 2 (SPEC §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
 gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (SPEC §3),
-t_sim = 10 s. Writes a gains TOML file (``gains = [α1..α12]`` plus the ISEs and the
+t_sim = 10 s, by default subject to the controller's step bars (overshoot ≤ 1 %, settling
+≤ 2 / 2 / 1.5 / 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°; Deb's feasibility rules,
+``swarm_mj.tuning.constraints``) and starting from a population that holds the paper's
+Table 4 gains. ``--constraints none --init random`` is the paper's tune as printed. Writes a gains TOML file (``gains = [α1..α12]`` plus the ISEs and the
 settings) that ``swarm-mj run step --gains FILE`` and scenario files
 (``[controller] gains = "FILE"``) read. The file is rewritten atomically after every
 iteration, so an interrupted tune leaves the best gains so far, never a half-written file.
@@ -30,7 +33,8 @@ def add_parser(sub) -> None:
     p = sub.add_parser(
         "tune", help="tune the 12 backstepping gains with the Flower Pollination Algorithm",
         description="Tune α1..α12 with the Flower Pollination Algorithm (paper §3.2, Table 2) on the ISE "
-                    "of eq. (25) over the step (x = y = z = 1 m, ψ = 25°). Writes a gains TOML file for "
+                    "of eq. (25) over the step (x = y = z = 1 m, ψ = 25°), by default subject to the "
+                    "controller's step bars and starting from the paper's Table 4 gains. Writes a gains TOML file for "
                     "'swarm-mj run step --gains FILE'. The population is simulated in batched MuJoCo "
                     "models, split over local worker processes (--workers) or a Ray cluster (--ray).")
     p.add_argument("--population", type=int, default=50, help="flowers N (default 50, Table 2)")
@@ -41,6 +45,13 @@ def add_parser(sub) -> None:
     p.add_argument("--gamma", type=float, default=0.02, help="global step size γ = c (default 0.02, Table 2)")
     p.add_argument("--lower", type=float, default=0.1, help="lower bound of every gain (default 0.1; > 0)")
     p.add_argument("--upper", type=float, default=12.0, help="upper bound of every gain (default 12)")
+    p.add_argument("--constraints", choices=("step-bars", "none"), default="step-bars",
+                   help="step-bars (default): gains must also meet the step bars (overshoot ≤ 1 %%, 2 %% settling "
+                        "x, y ≤ 2 s, z ≤ 1.5 s, ψ ≤ 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°), ranked by Deb's "
+                        "feasibility rules; none: the ISE of eq. (25) alone, as in the paper")
+    p.add_argument("--init", choices=("table4", "random"), default="table4",
+                   help="table4 (default): the paper's Table 4 gains are one flower of the initial population, "
+                        "the rest uniform; random: all uniform, as in the paper's Fig. 3")
     p.add_argument("-o", "--output", default="tuned_gains.toml", help="gains file (default tuned_gains.toml)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: one per CPU; 1 = in this process); with --ray: actors "
@@ -79,8 +90,10 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
     lines = [
         "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
         "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
-        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (SPEC §3, §6).",
+        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (SPEC §3, §6)"
+        + (", subject to the step bars [bars]." if s.bars is not None else "."),
         "# Use: swarm-mj run step --gains FILE, or [controller] gains = \"FILE\" in a scenario.",
+        "# nan: no candidate met the bars (yet).",
         f"gains = {_toml_value([float(g) for g in outcome.best_x])}",
         f"ise = {_toml_value(outcome.best_ise)}",
         f"initial_ise = {_toml_value(outcome.initial_ise)}",
@@ -88,9 +101,10 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
         f"table4_ise = {_toml_value(outcome.table4_ise)}",
         f"beats_table4 = {_toml_value(outcome.beats_table4)}",
         f"seed = {_toml_value(int(o.seed))}",
+    ] + ([f"meets_bars = {_toml_value(outcome.meets_bars)}"] if outcome.meets_bars is not None else []) + [
         f"iterations_done = {done}",
         f"complete = {_toml_value(outcome.complete)}",
-        f"history = {_toml_value([float(h) for h in outcome.history])}",
+        f"history = {_toml_value([float(h) for h in outcome.history_ise])}",
         f"wall_time_s = {_toml_value(round(outcome.wall_s, 3))}",
         f"created = {created.isoformat(timespec='seconds')}",
         "",
@@ -109,11 +123,20 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
         f"yaw_deg = {_toml_value(float(s.yaw_deg))}",
         f"max_tilt_deg = {_toml_value(float(s.max_tilt_deg))}",
         f"ise_weights = {_toml_value([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])}",
+        f"constraints = {_toml_value('step-bars' if s.bars is not None else 'none')}",
+        f"init = {_toml_value(o.init)}",
         f"backend = {_toml_value(outcome.backend)}",
         f"workers = {int(outcome.workers)}",
         f"swarm_mj_version = {_toml_value(__version__)}",
         "",
     ]
+    if s.bars is not None:
+        lines += ["[bars]"] + [f"{k} = {_toml_value(float(v))}" for k, v in s.bars.as_dict().items()] + [""]
+    if outcome.check is not None:
+        lines.append("# the gains above flown through the step (definitions of 'swarm-mj run step --summary')")
+        for ax, m in outcome.check.step.items():
+            lines += [f"[step.{ax}]"] + [f"{k} = {_toml_value(float(v))}" for k, v in m.items()]
+        lines += ["[step.attitude]", f"max_abs_tilt_deg = {_toml_value(outcome.check.max_tilt_deg)}", ""]
     return "\n".join(lines)
 
 
@@ -159,13 +182,15 @@ def _check_output(path: Path) -> None:
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
     from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
+    from ..tuning.constraints import INFEASIBLE, StepBars
 
     # Validate everything before any worker starts.
     opts = TuneOptions(population=args.population, iterations=args.iterations, p=args.p, gamma=args.gamma,
-                       lower=args.lower, upper=args.upper, seed=args.seed)
+                       lower=args.lower, upper=args.upper, seed=args.seed, init=args.init)
     if not (math.isfinite(args.t_sim) and args.t_sim > 0):
         raise UserError(f"--t-sim must be a positive number of seconds, got {args.t_sim}")
-    settings = StepCostSettings(t_sim=float(args.t_sim))
+    settings = StepCostSettings(t_sim=float(args.t_sim),
+                                bars=StepBars() if args.constraints == "step-bars" else None)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     if args.ray is not None:
@@ -188,6 +213,9 @@ def main(args: argparse.Namespace) -> int:
         where = "in this process" if w == 1 else f"{w} worker processes"
     say(f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
         f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}")
+    say(f"  cost: ISE of eq. (25)" + (", subject to the step bars (Deb's rules)" if settings.bars else "")
+        + (f"; initial population: Table 4 gains + {opts.population - 1} uniform" if opts.init == "table4"
+           else "; initial population: uniform"))
     t0 = time.perf_counter()
     last: list = []
 
@@ -195,8 +223,9 @@ def main(args: argparse.Namespace) -> int:
         last[:] = [o]
         write_gains_file(out, o)
         it = len(o.history) - 1
-        say(f"  iteration {it:3d}/{opts.iterations}  best ISE {o.best_ise:10.5f}  "
-            f"elapsed {time.perf_counter() - t0:7.1f} s")
+        best = (f"best ISE {o.best_ise:10.5f}" if o.best_feasible or not math.isfinite(o.best_cost)
+                else f"none meets the bars yet (least violation {o.best_cost - INFEASIBLE:.3g})")
+        say(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
 
     try:
         res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
@@ -212,20 +241,44 @@ def main(args: argparse.Namespace) -> int:
 
 
 def format_outcome(res, out: Path | str) -> str:
-    """The end-of-tune table: initial and final ISE, improvement, Table 4 under the same cost."""
+    """The end-of-tune table: initial and final ISE, improvement, Table 4 under the same cost,
+    and the tuned gains' step response against the bars."""
     lo, hi = PAPER_IMPROVEMENT_PCT
     t4, best = res.table4_ise, res.best_ise
     rel = 100.0 * (t4 - best) / t4 if math.isfinite(t4) and t4 > 0 else float("nan")
-    verdict = (f"yes, {rel:.1f} % lower ISE" if res.beats_table4 else f"no, {-rel:.1f} % higher ISE")
+    bars = res.settings.bars
+    if res.beats_table4:
+        verdict = f"yes, {rel:.1f} % lower ISE"
+    elif res.best_feasible:
+        verdict = f"no, {-rel:.1f} % higher ISE" if rel < 0 else "no, the same gains"
+    else:
+        verdict = "no, the tuned gains miss the step bars"
+    if res.options.init == "table4" and not (rel > 0):
+        verdict += " (the initial population held Table 4; nothing better was found)"
+    elif res.options.init == "table4":
+        verdict += " (Table 4 was in the initial population)"
+    imp = (f"{res.improvement_pct:9.2f} %" if math.isfinite(res.improvement_pct)
+           else "      n/a  (no initial candidate met the bars)")
     gains = ", ".join(f"{g:.4f}" for g in res.best_x)
     rows = [
         f"FPA tune finished in {res.wall_s:.1f} s ({res.backend}, {res.workers} worker(s))",
-        f"  initial best ISE   {res.initial_ise:10.5f}",
+        f"  initial best ISE   {res.initial_ise:10.5f}" + ("   (best of the initial population meeting the bars)"
+                                                          if bars is not None else ""),
         f"  final ISE          {best:10.5f}",
-        f"  improvement        {res.improvement_pct:9.2f} %   (paper Table 3: {lo:.1f}–{hi:.1f} %)",
+        f"  improvement        {imp}   (paper Table 3: {lo:.1f}–{hi:.1f} %)",
         f"  Table 4 gains ISE  {t4:10.5f}   (same cost)",
         f"  beats Table 4      {verdict}",
         f"  gains α1..α12      [{gains}]",
-        f"written: {out}   (try: swarm-mj run step --gains {out})",
     ]
+    if res.check is not None:
+        c = res.check
+        b = c.bars
+        st = "  ".join(f"{ax} {c.step[ax]['overshoot_pct']:.2f} % / {c.step[ax]['settling_s']:.2f} s"
+                       for ax in ("x", "y", "z", "psi"))
+        rows.append(f"  step response      overshoot / 2 % settling: {st}; max tilt {c.max_tilt_deg:.1f}°")
+        rows.append(f"  step bars          {'met' if c.meets_bars else 'MISSED'} (overshoot ≤ {b.overshoot_pct:g} %, "
+                    f"settling ≤ {b.settling_x_s:g} / {b.settling_y_s:g} / {b.settling_z_s:g} / "
+                    f"{b.settling_psi_s:g} s, tilt ≤ {b.max_tilt_deg:g}°)"
+                    + ("" if bars is not None else "; not constraints of this tune (--constraints none)"))
+    rows.append(f"written: {out}   (try: swarm-mj run step --gains {out})")
     return "\n".join(rows)

@@ -2,10 +2,11 @@
 of eq. (25) over the step manoeuvre, evaluated for a whole population in batched MuJoCo
 models, in-process, over local worker processes or over a Ray cluster."""
 
-from .cost import (BatchEvaluator, StepCostSettings, TuneOptions, TuneOutcome, evaluate_batch,
-                   make_population_cost, step_ise, table4_ise, tune_gains)
+from .constraints import StepBars
+from .cost import (BatchEvaluator, StepCheck, StepCostSettings, TuneOptions, TuneOutcome, evaluate_batch,
+                   make_population_cost, step_check, step_ise, table4_ise, tune_gains)
 from .fpa import FPAResult, fpa, levy_steps, random_search
 
 __all__ = ["FPAResult", "fpa", "levy_steps", "random_search",
-           "BatchEvaluator", "StepCostSettings", "TuneOptions", "TuneOutcome", "evaluate_batch",
-           "make_population_cost", "step_ise", "table4_ise", "tune_gains"]
+           "BatchEvaluator", "StepBars", "StepCheck", "StepCostSettings", "TuneOptions", "TuneOutcome", "evaluate_batch",
+           "make_population_cost", "step_check", "step_ise", "table4_ise", "tune_gains"]

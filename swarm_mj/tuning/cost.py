@@ -55,12 +55,14 @@ import numpy as np
 
 from ..control.backstepping import TABLE4_GAINS, Backstepping
 from ..errors import UserError
-from ..metrics import ise
+from ..metrics import ise, step_metrics_batch
 from ..parallel import RAY_INSTALL_HINT, default_workers, import_ray, init_ray  # noqa: F401 (re-exported)
 from ..params import DEFAULT_PARAMS, QuadParams
 from ..sim import Sim
-from ..state import body_rates_to_euler_rates, quat_to_euler, wrap_angle
+from .._jit import jit
+from ..state import _body_rates_to_euler_rates, _quat_to_euler
 from ..world import INTEGRATORS, build_world
+from .constraints import AXES, StepBars, decode_cost, ranked_cost, step_violation
 from .fpa import FPAResult, fpa
 
 __all__ = [
@@ -80,6 +82,9 @@ __all__ = [
     "evaluate_batch",
     "make_population_cost",
     "step_ise",
+    "step_check",
+    "StepCheck",
+    "StepBars",
     "table4_ise",
 ]
 
@@ -107,6 +112,8 @@ class StepCostSettings:
     max_distance: float = 100.0
     attitude_map: str = "exact"
     params: QuadParams = field(default=DEFAULT_PARAMS)
+    #: the step bars as constraints of the tune (Deb's rules, :mod:`.constraints`); None: ISE only
+    bars: StepBars | None = field(default=StepBars())
 
     def __post_init__(self) -> None:
         for name in ("t_sim", "control_period", "timestep", "max_tilt_deg", "max_distance"):
@@ -134,6 +141,7 @@ class StepCostSettings:
     def as_dict(self) -> dict[str, Any]:
         d = asdict(self)
         d["params"] = asdict(self.params)
+        d["bars"] = None if self.bars is None else self.bars.as_dict()
         d["target"], d["start"] = list(self.target), list(self.start)
         return d
 
@@ -195,10 +203,60 @@ def joint_torque_transmission(model: mujoco.MjModel) -> int:
     return changed
 
 
+@jit
+def _sample_kernel(qpos: np.ndarray, qvel: np.ndarray, k: int, track: np.ndarray, tilt: np.ndarray,
+                   max_tilt: float, floor_z: float, max_distance: float):
+    """One sample of the batch, all copies in one pass: Euler angles rpy (m, 3) and rates (m, 3)
+    from qpos (m, 7), qvel (m, 6) (the conversions of :mod:`swarm_mj.state`); records x, y, z, ψ
+    in track[k] (m, 4) and the running max |roll|, |pitch| in tilt (m,); returns bad (m,): a
+    non-finite state, a tilt beyond max_tilt, below floor_z or beyond max_distance (SPEC §6)."""
+    m = qpos.shape[0]
+    rpy = _quat_to_euler(qpos[:, 3:7])
+    bad = np.zeros(m, dtype=np.bool_)
+    for i in range(m):
+        ok = True
+        for j in range(7):
+            ok = ok and np.isfinite(qpos[i, j])
+        for j in range(6):
+            ok = ok and np.isfinite(qvel[i, j])
+        ok = ok and abs(rpy[i, 0]) <= max_tilt and abs(rpy[i, 1]) <= max_tilt and qpos[i, 2] >= floor_z
+        for j in range(3):
+            ok = ok and abs(qpos[i, j]) <= max_distance
+            track[k, i, j] = qpos[i, j]
+        track[k, i, 3] = rpy[i, 2]
+        t = max(abs(rpy[i, 0]), abs(rpy[i, 1]))
+        if not t <= tilt[i]:              # NaN propagates, like np.maximum
+            tilt[i] = t
+        bad[i] = not ok
+    rate = _body_rates_to_euler_rates(rpy, qvel[:, 3:6])
+    return rpy, rate, bad
+
+
+@jit
+def _error_kernel(pos_d: np.ndarray, qpos: np.ndarray, att_d: np.ndarray, rpy: np.ndarray, yaw_d: np.ndarray,
+                  U: np.ndarray, e: np.ndarray, bad: np.ndarray) -> None:
+    """The errors of eq. (25) at one sample, e (m, 6) = (p_d − p, φ_d − φ, θ_d − θ, wrap(ψ_d − ψ));
+    marks copies with a non-finite input U (m, 4) as bad (m,)."""
+    for i in range(qpos.shape[0]):
+        for j in range(3):
+            e[i, j] = pos_d[i, j] - qpos[i, j]
+        e[i, 3] = att_d[i, 0] - rpy[i, 0]
+        e[i, 4] = att_d[i, 1] - rpy[i, 1]
+        e[i, 5] = (yaw_d[i] - rpy[i, 2] + np.pi) % (2.0 * np.pi) - np.pi     # wrap to [−π, π)
+        for j in range(4):
+            if not np.isfinite(U[i, j]):
+                bad[i] = True
+
+
 class BatchEvaluator:
     """m independent copies of one drone flying the step together, in blocks of ONE model each.
 
-    ``evaluate(gains (m, 12)) -> (m,)`` ISE of eq. (25), ``inf`` for a diverged copy.
+    ``evaluate(gains (m, 12)) -> (m,)`` ISE of eq. (25), ``inf`` for a diverged copy; after it,
+    ``step`` holds each copy's step metrics (``{axis: {overshoot_pct, settling_s,
+    steady_state_error}}``, (m,) arrays, the definitions of ``swarm-mj run step``'s summary),
+    ``max_tilt_deg`` (m,) its largest |roll| or |pitch| and ``violation`` (m,) its violation of
+    ``settings.bars`` (0: all met). ``ranked(gains)`` is the cost the tune minimises: the ISE,
+    ranked by Deb's feasibility rules when ``settings.bars`` is set (:mod:`.constraints`).
     The models are built once and reused (``Sim.reset`` between batches). ``block`` copies
     at most per model (see :data:`DEFAULT_BLOCK`); ``block >= m`` gives one model for all.
     """
@@ -235,6 +293,11 @@ class BatchEvaluator:
         self._qpos = np.empty((self.m, 7))                                 # (m, 7) gathered state
         self._qvel = np.empty((self.m, 6))                                 # (m, 6)
         self._errors = np.empty((self.K, self.m, 6))                       # (K, m, 6) e_x..e_ψ
+        self._track = np.zeros((self.K + 1, self.m, 4))                    # (K+1, m, 4) x, y, z, ψ
+        self._t = np.arange(self.K + 1) * s.control_period                 # (K+1,) sample times
+        self.max_tilt_deg = np.zeros(self.m)                               # (m,) of the last batch
+        self.violation = np.zeros(self.m)                                  # (m,) of the last batch
+        self.step: dict[str, dict[str, np.ndarray]] = {}
         #: (m,) control period at which each copy of the last batch diverged (-1: never).
         self.diverged_at = np.full(self.m, -1, dtype=np.int64)
 
@@ -268,27 +331,21 @@ class BatchEvaluator:
         for sim in self.sims:
             sim.reset()
         pos_d, zero3, yaw_d, max_tilt = self._pos_d, self._zero3, self._yaw_d, self._max_tilt
-        errors = self._errors
+        errors, track = self._errors, self._track
+        tilt = np.zeros(m)                                                 # (m,) max |roll|, |pitch| (rad)
         blocks = list(zip(self.sims, self.slices))
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             for k in range(self.K + 1):
                 qpos, qvel = self._gather()
-                pos, quat, vel, omega = qpos[:, 0:3], qpos[:, 3:7], qvel[:, 0:3], qvel[:, 3:6]
-                rpy = quat_to_euler(quat)                                  # (m, 3)
-                # Divergence (SPEC §6), on the state at every sample and at the end of the run.
-                bad = ~(np.isfinite(qpos).all(axis=1) & np.isfinite(qvel).all(axis=1)
-                        & (np.abs(rpy[:, 0]) <= max_tilt) & (np.abs(rpy[:, 1]) <= max_tilt)
-                        & (pos[:, 2] >= s.floor_z) & (np.abs(pos) <= s.max_distance).all(axis=1))
+                # Angles, rates, the record of x, y, z, ψ and divergence (SPEC §6) at every sample
+                # and at the end of the run.
+                rpy, rate, bad = _sample_kernel(qpos, qvel, k, track, tilt, max_tilt, s.floor_z, s.max_distance)
                 if k == self.K:
                     self._kill(alive, bad, k)
                     break
-                rate = body_rates_to_euler_rates(rpy, omega)               # (m, 3)
+                pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
                 U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
-                bad |= ~np.isfinite(U).all(axis=1)
-                e = errors[k]                                              # (m, 6)
-                np.subtract(pos_d, pos, out=e[:, 0:3])
-                np.subtract(ctl.att_d[:, 0:2], rpy[:, 0:2], out=e[:, 3:5])
-                e[:, 5] = wrap_angle(yaw_d - rpy[:, 2])
+                _error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k], bad)
                 self._kill(alive, bad, k)
                 if not alive.all():
                     if not alive.any():
@@ -305,14 +362,39 @@ class BatchEvaluator:
         cost = ise(errors, s.control_period)                               # (m,) eq. (25)
         cost[~alive] = np.inf
         cost[~np.isfinite(cost)] = np.inf
+        self.max_tilt_deg = np.where(alive, np.rad2deg(tilt), np.inf)
+        with np.errstate(invalid="ignore", over="ignore"):
+            target = (*s.target, np.deg2rad(s.yaw_deg))
+            self.step = {ax: {key: np.where(alive, v, np.nan) for key, v in
+                              step_metrics_batch(self._t, track[:, :, i], target[i], track[0, :, i]).items()}
+                         for i, ax in enumerate(AXES)}
+            bars = s.bars if s.bars is not None else StepBars()
+            self.violation = np.where(alive, step_violation(self.step, self.max_tilt_deg, bars, s.t_sim), np.inf)
         return cost
+
+    def ranked(self, gains: np.ndarray) -> np.ndarray:
+        """The tune's cost (m,): ISE of eq. (25), ranked by Deb's rules on ``settings.bars`` if set."""
+        cost = self.evaluate(gains)
+        return cost if self.settings.bars is None else ranked_cost(cost, self.violation)
 
 
 _EVALUATORS: dict[tuple[StepCostSettings, int], BatchEvaluator] = {}
 
 
+def _evaluator(m: int, settings: StepCostSettings) -> BatchEvaluator:
+    """A cached batched model of m copies (built once per worker, size and settings)."""
+    key = (settings, m)
+    ev = _EVALUATORS.get(key)
+    if ev is None:
+        if len(_EVALUATORS) >= 8:   # bounded: a few chunk sizes per tune
+            _EVALUATORS.pop(next(iter(_EVALUATORS)))
+        ev = _EVALUATORS[key] = BatchEvaluator(m, settings)
+    return ev
+
+
 def evaluate_batch(gains: np.ndarray, settings: StepCostSettings = StepCostSettings()) -> np.ndarray:
-    """ISE (m,) for gains (m, 12) in one batched model, reusing a cached model of that size.
+    """The tune's cost (m,) for gains (m, 12) in one batched model (``BatchEvaluator.ranked``):
+    the ISE of eq. (25), ranked by Deb's rules when ``settings.bars`` is set.
 
     This is what each worker runs on its chunk; in-process it is the whole population.
     """
@@ -321,20 +403,44 @@ def evaluate_batch(gains: np.ndarray, settings: StepCostSettings = StepCostSetti
         raise UserError(f"gains must have shape (m, 12), got {np.shape(gains)}")
     if g.shape[0] == 0:
         return np.empty(0)
-    key = (settings, g.shape[0])
-    ev = _EVALUATORS.get(key)
-    if ev is None:
-        if len(_EVALUATORS) >= 8:   # bounded: a few chunk sizes per tune
-            _EVALUATORS.pop(next(iter(_EVALUATORS)))
-        ev = _EVALUATORS[key] = BatchEvaluator(g.shape[0], settings)
-    return ev.evaluate(g)
+    return _evaluator(g.shape[0], settings).ranked(g)
 
 
 def step_ise(gains: np.ndarray, settings: StepCostSettings = StepCostSettings()) -> np.ndarray | float:
-    """ISE of eq. (25) over the step for gains (12,) → float, or (m, 12) → (m,) in one batched model."""
+    """ISE of eq. (25) over the step for gains (12,) → float, or (m, 12) → (m,) in one batched model
+    (the plain ISE, whatever ``settings.bars``)."""
     g = np.asarray(gains, dtype=float)
-    out = evaluate_batch(g, settings)
+    g2 = np.atleast_2d(g)
+    if g2.ndim != 2 or g2.shape[1] != 12 or g2.shape[0] == 0:
+        raise UserError(f"gains must have shape (12,) or (m, 12), got {g.shape}")
+    out = _evaluator(g2.shape[0], settings).evaluate(g2)
     return float(out[0]) if g.ndim == 1 else out
+
+
+@dataclass(frozen=True)
+class StepCheck:
+    """One gain set flown through the step: its ISE, step metrics and the bars' verdict."""
+
+    ise: float
+    step: dict[str, dict[str, float]]      # axis -> overshoot_pct, settling_s, steady_state_error
+    max_tilt_deg: float
+    violation: float                       # 0: every bar met (against ``bars``)
+    bars: StepBars
+
+    @property
+    def meets_bars(self) -> bool:
+        return self.violation == 0.0
+
+
+def step_check(gains: np.ndarray, settings: StepCostSettings = StepCostSettings()) -> StepCheck:
+    """Fly gains (12,) through the step once: ISE, step metrics, tilt and the bars' verdict
+    (``settings.bars``, or the default bars when the tune ran without them)."""
+    g = np.asarray(gains, dtype=float).reshape(1, 12)
+    ev = _evaluator(1, settings)
+    cost = float(ev.evaluate(g)[0])
+    step = {ax: {k: float(v[0]) for k, v in ev.step[ax].items()} for ax in AXES}
+    return StepCheck(cost, step, float(ev.max_tilt_deg[0]), float(ev.violation[0]),
+                     settings.bars if settings.bars is not None else StepBars())
 
 
 def table4_ise(settings: StepCostSettings = StepCostSettings()) -> float:
@@ -524,9 +630,17 @@ def make_population_cost(settings: StepCostSettings = StepCostSettings(), *, wor
 # --------------------------------------------------------------------------- the whole tune
 
 
+INITS = ("table4", "random")
+
+
 @dataclass(frozen=True)
 class TuneOptions:
-    """FPA settings of a tune (paper Table 2 defaults; SPEC §6: a small positive lower bound)."""
+    """FPA settings of a tune (paper Table 2 defaults; SPEC §6: a small positive lower bound).
+
+    init: ``"table4"`` puts the paper's Table 4 gains (the designed controller the FPA is to
+    improve, paper §3.2) in the initial population beside N − 1 uniform flowers, so the tune
+    starts from a candidate that meets the step bars; ``"random"``: all N uniform (Fig. 3).
+    """
 
     population: int = 50
     iterations: int = 14
@@ -535,6 +649,7 @@ class TuneOptions:
     lower: float = 0.1
     upper: float = 12.0
     seed: int = 0
+    init: str = "table4"
 
     def __post_init__(self) -> None:
         for name, minimum in (("population", 4), ("iterations", 1)):
@@ -554,11 +669,22 @@ class TuneOptions:
             raise UserError(f"bounds inverted: lower {self.lower!r} must be below upper {self.upper!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
             raise UserError(f"seed must be an integer >= 0, got {self.seed!r}")
+        if self.init not in INITS:
+            raise UserError(f"init must be one of {', '.join(INITS)}, got {self.init!r}")
+        if self.init == "table4" and not (self.lower <= TABLE4_GAINS.min() and TABLE4_GAINS.max() <= self.upper):
+            raise UserError(f"init table4 needs bounds that hold the Table 4 gains "
+                            f"[{TABLE4_GAINS.min():g}, {TABLE4_GAINS.max():g}], got [{self.lower:g}, {self.upper:g}]; "
+                            f"widen them or use init random")
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """(lower (12,), upper (12,)) box of α1..α12."""
         return np.full(12, float(self.lower)), np.full(12, float(self.upper))
+
+    @property
+    def x0(self) -> np.ndarray | None:
+        """The flowers placed in the initial population (k, 12), or None."""
+        return TABLE4_GAINS[None, :].copy() if self.init == "table4" else None
 
 
 def _finite(v: Any) -> bool:
@@ -567,31 +693,75 @@ def _finite(v: Any) -> bool:
 
 @dataclass(frozen=True)
 class TuneOutcome:
-    """A finished (or interrupted: ``complete`` False) tune."""
+    """A finished (or interrupted: ``complete`` False) tune.
+
+    Costs are the tune's ranked costs (:func:`~swarm_mj.tuning.constraints.ranked_cost`): the
+    ISE where the bars are met (or without bars), else ``INFEASIBLE + violation``.
+    """
 
     result: FPAResult | None          # the FPA result at the end; None in per-iteration snapshots
     best_x: np.ndarray                # (12,) best gains found
-    best_ise: float
-    initial_ise: float                # best ISE of the initial population
+    best_cost: float                  # its ranked cost
+    initial_cost: float               # ranked cost of the initial population's best
     table4_ise: float                 # ISE of paper Table 4 gains, same cost
-    history: np.ndarray               # (iterations done + 1,) best ISE after each iteration
+    history: np.ndarray               # (iterations done + 1,) ranked best cost after each iteration
     options: TuneOptions
     settings: StepCostSettings
     backend: str
     workers: int
     wall_s: float
     complete: bool
+    check: StepCheck | None = None    # at the end: best_x flown through the step (ISE, metrics, bars)
+
+    @property
+    def best_feasible(self) -> bool:
+        """best_x meets the bars (always True for a tune without bars, unless it diverged)."""
+        return decode_cost(self.best_cost)[0]
+
+    @property
+    def initial_feasible(self) -> bool:
+        return decode_cost(self.initial_cost)[0]
+
+    @property
+    def best_ise(self) -> float:
+        """Plain ISE of eq. (25) of best_x (NaN in a snapshot whose best misses the bars)."""
+        if self.check is not None:
+            return self.check.ise
+        ok, v = decode_cost(self.best_cost)
+        return v if ok else float("nan")
+
+    @property
+    def initial_ise(self) -> float:
+        """ISE of the initial population's best (NaN if it misses the bars)."""
+        ok, v = decode_cost(self.initial_cost)
+        return v if ok else float("nan")
+
+    @property
+    def history_ise(self) -> np.ndarray:
+        """(iterations done + 1,) best ISE after each iteration (NaN while none meets the bars)."""
+        return np.array([v if ok else np.nan for ok, v in map(decode_cost, self.history)])
 
     @property
     def improvement_pct(self) -> float:
-        """(initial − final) / initial, in % (paper Table 3: 10.7–35.5 %)."""
-        if not (math.isfinite(self.initial_ise) and self.initial_ise > 0 and math.isfinite(self.best_ise)):
+        """(initial − final) / initial best ISE, in % (paper Table 3: 10.7–35.5 %); NaN when
+        the initial population has no candidate meeting the bars (nothing to compare with)."""
+        a, b = self.initial_ise, self.best_ise
+        if not (math.isfinite(a) and a > 0 and math.isfinite(b) and self.best_feasible):
             return float("nan")
-        return 100.0 * (self.initial_ise - self.best_ise) / self.initial_ise
+        return 100.0 * (a - b) / a
+
+    @property
+    def meets_bars(self) -> bool | None:
+        """best_x meets the step bars (the default bars if the tune had none); None in a
+        snapshot of a tune without bars (not checked until the end)."""
+        if self.check is not None:
+            return self.check.meets_bars
+        return self.best_feasible if self.settings.bars is not None else None
 
     @property
     def beats_table4(self) -> bool:
-        return bool(self.best_ise < self.table4_ise)
+        """A lower ISE than Table 4's, meeting the bars where the tune had them."""
+        return bool(self.best_feasible and self.best_ise < self.table4_ise)
 
 
 TuneCallback = Callable[["TuneOutcome"], None]
@@ -600,29 +770,28 @@ TuneCallback = Callable[["TuneOutcome"], None]
 def tune_gains(options: TuneOptions = TuneOptions(), settings: StepCostSettings = StepCostSettings(), *,
                workers: int | None = None, ray_address: str | None = None,
                on_iteration: TuneCallback | None = None) -> TuneOutcome:
-    """Tune α1..α12 by FPA (paper §3.2, Fig. 3, Table 2) on the ISE of eq. (25) over the step.
+    """Tune α1..α12 by FPA (paper §3.2, Fig. 3, Table 2) on the ISE of eq. (25) over the step,
+    subject to ``settings.bars`` (Deb's feasibility rules, :mod:`.constraints`) when set.
 
     ``on_iteration(outcome)`` is called after the initial population (iteration 0) and after
     every iteration with the best so far (``complete`` False until the end) — e.g. to write
     the gains file, so that an interruption leaves the best gains found. A Ctrl-C propagates
-    (KeyboardInterrupt) after the workers are stopped.
+    (KeyboardInterrupt) after the workers are stopped. The final outcome carries ``check``:
+    the best gains flown through the step once more, with their step metrics.
     """
     import time
 
     t0 = time.perf_counter()
     t4 = table4_ise(settings)      # in-process: same cost, bitwise, whatever the backend
     with make_population_cost(settings, workers=workers, ray_address=ray_address) as cost:
-        state: dict[str, Any] = {}
-
         def progress(iteration: int, best_x: np.ndarray, best_cost: float, history: np.ndarray) -> None:
-            out = TuneOutcome(None, best_x, float(best_cost), float(history[0]), t4, history, options,
-                              settings, cost.backend, cost.workers, time.perf_counter() - t0, False)
-            state["last"] = out
             if on_iteration is not None:
-                on_iteration(out)
+                on_iteration(TuneOutcome(None, best_x, float(best_cost), float(history[0]), t4, history, options,
+                                         settings, cost.backend, cost.workers, time.perf_counter() - t0, False))
 
         res = fpa(cost, options.bounds, population=options.population, iterations=options.iterations,
-                  p=options.p, gamma=options.gamma, seed=options.seed, callback=progress)
+                  p=options.p, gamma=options.gamma, seed=options.seed, x0=options.x0, callback=progress)
         backend, n_workers = cost.backend, cost.workers
+    check = step_check(res.best_x, settings)
     return TuneOutcome(res, res.best_x, float(res.best_cost), float(res.initial_best_cost), t4, res.history,
-                       options, settings, backend, n_workers, time.perf_counter() - t0, True)
+                       options, settings, backend, n_workers, time.perf_counter() - t0, True, check)
