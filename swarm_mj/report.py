@@ -667,11 +667,29 @@ def render_markdown(R: dict) -> str:
             return "–"
         return " / ".join(f"{st[a]['settling_s']:.2f}" for a in ("x", "y", "z", "psi"))
 
+    def verdict(o):
+        if o.get("meets_bars") is None or not o.get("step"):
+            return "–"
+        if o["meets_bars"]:
+            return "yes"
+        from .tuning.constraints import AXES, StepBars
+
+        b, st, miss = StepBars(), o["step"], []
+        for a in AXES:
+            if st[a]["overshoot_pct"] > b.overshoot_pct:
+                miss.append(f"{a} overshoot {st[a]['overshoot_pct']:.2f} %")
+            if st[a]["settling_s"] > b.settling(a):
+                miss.append(f"{a} settling {st[a]['settling_s']:.2f} s")
+            if st[a]["steady_state_error"] > b.steady_state_error:
+                miss.append(f"{a} steady-state error {st[a]['steady_state_error']:.1e}")
+        if o.get("max_tilt_deg", 0.0) > b.max_tilt_deg:
+            miss.append(f"tilt {o['max_tilt_deg']:.1f}°")
+        return "**no**: " + ", ".join(miss)
+
     for label, key in (("ours", "ours"), ("ours, paper mode", "ours_paper_mode")):
         for o in t3.get(key) or []:
             rows.append([f"{label}, seed {o['seed']}", _f(o["initial_ise"], "{:.4f}"), _f(o["final_ise"], "{:.4f}"),
-                         f"{_f(o['improvement_pct'], '{:.2f}')} %",
-                         {True: "yes", False: "**no**"}.get(o.get("meets_bars"), "–"), settle(o)])
+                         f"{_f(o['improvement_pct'], '{:.2f}')} %", verdict(o), settle(o)])
     L.append(_table(["run", "initial ISE (best of initial population)", "final ISE", "improvement",
                      "meets step bars", "settling x / y / z / ψ (s)"], rows))
     if t3["ours"]:

@@ -213,7 +213,7 @@ def main(args: argparse.Namespace) -> int:
         where = "in this process" if w == 1 else f"{w} worker processes"
     say(f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
         f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}")
-    say(f"  cost: ISE of eq. (25)" + (", subject to the step bars (Deb's rules)" if settings.bars else "")
+    say("  cost: ISE of eq. (25)" + (", subject to the step bars (Deb's rules)" if settings.bars else "")
         + (f"; initial population: Table 4 gains + {opts.population - 1} uniform" if opts.init == "table4"
            else "; initial population: uniform"))
     t0 = time.perf_counter()
