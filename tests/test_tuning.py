@@ -254,6 +254,8 @@ def test_gains_file_round_trip(tmp_path):
     ["--gamma", "0"],
     ["--t-sim", "-1"],
     ["--workers", "0"],
+    ["--t-sim", "1.5"],                 # shorter than the 2-s settling bars: none could meet them
+    ["--init", "table4", "--lower", "3"],
 ])
 def test_bad_settings_exit_2_with_one_line(args, tmp_path, capsys):
     out = tmp_path / "g.toml"

@@ -132,6 +132,11 @@ class StepCostSettings:
             raise UserError("target and start must be three numbers (x, y, z) in metres")
         if self.n_samples < 1:
             raise UserError(f"t-sim {self.t_sim} s is shorter than one control period {self.control_period} s")
+        if self.bars is not None:
+            longest = max(self.bars.settling(ax) for ax in AXES)
+            if self.t_sim < longest:
+                raise UserError(f"t-sim {self.t_sim:g} s is shorter than the longest settling bar ({longest:g} s): "
+                                f"no candidate could meet the step bars; give a longer t-sim or --constraints none")
 
     @property
     def n_samples(self) -> int:
