@@ -5,8 +5,9 @@ gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (SPEC
 t_sim = 10 s, by default subject to the controller's step bars (overshoot ≤ 1 %, settling
 ≤ 2 / 2 / 1.5 / 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°; Deb's feasibility rules,
 ``swarm_mj.tuning.constraints``) and starting from a population that holds the paper's
-Table 4 gains. ``--constraints none --init random`` is the paper's tune as printed. Writes a gains TOML file (``gains = [α1..α12]`` plus the ISEs and the
-settings) that ``swarm-mj run step --gains FILE`` and scenario files
+Table 4 gains. ``--constraints none --init random`` is the paper's tune as printed. Writes
+a gains TOML file (``gains = [α1..α12]`` plus the ISEs, the settings and the tuned gains'
+step response) that ``swarm-mj run step --gains FILE`` and scenario files
 (``[controller] gains = "FILE"``) read. The file is rewritten atomically after every
 iteration, so an interrupted tune leaves the best gains so far, never a half-written file.
 """
