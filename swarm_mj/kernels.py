@@ -156,6 +156,10 @@ def warm_up() -> float:
             _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, z3, z3, z3, z1, z1, z1, z3, False, g, g, g, g, g,
                                  g, np.ones(3), 0.5, 9.81, np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01,
                                  np.zeros((n, 2)), first, exact, np.zeros((n, 3)))
+    z2, b = np.zeros((n, 2)), np.zeros(n, dtype=np.bool_)
+    formed_step_kernel(0.01, z3, 1.0, z1, np.zeros(3), z2, z2.copy(), z2.copy(), b, z1.copy(), z1.copy(),
+                       z1.copy(), 6.0, 120.0, 15.0, 4.0, 0.5, 9.81, 4.0, 8.0, 1.5, 5.0, z3.copy(), z3.copy(),
+                       z3.copy())
     return time.perf_counter() - t0
 
 
@@ -220,3 +224,49 @@ def advance_altitude_kernel(dt: float, target: np.ndarray, target_vel: np.ndarra
         za[i] += min(max(a_des - za[i], -jerk * dt), jerk * dt)
         zv[i] += za[i] * dt
         zp[i] += zv[i] * dt
+
+
+@jit
+def formed_step_kernel(dt: float, pos_d: np.ndarray, formation_alt: float, offset: np.ndarray,
+                       lead_vel: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray, blocked: np.ndarray,
+                       zp: np.ndarray, zv: np.ndarray, za: np.ndarray, a_max: float, jerk: float, k_v: float,
+                       v_max: float, tan_tilt: float, g: float, vu: float, au: float, vd: float, ad: float,
+                       out_pos: np.ndarray, out_vel: np.ndarray, out_acc: np.ndarray) -> None:
+    """The layered rule once every follower is formed (LayeredRule._update_formed), after the
+    reactive rule has set the altitude offsets (n,): the horizontal paths p, v, a (n, 2) follow
+    the slots pos_d[:, :2] moving at the leader's velocity lead_vel (3,), the altitude paths
+    zp, zv, za (n,) follow formation_alt + offset; writes the followers' references into
+    out_pos (from pos_d), out_vel, out_acc (n, 3) (the leader's row: pos_d, zero, zero)."""
+    n = pos_d.shape[0]
+    blocked[:] = False
+    if dt > 0.0:
+        goal = np.empty((n, 2))
+        goal_vel = np.empty((n, 2))
+        z_target = np.empty(n)
+        z_target_vel = np.empty(n)
+        for i in range(n):
+            goal[i, 0] = pos_d[i, 0]
+            goal[i, 1] = pos_d[i, 1]
+            goal_vel[i, 0] = lead_vel[0]
+            goal_vel[i, 1] = lead_vel[1]
+            z_target[i] = formation_alt + offset[i]
+            z_target_vel[i] = lead_vel[2]
+        advance_paths_kernel(dt, goal, goal_vel, p, v, a, blocked, za, a_max, jerk, k_v, v_max, tan_tilt, g)
+        advance_altitude_kernel(dt, z_target, z_target_vel, zp, zv, za, vu, au, vd, ad, jerk, k_v)
+    else:
+        a[:] = 0.0
+        za[:] = 0.0
+    for j in range(3):
+        out_pos[0, j] = pos_d[0, j]
+        out_vel[0, j] = 0.0
+        out_acc[0, j] = 0.0
+    for i in range(1, n):
+        out_pos[i, 0] = p[i, 0]
+        out_pos[i, 1] = p[i, 1]
+        out_pos[i, 2] = zp[i]
+        out_vel[i, 0] = v[i, 0]
+        out_vel[i, 1] = v[i, 1]
+        out_vel[i, 2] = zv[i]
+        out_acc[i, 0] = a[i, 0]
+        out_acc[i, 1] = a[i, 1]
+        out_acc[i, 2] = za[i]

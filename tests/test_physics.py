@@ -292,6 +292,35 @@ def test_torque_acts_about_own_body_axis(axis):
     assert np.linalg.norm(rotvec(qmul(q, qconj(q0))) - ang * e) > 0.1 * abs(ang)
 
 
+def test_torque_motors_on_the_free_joint_give_the_site_wrench():
+    """build_world puts U2..U4 on the free joint (O(1) transmission); the wrench must be the one
+    of the asset's site motors: same generalised forces and accelerations at a random state, and
+    the same flight to rounding."""
+    worlds = {tm: build_world(2, positions=[[0, 0, 1], [2, 0, 1]], torque_motors=tm) for tm in ("site", "joint")}
+    m_site, m_joint = worlds["site"].model, worlds["joint"].model
+    trn = m_joint.actuator_trntype.reshape(2, 4)
+    assert (trn[:, 0] == mujoco.mjtTrn.mjTRN_SITE).all() and (trn[:, 1:] == mujoco.mjtTrn.mjTRN_JOINT).all()
+    assert (m_site.actuator_trntype == mujoco.mjtTrn.mjTRN_SITE).all()
+    rng = np.random.default_rng(0)
+    datas = {k: mujoco.MjData(w.model) for k, w in worlds.items()}
+    q = rng.normal(size=(2, 4))
+    qpos = datas["site"].qpos.copy()
+    qpos.reshape(2, 7)[:, 3:7] = q / np.linalg.norm(q, axis=1, keepdims=True)
+    qvel, ctrl = rng.normal(size=12), np.abs(rng.normal(size=8))
+    for d in datas.values():
+        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos, qvel, ctrl
+    for k, w in worlds.items():
+        mujoco.mj_forward(w.model, datas[k])
+    np.testing.assert_allclose(datas["joint"].qfrc_actuator, datas["site"].qfrc_actuator, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(datas["joint"].qacc, datas["site"].qacc, rtol=1e-12, atol=1e-10)
+    for _ in range(200):                      # 1 s of tumbling flight under the same inputs
+        for k, w in worlds.items():
+            mujoco.mj_step(w.model, datas[k])
+    np.testing.assert_allclose(datas["joint"].qpos, datas["site"].qpos, rtol=0, atol=1e-9)
+    with pytest.raises(UserError):
+        build_world(1, torque_motors="tendon")
+
+
 # ----------------------------------------------------------------------------- 4. gyroscopic coupling
 @pytest.mark.parametrize("torque", [(0.0, 0.0, 0.0), (0.3, -0.2, 0.1)])
 def test_euler_equations(torque):

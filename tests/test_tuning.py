@@ -115,28 +115,6 @@ def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
         assert sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
 
 
-def test_torque_motors_moved_to_the_free_joint_give_the_same_wrench():
-    w = build_world(2, positions=np.zeros((2, 3)), collisions=False)
-    model = w.model
-    site = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"{n}/{a}")
-            for n in w.names for a in ("U1", "U2", "U3", "U4")]
-    ref = mujoco.MjData(model)
-    rng = np.random.default_rng(0)
-    q = rng.normal(size=(2, 4))
-    ref.qpos.reshape(2, 7)[:, 3:7] = q / np.linalg.norm(q, axis=1, keepdims=True)
-    ref.qvel[:] = rng.normal(size=12)
-    ref.ctrl[:] = rng.normal(size=8)
-    state = (ref.qpos.copy(), ref.qvel.copy(), ref.ctrl.copy())
-    mujoco.mj_forward(model, ref)
-    assert cost_mod.joint_torque_transmission(model) == 6           # U2..U4 of both drones
-    assert all(model.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_SITE for a in site[0::4])
-    new = mujoco.MjData(model)
-    new.qpos[:], new.qvel[:], new.ctrl[:] = state
-    mujoco.mj_forward(model, new)
-    np.testing.assert_allclose(new.qfrc_actuator, ref.qfrc_actuator, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(new.qacc, ref.qacc, rtol=1e-12, atol=1e-10)
-
-
 def test_bad_cost_settings_are_user_errors():
     with pytest.raises(UserError):
         StepCostSettings(t_sim=0)

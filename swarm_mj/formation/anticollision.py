@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..kernels import advance_altitude_kernel, advance_paths_kernel, horizontal_distances
+from ..kernels import advance_altitude_kernel, advance_paths_kernel, formed_step_kernel, horizontal_distances
 
 
 class NoRule:
@@ -242,6 +242,9 @@ class LayeredRule(PaperRule):
         self._prev_pos = positions.copy()
         self._prev_t: float | None = None
         self.vel = np.zeros((n, 3))                 # (n, 3) velocities estimated from positions
+        self._all = np.ones(n, dtype=bool)          # (n,) every drone (read-only)
+        self._followers = np.ones(n, dtype=bool)    # (n,) the drones the rule steers (read-only)
+        self._followers[0] = False
 
     # ------------------------------------------------------------------ helpers
     def _approach(self, positions: np.ndarray, horizon: float) -> np.ndarray:
@@ -440,30 +443,19 @@ class LayeredRule(PaperRule):
 def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, pos_d: np.ndarray,
                         formation_alt: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`LayeredRule.update` once every follower is formed (nobody in transit): the same
-    steps with the climb / cross / drop parts, which then do nothing, left out."""
+    steps with the climb / cross / drop parts, which then do nothing, left out — the reactive
+    rule (Fig. 5, among all drones), then the horizontal and altitude paths towards the slots
+    and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.kernels.formed_step_kernel`)."""
     n = rule.n
     h = _horizontal_distances(positions)
-    rule._react(t, positions, h, np.ones(n, dtype=bool))            # 4. Fig. 5 among all drones
-    rule.blocked[:] = False
-    z_target = formation_alt + rule.offset                            # (n,)
-    z_target_vel = np.full(n, float(rule.vel[0, 2]))                 # (n,) moving with the leader
-    goal = np.ascontiguousarray(pos_d[:, :2], dtype=np.float64)       # (n, 2) slots
-    goal_vel = np.empty((n, 2))
-    goal_vel[:] = rule.vel[0, :2]
-    rule._advance_paths(dt, goal, goal_vel)
-    rule._advance_altitude(dt, z_target, z_target_vel)
-    out = pos_d.copy()
-    out[1:, :2] = rule.path_p[1:]
-    out[1:, 2] = rule.zp[1:]
-    rule.vel_d[:] = 0.0
-    rule.acc_d[:] = 0.0
-    rule.vel_d[1:, :2] = rule.path_v[1:]
-    rule.acc_d[1:, :2] = rule.path_a[1:]
-    rule.vel_d[1:, 2] = rule.zv[1:]
-    rule.acc_d[1:, 2] = rule.za[1:]
-    steer = np.ones(n, dtype=bool)
-    steer[0] = False
-    return out, steer
+    rule._react(t, positions, h, rule._all)                            # 4. Fig. 5 among all drones
+    (vu, au), (vd, ad) = rule.z_up, rule.z_down
+    out = np.empty((n, 3))
+    formed_step_kernel(dt, np.ascontiguousarray(pos_d, dtype=np.float64), float(formation_alt), rule.offset,
+                       rule.vel[0], rule.path_p, rule.path_v, rule.path_a, rule.blocked, rule.zp, rule.zv, rule.za,
+                       rule.a_max, rule.jerk, rule.k_v, rule.v_max, rule.tan_tilt, G, vu, au, vd, ad,
+                       out, rule.vel_d, rule.acc_d)
+    return out, rule._followers
 
 
 LayeredRule._update_formed = _update_formed_impl

@@ -30,8 +30,7 @@ drones built by ``build_world(b, collisions=False)`` — contacts off, so the co
 at the same point and fly through each other — in blocks of at most :data:`DEFAULT_BLOCK`
 copies per MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), each
 block stepped by one ``Sim.step`` per control period, all m driven by ONE vectorised
-``Backstepping.compute`` (gains (m, 12)). The torque motors of these private models are moved
-onto the free joint (:func:`joint_torque_transmission`: the same wrench, cheaper). The copies
+``Backstepping.compute`` (gains (m, 12)). The copies
 do not interact: a free body's dynamics depend only on its own state and inputs, so a
 candidate's cost does not depend on its batch, block or worker (tested: batched == alone,
 bit for bit on the development machine; and == eq. (25) from ``runner.run`` to 1e-9). A copy
@@ -79,7 +78,6 @@ __all__ = [
     "tune_gains",
     "BatchEvaluator",
     "DEFAULT_BLOCK",
-    "joint_torque_transmission",
     "PopulationCost",
     "InProcessCost",
     "ProcessPoolCost",
@@ -161,58 +159,13 @@ class StepCostSettings:
 # --------------------------------------------------------------------------- one batched model
 
 
-#: Copies per MuJoCo model. MuJoCo's site transmission (the motors carrying U1..U4 on the
-#: site "com") builds a dense 3×nv Jacobian per actuator and forward pass, i.e. O(m²) work
-#: for m copies in one model (measured: ``mj_transmission`` 4 µs at 10 copies, 156 µs at 50).
-#: A batch is therefore flown as blocks of at most this many copies, each its own model and
-#: ``Sim``, all driven by ONE vectorised controller call; with the torque motors moved to
-#: joint transmissions (:func:`joint_torque_transmission`) 15–25 copies per model was
-#: the cheapest per drone-step on the development machine.
+#: Copies per MuJoCo model. MuJoCo's site transmission (the thrust motor U1 on the site
+#: "com"; U2..U4 are on the free joint, see ``build_world(torque_motors=...)``) builds a dense
+#: 3×nv Jacobian per actuator and forward pass, i.e. O(m²) work for m copies in one model. A
+#: batch is therefore flown as blocks of at most this many copies, each its own model and
+#: ``Sim``, all driven by ONE vectorised controller call (measured per batch of 50: blocks of
+#: 13–25 copies cost the same, one model of 50 20 % more).
 DEFAULT_BLOCK = 20
-
-
-def joint_torque_transmission(model: mujoco.MjModel) -> int:
-    """Move the pure-torque site motors (U2..U4) onto the drone's free joint; returns how many.
-
-    A site motor with gear (0, 0, 0, τx, τy, τz) applies the torque L·U about the site's axes;
-    a joint motor on a free joint with the same gear applies it about the joint body's axes
-    (MuJoCo's free-joint rotational dofs are in the local frame). When the site's frame is the
-    free body's frame (checked; otherwise the motor is left as it is) the two are the same
-    wrench, computed in O(1) instead of through a 3×nv Jacobian: the trajectories agree to
-    rounding (relative 1e-15 on the step; tested against ``runner.run``). U1 (thrust along body
-    z) stays a site motor: a free joint's translational dofs are in the world frame.
-    """
-    changed = 0
-    data = mujoco.MjData(model)
-    rng = np.random.default_rng(0)
-    data.qpos[:] = model.qpos0
-    for j in range(model.njnt):           # a generic attitude, to compare frames
-        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_FREE:
-            q = rng.normal(size=4)
-            data.qpos[model.jnt_qposadr[j] + 3:model.jnt_qposadr[j] + 7] = q / np.linalg.norm(q)
-    mujoco.mj_kinematics(model, data)
-    for a in range(model.nu):
-        if model.actuator_trntype[a] != mujoco.mjtTrn.mjTRN_SITE or model.actuator_trnid[a, 1] >= 0:
-            continue
-        gear = model.actuator_gear[a]
-        if np.any(gear[0:3] != 0.0):
-            continue                      # a force: needs the site (world-frame translation dofs)
-        site = model.actuator_trnid[a, 0]
-        body = model.site_bodyid[site]
-        while body > 0 and not (model.body_jntnum[body] == 1
-                                and model.jnt_type[model.body_jntadr[body]] == mujoco.mjtJoint.mjJNT_FREE):
-            if model.body_jntnum[body] != 0:
-                body = 0
-                break
-            body = model.body_parentid[body]
-        if body <= 0:
-            continue
-        if not np.array_equal(data.site_xmat[site], data.xmat[body]):
-            continue                      # the site is rotated relative to the free body
-        model.actuator_trntype[a] = mujoco.mjtTrn.mjTRN_JOINT
-        model.actuator_trnid[a] = (model.body_jntadr[body], -1)
-        changed += 1
-    return changed
 
 
 @jit
@@ -294,7 +247,6 @@ class BatchEvaluator:
                 # collisions=False: contacts are off, so the overlapping copies never touch.
                 worlds[b] = build_world(b, positions=starts, collisions=False, floor=False, params=s.params,
                                         timestep=s.timestep, integrator=s.integrator)
-                joint_torque_transmission(worlds[b].model)
             self.sims.append(Sim(worlds[b], s.control_period, floor_z=s.floor_z, max_distance=s.max_distance))
         self.K = s.n_samples
         self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))   # (m, 3) step set-point
