@@ -49,7 +49,7 @@ from dm_env import specs
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
-from .kernels import formation_reward, observe_kernel
+from .kernels import all_finite, formation_reward, observe_kernel, setpoints_kernel
 from .scenario import Scenario, load_scenario
 from .sim import Sim
 from .wind import WindField
@@ -84,6 +84,7 @@ class SwarmEnv(dm_env.Environment):
         self.reference = sc.make_trajectory()(self.times)
         self.D = DiameterSchedule(sc.diameter)(self.times)                       # (K+1,)
         self.unit_offsets = polygon_offsets(n - 1, 1.0)                         # (n-1, 3)
+        self._unit_offsets = np.ascontiguousarray(self.unit_offsets, dtype=np.float64).reshape(n - 1, 3)
         self._setpoint_ctl: Backstepping | None = None
         if action == "setpoint":
             self._setpoint_ctl = Backstepping(n, sc.gains, params=self.params, control_period=self.T,
@@ -121,7 +122,7 @@ class SwarmEnv(dm_env.Environment):
         if self.action_mode == "setpoint":
             if a.shape != (self.n, 3):
                 raise UserError(f"setpoint action must have shape ({self.n}, 3), got {a.shape}")
-            if not np.isfinite(a).all():
+            if not all_finite(a):
                 raise UserError("action contains NaN or inf")
             o = self._obs
             z = np.zeros((self.n, 3))
@@ -131,7 +132,7 @@ class SwarmEnv(dm_env.Environment):
         else:
             if a.shape != (self.n, 4):
                 raise UserError(f"thrust action must have shape ({self.n}, 4), got {a.shape}")
-            if not np.isfinite(a).all():
+            if not all_finite(a):
                 raise UserError("action contains NaN or inf")
             U = a
         force = self._wind_force_now()
@@ -201,21 +202,11 @@ class SwarmEnv(dm_env.Environment):
         sim, k, n = self.sim, self.k, self.n
         pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(
             sim.qpos, sim.qvel, self.scenario.sensing_range)
-        leader = pos[0]
-        if k > 0:
-            self._leader_vel = (leader - self._prev_leader) / self.T
-        self._prev_leader = leader.copy()
         ref = self.reference
-        sp = np.empty((n, 3))
-        sp_vel = np.empty((n, 3))
-        sp_acc = np.zeros((n, 3))
-        sp[0], sp_vel[0], sp_acc[0] = ref.pos[k], ref.vel[k], ref.acc[k]
-        if n > 1:
-            # Formation (paper §4): slots from the leader's CURRENT position and D only.
-            sp[1:] = leader + self.D[k] * self.unit_offsets
-            sp_vel[1:] = self._leader_vel
-        yaw = np.zeros(n)
-        yaw[0] = ref.yaw[k]
+        # Formation (paper §4): the followers' slots from the leader's CURRENT position and D only.
+        sp, sp_vel, sp_acc, yaw = setpoints_kernel(k, self.T, pos[0], self._prev_leader, self._leader_vel,
+                                                   ref.pos[k], ref.vel[k], ref.acc[k], float(ref.yaw[k]),
+                                                   float(self.D[k]), self._unit_offsets)
         if self._wind_known:
             w = self.wind
             wf = w.drone_forces(k, vel) if w.relative_airspeed else np.broadcast_to(w.force[k], (n, 3)).copy()
@@ -224,7 +215,7 @@ class SwarmEnv(dm_env.Environment):
         self._dist = dist
         return {"time": np.float64(k * self.T), "pos": pos, "vel": vel, "quat": quat, "rpy": rpy,
                 "rpy_rate": rpy_rate, "body_rates": omega, "setpoint": sp, "setpoint_vel": sp_vel,
-                "setpoint_acc": sp_acc, "setpoint_yaw": yaw, "leader_pos": leader.copy(),
+                "setpoint_acc": sp_acc, "setpoint_yaw": yaw, "leader_pos": pos[0].copy(),
                 "neighbours": rel, "neighbour_mask": mask, "wind_force": wf}
 
     def _reward(self, obs: dict, new_contacts: int) -> float:

@@ -46,6 +46,72 @@ def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
 
 
 @jit
+def setpoints_kernel(k: int, T: float, leader: np.ndarray, prev_leader: np.ndarray, leader_vel: np.ndarray,
+                     ref_pos: np.ndarray, ref_vel: np.ndarray, ref_acc: np.ndarray, ref_yaw: float, D: float,
+                     unit_offsets: np.ndarray):
+    """The references of the observation (paper §4): the leader's (n = 0) from its trajectory,
+    each follower's slot leader + D·offset_k (unit_offsets (n−1, 3)) moving with the leader's
+    velocity, estimated as (leader − prev_leader)/T (updated in place in leader_vel (3,), and
+    prev_leader (3,) set to leader; at k = 0 the velocity is left as it is). Returns sp, sp_vel,
+    sp_acc (n, 3) and the yaw references (n,)."""
+    n = unit_offsets.shape[0] + 1
+    if k > 0:
+        for j in range(3):
+            leader_vel[j] = (leader[j] - prev_leader[j]) / T
+    for j in range(3):
+        prev_leader[j] = leader[j]
+    sp = np.empty((n, 3))
+    sp_vel = np.empty((n, 3))
+    sp_acc = np.zeros((n, 3))
+    yaw = np.zeros(n)
+    for j in range(3):
+        sp[0, j] = ref_pos[j]
+        sp_vel[0, j] = ref_vel[j]
+        sp_acc[0, j] = ref_acc[j]
+    yaw[0] = ref_yaw
+    for i in range(1, n):
+        for j in range(3):
+            sp[i, j] = leader[j] + D * unit_offsets[i - 1, j]
+            sp_vel[i, j] = leader_vel[j]
+    return sp, sp_vel, sp_acc, yaw
+
+
+@jit
+def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:
+    """Fig. 5 has work to do: a drone holds an altitude offset (n,), or two drones are closer
+    than ``safety`` horizontally (h (n, n))."""
+    for x in offset:
+        if x != 0.0:
+            return True
+    for x in h.flat:
+        if x < safety:
+            return True
+    return False
+
+
+@jit
+def merge_rows(steer: np.ndarray, rule_vel: np.ndarray, rule_acc: np.ndarray, vel: np.ndarray, acc: np.ndarray):
+    """Copies of vel, acc (n, 3) whose rows where steer (n,) is set come from rule_vel, rule_acc."""
+    v = vel.copy()
+    a = acc.copy()
+    for i in range(steer.shape[0]):
+        if steer[i]:
+            for j in range(3):
+                v[i, j] = rule_vel[i, j]
+                a[i, j] = rule_acc[i, j]
+    return v, a
+
+
+@jit
+def all_finite(a: np.ndarray) -> bool:
+    """True if every entry of a (any shape) is finite."""
+    for x in a.flat:
+        if not np.isfinite(x):
+            return False
+    return True
+
+
+@jit
 def horizontal_distances(pos: np.ndarray) -> np.ndarray:
     """Pairwise horizontal distances (n, n) of positions (n, 3), +inf on the diagonal."""
     n = pos.shape[0]
@@ -144,6 +210,12 @@ def warm_up() -> float:
     z3, z1 = np.zeros((n, 3)), np.zeros(n)
     pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(qpos, qvel, 2.0)
     formation_reward(pos, z3, dist, 0.5)
+    setpoints_kernel(1, 0.01, pos[0], np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), np.zeros(3), 0.0, 1.0,
+                     np.zeros((n - 1, 3)))
+    all_finite(qpos)
+    react_needed(z1, dist, 0.8)
+    merge_rows(np.ones(n, dtype=np.bool_), z3, z3, z3, z3)
+    all_finite(np.zeros((n, 4)))
     horizontal_distances(pos)
     U = np.zeros((n, 4))
     saturate_kernel(U, _UNMIX_T, _MIX_T, 0.0, 4.5, np.zeros((n, 4)), np.zeros((n, 4)))

@@ -44,13 +44,9 @@ class BacksteppingPolicy:
         pos_d, vel_d, acc_d = obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"]
         if self.n > 1:
             # Anti-collision (SPEC §4): the rule adjusts the setpoints (n, 3) and, for the drones
-            # it steers (n,), also hands the velocity/acceleration references (zero = hold x, y).
-            pos_d, steer = self.rule.update(float(obs["time"]), obs["pos"], pos_d, float(obs["leader_pos"][2]))
-            if steer.any():
-                vel_d = vel_d.copy()
-                acc_d = acc_d.copy()
-                vel_d[steer] = self.rule.vel_d[steer]
-                acc_d[steer] = self.rule.acc_d[steer]
+            # it steers, also hands the velocity/acceleration references (zero = hold x, y).
+            pos_d, vel_d, acc_d = self.rule.references(float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d,
+                                                       float(obs["leader_pos"][2]))
         self.pos_d = pos_d
         return self.controller.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
                                        obs["setpoint_yaw"], wind_force=obs["wind_force"],

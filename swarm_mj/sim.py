@@ -74,7 +74,6 @@ class Sim:
             raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
         self._geom_drone = world.geom_drone
         self.rotor_thrust = np.zeros((self.n, 4))        # (n, 4) F1..F4 of the last step
-        self._u_buf = np.zeros((self.n, 4))
         self.ext_force = np.zeros((self.n, 3))           # (n, 3) last external force
         self.reset()
 
@@ -111,8 +110,7 @@ class Sim:
         (SPEC §1); the result is held in ``ctrl`` for the whole period.
         """
         U = np.asarray(U, dtype=np.float64)
-        saturate_kernel(U, _UNMIX_T, _MIX_T, self._f_min, self._f_max, self._u_buf, self.rotor_thrust)
-        self.ctrl[:] = self._u_buf
+        saturate_kernel(U, _UNMIX_T, _MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         if ext_force is None:
             self.ext_force[:] = 0.0
         else:

@@ -27,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import UserError
-from ..kernels import advance_altitude_kernel, advance_paths_kernel, formed_step_kernel, horizontal_distances
+from ..kernels import (advance_altitude_kernel, advance_paths_kernel, formed_step_kernel, horizontal_distances,
+                       merge_rows, react_needed)
 
 
 class NoRule:
@@ -48,6 +49,20 @@ class NoRule:
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
         """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
+
+    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
+                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
+        the drones the rule steers take its velocity and acceleration references."""
+        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
+
+
+def _merged(rule, pos_d: np.ndarray, steer: np.ndarray, vel_d: np.ndarray,
+            acc_d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(pos_d, vel_d, acc_d) with the rows of the steered drones (n,) from rule.vel_d, rule.acc_d."""
+    vel_d, acc_d = merge_rows(steer, rule.vel_d, rule.acc_d, np.ascontiguousarray(vel_d, dtype=np.float64),
+                              np.ascontiguousarray(acc_d, dtype=np.float64))
+    return pos_d, vel_d, acc_d
 
 
 def _rownorm(v: np.ndarray) -> np.ndarray:
@@ -103,7 +118,7 @@ class PaperRule:
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
         """Fig. 5: trigger and release the altitude offsets of the drones flagged ``active`` (n,)."""
-        if not self.offset.any() and not (h < self.safety).any():
+        if not react_needed(self.offset, h, self.safety):
             return                     # nobody held, nobody inside D̄: nothing to trigger or release
         yields = (h < self.safety) & self._lower & active[:, None] & active[None, :]
         trig = yields.any(axis=1) & (self.offset == 0.0)
@@ -129,6 +144,12 @@ class PaperRule:
         pos_d = pos_d.copy()
         pos_d[:, 2] += self.offset
         return pos_d, np.zeros(self.n, dtype=bool)
+
+    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
+                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
+        the drones the rule steers take its velocity and acceleration references."""
+        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
@@ -229,6 +250,7 @@ class LayeredRule(PaperRule):
         n = self.n
         self.phase = np.full(n, CLIMB, dtype=np.int64)
         self.phase[0] = FORMED                      # the leader flies its own trajectory
+        self._all_formed = bool((self.phase == FORMED).all())   # phases change only in update()
         self.start_xy = positions[:, :2].copy()     # (n, 2) where each follower climbs in place
         self.path_p = positions[:, :2].copy()       # (n, 2) crossing path: position
         self.path_v = np.zeros((n, 2))              # (n, 2) crossing path: velocity
@@ -303,9 +325,11 @@ class LayeredRule(PaperRule):
         """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
-            self.vel = (positions - self._prev_pos) / dt
-        self._prev_t, self._prev_pos = float(t), positions.copy()
-        if (self.phase == FORMED).all():
+            np.subtract(positions, self._prev_pos, out=self.vel)
+            self.vel /= dt
+        self._prev_t = float(t)
+        self._prev_pos[:] = positions
+        if self._all_formed:
             return self._update_formed(t, positions, pos_d, formation_alt, dt)
         n = self.n
         h = _horizontal_distances(positions)
@@ -435,6 +459,7 @@ class LayeredRule(PaperRule):
         pos_d[1:, 2] = self.zp[1:]
         self.vel_d[1:, 2] = self.zv[1:]
         self.acc_d[1:, 2] = self.za[1:]
+        self._all_formed = bool((self.phase == FORMED).all())
         return pos_d, steer
 
 
