@@ -257,6 +257,36 @@ def test_layered_rule_steers_followers_only_and_hands_consistent_references():
         pos[1:] = pos_d[1:]
 
 
+@pytest.mark.parametrize("make", [lambda: LayeredRule(6), lambda: PaperRule(6), lambda: NoRule(6)])
+def test_references_are_update_with_the_steered_rows_taken_from_the_rule(make):
+    """rule.references (what the policy calls; compiled for the formed swarm) == update() plus the
+    merge by hand, in transit and once formed (12 s of the eq.-31 start)."""
+    a, b = make(), make()
+    pos = EQ31.copy()
+    pos[:, 2] = 0.0
+    a.reset(pos)
+    b.reset(pos)
+    unit = polygon_offsets(5, 1.0)
+    rng = np.random.default_rng(0)
+    vel_in, acc_in = rng.normal(size=(6, 3)), rng.normal(size=(6, 3))
+    formed_seen = False
+    for k in range(1200):
+        t = k * T
+        pos[0] = [0.0, 0.0, min(2.0, 2.0 * t)]
+        pos_d = np.vstack([pos[:1], pos[0] + unit])
+        want_pos, steer = a.update(t, pos, pos_d, float(pos[0, 2]))
+        want_vel, want_acc = vel_in.copy(), acc_in.copy()
+        want_vel[steer] = a.vel_d[steer]
+        want_acc[steer] = a.acc_d[steer]
+        got_pos, got_vel, got_acc = b.references(t, pos, pos_d, vel_in, acc_in, float(pos[0, 2]))
+        np.testing.assert_array_equal(got_pos, want_pos)
+        np.testing.assert_array_equal(got_vel, want_vel)
+        np.testing.assert_array_equal(got_acc, want_acc)
+        formed_seen |= bool(getattr(b, "_all_formed", False))
+        pos[1:] = want_pos[1:]
+    assert formed_seen or not isinstance(b, LayeredRule)              # both paths of the layered rule ran
+
+
 def test_altitude_path_respects_its_limits_and_does_not_overshoot():
     rule = LayeredRule(2)
     rule.reset(np.zeros((2, 3)))

@@ -9,7 +9,10 @@ Every rule has the same small interface, vectorised over drones (index 0 is the 
 reference in row 0) and come back adjusted. ``steer`` (n,) flags the drones whose velocity
 and acceleration references the rule sets itself: ``rule.vel_d`` (n, 3) and ``rule.acc_d``
 (n, 3) (zero for a drone told to hold its (x, y)); the others keep the formation's
-references. Each rule appends its decisions to ``rule.events`` as dicts
+references. ``rule.references(t, positions, pos_d, vel_d, acc_d, formation_alt)`` does both
+and returns the controller's references (pos_d, vel_d, acc_d) (n, 3), the steered drones'
+rows taken from the rule (what the policy calls; for the formed swarm the layered rule does
+it in one compiled kernel). Each rule appends its decisions to ``rule.events`` as dicts
 ``{t, drone, other, action}``: up, down, release (the paper's rule); cross, hold, aside,
 drop (the layered rule's transition).
 
