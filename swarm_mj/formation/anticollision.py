@@ -34,7 +34,17 @@ from ..kernels import (advance_altitude_kernel, advance_paths_kernel, formed_ste
                        merge_rows, react_needed)
 
 
-class NoRule:
+class _Rule:
+    """What every rule shares: :meth:`references` from the rule's own ``update``."""
+
+    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
+                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
+        the drones the rule steers take its velocity and acceleration references."""
+        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
+
+
+class NoRule(_Rule):
     """No anti-collision (``anti_collision = "off"``): setpoints pass through unchanged."""
 
     name = "off"
@@ -52,12 +62,6 @@ class NoRule:
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
         """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
-
-    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
-                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
-        the drones the rule steers take its velocity and acceleration references."""
-        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
 
 
 def _merged(rule, pos_d: np.ndarray, steer: np.ndarray, vel_d: np.ndarray,
@@ -91,7 +95,7 @@ def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
     return horizontal_distances(np.ascontiguousarray(positions, dtype=np.float64))
 
 
-class PaperRule:
+class PaperRule(_Rule):
     """The paper's rule exactly as printed (Fig. 5, §4), with the details SPEC §4 fixes.
 
     When two drones are closer than the safety distance D̄ = 0.8 m in the horizontal
@@ -147,12 +151,6 @@ class PaperRule:
         pos_d = pos_d.copy()
         pos_d[:, 2] += self.offset
         return pos_d, np.zeros(self.n, dtype=bool)
-
-    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
-                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
-        the drones the rule steers take its velocity and acceleration references."""
-        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
@@ -264,7 +262,7 @@ class LayeredRule(PaperRule):
         self.zp = positions[:, 2].copy()            # (n,) altitude path: position
         self.zv = np.zeros(n)                       # (n,) altitude path: velocity
         self.za = np.zeros(n)                       # (n,) altitude path: acceleration
-        self._prev_pos = positions.copy()
+        self._prev_pos = np.array(positions, dtype=float)   # (n, 3) updated in place
         self._prev_t: float | None = None
         self.vel = np.zeros((n, 3))                 # (n, 3) velocities estimated from positions
         self._all = np.ones(n, dtype=bool)          # (n,) every drone (read-only)
