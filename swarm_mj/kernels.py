@@ -164,21 +164,30 @@ def saturate_kernel(U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min
 
 
 @jit
+def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_distance: float) -> int:
+    """Drone i of qpos (n, 7), qvel (n, 6): 0 if sane, 1 if non-finite, 2 if below ``floor_z``,
+    3 if beyond ``max_distance`` on an axis."""
+    for c in range(7):
+        if not np.isfinite(qpos[i, c]):
+            return 1
+    for c in range(6):
+        if not np.isfinite(qvel[i, c]):
+            return 1
+    if qpos[i, 2] < floor_z:
+        return 2
+    for c in range(3):
+        if abs(qpos[i, c]) > max_distance:
+            return 3
+    return 0
+
+
+@jit
 def state_ok(qpos: np.ndarray, qvel: np.ndarray, floor_z: float, max_distance: float) -> int:
-    """0 if the state is sane, 1 if non-finite, 2 if a drone is below ``floor_z``, 3 if too far."""
-    n = qpos.shape[0]
-    for i in range(n):
-        for c in range(7):
-            if not np.isfinite(qpos[i, c]):
-                return 1
-        for c in range(6):
-            if not np.isfinite(qvel[i, c]):
-                return 1
-        if qpos[i, 2] < floor_z:
-            return 2
-        for c in range(3):
-            if abs(qpos[i, c]) > max_distance:
-                return 3
+    """0 if the state is sane, else :func:`drone_state`'s code of the first drone that is not."""
+    for i in range(qpos.shape[0]):
+        code = drone_state(qpos, qvel, i, floor_z, max_distance)
+        if code != 0:
+            return code
     return 0
 
 

@@ -672,19 +672,9 @@ def render_markdown(R: dict) -> str:
             return "–"
         if o["meets_bars"]:
             return "yes"
-        from .tuning.constraints import AXES, StepBars
+        from .tuning.constraints import StepBars, missed_bars
 
-        b, st, miss = StepBars(), o["step"], []
-        for a in AXES:
-            if st[a]["overshoot_pct"] > b.overshoot_pct:
-                miss.append(f"{a} overshoot {st[a]['overshoot_pct']:.2f} %")
-            if st[a]["settling_s"] > b.settling(a):
-                miss.append(f"{a} settling {st[a]['settling_s']:.2f} s")
-            if st[a]["steady_state_error"] > b.steady_state_error:
-                miss.append(f"{a} steady-state error {st[a]['steady_state_error']:.1e}")
-        if o.get("max_tilt_deg", 0.0) > b.max_tilt_deg:
-            miss.append(f"tilt {o['max_tilt_deg']:.1f}°")
-        return "**no**: " + ", ".join(miss)
+        return "**no**: " + ", ".join(missed_bars(o["step"], o.get("max_tilt_deg", 0.0), StepBars()))
 
     for label, key in (("ours", "ours"), ("ours, paper mode", "ours_paper_mode")):
         for o in t3.get(key) or []:

@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import UserError
 
-__all__ = ["INFEASIBLE", "StepBars", "ranked_cost", "step_violation", "decode_cost"]
+__all__ = ["INFEASIBLE", "StepBars", "missed_bars", "ranked_cost", "step_violation", "decode_cost"]
 
 #: Offset of an infeasible candidate's ranked cost: any feasible ISE is far below it.
 INFEASIBLE = 1.0e6
@@ -79,6 +79,23 @@ def step_violation(step: dict[str, dict[str, np.ndarray]], max_tilt_deg: np.ndar
         v += np.maximum(0.0, m["steady_state_error"] - bars.steady_state_error) / bars.steady_state_error
     v += np.maximum(0.0, max_tilt_deg - bars.max_tilt_deg) / bars.max_tilt_deg
     return np.where(np.isfinite(v), v, np.inf)
+
+
+def missed_bars(step: dict[str, dict[str, float]], max_tilt_deg: float, bars: StepBars) -> list[str]:
+    """The bars one response misses, in words (empty: all met); step as in :func:`step_violation`
+    with floats, e.g. ``["y settling 2.05 s"]``."""
+    miss = []
+    for ax in AXES:
+        m = step[ax]
+        if m["overshoot_pct"] > bars.overshoot_pct:
+            miss.append(f"{ax} overshoot {m['overshoot_pct']:.2f} %")
+        if m["settling_s"] > bars.settling(ax):
+            miss.append(f"{ax} settling {m['settling_s']:.2f} s")
+        if m["steady_state_error"] > bars.steady_state_error:
+            miss.append(f"{ax} steady-state error {m['steady_state_error']:.1e}")
+    if max_tilt_deg > bars.max_tilt_deg:
+        miss.append(f"tilt {max_tilt_deg:.1f}°")
+    return miss
 
 
 def ranked_cost(ise: np.ndarray, violation: np.ndarray) -> np.ndarray:

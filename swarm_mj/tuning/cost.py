@@ -66,6 +66,7 @@ from ..parallel import RAY_INSTALL_HINT, default_workers, import_ray, init_ray  
 from ..params import DEFAULT_PARAMS, QuadParams
 from ..sim import Sim
 from .._jit import jit
+from ..kernels import drone_state
 from ..state import _body_rates_to_euler_rates, _quat_to_euler
 from ..world import INTEGRATORS, build_world
 from .constraints import AXES, StepBars, decode_cost, ranked_cost, step_violation
@@ -179,14 +180,9 @@ def _sample_kernel(qpos: np.ndarray, qvel: np.ndarray, k: int, track: np.ndarray
     rpy = _quat_to_euler(qpos[:, 3:7])
     bad = np.zeros(m, dtype=np.bool_)
     for i in range(m):
-        ok = True
-        for j in range(7):
-            ok = ok and np.isfinite(qpos[i, j])
-        for j in range(6):
-            ok = ok and np.isfinite(qvel[i, j])
-        ok = ok and abs(rpy[i, 0]) <= max_tilt and abs(rpy[i, 1]) <= max_tilt and qpos[i, 2] >= floor_z
+        ok = (drone_state(qpos, qvel, i, floor_z, max_distance) == 0
+              and abs(rpy[i, 0]) <= max_tilt and abs(rpy[i, 1]) <= max_tilt)
         for j in range(3):
-            ok = ok and abs(qpos[i, j]) <= max_distance
             track[k, i, j] = qpos[i, j]
         track[k, i, 3] = rpy[i, 2]
         t = max(abs(rpy[i, 0]), abs(rpy[i, 1]))
