@@ -21,10 +21,41 @@ def _default_mujoco_gl() -> str | None:
     return "egl"
 
 
-# Headless by default: MuJoCo reads MUJOCO_GL when it is imported (PLATFORM.md).
+# Headless by default: MuJoCo reads MUJOCO_GL when it is imported (docs/platform.md).
 if "MUJOCO_GL" not in os.environ:
     _gl = _default_mujoco_gl()
     if _gl:
         os.environ["MUJOCO_GL"] = _gl
 
 __version__ = "0.1.0"
+
+#: The public API, imported on first use (so that MUJOCO_GL above is set before mujoco is imported).
+_API = {
+    "SwarmEnv": "swarm_mj.env",
+    "StepRecord": "swarm_mj.env",
+    "Command": "swarm_mj.env",
+    "BacksteppingPolicy": "swarm_mj.policy",
+    "load_scenario": "swarm_mj.scenario",
+    "Scenario": "swarm_mj.scenario",
+    "run": "swarm_mj.runner",
+    "RunResult": "swarm_mj.runner",
+    "Sim": "swarm_mj.sim",
+    "ForceStage": "swarm_mj.sim",
+    "build_world": "swarm_mj.world",
+}
+__all__ = ["__version__", *_API]
+
+
+def __getattr__(name: str):
+    module = _API.get(name)
+    if module is None:
+        raise AttributeError(f"module 'swarm_mj' has no attribute {name!r}")
+    import importlib
+
+    value = getattr(importlib.import_module(module), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted([*globals(), *_API])

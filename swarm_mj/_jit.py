@@ -1,4 +1,4 @@
-"""Optional ahead-of-use compilation of the per-step kernels with Numba.
+"""Optional ahead-of-use compilation of the per-step kernels with Numba, and their registry.
 
 The Python control layer runs every 10 ms for every drone; with plain numpy each of its
 ~200 small array operations costs about a microsecond of interpreter overhead, several
@@ -7,26 +7,85 @@ functions on (n_drones, ...) arrays that Numba can compile unchanged. Numba is a
 dependency, but the code stays correct without it: set ``SWARM_MJ_NO_JIT=1`` (or uninstall
 numba) and the same functions run as ordinary numpy (tests check that both agree).
 Compiled code is cached next to the sources, so only the first run pays for compilation.
+
+A kernel lives in the module of the concept it computes (mixing, sim, observation,
+formation, the layered rule, the controller, the tuner's record). Each is declared with
+``@jit(samples=...)``: ``samples`` is a callable returning a list of argument tuples of the
+types the kernel is called with, so that :func:`warm_up` compiles (or loads from the cache)
+every registered kernel. :func:`warm_up` imports the modules listed in
+:data:`KERNEL_MODULES` by name — the domain modules, never their callers — so this module
+imports nothing of the package and no import cycle can go through it.
 """
 
 from __future__ import annotations
 
+import importlib
 import os
+import time
+from collections.abc import Callable, Iterable
+from typing import Any
 
 ENABLED = os.environ.get("SWARM_MJ_NO_JIT", "") in ("", "0")
+
+#: The modules that define kernels (imported by :func:`warm_up`; each registers its kernels).
+KERNEL_MODULES: tuple[str, ...] = (
+    "swarm_mj.state",
+    "swarm_mj.mixing",
+    "swarm_mj.observation",
+    "swarm_mj.sim",
+    "swarm_mj.formation.slots",
+    "swarm_mj.formation.anticollision",
+    "swarm_mj.formation.layered",
+    "swarm_mj.control.backstepping",
+    "swarm_mj.env",
+)
+
+Samples = Callable[[], Iterable[tuple[Any, ...]]]
+
+#: name -> (kernel, samples): every kernel declared with :func:`jit`.
+REGISTRY: dict[str, tuple[Callable[..., Any], Samples | None]] = {}
 
 try:  # pragma: no cover - exercised by the environment, not by a branch of ours
     if not ENABLED:
         raise ImportError
     import numba as _numba
 
-    def jit(fn):
-        """Compile ``fn`` with numba.njit (cached, no fastmath: results match numpy)."""
+    def _compile(fn):
         return _numba.njit(cache=True, fastmath=False, nogil=True)(fn)
 
     AVAILABLE = True
 except ImportError:  # pragma: no cover
-    def jit(fn):
+    def _compile(fn):
         return fn
 
     AVAILABLE = False
+
+
+def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None):
+    """Compile ``fn`` with numba.njit (cached, no fastmath: results match numpy) and register it.
+
+    ``@jit`` or ``@jit(samples=lambda: [(arg, ...), ...])``: the argument tuples :func:`warm_up`
+    calls the kernel with (a kernel only called from another kernel needs none).
+    """
+    def register(f: Callable[..., Any]) -> Callable[..., Any]:
+        compiled = _compile(f)
+        REGISTRY[f"{f.__module__}.{f.__qualname__}"] = (compiled, samples)
+        return compiled
+
+    return register if fn is None else register(fn)
+
+
+def warm_up() -> float:
+    """Compile (or load from the on-disk cache) every registered kernel; returns the seconds spent.
+
+    Called before a run's clock starts so that the real-time factor measures simulation,
+    not compilation (the first run on a machine compiles for several seconds).
+    """
+    t0 = time.perf_counter()
+    for name in KERNEL_MODULES:
+        importlib.import_module(name)
+    for kernel, samples in list(REGISTRY.values()):
+        if samples is not None:
+            for args in samples():
+                kernel(*args)
+    return time.perf_counter() - t0

@@ -1,8 +1,16 @@
-"""The swarm as a ``dm_env.Environment`` (DESIGN "env"): the one loop everything drives.
+"""The swarm as a ``dm_env.Environment`` (docs/design.md, "env").
 
-One :meth:`SwarmEnv.step` is one control period T. ``swarm-mj run``, the tuner's checks,
-the Gymnasium/PettingZoo wrappers and user code all step this class; they differ only
-in the policy they plug in and in what they observe.
+One :meth:`SwarmEnv.step` is one control period T of the step pipeline (:class:`~swarm_mj.sim.Sim`:
+saturation, force stages, ``mj_step``, contacts, health). ``swarm-mj run``, the
+Gymnasium/PettingZoo wrappers and user code step this class; they differ only in the policy
+they plug in and in what they observe. The tuner flies the same :class:`~swarm_mj.sim.Sim`
+pipeline over many copies of one drone (:mod:`swarm_mj.tuning.evaluator`).
+
+What a step applied is in :attr:`SwarmEnv.last_applied`, a :class:`StepRecord`: the U1..U4
+after saturation and the rotor thrusts, the wind force, and, when the action was a
+:class:`Command` (what :class:`~swarm_mj.policy.BacksteppingPolicy.command` returns) or a
+setpoint, the references and the commanded attitude that produced it. The runner's log and
+the recording are built from these records.
 
 Observation (a dict of arrays, drone axis first; ``n`` drones, leader = row 0):
 
@@ -42,20 +50,85 @@ seed replays the last one. The backstepping policy often asks for more than
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import dm_env
 import numpy as np
 from dm_env import specs
 
+from ._jit import jit
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
-from .formation.slots import DiameterSchedule, polygon_offsets
-from .kernels import all_finite, formation_reward, observe_kernel, setpoints_kernel
+from .formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
+from .observation import observe_kernel
 from .scenario import Scenario, load_scenario
 from .sim import Sim
 from .wind import WindField
 from .world import build_world
 
 CLOSE_PASS_M = 0.5
+
+
+@dataclass(slots=True)
+class Command:
+    """An action with its provenance: the U1..U4 (n, 4) a controller computed from the references
+    pos_d, vel_d, acc_d (n, 3) and the commanded attitude att_d (n, 3) = (φ_d, θ_d, ψ_d).
+    :meth:`SwarmEnv.step` applies ``U`` and records the rest in :class:`StepRecord`."""
+
+    U: np.ndarray          # (n, 4)
+    pos_d: np.ndarray      # (n, 3) commanded position (after anti-collision)
+    vel_d: np.ndarray      # (n, 3)
+    acc_d: np.ndarray      # (n, 3)
+    att_d: np.ndarray      # (n, 3) commanded (φ_d, θ_d, ψ_d)
+
+
+@dataclass(slots=True)
+class StepRecord:
+    """What one :meth:`SwarmEnv.step` applied over the control period starting at ``time``.
+
+    The references and commanded attitude are None when the action was a plain U array."""
+
+    time: float                    # s, start of the period
+    U: np.ndarray                  # (n, 4) U1..U4 after the rotors' saturation, held over the period
+    rotor_thrust: np.ndarray       # (n, 4) F1..F4 produced
+    wind_force: np.ndarray         # (n, 3) world-frame wind force applied (N)
+    pos_d: np.ndarray | None       # (n, 3) references of the controller
+    vel_d: np.ndarray | None       # (n, 3)
+    acc_d: np.ndarray | None       # (n, 3)
+    att_d: np.ndarray | None       # (n, 3) commanded (φ_d, θ_d, ψ_d)
+
+
+@jit(samples=lambda: [(np.zeros((2, 4)),)])
+def all_finite(a: np.ndarray) -> bool:
+    """True if every entry of a (any shape) is finite."""
+    for x in a.flat:
+        if not np.isfinite(x):
+            return False
+    return True
+
+
+def _reward_samples():
+    d = np.full((2, 2), np.inf)
+    return [(np.zeros((2, 3)), np.zeros((2, 3)), d, 0.5)]
+
+
+@jit(samples=_reward_samples)
+def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, close: float) -> tuple[float, int]:
+    """Mean follower distance to its slot and the number of pairs closer than ``close`` (3D)."""
+    n = pos.shape[0]
+    err = 0.0
+    for i in range(1, n):
+        dx = pos[i, 0] - setpoint[i, 0]
+        dy = pos[i, 1] - setpoint[i, 1]
+        dz = pos[i, 2] - setpoint[i, 2]
+        err += np.sqrt(dx * dx + dy * dy + dz * dz)
+    pairs = 0
+    for i in range(n):
+        for j in range(i + 1, n):
+            if dist[i, j] < close:
+                pairs += 1
+    return err / max(n - 1, 1), pairs
+
 
 
 class SwarmEnv(dm_env.Environment):
@@ -79,7 +152,7 @@ class SwarmEnv(dm_env.Environment):
                                  timestep=sc.timestep, integrator=sc.integrator)
         self.sim = Sim(self.world, self.T)
         self.params = self.world.params
-        # Leader reference, precomputed at every control instant (analytic, SPEC §3).
+        # Leader reference, precomputed at every control instant (analytic, docs/interpretations.md §3).
         self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)
         self.reference = sc.make_trajectory()(self.times)
         self.D = DiameterSchedule(sc.diameter)(self.times)                       # (K+1,)
@@ -106,7 +179,7 @@ class SwarmEnv(dm_env.Environment):
         self._prev_leader = self.sim.pos[0].copy()
         self._leader_vel = np.zeros(3)
         self._contacts_seen = 0
-        self.last_wind_force = np.zeros((self.n, 3))
+        self.last_applied: StepRecord | None = None
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
         self._done = False
@@ -115,9 +188,13 @@ class SwarmEnv(dm_env.Environment):
         self._obs = self._observe()
         return dm_env.restart(self._obs)
 
-    def step(self, action: np.ndarray) -> dm_env.TimeStep:
+    def step(self, action: np.ndarray | Command) -> dm_env.TimeStep:
         if self._done:
             return self.reset()
+        refs = None
+        if isinstance(action, Command):
+            refs = (action.pos_d, action.vel_d, action.acc_d, action.att_d)
+            action = action.U
         a = np.asarray(action, dtype=float)
         if self.action_mode == "setpoint":
             if a.shape != (self.n, 3):
@@ -126,30 +203,36 @@ class SwarmEnv(dm_env.Environment):
                 raise UserError("action contains NaN or inf")
             o = self._obs
             z = np.zeros((self.n, 3))
-            U = self._setpoint_ctl.compute(o["rpy"], o["rpy_rate"], o["pos"], o["vel"], a, z, z,
-                                           o["setpoint_yaw"], wind_force=o["wind_force"],
-                                           omega_body=o["body_rates"])
+            ctl = self._setpoint_ctl
+            U = ctl.compute(o["rpy"], o["rpy_rate"], o["pos"], o["vel"], a, z, z, o["setpoint_yaw"],
+                            wind_force=o["wind_force"], omega_body=o["body_rates"])
+            refs = (a, z, z, ctl.att_d.copy())
         else:
             if a.shape != (self.n, 4):
                 raise UserError(f"thrust action must have shape ({self.n}, 4), got {a.shape}")
             if not all_finite(a):
                 raise UserError("action contains NaN or inf")
             U = a
-        force = self._wind_force_now()
+        # the wind force of the coming period, held over it (zero-order hold)
+        force = self.wind.drone_forces(self.k, self.sim.vel)                   # (n, 3)
+        t = self.k * self.T
         self.sim.step(U, force)
+        sim = self.sim
+        self.last_applied = StepRecord(t, sim.ctrl.copy(), sim.rotor_thrust.copy(), force,
+                                       *(refs if refs is not None else (None, None, None, None)))
         self.k += 1
         diverged = None
         try:
-            self.sim.check()
+            sim.check()
         except SimulationDiverged as exc:
             if self.raise_on_divergence:
                 raise
             diverged = exc
-        if diverged is None or np.isfinite(self.sim.qpos).all():
+        if diverged is None or np.isfinite(sim.qpos).all():
             self._obs = self._observe()
         obs = self._obs          # after a non-finite divergence: the last finite observation
-        new_contacts = self.sim.contact_events - self._contacts_seen
-        self._contacts_seen = self.sim.contact_events
+        new_contacts = sim.contact_events - self._contacts_seen
+        self._contacts_seen = sim.contact_events
         reward = self._reward(obs, new_contacts)
         if diverged is not None or (self.terminate_on_contact and new_contacts > 0):
             self._done = True
@@ -187,16 +270,11 @@ class SwarmEnv(dm_env.Environment):
     def time(self) -> float:
         return self.k * self.T
 
-    def _wind_force_now(self) -> np.ndarray:
-        """World wind force (n, 3) during the coming control period (zero-order hold)."""
-        w = self.wind
-        if w.relative_airspeed:
-            f = w.drone_forces(self.k, self.sim.vel)
-        else:
-            f = np.empty((self.n, 3))
-            f[:] = w.force[self.k]
-        self.last_wind_force = f          # (n, 3)
-        return f
+    @property
+    def last_wind_force(self) -> np.ndarray:
+        """(n, 3) the wind force applied over the last control period (zeros before the first)."""
+        rec = self.last_applied
+        return rec.wind_force if rec is not None else np.zeros((self.n, 3))
 
     def _observe(self) -> dict:
         sim, k, n = self.sim, self.k, self.n
@@ -208,8 +286,7 @@ class SwarmEnv(dm_env.Environment):
                                                    ref.pos[k], ref.vel[k], ref.acc[k], float(ref.yaw[k]),
                                                    float(self.D[k]), self._unit_offsets)
         if self._wind_known:
-            w = self.wind
-            wf = w.drone_forces(k, vel) if w.relative_airspeed else np.broadcast_to(w.force[k], (n, 3)).copy()
+            wf = self.wind.drone_forces(k, vel)
         else:
             wf = np.zeros((n, 3))
         self._dist = dist

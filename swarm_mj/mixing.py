@@ -1,4 +1,4 @@
-"""Rotor mixing of paper eqs. (26)–(29) with per-rotor saturation (SPEC §1).
+"""Rotor mixing of paper eqs. (26)–(29) with per-rotor saturation (docs/interpretations.md §1).
 
 U1 = F1 + F2 + F3 + F4, U2 = F3 − F1, U3 = F4 − F2, U4 = F1 − F2 + F3 − F4.
 """
@@ -6,6 +6,8 @@ U1 = F1 + F2 + F3 + F4, U2 = F3 − F1, U3 = F4 − F2, U4 = F1 − F2 + F3 − 
 from __future__ import annotations
 
 import numpy as np
+
+from ._jit import jit
 
 # U = F @ MIX.T   (rows: U1..U4, columns: F1..F4)
 MIX = np.array([
@@ -15,29 +17,53 @@ MIX = np.array([
     [1.0, -1.0, 1.0, -1.0],
 ])
 UNMIX = np.linalg.inv(MIX)
-_UNMIX_T = np.ascontiguousarray(UNMIX.T)
-_MIX_T = np.ascontiguousarray(MIX.T)
+#: (4, 4) UNMIX.T, C-contiguous: F = U @ UNMIX_T
+UNMIX_T = np.ascontiguousarray(UNMIX.T)
+#: (4, 4) MIX.T, C-contiguous: U = F @ MIX_T
+MIX_T = np.ascontiguousarray(MIX.T)
 
 
 def u_to_rotor(U: np.ndarray) -> np.ndarray:
     """Rotor thrusts F1..F4 (…, 4) that produce U1..U4 (…, 4): inverse of eqs. (26)–(29)."""
-    return U @ _UNMIX_T
+    return U @ UNMIX_T
 
 
 def rotor_to_u(F: np.ndarray) -> np.ndarray:
     """U1..U4 (…, 4) from rotor thrusts F1..F4 (…, 4): eqs. (26)–(29)."""
-    return F @ _MIX_T
+    return F @ MIX_T
+
+
+def _saturate_samples():
+    z = np.zeros((2, 4))
+    return [(z, UNMIX_T, MIX_T, 0.0, 4.5, z.copy(), z.copy())]
+
+
+@jit(samples=_saturate_samples)
+def saturate_kernel(U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float,
+                    U_out: np.ndarray, F_out: np.ndarray) -> None:
+    """Rotor mixing with per-rotor clipping (eqs. 26–29, docs/interpretations.md §1):
+    F_out (n, 4) = clip(U (n, 4)·UNMIXᵀ, f_min, f_max), U_out (n, 4) = F_out·MIXᵀ."""
+    n = U.shape[0]
+    for i in range(n):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = min(max(f, f_min), f_max)
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += F_out[i, c] * mix_t[c, r]
+            U_out[i, r] = u
 
 
 def saturate(U: np.ndarray, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
     """Map commanded U (n, 4) to rotors, clip each rotor to [f_min, f_max], map back.
 
     Returns (U_applied (n, 4), F (n, 4)): the wrench the motors can deliver and the rotor thrusts.
-    The arithmetic is :func:`swarm_mj.kernels.saturate_kernel`, the one the simulator runs.
+    The arithmetic is :func:`saturate_kernel`, the one the simulator runs.
     """
-    from .kernels import saturate_kernel
-
     U = np.ascontiguousarray(U, dtype=np.float64)
     U_out, F = np.empty_like(U), np.empty_like(U)
-    saturate_kernel(U, _UNMIX_T, _MIX_T, float(f_min), float(f_max), U_out, F)
+    saturate_kernel(U, UNMIX_T, MIX_T, float(f_min), float(f_max), U_out, F)
     return U_out, F

@@ -1,4 +1,5 @@
-"""Vehicle parameters: paper Table 1 plus the rotor limits of SPEC §1."""
+"""Vehicle parameters: paper Table 1 (:data:`swarm_mj.paper.TABLE1_VEHICLE`) plus the rotor
+limits of docs/interpretations.md §1."""
 
 from __future__ import annotations
 
@@ -7,25 +8,26 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import UserError
+from .paper import TABLE1_VEHICLE as T1
 
 
 @dataclass(frozen=True)
 class QuadParams:
-    """Physical parameters of one quadrotor (paper Table 1, SPEC §1).
+    """Physical parameters of one quadrotor (paper Table 1, docs/interpretations.md §1).
 
     Units: kg, m, kg·m², N·s/m, N.
     """
 
-    m: float = 0.486
-    Ix: float = 0.0038
-    Iy: float = 0.0038
-    Iz: float = 0.0071
-    L: float = 0.25
-    Kx: float = 0.0056
-    Ky: float = 0.0056
-    Kz: float = 0.0064
-    g: float = 9.81
-    f_min: float = 0.0  # per-rotor thrust range (N), SPEC §1
+    m: float = T1["m"]
+    Ix: float = T1["Ix"]
+    Iy: float = T1["Iy"]
+    Iz: float = T1["Iz"]
+    L: float = T1["L"]
+    Kx: float = T1["Kx"]
+    Ky: float = T1["Ky"]
+    Kz: float = T1["Kz"]
+    g: float = T1["g"]
+    f_min: float = 0.0  # per-rotor thrust range (N), docs/interpretations.md §1
     f_max: float = 4.5
 
     def __post_init__(self) -> None:

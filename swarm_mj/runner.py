@@ -1,38 +1,35 @@
-"""Run a scenario: ``SwarmEnv`` + a policy, with a log, a summary and observers (DESIGN "One loop").
+"""Run a scenario: ``SwarmEnv`` + a policy, with a log, a summary and observers (docs/design.md, "one loop").
 
 ``run(scenario)`` steps the environment with the backstepping policy, keeps every
-control-period sample in preallocated arrays (:class:`RunLog`, time axis first), and
-returns them with the SPEC §7 summary. A Ctrl-C or a divergence stops the loop; the log
-of what ran is kept (``RunResult.error`` says why it stopped) so that the recording can
-still be written.
+control-period sample in preallocated arrays (:class:`RunLog`, time axis first, filled from
+each observation and each :class:`~swarm_mj.env.StepRecord` the environment returns), and
+returns them with the summary of docs/interpretations.md §7. A Ctrl-C or a divergence stops
+the loop; the log of what ran is kept (``RunResult.error`` says why it stopped) so that the
+recording can still be written. Ctrl-C is cooperative: while the loop runs, SIGINT only sets
+a flag, checked once per control period, so that it never lands inside a compiled kernel.
 """
 
 from __future__ import annotations
 
+import signal
 import sys
+import threading
 import time as _time
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .env import SwarmEnv
+from ._jit import warm_up
+from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
-from .kernels import warm_up
 from .metrics import (follower_distances, formation_settling, leader_distances, min_separation, rmse,
                       step_metrics)
+from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .scenario import Scenario, load_scenario
 
-# Paper figures to print beside ours (SPEC §7).
-PAPER_STEP = {"x": {"overshoot_pct": 0.0, "settling_s": 1.5}, "y": {"overshoot_pct": 0.0, "settling_s": 1.5},
-              "z": {"overshoot_pct": 0.0, "settling_s": 1.0}, "psi": {"overshoot_pct": 0.0, "settling_s": 1.0}}
-PAPER_TABLE5 = {
-    ("circle", False): {"x": 0.0156, "y": 0.0631, "roll_deg": 0.0397, "pitch_deg": 0.0688},
-    ("circle", True): {"x": 0.0398, "y": 0.0689, "roll_deg": 0.1205, "pitch_deg": 0.1965},
-    ("lemniscate", False): {"x": 0.0075, "y": 0.0041, "roll_deg": 0.0173, "pitch_deg": 0.0379},
-    ("lemniscate", True): {"x": 0.0321, "y": 0.0249, "roll_deg": 0.1125, "pitch_deg": 0.1841},
-}
-PAPER_FORMATION_SETTLING_S = 3.0
+__all__ = ["PAPER_FORMATION_SETTLING_S", "PAPER_STEP", "PAPER_TABLE5", "Progress", "RunLog", "RunResult", "run",
+           "summarize"]
 
 
 @dataclass
@@ -60,6 +57,25 @@ class RunLog:
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
         return cls(names, z(k), z(k, n, 3), z(k, n, 3), z(k, n, 4), z(k, n, 3), z(k, n, 3), z(k, n, 3),
                    z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k))
+
+    def observe(self, k: int, obs: dict, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
+        """Sample k from the observation and the command computed from it (before the step)."""
+        self.t[k] = obs["time"]
+        self.pos[k] = obs["pos"]
+        self.vel[k] = obs["vel"]
+        self.quat[k] = obs["quat"]
+        self.rpy[k] = obs["rpy"]
+        self.pos_d[k] = cmd.pos_d
+        self.slot[k] = obs["setpoint"]
+        self.att_d[k] = cmd.att_d
+        self.wind_speed[k] = wind_speed
+        self.D[k] = D
+
+    def applied(self, k: int, rec: StepRecord) -> None:
+        """What the environment applied over the period after sample k."""
+        self.U[k] = rec.U
+        self.rotor[k] = rec.rotor_thrust
+        self.wind_force[k] = rec.wind_force
 
     def truncated(self, k: int) -> "RunLog":
         return RunLog(self.names, *(getattr(self, f)[:k] for f in
@@ -130,38 +146,28 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     ts = env.reset()
     obs = ts.observation
     k = 0
-    sim = env.sim
-    ctl = policy.controller
     wind_speed = env.wind.speed
-    try:
-        while True:
-            U = policy(obs)
-            log.t[k] = obs["time"]
-            log.pos[k] = obs["pos"]
-            log.vel[k] = obs["vel"]
-            log.quat[k] = obs["quat"]
-            log.rpy[k] = obs["rpy"]
-            log.pos_d[k] = policy.pos_d
-            log.slot[k] = obs["setpoint"]
-            log.att_d[k] = ctl.att_d
-            log.wind_speed[k] = wind_speed[k]
-            log.D[k] = env.D[k]
-            if k >= K:
-                break
-            ts = env.step(U)
-            log.U[k] = sim.ctrl
-            log.rotor[k] = sim.rotor_thrust
-            log.wind_force[k] = env.last_wind_force
-            obs = ts.observation
-            k += 1
-            if k % 50 == 0:
-                bar.update(k)
-    except KeyboardInterrupt as exc:
-        error = exc
-    except SimulationDiverged as exc:
-        error = exc
-    finally:
-        bar.close()
+    with _CooperativeInterrupt() as interrupt:
+        try:
+            while True:
+                cmd = policy.command(obs)
+                log.observe(k, obs, cmd, wind_speed[k], env.D[k])
+                if k >= K:
+                    break
+                if interrupt.requested:
+                    raise KeyboardInterrupt
+                ts = env.step(cmd)
+                log.applied(k, env.last_applied)
+                obs = ts.observation
+                k += 1
+                if k % 50 == 0:
+                    bar.update(k)
+        except KeyboardInterrupt as exc:
+            error = exc
+        except SimulationDiverged as exc:
+            error = exc
+        finally:
+            bar.close()
     wall = _time.perf_counter() - wall0
     n_samples = k + 1 if error is None else k
     if error is None and k > 0:
@@ -172,7 +178,31 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     summary = summarize(sc, log, env, policy, wall)
     if error is not None:
         summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
-    return RunResult(sc, log, summary, list(policy.events), list(sim.contact_log), error)
+    return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error)
+
+
+class _CooperativeInterrupt:
+    """While active (main thread, SIGINT at Python's default handler), SIGINT sets ``requested``
+    instead of raising KeyboardInterrupt wherever the interpreter happens to be (inside a compiled
+    kernel it surfaces as a SystemError and loses the run); the previous handler is restored on exit."""
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous = None
+
+    def _handler(self, signum, frame) -> None:
+        self.requested = True
+
+    def __enter__(self) -> "_CooperativeInterrupt":
+        if threading.current_thread() is threading.main_thread() \
+                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            self._previous = signal.signal(signal.SIGINT, self._handler)
+        return self
+
+    def __exit__(self, *exc) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+            self._previous = None
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:

@@ -1,29 +1,186 @@
-"""The simulation core: MjData, drag and external forces, rotor saturation, stepping (DESIGN "sim").
+"""The simulation core: one control period of the step pipeline (docs/design.md, "the step pipeline").
 
-Per physics step (``model.opt.timestep``) the core writes into ``xfrc_applied`` of each
-drone body (world frame, at the centre of mass):
+:meth:`Sim.step` owns each control period T:
 
-    F = −(Kx·ẋ, Ky·ẏ, Kz·ż) + F_ext          (paper eq. 1 drag; wind F^w of eq. 37)
+1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
+   [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.mixing.saturate_kernel`,
+   docs/interpretations.md §1); the result is held in ``ctrl`` for the whole period (a
+   zero-order hold, docs/interpretations.md §2);
+2. per physics step (``model.opt.timestep``; two per 10-ms period at the 5-ms default):
 
-The drag uses the velocity at the start of that physics step, i.e. it is refreshed
-every physics step (twice per 10-ms control period at the 5-ms default) and held
-over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
-for the whole control period: a zero-order hold (SPEC §2).
+   a. the **force stages** each ADD a world-frame force and torque at every drone's centre of
+      mass (:class:`ForceStage`): first :class:`DragStage` (paper eq. 1, −(Kx·ẋ, Ky·ẏ, Kz·ż)
+      from the velocity at the start of the physics step, held over its RK4 stages), then
+      :class:`WindStage` (the wind force F^w of eq. 37, held over the control period), then any
+      extra stage in the order given; the sum goes to ``xfrc_applied``;
+   b. ``mujoco.mj_step``;
+   c. **contacts** between drones (rising edges counted, :attr:`Sim.contact_log`);
 
-State arrays are views into MjData with the drone axis first:
-``pos (n, 3)``, ``quat (n, 4)`` (w, x, y, z), ``vel (n, 3)`` world frame,
-``omega (n, 3)`` body frame.
+3. the **health mask** (:meth:`Sim.health`): per copy, a non-finite state, a drone below
+   ``floor_z`` or beyond ``max_distance`` (optionally tilted beyond ``max_tilt``), or a new
+   MuJoCo divergence warning (a bad position, velocity, acceleration or control: MuJoCo then
+   resets the whole ``MjData`` and goes on, so the state alone may look sane).
+
+**Copies.** ``Sim(world, T, n_copies=m)`` steps m independent copies of an n-drone swarm held
+in one model of N = m·n drones, copy-major (drone i of copy c is row c·n + i); the tuner flies
+its candidates this way. :meth:`park` holds diverged copies at their start with zero input so
+that a bad state never reaches MuJoCo.
+
+State arrays are views into MjData with the drone axis first (N rows):
+``pos (N, 3)``, ``quat (N, 4)`` (w, x, y, z), ``vel (N, 3)`` world frame,
+``omega (N, 3)`` body frame, ``ctrl (N, 4)`` the U1..U4 applied, ``rotor_thrust (N, 4)``
+the rotor thrusts F1..F4 actually produced.
 """
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
+from typing import Protocol
+
 import mujoco
 import numpy as np
 
+from ._jit import jit
 from .errors import SimulationDiverged, UserError
-from .kernels import drag_kernel, saturate_kernel, state_ok
-from .mixing import _MIX_T, _UNMIX_T
+from .mixing import MIX_T, UNMIX_T, saturate_kernel
+from .params import QuadParams
+from .state import quat_to_euler_kernel
 from .world import World
+
+#: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
+HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
+HEALTH_NAMES = {HEALTHY: "healthy", NON_FINITE: "non-finite state", BELOW_FLOOR: "below the floor",
+                TOO_FAR: "too far", TILTED: "tilted too far", MUJOCO_WARNING: "MuJoCo divergence warning"}
+#: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
+DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
+                       mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADCTRL)
+
+
+class ForceStage(Protocol):
+    name: str
+
+    def reset(self, sim: "Sim") -> None: ...
+
+    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+        """ADD this stage's world-frame force (N, 3) [N] and torque (N, 3) [N·m] at each drone's CoM
+        for the coming physics step. N = all drones of all copies, in sim order (copy-major)."""
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+def _state_samples():
+    qpos = np.zeros((2, 7))
+    qpos[:, 3] = 1.0
+    return qpos, np.zeros((2, 6))
+
+
+@jit
+def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_distance: float) -> int:
+    """Drone i of qpos (N, 7), qvel (N, 6): 0 if sane, 1 if non-finite, 2 if below ``floor_z``,
+    3 if beyond ``max_distance`` on an axis."""
+    for c in range(7):
+        if not np.isfinite(qpos[i, c]):
+            return NON_FINITE
+    for c in range(6):
+        if not np.isfinite(qvel[i, c]):
+            return NON_FINITE
+    if qpos[i, 2] < floor_z:
+        return BELOW_FLOOR
+    for c in range(3):
+        if abs(qpos[i, c]) > max_distance:
+            return TOO_FAR
+    return HEALTHY
+
+
+@jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(14, dtype=np.int32)[::2],
+                       np.array([5, 3, 4, 6]), np.zeros(1, dtype=np.int8))])
+def health_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float,
+                  max_tilt: float, warnings: np.ndarray, bad_warnings: np.ndarray, out: np.ndarray) -> None:
+    """The health mask: out (m,) = per copy of n drones (rows c·n .. c·n + n − 1 of qpos (N, 7),
+    qvel (N, 6)) the code of its first unhealthy drone (:func:`drone_state`; TILTED where |roll|
+    or |pitch| > ``max_tilt``), MUJOCO_WARNING for every copy if a counter of ``warnings`` (MuJoCo's
+    warning counts) at an index of ``bad_warnings`` is nonzero (MuJoCo resets all copies), else 0."""
+    m = out.shape[0]
+    warned = False
+    for w in bad_warnings:
+        if warnings[w] != 0:
+            warned = True
+    for c in range(m):
+        code = HEALTHY
+        for i in range(c * n, c * n + n):
+            code = drone_state(qpos, qvel, i, floor_z, max_distance)
+            if code != HEALTHY:
+                break
+            if max_tilt < np.inf:
+                rpy = quat_to_euler_kernel(qpos[i:i + 1, 3:7])
+                if not (abs(rpy[0, 0]) <= max_tilt and abs(rpy[0, 1]) <= max_tilt):
+                    code = TILTED
+                    break
+        if warned:
+            code = MUJOCO_WARNING
+        out[c] = code
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)), np.zeros((5, 6))[1::2, 0:3])])
+def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.ndarray) -> None:
+    """out (N, 3) = −K·v (N, 3) + F_ext (N, 3): linear drag of eq. (1) plus the wind force
+    (the drag and wind stages fused, when they are the only ones)."""
+    n = vel.shape[0]
+    for i in range(n):
+        for c in range(3):
+            out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)))])
+def add_drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, force: np.ndarray) -> None:
+    """force (N, 3) += −K·v (N, 3): the linear drag of paper eq. (1)."""
+    n = vel.shape[0]
+    for i in range(n):
+        for c in range(3):
+            force[i, c] += neg_drag[c] * vel[i, c]
+
+
+# --------------------------------------------------------------------------- force stages
+
+
+class DragStage:
+    """Paper eq. (1)'s linear drag −(Kx·ẋ, Ky·ẏ, Kz·ż) (world frame), from the velocity at the start
+    of each physics step."""
+
+    name = "drag"
+
+    def reset(self, sim: "Sim") -> None:
+        self.neg_drag = -sim.params.drag          # (3,)
+
+    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+        add_drag_kernel(sim.vel, self.neg_drag, force)
+
+
+class WindStage:
+    """The wind force F^w (paper eq. 37) of the current control period, (N, 3) world frame, held
+    (zero-order) over the period: :meth:`Sim.step` sets it (:attr:`force`)."""
+
+    name = "wind"
+
+    def __init__(self) -> None:
+        self.force = np.zeros((0, 3))
+
+    def reset(self, sim: "Sim") -> None:
+        self.force = np.zeros((sim.n_total, 3))   # (N, 3)
+
+    def set(self, force: np.ndarray | None) -> None:
+        """The force (N, 3) or (3,) for the coming period (None: zero)."""
+        if force is None:
+            self.force[:] = 0.0
+        else:
+            self.force[:] = force
+
+    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+        force += self.force
+
+
+# --------------------------------------------------------------------------- the pipeline
 
 
 def _index(ids: np.ndarray) -> slice | np.ndarray:
@@ -38,10 +195,16 @@ def _index(ids: np.ndarray) -> slice | np.ndarray:
 
 
 class Sim:
-    """Steps a :class:`~swarm_mj.world.World` one control period at a time."""
+    """Steps a :class:`~swarm_mj.world.World` one control period at a time (see the module docstring).
 
-    def __init__(self, world: World, control_period: float = 0.01, *, floor_z: float = -0.5,
-                 max_distance: float = 1e3) -> None:
+    world: N drones = ``n_copies`` copies of n = N / n_copies drones, copy-major.
+    force_stages: extra :class:`ForceStage` s, applied after drag and wind (also :meth:`add_stage`).
+    floor_z, max_distance, max_tilt: the health limits (m, m, rad; ``max_tilt`` None: not checked).
+    """
+
+    def __init__(self, world: World, control_period: float = 0.01, *, n_copies: int = 1,
+                 force_stages: Sequence[ForceStage] = (), floor_z: float = -0.5, max_distance: float = 1e3,
+                 max_tilt: float | None = None) -> None:
         m = world.model
         dt = m.opt.timestep
         nsub = int(round(control_period / dt))
@@ -49,33 +212,57 @@ class Sim:
             raise UserError(f"physics timestep {dt} s must divide the control period {control_period} s")
         if m.nq != 7 * world.n_drones or m.nu != 4 * world.n_drones:
             raise UserError("the model must hold only the drones' free joints and four motors per drone")
+        if not isinstance(n_copies, (int, np.integer)) or n_copies < 1 or world.n_drones % n_copies:
+            raise UserError(f"n_copies must divide the {world.n_drones} drones of the model, got {n_copies!r}")
         self.world = world
         self.model = m
         self.data = mujoco.MjData(m)
-        self.n = world.n_drones
+        self.n_total = N = world.n_drones
+        self.n_copies = int(n_copies)
+        self.n = N // self.n_copies                      # drones per copy
         self.control_period = float(control_period)
         self.n_substeps = nsub
         self.floor_z = float(floor_z)
         self.max_distance = float(max_distance)
+        self.max_tilt = np.inf if max_tilt is None else float(max_tilt)
         p = world.params
-        self.params = p
-        self._neg_drag = -p.drag                         # (3,)
+        self.params: QuadParams = p
         self._f_min, self._f_max = p.f_min, p.f_max
         d = self.data
-        self.qpos = d.qpos.reshape(self.n, 7)            # views into MjData
-        self.qvel = d.qvel.reshape(self.n, 6)
-        self.pos = self.qpos[:, 0:3]                     # (n, 3)
-        self.quat = self.qpos[:, 3:7]                    # (n, 4)
-        self.vel = self.qvel[:, 0:3]                     # (n, 3) world frame
-        self.omega = self.qvel[:, 3:6]                   # (n, 3) body frame
-        self.ctrl = d.ctrl.reshape(self.n, 4)            # (n, 4) = U1..U4 applied
-        self._xfrc_force = d.xfrc_applied[_index(world.body_ids), 0:3]
+        self.qpos = d.qpos.reshape(N, 7)                 # views into MjData
+        self.qvel = d.qvel.reshape(N, 6)
+        self.pos = self.qpos[:, 0:3]                     # (N, 3)
+        self.quat = self.qpos[:, 3:7]                    # (N, 4) w, x, y, z
+        self.vel = self.qvel[:, 0:3]                     # (N, 3) world frame
+        self.omega = self.qvel[:, 3:6]                   # (N, 3) body frame
+        self.ctrl = d.ctrl.reshape(N, 4)                 # (N, 4) = U1..U4 applied
+        idx = _index(world.body_ids)
+        self._xfrc_force = d.xfrc_applied[idx, 0:3]      # (N, 3) views
+        self._xfrc_torque = d.xfrc_applied[idx, 3:6]
         if not np.shares_memory(self._xfrc_force, d.xfrc_applied):
             raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
+        self._warnings = d.warning.number                # (7,) live view of MuJoCo's warning counters
+        self._bad_warnings = np.array([int(w) for w in DIVERGENCE_WARNINGS], dtype=np.int64)
         self._geom_drone = world.geom_drone
-        self.rotor_thrust = np.zeros((self.n, 4))        # (n, 4) F1..F4 of the last step
-        self.ext_force = np.zeros((self.n, 3))           # (n, 3) last external force
+        self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 of the last step
+        self._force = np.zeros((N, 3))                   # (N, 3) stage sums (general path)
+        self._torque = np.zeros((N, 3))
+        self._health = np.zeros(self.n_copies, dtype=np.int8)
+        self.drag = DragStage()
+        self.wind = WindStage()
+        self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
         self.reset()
+
+    @property
+    def ext_force(self) -> np.ndarray:
+        """(N, 3) the wind force of the current period (the wind stage's)."""
+        return self.wind.force
+
+    def add_stage(self, stage: ForceStage) -> None:
+        """Append a force stage (applied after the others); it is reset now."""
+        self.stages.append(stage)
+        stage.reset(self)
+        self._fused = False
 
     # ------------------------------------------------------------------ state
     @property
@@ -84,7 +271,7 @@ class Sim:
 
     def reset(self, positions: np.ndarray | None = None, yaws: np.ndarray | None = None,
               velocities: np.ndarray | None = None) -> None:
-        """Back to rest at ``positions`` (n, 3) with ``yaws`` (n,) (defaults: the world's)."""
+        """Back to rest at ``positions`` (N, 3) with ``yaws`` (N,) (defaults: the world's)."""
         mujoco.mj_resetData(self.model, self.data)
         pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
         yaw = self.world.initial_yaws if yaws is None else np.asarray(yaws, float)
@@ -95,49 +282,104 @@ class Sim:
         if velocities is not None:
             self.vel[:] = velocities
         self.rotor_thrust[:] = 0.0
-        self.ext_force[:] = 0.0
         self.contact_events = 0          # pairs of drones coming into contact (rising edges)
         self.contact_steps = 0           # physics steps with any drone–drone contact
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
+        self.parked = np.zeros(self.n_copies, dtype=bool)    # (m,) copies held at their start
+        self._park_qpos = self.qpos.copy()                   # (N, 7) where parked drones are held
+        for stage in self.stages:
+            stage.reset(self)
+        self._fused = [type(s) for s in self.stages] == [DragStage, WindStage]
         mujoco.mj_forward(self.model, self.data)
 
     # ------------------------------------------------------------------ step
-    def step(self, U: np.ndarray, ext_force: np.ndarray | None = None) -> None:
-        """Advance one control period with commanded U (n, 4) and external world force (n, 3) or (3,).
+    def step(self, U: np.ndarray, wind_force: np.ndarray | None = None) -> None:
+        """Advance one control period with commanded U (N, 4) and the wind force (N, 3) or (3,).
 
         U is mapped to rotor thrusts, clipped to [f_min, f_max] per rotor and mapped back
-        (SPEC §1); the result is held in ``ctrl`` for the whole period.
+        (docs/interpretations.md §1); the result is held in ``ctrl`` for the whole period.
+        Parked copies get zero input and are put back at their start first.
         """
         U = np.asarray(U, dtype=np.float64)
-        saturate_kernel(U, _UNMIX_T, _MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
-        if ext_force is None:
-            self.ext_force[:] = 0.0
-        else:
-            self.ext_force[:] = ext_force
+        if self.parked.any():
+            U = self._hold_parked(U)
+        saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
+        self.wind.set(wind_force)
         m, d = self.model, self.data
-        xf, vel, ext, k = self._xfrc_force, self.vel, self.ext_force, self._neg_drag
+        if self._fused:
+            # drag + wind only: one compiled call, xf = −K·v + F_wind (the same sum, 0 + (−K·v) + F_wind)
+            xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
+            for _ in range(self.n_substeps):
+                drag_kernel(vel, k, ext, xf)
+                mujoco.mj_step(m, d)
+                if d.ncon or self._pairs_in_contact:
+                    self._count_contacts()
+            return
+        force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
-            drag_kernel(vel, k, ext, xf)      # xf = −K·v + F_ext (world frame, at the CoM)
+            force[:] = 0.0
+            torque[:] = 0.0
+            for stage in self.stages:
+                stage.apply(self, force, torque)
+            self._xfrc_force[:] = force
+            self._xfrc_torque[:] = torque
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
 
+    # ------------------------------------------------------------------ health
+    def health(self) -> np.ndarray:
+        """The health mask (m,) int8, one code per copy (``HEALTHY`` = 0, see :data:`HEALTH_NAMES`):
+        non-finite state, a drone below the floor, too far, tilted beyond ``max_tilt``, or a
+        MuJoCo divergence warning since the last reset. A fresh array."""
+        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
+                      self._warnings, self._bad_warnings, self._health)
+        return self._health.copy()
+
     def check(self) -> None:
-        """Raise :class:`SimulationDiverged` on NaN, a drone below the floor or far away."""
-        code = state_ok(self.qpos, self.qvel, self.floor_z, self.max_distance)
-        if code == 0:
+        """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
+        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
+                      self._warnings, self._bad_warnings, self._health)
+        bad = np.flatnonzero(self._health)
+        if len(bad) == 0:
             return
+        code = int(self._health[bad[0]])
         pos = self.pos
-        if code == 1:
-            raise SimulationDiverged(f"simulation diverged at t = {self.time:.2f} s: non-finite state")
-        if code == 2:
+        when = f"simulation diverged at t = {self.time:.2f} s"
+        if code == MUJOCO_WARNING:
+            names = [mujoco.mjtWarning(int(w)).name for w in self._bad_warnings if self._warnings[int(w)]]
+            raise SimulationDiverged(f"simulation diverged: MuJoCo reported {', '.join(names)} (a state it cannot "
+                                     f"integrate) and reset the simulation")
+        if code == NON_FINITE:
+            raise SimulationDiverged(f"{when}: non-finite state")
+        if code == BELOW_FLOOR:
             k = int(np.argmin(pos[:, 2]))
-            raise SimulationDiverged(
-                f"simulation diverged at t = {self.time:.2f} s: {self.world.names[k]} fell through the floor "
-                f"(z = {pos[k, 2]:.2f} m)")
-        raise SimulationDiverged(f"simulation diverged at t = {self.time:.2f} s: a drone flew beyond "
-                                 f"{self.max_distance:g} m")
+            raise SimulationDiverged(f"{when}: {self.world.names[k]} fell through the floor (z = {pos[k, 2]:.2f} m)")
+        if code == TILTED:
+            raise SimulationDiverged(f"{when}: a drone tilted beyond {np.rad2deg(self.max_tilt):g}°")
+        raise SimulationDiverged(f"{when}: a drone flew beyond {self.max_distance:g} m")
+
+    def park(self, copies: np.ndarray | Iterable[int]) -> None:
+        """Hold the given copies (a bool mask (m,) or indices) at rest at their start with zero input
+        from now on (e.g. diverged tuner candidates), so that a bad state never reaches MuJoCo,
+        which would reset every copy."""
+        mask = np.zeros(self.n_copies, dtype=bool)
+        mask[np.asarray(copies) if not isinstance(copies, np.ndarray) else copies] = True
+        self.parked |= mask
+        self._put_back()
+
+    def _put_back(self) -> None:
+        rows = np.repeat(self.parked, self.n)                # (N,)
+        self.qpos[rows] = self._park_qpos[rows]
+        self.qvel[rows] = 0.0
+
+    def _hold_parked(self, U: np.ndarray) -> np.ndarray:
+        rows = np.repeat(self.parked, self.n)                # (N,)
+        U = U.copy()
+        U[rows] = 0.0
+        self._put_back()
+        return U
 
     # ------------------------------------------------------------------ contacts
     def _count_contacts(self) -> None:

@@ -19,8 +19,17 @@ import numpy as np
 from ._jit import jit
 
 
-@jit
-def _quat_to_euler(quat: np.ndarray) -> np.ndarray:
+def _q_samples():
+    return [(np.array([[1.0, 0.0, 0.0, 0.0]]),)]
+
+
+def _r_samples():
+    return [(np.zeros((2, 3)), np.zeros((2, 3)))]
+
+
+@jit(samples=_q_samples)
+def quat_to_euler_kernel(quat: np.ndarray) -> np.ndarray:
+    """Z-Y-X Euler angles (m, 3) of quaternions (m, 4) (w, x, y, z): the formulas above."""
     w, x, y, z = quat[:, 0], quat[:, 1], quat[:, 2], quat[:, 3]
     out = np.empty((quat.shape[0], 3))
     out[:, 0] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
@@ -29,8 +38,9 @@ def _quat_to_euler(quat: np.ndarray) -> np.ndarray:
     return out
 
 
-@jit
-def _body_rates_to_euler_rates(rpy: np.ndarray, omega: np.ndarray) -> np.ndarray:
+@jit(samples=_r_samples)
+def euler_rates_kernel(rpy: np.ndarray, omega: np.ndarray) -> np.ndarray:
+    """Euler-angle rates (m, 3) from Euler angles rpy (m, 3) and body rates omega (m, 3): the formulas above."""
     sphi, cphi = np.sin(rpy[:, 0]), np.cos(rpy[:, 0])
     ctheta = np.cos(rpy[:, 1])
     ttheta = np.tan(rpy[:, 1])
@@ -46,14 +56,14 @@ def _body_rates_to_euler_rates(rpy: np.ndarray, omega: np.ndarray) -> np.ndarray
 def quat_to_euler(quat: np.ndarray) -> np.ndarray:
     """Z-Y-X Euler angles (…, 3) = (φ, θ, ψ) from quaternions (…, 4) in MuJoCo's (w, x, y, z) order."""
     q = np.ascontiguousarray(quat, dtype=np.float64)
-    return _quat_to_euler(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3,))
+    return quat_to_euler_kernel(q.reshape(-1, 4)).reshape(q.shape[:-1] + (3,))
 
 
 def body_rates_to_euler_rates(rpy: np.ndarray, omega_body: np.ndarray) -> np.ndarray:
     """Euler-angle rates (…, 3) = (φ̇, θ̇, ψ̇) from body angular velocity (…, 3) = (p, q, r)."""
     r = np.ascontiguousarray(rpy, dtype=np.float64)
     w = np.ascontiguousarray(omega_body, dtype=np.float64)
-    return _body_rates_to_euler_rates(r.reshape(-1, 3), w.reshape(-1, 3)).reshape(w.shape)
+    return euler_rates_kernel(r.reshape(-1, 3), w.reshape(-1, 3)).reshape(w.shape)
 
 
 def euler_to_quat(rpy: np.ndarray) -> np.ndarray:

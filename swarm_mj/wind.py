@@ -1,4 +1,4 @@
-"""Wind model of the paper, eqs. (35)–(37), as fixed by SPEC §5.
+"""Wind model of the paper, eqs. (35)–(37), as fixed by docs/interpretations.md §5.
 
 Wind speed (world frame, m/s), paper eq. (35)::
 
@@ -23,7 +23,7 @@ would always push towards +x/+y, and sigma for rho)::
     F_i = 0.5 rho C_d A |V_i| V_i        i in {x, y, z}, world frame
 
 ``|V_i|`` is the magnitude of the *component*, not of the vector (the paper and
-SPEC §5 give the force "per axis").
+docs/interpretations.md §5 give the force "per axis").
 
 Schedule (paper §5.3): the force of an axis is applied only inside its windows.
 A schedule is data: a tuple of windows ``(t_start, t_end, axes)``, each the
@@ -167,7 +167,7 @@ def _flag(name: str, v: Any) -> bool:
 
 @dataclass(frozen=True)
 class WindConfig:
-    """Every parameter of the wind model; defaults are SPEC §5 / paper eqs. (35)–(37).
+    """Every parameter of the wind model; defaults are docs/interpretations.md §5 / paper eqs. (35)–(37).
 
     Attributes
     ----------
@@ -213,7 +213,7 @@ class WindConfig:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any] | None, where: str) -> WindConfig:
-        """Build from a TOML ``[wind]`` table, validated; missing keys take the SPEC defaults.
+        """Build from a TOML ``[wind]`` table, validated; missing keys take the defaults of docs/interpretations.md §5.
 
         Keys: enabled, mean, sinusoids_x, sinusoids_y, tau, sigma, rho, cd, area,
         schedule, relative_airspeed (see :class:`WindConfig`). ``tau``/``sigma`` may be
@@ -432,14 +432,18 @@ class WindSeries:
         return int(self.times.shape[0])
 
     def drone_forces(self, i: int, drone_vel: np.ndarray) -> np.ndarray:
-        """World-frame wind force on each drone at sample ``i``: (n, 3) N.
+        """World-frame wind force on each drone at sample ``i``: (n, 3) N, a fresh array.
 
         ``drone_vel`` (n, 3) m/s. Without relative airspeed every drone gets ``force[i]``
-        (the same field for all, SPEC §5); with it, :func:`relative_force`.
+        (the same field for all, docs/interpretations.md §5); with it, :func:`relative_force`.
+        The one place that chooses between the two: the simulator's wind, the controller's
+        feedforward and the log all call it.
         """
         vel = np.asarray(drone_vel, dtype=float).reshape(-1, 3)  # (n, 3)
         if not self.relative_airspeed:
-            return np.broadcast_to(self.force[i], vel.shape).copy()
+            out = np.empty(vel.shape)
+            out[:] = self.force[i]
+            return out
         return relative_force(self.speed[i], vel, self.on_mask[i], self.rho, self.cd, self.area)
 
 
@@ -447,7 +451,7 @@ class WindSeries:
 class WindField:
     """A seeded wind field: ``sample(times)`` gives the whole run's :class:`WindSeries`.
 
-    ``dt`` is the sample period (the control period, SPEC §2: 0.01 s); the OU turbulence
+    ``dt`` is the sample period (the control period, docs/interpretations.md §2: 0.01 s); the OU turbulence
     is discretised exactly at this step. ``seed`` is passed to ``np.random.default_rng``
     (via a ``SeedSequence``; ``None`` draws fresh entropy once, at construction). ``sample``
     is a pure function of (config, dt, seed, times): calling it twice gives the same series.

@@ -20,6 +20,7 @@ from swarm_mj.scenario import load_scenario
 from swarm_mj.tuning import (BatchEvaluator, StepBars, StepCostSettings, TuneOptions, step_check, step_ise,
                              tune_gains)
 from swarm_mj.tuning import cost as cost_mod
+from swarm_mj.tuning import evaluator as evaluator_mod
 from swarm_mj.world import build_world
 
 REPO = Path(__file__).resolve().parents[1]
@@ -96,7 +97,7 @@ def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
     X = np.vstack([TABLE4_GAINS, TABLE4_GAINS * 1.1, _random_gains(1, seed=9)])   # (3, 12)
     alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X[[0, 2]]])
 
-    class NaNFromStep50(cost_mod.Backstepping):
+    class NaNFromStep50(evaluator_mod.Backstepping):
         calls = 0
 
         def compute(self, *args, **kwargs):
@@ -106,7 +107,7 @@ def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
                 U[1] = np.nan
             return U
 
-    monkeypatch.setattr(cost_mod, "Backstepping", NaNFromStep50)
+    monkeypatch.setattr(evaluator_mod, "Backstepping", NaNFromStep50)
     ev = BatchEvaluator(3, SHORT)
     c = ev.evaluate(X)
     assert math.isinf(c[1]) and ev.diverged_at[1] == 50

@@ -13,15 +13,15 @@ polynomial s² + (a + b)s + (1 + a·b). The axis-specific terms are added on top
     U3 = Iy/L (v_θ − (Iz − Ix)/Iy φ̇ψ̇)                    (19)
     U4 = Iz/L (v_ψ − (Ix − Iy)/Iz φ̇θ̇)                    (20)
     U1 = m/(cos φ cos θ) (v_z + g + Kz ż/m)                (18)
-    Ux = m/U1 (v_x + Kx ẋ/m − F^w_x/m)                    (23, SPEC §2: F^w/m, not F^w/Ix)
+    Ux = m/U1 (v_x + Kx ẋ/m − F^w_x/m)                    (23, docs/interpretations.md §2: F^w/m, not F^w/Ix)
     Uy = m/U1 (v_y + Ky ẏ/m − F^w_y/m)                    (24)
     φ_d = asin(Ux sin ψ_d − Uy cos ψ_d)                   (21)
     θ_d = asin((Ux cos ψ_d + Uy sin ψ_d)/cos φ_d)         (22)
 
 φ_d and θ_d are clipped to ±45°, the asin arguments to [−1, 1], U1 has a small
-positive floor (SPEC §2). The desired-attitude derivatives that the paper leaves
+positive floor (docs/interpretations.md §2). The desired-attitude derivatives that the paper leaves
 out are finite differences of the commanded φ_d, θ_d over the control period T
-(SPEC §2); ψ_d and its derivatives come from the reference.
+(docs/interpretations.md §2); ψ_d and its derivatives come from the reference.
 
 The state is read from MuJoCo: φ, θ, ψ from the quaternion and φ̇, θ̇, ψ̇ from the
 body angular velocity, see :mod:`swarm_mj.state`.
@@ -34,13 +34,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import UserError
-from ..params import DEFAULT_PARAMS, QuadParams
 from .._jit import jit
+from ..errors import UserError
+from ..paper import TABLE4_GAINS
+from ..params import DEFAULT_PARAMS, QuadParams
 
-#: Paper Table 4: α1..α12 (roll, pitch, yaw, x, y, z pairs).
-TABLE4_GAINS = np.array([4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141,
-                         4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344])
+__all__ = ["TABLE4_GAINS", "Backstepping", "backstepping_kernel", "check_gains", "load_gains"]
 MAX_TILT = np.deg2rad(45.0)
 U1_FLOOR = 0.05  # N
 
@@ -138,7 +137,7 @@ class Backstepping:
         if first:
             self._prev_att_d = np.zeros((n, 2))
         p = self.params
-        U = _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw, yaw_rate, yaw_acc,
+        U = backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw, yaw_rate, yaw_acc,
                                  wind, use_wind, self._a_pos, self._c1_pos, self._c2_pos, self._a_att,
                                  self._c1_att, self._c2_att, self._drag_over_m, p.m, p.g, self._inertia,
                                  self._torque_scale, self._cor, p.L, self.T, self._prev_att_d, first, exact,
@@ -159,8 +158,17 @@ def _per_drone3(v, n: int) -> np.ndarray:
     return np.ascontiguousarray(np.broadcast_to(np.asarray(v, dtype=np.float64), (n, 3)))
 
 
-@jit
-def _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw_d, yaw_rate_d, yaw_acc_d,
+def _kernel_samples():
+    n = 2
+    z1, z3, g = np.zeros(n), np.zeros((n, 3)), np.ones((n, 3))
+    rpy = z3.copy()
+    return [(rpy, z3, z3, z3, z3, z3, z3, z3, z1, z1, z1, z3, False, g, g, g, g, g, g, np.ones(3), 0.5, 9.81,
+             np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01, np.zeros((n, 2)), first, exact, np.zeros((n, 3)))
+            for exact in (True, False) for first in (True, False)]
+
+
+@jit(samples=_kernel_samples)
+def backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw_d, yaw_rate_d, yaw_acc_d,
                          wind, use_wind, a_pos, c1_pos, c2_pos, a_att, c1_att, c2_att, drag_over_m, m, g,
                          inertia, torque_scale, cor, L, T, prev_att_d, first, exact, att_d):
     """Eqs. (17)–(24) for n drones; see the module docstring. Writes att_d (n, 3), updates prev_att_d."""
@@ -179,7 +187,7 @@ def _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, ya
     k = m / U1
     Ux = k * v[:, 0]                                                            # eq. (23)
     Uy = k * v[:, 1]                                                            # eq. (24)
-    # ---- attitude correction: eqs. (21), (22), clipped (SPEC §2)
+    # ---- attitude correction: eqs. (21), (22), clipped (docs/interpretations.md §2)
     s = np.sin(yaw_d)
     c = np.cos(yaw_d)
     phi_d = np.arcsin(np.minimum(np.maximum(Ux * s - Uy * c, -1.0), 1.0))
@@ -189,7 +197,7 @@ def _backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, ya
     att_d[:, 0] = phi_d
     att_d[:, 1] = theta_d
     att_d[:, 2] = yaw_d
-    # desired attitude derivatives (SPEC §2): finite difference of φ_d, θ_d over T
+    # desired attitude derivatives (docs/interpretations.md §2): finite difference of φ_d, θ_d over T
     rate_d = np.empty((n, 3))
     if first:
         rate_d[:, 0] = 0.0

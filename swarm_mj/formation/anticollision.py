@@ -29,9 +29,51 @@ from __future__ import annotations
 
 import numpy as np
 
+from .._jit import jit
 from ..errors import UserError
-from ..kernels import (advance_altitude_kernel, advance_paths_kernel, formed_step_kernel, horizontal_distances,
-                       merge_rows, react_needed)
+from .layered import advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
+
+
+@jit(samples=lambda: [(np.zeros(2), np.full((2, 2), np.inf), 0.8)])
+def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:
+    """Fig. 5 has work to do: a drone holds an altitude offset (n,), or two drones are closer
+    than ``safety`` horizontally (h (n, n))."""
+    for x in offset:
+        if x != 0.0:
+            return True
+    for x in h.flat:
+        if x < safety:
+            return True
+    return False
+
+
+@jit(samples=lambda: [(np.ones(2, dtype=np.bool_), *([np.zeros((2, 3))] * 4))])
+def merge_rows(steer: np.ndarray, rule_vel: np.ndarray, rule_acc: np.ndarray, vel: np.ndarray, acc: np.ndarray):
+    """Copies of vel, acc (n, 3) whose rows where steer (n,) is set come from rule_vel, rule_acc."""
+    v = vel.copy()
+    a = acc.copy()
+    for i in range(steer.shape[0]):
+        if steer[i]:
+            for j in range(3):
+                v[i, j] = rule_vel[i, j]
+                a[i, j] = rule_acc[i, j]
+    return v, a
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)),)])
+def horizontal_distances(pos: np.ndarray) -> np.ndarray:
+    """Pairwise horizontal distances (n, n) of positions (n, 3), +inf on the diagonal."""
+    n = pos.shape[0]
+    h = np.empty((n, n))
+    for i in range(n):
+        h[i, i] = np.inf
+        for j in range(i + 1, n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            d = np.sqrt(dx * dx + dy * dy)
+            h[i, j] = d
+            h[j, i] = d
+    return h
 
 
 class _Rule:
@@ -471,7 +513,7 @@ def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, po
     """:meth:`LayeredRule.update` once every follower is formed (nobody in transit): the same
     steps with the climb / cross / drop parts, which then do nothing, left out — the reactive
     rule (Fig. 5, among all drones), then the horizontal and altitude paths towards the slots
-    and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.kernels.formed_step_kernel`)."""
+    and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.formation.layered.formed_step_kernel`)."""
     n = rule.n
     h = _horizontal_distances(positions)
     rule._react(t, positions, h, rule._all)                            # 4. Fig. 5 among all drones

@@ -1,9 +1,10 @@
-"""Regular-polygon formation slots around the leader (paper §4, Fig. 4b; SPEC §4).
+"""Regular-polygon formation slots around the leader (paper §4, Fig. 4b; docs/interpretations.md §4).
 
 Follower k (1-based) of n_f sits at angle π/2 + 2π(k−1)/n_f, at distance D from the
 leader's CURRENT position, at the leader's altitude. D is the leader-to-follower
-distance (circumradius): SPEC §4 explains why the paper's "diameter" cannot be a
-true diameter.
+distance (circumradius): docs/interpretations.md §4 explains why the paper's "diameter"
+cannot be a true diameter. :func:`setpoints_kernel` builds every drone's references of a
+control step from them (the observation's ``setpoint*`` keys).
 """
 
 from __future__ import annotations
@@ -12,6 +13,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from .._jit import jit
 from ..errors import UserError
 
 
@@ -22,8 +24,45 @@ def polygon_offsets(n_followers: int, D: float = 1.0) -> np.ndarray:
     return np.column_stack([D * np.cos(ang), D * np.sin(ang), np.zeros(n_followers)])
 
 
+def _setpoint_samples():
+    z = np.zeros(3)
+    return [(1, 0.01, z, z.copy(), z.copy(), z, z, z, 0.0, 1.0, np.zeros((1, 3)))]
+
+
+@jit(samples=_setpoint_samples)
+def setpoints_kernel(k: int, T: float, leader: np.ndarray, prev_leader: np.ndarray, leader_vel: np.ndarray,
+                     ref_pos: np.ndarray, ref_vel: np.ndarray, ref_acc: np.ndarray, ref_yaw: float, D: float,
+                     unit_offsets: np.ndarray):
+    """The references of the observation (paper §4): the leader's (n = 0) from its trajectory,
+    each follower's slot leader + D·offset_k (unit_offsets (n−1, 3)) moving with the leader's
+    velocity, estimated as (leader − prev_leader)/T (updated in place in leader_vel (3,), and
+    prev_leader (3,) set to leader; at k = 0 the velocity is left as it is). Returns sp, sp_vel,
+    sp_acc (n, 3) and the yaw references (n,)."""
+    n = unit_offsets.shape[0] + 1
+    if k > 0:
+        for j in range(3):
+            leader_vel[j] = (leader[j] - prev_leader[j]) / T
+    for j in range(3):
+        prev_leader[j] = leader[j]
+    sp = np.empty((n, 3))
+    sp_vel = np.empty((n, 3))
+    sp_acc = np.zeros((n, 3))
+    yaw = np.zeros(n)
+    for j in range(3):
+        sp[0, j] = ref_pos[j]
+        sp_vel[0, j] = ref_vel[j]
+        sp_acc[0, j] = ref_acc[j]
+    yaw[0] = ref_yaw
+    for i in range(1, n):
+        for j in range(3):
+            sp[i, j] = leader[j] + D * unit_offsets[i - 1, j]
+            sp_vel[i, j] = leader_vel[j]
+    return sp, sp_vel, sp_acc, yaw
+
+
 def slot_positions(leader_pos: np.ndarray, D: float, unit_offsets: np.ndarray) -> np.ndarray:
-    """Slots (n_followers, 3) = leader position (3,) + D · unit offsets (n_followers, 3)."""
+    """Slots (n_followers, 3) = leader position (3,) + D · unit offsets (n_followers, 3)
+    (what :func:`setpoints_kernel` computes for the followers' rows)."""
     return leader_pos + D * unit_offsets
 
 

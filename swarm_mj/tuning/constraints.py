@@ -8,7 +8,7 @@ so by default the tune treats those bars as constraints:
 * overshoot ≤ 1 % on x, y, z and ψ;
 * 2 % settling ≤ 2.0 s (x, y), ≤ 1.5 s (z), ≤ 2.0 s (ψ);
 * steady-state error ≤ 1 mm (x, y, z) and ≤ 1e-3 rad (ψ) at the end of the run;
-* |roll|, |pitch| ≤ 55° throughout (SPEC §2 reads the issue's 50° as 55°).
+* |roll|, |pitch| ≤ 55° throughout (docs/interpretations.md §2 reads the issue's 50° as 55°).
 
 **Deb's feasibility rules** (Deb 2000) rank the candidates: one that meets every bar beats
 one that does not; two that meet them compare by ISE; two that do not compare by their
@@ -39,7 +39,7 @@ AXES = ("x", "y", "z", "psi")
 
 @dataclass(frozen=True)
 class StepBars:
-    """The step bars of the backstepping issue (issue 3; SPEC §2 for the tilt). Hashable."""
+    """The step bars of the backstepping issue (issue 3; docs/interpretations.md §2 for the tilt). Hashable."""
 
     overshoot_pct: float = 1.0
     settling_x_s: float = 2.0

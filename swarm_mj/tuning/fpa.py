@@ -1,6 +1,6 @@
 """Flower Pollination Algorithm (Yang 2012), batched and drone-agnostic.
 
-This is the optimiser of paper Fig. 3 with the corrections of SPEC §6:
+This is the optimiser of paper Fig. 3 with the corrections of docs/interpretations.md §6:
 
 * global pollination moves a flower *towards* the best one,
   ``x_i + gamma * L(lambda) * (g_best - x_i)`` (the paper prints the sign the
@@ -32,6 +32,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import UserError
+from ..paper import TABLE2_FPA
 
 __all__ = [
     "Bounds",
@@ -182,20 +183,20 @@ def fpa(
     cost: CostFn,
     bounds: Bounds,
     *,
-    population: int = 50,
-    iterations: int = 14,
-    p: float = 0.04,
-    gamma: float = 0.02,
+    population: int = TABLE2_FPA.population,
+    iterations: int = TABLE2_FPA.iterations,
+    p: float = TABLE2_FPA.p,
+    gamma: float = TABLE2_FPA.gamma,
     seed: int | None = 0,
     x0: np.ndarray | None = None,
     callback: Callback | None = None,
 ) -> FPAResult:
     """Minimise a batched ``cost`` over a box with the Flower Pollination Algorithm.
 
-    Implements paper Fig. 3 (Yang 2012) with SPEC §6's corrections. Per iteration:
+    Implements paper Fig. 3 (Yang 2012) with docs/interpretations.md §6's corrections. Per iteration:
 
     1. for every flower ``i``, with probability ``p`` global pollination
-       ``x_i + gamma * L * (g_best - x_i)`` (towards the best, SPEC §6; ``L``
+       ``x_i + gamma * L * (g_best - x_i)`` (towards the best, docs/interpretations.md §6; ``L``
        Mantegna Lévy steps with ``lambda = 1.5``, per dimension), otherwise local
        pollination ``x_i + eps * (x_j - x_k)`` with ``eps ~ U(0, 1)``;
     2. clip all candidates to ``bounds``; evaluate them in *one* call of ``cost``;
@@ -272,7 +273,7 @@ def fpa(
         levy = levy_steps(rng, (n, d))
         eps = rng.random((n, 1))
         j, k = _pick_partners(rng, n)
-        glob = X + gamma * levy * (best_x - X)  # SPEC §6: towards g_best
+        glob = X + gamma * levy * (best_x - X)  # docs/interpretations.md §6: towards g_best
         loc = X + eps * (X[j] - X[k])
         cand = np.where(is_global[:, None], glob, loc)
         # 2. Clip and evaluate in one batched call.
