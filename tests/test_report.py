@@ -11,7 +11,8 @@ import pytest
 from swarm_mj.cli import main as cli_main
 from swarm_mj.errors import UserError
 from swarm_mj.scenario import load_scenario
-from swarm_mj.sweep import (METRICS, apply_param, compute_stats, metric_stats, parse_param, run_metrics, seeded,
+from swarm_mj.commands.sweep import parse_param
+from swarm_mj.sweep import (METRICS, apply_param, compute_stats, metric_stats, run_metrics, seeded,
                             sweep)
 from swarm_mj.wind import ALWAYS_ON
 
