@@ -80,9 +80,9 @@ def test_sweep_swarm_metrics_and_random_start_seed():
     st = res.stats[0]
     for k in ("contacts", "min_separation_m", "formation_settling_s", "max_distance_error_m"):
         assert k in st
-    from swarm_mj.report import _random_crossing
+    from swarm_mj.report import random_crossing
 
-    rc = _random_crossing(1.0)
+    rc = random_crossing(1.0)
     assert not np.allclose(seeded(rc, 1).initial_positions(), seeded(rc, 2).initial_positions())
 
 
