@@ -1,7 +1,7 @@
 """``swarm-mj tune``: tune the 12 backstepping gains with the Flower Pollination Algorithm.
 
-Paper §3.2, Fig. 3, Table 2 (SPEC §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
-gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (SPEC §3),
+Paper §3.2, Fig. 3, Table 2 (docs/interpretations.md §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
+gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (docs/interpretations.md §3),
 t_sim = 10 s, by default subject to the controller's step bars (overshoot ≤ 1 %, settling
 ≤ 2 / 2 / 1.5 / 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°; Deb's feasibility rules,
 ``swarm_mj.tuning.constraints``) and starting from a population that holds the paper's
@@ -91,7 +91,7 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
     lines = [
         "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
         "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
-        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (SPEC §3, §6)"
+        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3, §6)"
         + (", subject to the step bars [bars]." if s.bars is not None else "."),
         "# Use: swarm-mj run step --gains FILE, or [controller] gains = \"FILE\" in a scenario.",
         "# nan: no candidate met the bars (yet).",

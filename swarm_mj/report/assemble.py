@@ -25,31 +25,31 @@ from .plan import (ANTI_COLLISION_SCENARIOS, PAPER_STEP_MAX_ANGLE_DEG, PAPER_TAB
 #: The interpretations of the paper that the report lists (docs/interpretations.md has them all, with reasons).
 INTERPRETATIONS = [
     ("D is the circumradius", "The paper's pentagon \"diameter\" D is read as the leader-to-follower "
-     "distance (SPEC §4): as a true diameter, D = 1 m would put followers 0.5 m from the leader (the paper's "
+     "distance (docs/interpretations.md §4): as a true diameter, D = 1 m would put followers 0.5 m from the leader (the paper's "
      "own collision distance) and adjacent followers 0.59 m apart, inside the 0.8 m safety distance, for good."),
     ("F^w/m", "Eqs. (1), (23)–(24) print the wind term as F^w/Ix and F^w/Iy; it is a force on the body, so "
-     "F^w/m is used (SPEC §2)."),
+     "F^w/m is used (docs/interpretations.md §2)."),
     ("Finite-difference attitude derivatives", "The paper is silent on the desired attitude derivatives "
      "(ẋ1d, ẍ1d, ...); they are the finite difference of the commanded angles over the control period T = "
-     "0.01 s. With them set to zero the Table 4 gains oscillate with > 200 % overshoot (SPEC §2)."),
+     "0.01 s. With them set to zero the Table 4 gains oscillate with > 200 % overshoot (docs/interpretations.md §2)."),
     ("Exact attitude map", "Our controller maps the commanded Euler-angle accelerations exactly onto body "
      "torques (MuJoCo integrates the true rigid body, with body rates); attitude_map = \"paper\" uses eq. (1)'s "
      "map instead (Euler rates in place of body rates). The step is shown with both."),
     ("Rotor saturation", "Each rotor thrust is limited to [0, 4.5] N (thrust/weight ≈ 3.8): the commanded "
      "U1..U4 are mapped to F1..F4, clipped and mapped back, so the wrench applied is one the motors can "
-     "deliver (SPEC §1). Desired roll/pitch are clipped to ±45°."),
+     "deliver (docs/interpretations.md §1). Desired roll/pitch are clipped to ±45°."),
     ("Wind defaults τ, σ", "The paper gives no OU correlation time or intensity: τx = τy = 2 s, σx = 0.8 m/s, "
      "σy = 0.5 m/s, exact discretisation at T, X0 drawn from the stationary law; force ½ρCdA|V|V per axis "
      "(the paper's V² loses the sign, and its σ stands for ρ); schedule Fx on [20, 50) s, Fx + Fy from 50 s; "
-     "wind feedforward with the true force on, as in the paper (SPEC §5)."),
+     "wind feedforward with the true force on, as in the paper (docs/interpretations.md §5)."),
     ("FPA sign fix", "Global pollination moves towards the best, x + γ·Lévy(λ)·(g* − x) (Yang 2012); the "
-     "paper's pseudo-code prints x + rand·c·(x − g*), which moves away from it (SPEC §6). Bounds [0.1, 12]."),
+     "paper's pseudo-code prints x + rand·c·(x − g*), which moves away from it (docs/interpretations.md §6). Bounds [0.1, 12]."),
     ("RMSE twice", "The whole-run RMSE of eq. (38) is mostly the first seconds, the flight from the start "
      "(on the ground at the origin) onto the path; the paper does not say where its drone starts. So every "
      "RMSE is given whole-run and from t = 10 s on (\"steady\"); for the circle, compare x whole-run and y "
-     "steady with the paper (SPEC §7). A start on the path at hover is shown too."),
+     "steady with the paper (docs/interpretations.md §7). A start on the path at hover is shown too."),
     ("Layered anti-collision", "The paper's rule as printed (trigger at 0.8 m horizontal, one 0.4 m hop) lets "
-     "drones closing at 2–4 m/s pass within centimetres (SPEC §4). Our default, \"layers\", has each follower k "
+     "drones closing at 2–4 m/s pass within centimetres (docs/interpretations.md §4). Our default, \"layers\", has each follower k "
      "climb in place to its own layer (formation altitude + 0.4·k m), cross on it, and drop to the formation "
      "altitude only when no nearby drone is between its layer and that altitude; the reactive rule stays on "
      "afterwards. The paper's rule (\"paper\") and no rule (\"off\") are shown beside it. Contacts are "

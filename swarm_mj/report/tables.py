@@ -95,7 +95,7 @@ def render_markdown(R: dict) -> str:
              + ("**Quick mode: shortened runs and few seeds — not the paper's experiments; run "
                 "`swarm-mj report` for those.**" if plan["name"] != "full" else "") + "\n")
 
-    L.append("## Interpretations taken from SPEC\n")
+    L.append("## Interpretations (docs/interpretations.md)\n")
     for it in R["interpretations"]:
         L.append(f"- **{it['name']}.** {it['text']}")
     L.append("")
@@ -103,7 +103,7 @@ def render_markdown(R: dict) -> str:
     # ---- step
     st = R["step"]
     L.append("## 1. Step response (paper Fig. 7, Fig. 8)\n")
-    L.append("Step from rest on the ground at the origin to x = y = z = 1 m, ψ = 25° (SPEC §3); "
+    L.append("Step from rest on the ground at the origin to x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3); "
              "2 % settling time; overshoot in % of the step. Paper: no overshoot, no steady-state error, "
              "settling 1.5 s (x, y), 1 s (z), < 1 s (ψ).\n")
     hdr = ["axis", "paper overshoot %", "ours overshoot %", "paper settling (s)", "ours settling (s)",
@@ -130,7 +130,7 @@ def render_markdown(R: dict) -> str:
     L.append("")
     L.append(f"Peak attitude during the step (Table 4 gains): |roll| {t4['max_abs_roll_deg']:.1f}°, |pitch| "
              f"{t4['max_abs_pitch_deg']:.1f}° (paper Fig. 7b: within ±{st['paper']['max_angle_deg']:.0f}°, the clip "
-             f"of the desired angles; the actual pitch overshoots the clip, SPEC §2). Rotor thrusts "
+             f"of the desired angles; the actual pitch overshoots the clip, docs/interpretations.md §2). Rotor thrusts "
              f"{t4['rotor_min_n']:.2f}–{t4['rotor_max_n']:.2f} N (limit 4.5 N; paper Fig. 8: within the motors' "
              f"range).")
     pm = st["paper_attitude_map"]
@@ -207,10 +207,10 @@ def render_markdown(R: dict) -> str:
     # ---- Table 5
     t5 = R["table5"]
     L.append("## 3. Table 5: RMSE of eq. (38), single drone, 180 s, without and with wind\n")
-    L.append("Whole run (eq. 38 as printed) and steady (t ≥ 10 s), SPEC §7. \"ground\": start at rest on the "
+    L.append("Whole run (eq. 38 as printed) and steady (t ≥ 10 s), docs/interpretations.md §7. \"ground\": start at rest on the "
              "ground at the origin (the bundled scenarios); \"on path\": start at rest at the path's t = 0 point "
              "at 2 m; \"FPA\": the FPA-tuned gains; \"no FF\": the controller does not know the wind. "
-             "ours/paper for the circle is x whole-run and y steady (SPEC §7).\n")
+             "ours/paper for the circle is x whole-run and y steady (docs/interpretations.md §7).\n")
     rows = []
     label = {"ground": "ground", "on_path": "on path", "fpa": "FPA gains, ground"}
     for r in t5["rows"]:
@@ -318,7 +318,7 @@ def render_markdown(R: dict) -> str:
              f"{_ms(s.get('formation_settling_s'), '{:.2f}')} s, max formation distance error "
              f"{_ms(s.get('max_distance_error_m'), '{:.3f}')} m, leader RMSE x (t ≥ 10 s) "
              f"{_ms(s.get('rmse_steady_x'))} m.\n")
-    L.append("**Turbulence intensity** (σx = σy = σ; SPEC default σx = 0.8, σy = 0.5 m/s), lemniscate "
+    L.append("**Turbulence intensity** (σx = σy = σ; default σx = 0.8, σy = 0.5 m/s, docs/interpretations.md §5), lemniscate "
              "under wind, steady RMSE (t ≥ 10 s):\n")
     rows = []
     for key in ("sigma/wind_lemniscate", "sigma/wind_lemniscate_noff"):
