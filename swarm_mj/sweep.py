@@ -42,7 +42,6 @@ from .parallel import backend_name, map_ordered, resolve_workers
 from .progress import Progress
 from .scenario import Scenario, load_scenario, parse_scenario
 
-
 #: (key, label, worst, swarm only). ``worst`` is "max" (an error: bigger is worse) or "min".
 METRICS: list[tuple[str, str, str, bool]] = [
     ("rmse_x", "leader RMSE x (m)", "max", False),

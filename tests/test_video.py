@@ -43,9 +43,9 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from swarm_mj import cli, video  # noqa: E402
-from swarm_mj.video import gl as video_gl  # noqa: E402
 from swarm_mj.errors import RenderError, UserError
 from swarm_mj.runner import run
+from swarm_mj.video import gl as video_gl  # noqa: E402
 
 LEADER = np.array(video.LEADER_RGB) * 255
 FOLLOWER = np.array(video.FOLLOWER_RGB) * 255

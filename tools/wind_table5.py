@@ -57,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
             per.append({"seed": s, "rmse": d["rmse"], "rmse_steady": d["rmse_steady"]})
         out[name] = {"label": label, "trajectory": traj, "wind": wind, "feedforward": ff, "runs": per}
 
-    print("RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on (docs/interpretations.md §7)")
+    print("RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on "
+          "(docs/interpretations.md §7)")
     print(f"seeds: {args.seeds}" + ("  (wind rows: worst seed over the seeds)" if len(args.seeds) > 1 else ""))
     print(f"{'':<26} {'':<6} {'x':>8} {'y':>8} {'roll':>8} {'pitch':>8}")
     for name, o in out.items():
@@ -70,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         ind = INDEPENDENT_MODEL.get(name)
         if ind:
             print(f"{'':<26} {'indep.':<6} " + " ".join(f"{ind[k]:>8.4f}" if k in ind else f"{'':>8}"
-                                                        for k in KEYS) + "   (docs/interpretations.md §7 independent model)")
+                                                        for k in KEYS) + "   (interpretations.md §7 model)")
         if len(o["runs"]) > 1:
             lo = {k: min(r["rmse"][k] for r in o["runs"]) for k in KEYS}
             print(f"{'':<26} {'min':<6} {_fmt(lo)}   (whole run, best seed)")

@@ -38,7 +38,8 @@ def add_parser(sub) -> None:
     p.add_argument("--sensing-range", type=float, default=4.0,
                    help="how far each drone sees the others (m, default 4; the layered rule's speeds "
                         "are capped so that it can stop within it)")
-    p.add_argument("--workers", type=int, default=None, help="worker processes (default: the CPUs this process may use)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="worker processes (default: the CPUs this process may use)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)

@@ -21,7 +21,7 @@ import os
 import sys
 import tempfile
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -86,7 +86,7 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
     from .. import __version__
 
     o, s = outcome.options, outcome.settings
-    created = created or datetime.now(timezone.utc)
+    created = created or datetime.now(UTC)
     done = len(outcome.history) - 1
     lines = [
         "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
@@ -182,8 +182,8 @@ def _check_output(path: Path) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
-    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
     from ..tuning.constraints import INFEASIBLE, StepBars
+    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
     # Validate everything before any worker starts.
     opts = TuneOptions(population=args.population, iterations=args.iterations, p=args.p, gamma=args.gamma,

@@ -21,7 +21,6 @@ from pathlib import Path
 from ..errors import UserError
 from ..video.style import DEFAULT_FPS, DEFAULT_SNAPSHOT_TIME, MAX_SIZE, VideoStyle
 
-
 # --------------------------------------------------------------------------- option checks (before simulating)
 
 

@@ -29,8 +29,18 @@ from .assemble import INTERPRETATIONS, assemble, jsonable
 from .build import build_report
 from .figures import draw_all, draw_snapshot
 from .jobs import IseJob, JobResults, RunJob, TuneJob, do_job, run_jobs
-from .plan import (ALL_FIGURES, GAINS_FILE, PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3, FpaGains, JobList, Plan,
-                   random_crossing, load_fpa_gains, plan_jobs)
+from .plan import (
+    ALL_FIGURES,
+    GAINS_FILE,
+    PAPER_STEP_MAX_ANGLE_DEG,
+    PAPER_TABLE3,
+    FpaGains,
+    JobList,
+    Plan,
+    load_fpa_gains,
+    plan_jobs,
+    random_crossing,
+)
 from .tables import load_results, render_markdown
 
 __all__ = ["ALL_FIGURES", "GAINS_FILE", "INTERPRETATIONS", "PAPER_STEP_MAX_ANGLE_DEG", "PAPER_TABLE3", "FpaGains",

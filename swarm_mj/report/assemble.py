@@ -19,13 +19,24 @@ from ..parallel import machine_description
 from ..runner import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..sweep import compute_stats
 from .jobs import JobResults
-from .plan import (ANTI_COLLISION_SCENARIOS, PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3, RULES, SWARMS, TABLE5_NOFF,
-                   TABLE5_SCENARIOS, FpaGains, JobList, Plan)
+from .plan import (
+    ANTI_COLLISION_SCENARIOS,
+    PAPER_STEP_MAX_ANGLE_DEG,
+    PAPER_TABLE3,
+    RULES,
+    SWARMS,
+    TABLE5_NOFF,
+    TABLE5_SCENARIOS,
+    FpaGains,
+    JobList,
+    Plan,
+)
 
 #: The interpretations of the paper that the report lists (docs/interpretations.md has them all, with reasons).
 INTERPRETATIONS = [
     ("D is the circumradius", "The paper's pentagon \"diameter\" D is read as the leader-to-follower "
-     "distance (docs/interpretations.md §4): as a true diameter, D = 1 m would put followers 0.5 m from the leader (the paper's "
+     "distance (docs/interpretations.md §4): as a true diameter, D = 1 m would put followers 0.5 m from the "
+     "leader (the paper's "
      "own collision distance) and adjacent followers 0.59 m apart, inside the 0.8 m safety distance, for good."),
     ("F^w/m", "Eqs. (1), (23)–(24) print the wind term as F^w/Ix and F^w/Iy; it is a force on the body, so "
      "F^w/m is used (docs/interpretations.md §2)."),
@@ -43,13 +54,15 @@ INTERPRETATIONS = [
      "(the paper's V² loses the sign, and its σ stands for ρ); schedule Fx on [20, 50) s, Fx + Fy from 50 s; "
      "wind feedforward with the true force on, as in the paper (docs/interpretations.md §5)."),
     ("FPA sign fix", "Global pollination moves towards the best, x + γ·Lévy(λ)·(g* − x) (Yang 2012); the "
-     "paper's pseudo-code prints x + rand·c·(x − g*), which moves away from it (docs/interpretations.md §6). Bounds [0.1, 12]."),
+     "paper's pseudo-code prints x + rand·c·(x − g*), which moves away from it (docs/interpretations.md §6). "
+     "Bounds [0.1, 12]."),
     ("RMSE twice", "The whole-run RMSE of eq. (38) is mostly the first seconds, the flight from the start "
      "(on the ground at the origin) onto the path; the paper does not say where its drone starts. So every "
      "RMSE is given whole-run and from t = 10 s on (\"steady\"); for the circle, compare x whole-run and y "
      "steady with the paper (docs/interpretations.md §7). A start on the path at hover is shown too."),
     ("Layered anti-collision", "The paper's rule as printed (trigger at 0.8 m horizontal, one 0.4 m hop) lets "
-     "drones closing at 2–4 m/s pass within centimetres (docs/interpretations.md §4). Our default, \"layers\", has each follower k "
+     "drones closing at 2–4 m/s pass within centimetres (docs/interpretations.md §4). Our default, \"layers\", "
+     "has each follower k "
      "climb in place to its own layer (formation altitude + 0.4·k m), cross on it, and drop to the formation "
      "altitude only when no nearby drone is between its layer and that altitude; the reactive rule stays on "
      "afterwards. The paper's rule (\"paper\") and no rule (\"off\") are shown beside it. Contacts are "
@@ -63,7 +76,7 @@ def assemble(plan: Plan, fpa: FpaGains, jl: JobList, res: JobResults, workers: i
     """results.json's content (before :func:`jsonable`), figures and wall times aside."""
     by_key = res.by_key
     R: dict[str, Any] = {}
-    R["meta"] = {"generated": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+    R["meta"] = {"generated": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                  "plan": asdict(plan), "workers": workers, "jobs": len(jl.jobs),
                  "machine": machine_description(), "swarm_mj_argv": sys.argv[1:]}
     R["interpretations"] = [{"name": a, "text": b} for a, b in INTERPRETATIONS]

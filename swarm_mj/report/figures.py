@@ -67,7 +67,8 @@ def _fig_step(out, R, logs, figures):
             yo = np.rad2deg(o["rpy"][:, 0, 2]) if nm == "psi" else o["pos"][:, 0, j]
             ax.plot(o["t"], yo, ls, label=lab, lw=1)
         ax.axhline(ref, color="k", lw=0.8, ls="--", label="set-point")
-        ax.axvline(paper_settle[nm], color="r", lw=0.8, ls=":", label=f"paper settling {'< 1' if nm == 'psi' else paper_settle[nm]} s")
+        settle = "< 1" if nm == "psi" else paper_settle[nm]
+        ax.axvline(paper_settle[nm], color="r", lw=0.8, ls=":", label=f"paper settling {settle} s")
         ax.set_title(f"{'ψ' if nm == 'psi' else nm} ({unit})")
         ax.set_xlabel("t (s)")
         ax.set_xlim(0, min(6, t[-1]))
@@ -293,7 +294,7 @@ def _fig_wind_robustness(out, R, logs, figures):
         for off, (key, lab) in enumerate(((f"wind_{traj}", "FF"), (f"wind_{traj}_noff", "no FF"))):
             if key not in sw:
                 continue
-            for mi, (mk, ml) in enumerate(metrics):
+            for mi, (mk, _label) in enumerate(metrics):
                 vals = [as_number(r["metrics"].get(mk)) for r in sw[key]["runs"]]
                 xs = mi + (off - 0.5) * 0.35 + np.linspace(-0.06, 0.06, len(vals))
                 a.scatter(xs, vals, s=8, color=f"C{off}", label=lab if mi == 0 else None)
@@ -323,7 +324,8 @@ def _fig_sigma(out, R, logs, figures):
             std = [as_number(r["stats"][mk]["std"]) for r in s["results"]]
             worst = [as_number(r["stats"][mk]["worst"]) for r in s["results"]]
             lab = "no FF" if "noff" in key else "FF"
-            a.errorbar(v + off * 0.01, mean, yerr=std, marker="o", capsize=3, color=f"C{off}", label=f"{lab} mean ± std")
+            a.errorbar(v + off * 0.01, mean, yerr=std, marker="o", capsize=3, color=f"C{off}",
+                       label=f"{lab} mean ± std")
             a.plot(v, worst, "x", color=f"C{off}", label=f"{lab} worst")
             a.set_xlabel("σ (m/s)")
             a.set_title(f"lemniscate under wind: {mk.replace('rmse_steady_', '')} RMSE, t ≥ 10 s (m)")

@@ -193,7 +193,8 @@ def render_markdown(R: dict) -> str:
 
     for label, key in (("ours", "ours"), ("ours, paper mode", "ours_paper_mode")):
         for o in t3.get(key) or []:
-            rows.append([f"{label}, seed {o['seed']}", fmt_cell(o["initial_ise"], "{:.4f}"), fmt_cell(o["final_ise"], "{:.4f}"),
+            rows.append([f"{label}, seed {o['seed']}", fmt_cell(o["initial_ise"], "{:.4f}"),
+                         fmt_cell(o["final_ise"], "{:.4f}"),
                          f"{fmt_cell(o['improvement_pct'], '{:.2f}')} %", verdict(o), settle(o)])
     L.append(_table(["run", "initial ISE (best of initial population)", "final ISE", "improvement",
                      "meets step bars", "settling x / y / z / ψ (s)"], rows))
@@ -207,7 +208,8 @@ def render_markdown(R: dict) -> str:
     # ---- Table 5
     t5 = R["table5"]
     L.append("## 3. Table 5: RMSE of eq. (38), single drone, 180 s, without and with wind\n")
-    L.append("Whole run (eq. 38 as printed) and steady (t ≥ 10 s), docs/interpretations.md §7. \"ground\": start at rest on the "
+    L.append("Whole run (eq. 38 as printed) and steady (t ≥ 10 s), docs/interpretations.md §7. "
+             "\"ground\": start at rest on the "
              "ground at the origin (the bundled scenarios); \"on path\": start at rest at the path's t = 0 point "
              "at 2 m; \"FPA\": the FPA-tuned gains; \"no FF\": the controller does not know the wind. "
              "ours/paper for the circle is x whole-run and y steady (docs/interpretations.md §7).\n")
@@ -318,7 +320,8 @@ def render_markdown(R: dict) -> str:
              f"{_ms(s.get('formation_settling_s'), '{:.2f}')} s, max formation distance error "
              f"{_ms(s.get('max_distance_error_m'), '{:.3f}')} m, leader RMSE x (t ≥ 10 s) "
              f"{_ms(s.get('rmse_steady_x'))} m.\n")
-    L.append("**Turbulence intensity** (σx = σy = σ; default σx = 0.8, σy = 0.5 m/s, docs/interpretations.md §5), lemniscate "
+    L.append("**Turbulence intensity** (σx = σy = σ; default σx = 0.8, σy = 0.5 m/s, docs/interpretations.md §5), "
+             "lemniscate "
              "under wind, steady RMSE (t ≥ 10 s):\n")
     rows = []
     for key in ("sigma/wind_lemniscate", "sigma/wind_lemniscate_noff"):
