@@ -165,7 +165,7 @@ def apply_param(sc: Scenario, key: str, value: Any) -> Scenario:
     if key.startswith("wind.") and key != "wind.enabled" and not (base.wind.enabled and new.wind.enabled):
         raise UserError(f"{where}: scenario {sc.name!r} has no wind (wind.enabled = false), "
                         f"so {key} changes nothing")
-    changed = {}
+    changed: dict[str, Any] = {}
     for f in fields(Scenario):
         if f.name in ("raw", "path", "name"):
             continue
@@ -175,7 +175,7 @@ def apply_param(sc: Scenario, key: str, value: Any) -> Scenario:
         if is_dataclass(n) and type(n) is type(b) is type(cur):
             # e.g. WindConfig: change only the sub-fields the value changes, on sc's current value
             sub = {g.name: getattr(n, g.name) for g in fields(n) if not _same(getattr(b, g.name), getattr(n, g.name))}
-            changed[f.name] = replace(cur, **sub)
+            changed[f.name] = replace(cur, **sub)  # type: ignore[type-var]  # cur is a dataclass instance here
         elif isinstance(n, dict) and isinstance(b, dict) and isinstance(cur, dict):
             changed[f.name] = {**cur, **{k: v for k, v in n.items() if k not in b or not _same(b[k], v)}}
         else:

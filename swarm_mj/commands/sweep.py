@@ -41,7 +41,9 @@ def add_parser(sub) -> None:
 
 def _split_top(text: str) -> list[str]:
     """Split on commas that are not inside brackets or quotes."""
-    parts, depth, quote, cur = [], 0, None, []
+    parts: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, None
     for ch in text:
         if quote:
             cur.append(ch)

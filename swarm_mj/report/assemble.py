@@ -88,11 +88,16 @@ def assemble(plan: Plan, fpa: FpaGains, jl: JobList, res: JobResults, workers: i
                    "rows": [swarm_entry(n, by_key[f"swarm/{n}"]) for n in SWARMS]}
     R["variable_d"] = {**swarm_entry("variable_diameter", by_key["variable_d"]),
                        "paper_settling_s": PAPER_FORMATION_SETTLING_S, "schedule": _variable_d_schedule(jl)}
-    R["anti_collision"] = {"rows": [swarm_entry(name, by_key.get(f"ac/{name}/{rule}") or by_key.get(f"swarm/{name}"),
-                                                rule)
+    R["anti_collision"] = {"rows": [swarm_entry(name, _ac_run(by_key, name, rule), rule)
                                     for name in ANTI_COLLISION_SCENARIOS for rule in RULES]}
     R["sweeps"] = sweeps_section(jl, res)
     return R
+
+
+def _ac_run(by_key: dict[str, Any], name: str, rule: str) -> dict:
+    """The run of ``name`` with ``rule``: its own job, or the swarm run when that is the scenario's rule."""
+    key = f"ac/{name}/{rule}"
+    return by_key[key] if by_key.get(key) else by_key[f"swarm/{name}"]
 
 
 def _variable_d_schedule(jl: JobList) -> Any:

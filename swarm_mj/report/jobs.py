@@ -64,16 +64,17 @@ def do_job(job: Any) -> Any:
         from ..tuning.cost import StepCostSettings, TuneOptions, tune_gains
 
         paper = job.mode == "paper"
-        out = tune_gains(TuneOptions(population=job.population, iterations=job.iterations, seed=job.seed,
-                                     init="random" if paper else "table4"),
-                         StepCostSettings(bars=None) if paper else StepCostSettings(), workers=1)
-        c = out.check
-        return {"seed": job.seed, "mode": job.mode, "initial_ise": out.initial_ise, "final_ise": out.best_ise,
-                "improvement_pct": out.improvement_pct, "table4_ise": out.table4_ise,
-                "history": [float(h) for h in out.history_ise], "best_gains": [float(g) for g in out.best_x],
+        tuned = tune_gains(TuneOptions(population=job.population, iterations=job.iterations, seed=job.seed,
+                                       init="random" if paper else "table4"),
+                           StepCostSettings(bars=None) if paper else StepCostSettings(), workers=1)
+        c = tuned.check
+        assert c is not None                    # tune_gains always checks its best gains
+        return {"seed": job.seed, "mode": job.mode, "initial_ise": tuned.initial_ise, "final_ise": tuned.best_ise,
+                "improvement_pct": tuned.improvement_pct, "table4_ise": tuned.table4_ise,
+                "history": [float(h) for h in tuned.history_ise], "best_gains": [float(g) for g in tuned.best_x],
                 "meets_bars": bool(c.meets_bars), "max_tilt_deg": c.max_tilt_deg,
                 "step": {ax: dict(m) for ax, m in c.step.items()},
-                "population": job.population, "iterations": job.iterations, "wall_s": out.wall_s}
+                "population": job.population, "iterations": job.iterations, "wall_s": tuned.wall_s}
     if isinstance(job, IseJob):
         from ..tuning.cost import step_ise
 

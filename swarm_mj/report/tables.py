@@ -214,7 +214,7 @@ def render_markdown(R: dict) -> str:
              "at 2 m; \"FPA\": the FPA-tuned gains; \"no FF\": the controller does not know the wind. "
              "ours/paper for the circle is x whole-run and y steady (docs/interpretations.md §7).\n")
     rows = []
-    label = {"ground": "ground", "on_path": "on path", "fpa": "FPA gains, ground"}
+    variant_label = {"ground": "ground", "on_path": "on path", "fpa": "FPA gains, ground"}
     for r in t5["rows"]:
         p = r["paper"]
         case = f"{r['trajectory']}, {'wind' if r['wind'] else 'no wind'}"
@@ -222,7 +222,7 @@ def render_markdown(R: dict) -> str:
             case += ", no FF"
         w, s = r["whole"], r["steady"] or {}
         yref = s.get("y") if r["trajectory"] == "circle" else w["y"]
-        rows.append([case, label[r["variant"]],
+        rows.append([case, variant_label[r["variant"]],
                      f"{p['x']:.4f} / {p['y']:.4f} / {p['roll_deg']:.4f} / {p['pitch_deg']:.4f}",
                      " / ".join(_r(w[k]) for k in ("x", "y", "roll_deg", "pitch_deg")),
                      (" / ".join(_r(s[k]) for k in ("x", "y", "roll_deg", "pitch_deg")) if s else "–"),
@@ -241,10 +241,10 @@ def render_markdown(R: dict) -> str:
              "\"airborne\": while every drone is above 0.1 m). Paper: formation in ≈ 3 s, no collision.\n")
     rows = []
     for r in sw["rows"]:
-        settle = r["settling_s"][0] if r["settling_s"] else None
+        first_settle = r["settling_s"][0] if r["settling_s"] else None
         rows.append([r["scenario"], f"{r['duration_s']:.0f}", str(r["contacts"]), f"{r['min_separation_m']:.3f}",
-                     fmt_cell(r["min_separation_airborne_m"], "{:.3f}"), fmt_cell(settle, "{:.2f}"),
-                     f"{sw['paper_settling_s']:.0f}", _diff(settle, sw["paper_settling_s"]),
+                     fmt_cell(r["min_separation_airborne_m"], "{:.3f}"), fmt_cell(first_settle, "{:.2f}"),
+                     f"{sw['paper_settling_s']:.0f}", _diff(first_settle, sw["paper_settling_s"]),
                      f"{100 * r['max_distance_error_m']:.1f}", f"{r['altitude_yields']}"])
     L.append(_table(["scenario", "duration (s)", "contacts", "min separation (m)", "airborne (m)",
                      "formation settling (s)", "paper (s)", "ours − paper (s)", "max distance error once settled (cm)",
@@ -274,10 +274,10 @@ def render_markdown(R: dict) -> str:
              "made the simulation diverge (a drone flipped or left the arena).\n")
     rows = []
     for r in ac["rows"]:
-        settle = r["settling_s"][0] if r["settling_s"] else None
+        first_settle = r["settling_s"][0] if r["settling_s"] else None
         rows.append([r["scenario"], f"`{r['rule']}`", str(r["contacts"]), f"{r['min_separation_m']:.3f}",
-                     fmt_cell(settle, "{:.2f}"), str(r["altitude_yields"]), "stopped: " + r["stopped"] if r["stopped"]
-                     else "ok"])
+                     fmt_cell(first_settle, "{:.2f}"), str(r["altitude_yields"]),
+                     "stopped: " + r["stopped"] if r["stopped"] else "ok"])
     L.append(_table(["scenario", "rule", "contacts", "min separation (m)", "formation settling (s)",
                      "altitude yields", "run"], rows))
     rc = R["sweeps"]["random_crossing"]

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -62,7 +63,8 @@ class Replay:
             self.renderer.scene.flags[mujoco.mjtRndFlag.mjRND_SHADOW] = False
         self._colors = [LEADER_RGB if i == 0 else FOLLOWER_RGB for i in range(n)]
         self._ref = self._reference_vertices()
-        self._caption_font = None
+        self._caption_font: Any = None
+        self.title: str | None = None           # drawn in the caption when set
         self.last_index = -1
 
     # -- model look -----------------------------------------------------------------
@@ -214,7 +216,8 @@ class Replay:
         name = getattr(self, "title", None)
         if name:
             text = f"{name}   {text}"
-        items = [(LEADER_RGB, "leader"), (FOLLOWER_RGB, "followers"), (REFERENCE_RGBA[:3], "reference path")]
+        items: list[tuple[Any, str]] = [(LEADER_RGB, "leader"), (FOLLOWER_RGB, "followers"),
+                                        (REFERENCE_RGBA[:3], "reference path")]
         if self.style.trails:
             items.append((None, f"trails: last {self.style.trail_s:g} s"))
         widths = [int(draw.textlength(label, font=font)) + int(size * (1.3 if rgb else 0) + size * 1.2)
