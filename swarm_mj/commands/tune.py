@@ -182,6 +182,7 @@ def _check_output(path: Path) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
+    from ..progress import Progress
     from ..tuning.constraints import INFEASIBLE, StepBars
     from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
@@ -219,6 +220,8 @@ def main(args: argparse.Namespace) -> int:
            else "; initial population: uniform"))
     t0 = time.perf_counter()
     last: list = []
+    bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
+    bar.note("evaluating the initial population")
 
     def on_iteration(o) -> None:
         last[:] = [o]
@@ -226,10 +229,15 @@ def main(args: argparse.Namespace) -> int:
         it = len(o.history) - 1
         best = (f"best ISE {o.best_ise:10.5f}" if o.best_feasible or not math.isfinite(o.best_cost)
                 else f"none meets the bars yet (least violation {o.best_cost - INFEASIBLE:.3g})")
-        say(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
+        bar.note("")
+        bar.update(it)
+        bar.log(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
 
     try:
-        res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+        try:
+            res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+        finally:
+            bar.close()
     except KeyboardInterrupt:
         if last:
             print(f"swarm-mj: interrupted after iteration {len(last[0].history) - 1}; best gains so far "
