@@ -16,7 +16,8 @@ same call. It guarantees:
 * **ordered, deterministic results**: each item's result depends only on the item, and the list
   comes back in item order whatever the completion order, so results do not depend on the number
   of workers or the backend;
-* **optional progress**: a :class:`~swarm_mj.progress.Progress` advanced once per completed item,
+* **optional progress**: a :class:`~swarm_mj.progress.Progress` that says what it waits for while the
+  workers start and is advanced once per completed item,
   and ``on_result(index, result)`` called in this process in completion order (e.g. to print a line).
 
 ``fn`` must be a module-level function (it is pickled by reference).
@@ -143,6 +144,8 @@ def map_ordered(fn: Callable[[T], R], items: Iterable[T], *, workers: int | None
             on_result(i, r)
 
     if ray_address:
+        if progress is not None:
+            progress.note(f"starting or reaching Ray at {ray_address}")
         _map_ray(fn, items, ray_address, workers, done)
         return results
     w = resolve_workers(workers, n)
@@ -150,6 +153,8 @@ def map_ordered(fn: Callable[[T], R], items: Iterable[T], *, workers: int | None
         for i, x in enumerate(items):
             done(i, fn(x))
         return results
+    if progress is not None:
+        progress.note(f"starting {w} worker processes (each loads MuJoCo and the compiled kernels)")
     _map_processes(fn, items, w, done)
     return results
 

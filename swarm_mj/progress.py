@@ -6,8 +6,8 @@ and the report (completed runs). Two shapes, one class:
 * a percentage (``unit=None``): ``circle [######-------------------]  24%   3.1 s``;
 * a count (``unit="frames"``): ``video x.mp4 [###----] 120/750 frames  12.3 frames/s``.
 
-``note(text)`` says what the program is doing during a long wait (compiling kernels, waiting for
-workers) on the same line; ``log(line)`` prints a full line above the bar (a finished run's
+``note(text)`` says what the program is doing during a long wait (starting workers, compiling
+kernels) on the same line, until the next step is done; ``log(line)`` prints a full line above the bar (a finished run's
 figures) and is printed even when the bar itself is quiet, unless ``lines=False``.
 """
 
@@ -18,6 +18,7 @@ import time as _time
 from typing import TextIO
 
 BAR_WIDTH = 25
+CLEAR_TO_EOL = "\033[K"
 
 
 class Progress:
@@ -69,12 +70,16 @@ class Progress:
         return f"{text}  {self._note}" if self._note else text
 
     def _draw(self) -> None:
-        self.stream.write("\r" + self._line())
+        self.stream.write("\r" + self._line() + CLEAR_TO_EOL)       # a shorter line leaves nothing behind
         self.stream.flush()
         self._drawn = True
 
     def update(self, k: int) -> None:
-        """``k`` of ``total`` steps are done; redraws when the percentage (or, for counts, 0.2 s) moved."""
+        """``k`` of ``total`` steps are done; redraws when the percentage (or, for counts, 0.2 s) moved.
+
+        Progress clears the note of a wait (:meth:`note`): the wait is over."""
+        if int(k) != self.done:
+            self._note = ""
         self.done = int(k)
         if not self.enabled:
             return
@@ -98,7 +103,6 @@ class Progress:
         """Say what is happening during a long wait, on the bar's line (cleared with ``note("")``)."""
         self._note = text
         if self.enabled:
-            self.stream.write("\r\033[K" if self._drawn else "")
             self._draw()
 
     def log(self, line: str) -> None:
@@ -106,7 +110,7 @@ class Progress:
         if not self.lines:
             return
         if self.enabled and self._drawn:
-            self.stream.write("\r\033[K")
+            self.stream.write("\r" + CLEAR_TO_EOL)
         self.stream.write(line + "\n")
         self.stream.flush()
         if self.enabled and self._drawn:

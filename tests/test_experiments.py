@@ -91,16 +91,18 @@ def test_progress_percentage_text():
     frames = s.getvalue().split("\r")[1:]
     assert len(frames) == 101                        # one redraw per percent
     assert frames[50].startswith("circle [############-------------]  50%")
-    assert frames[-1].startswith("circle [#########################] 100%") and frames[-1].endswith("s\n")
+    assert frames[-1].startswith("circle [#########################] 100%") and frames[-1].endswith("s\033[K\n")
 
 
 def test_progress_count_note_and_log():
     s = _Tty()
     bar = Progress(4, "video x.mp4", unit="frames", stream=s)
     bar.note("opening the renderer")
-    assert "0/4 frames" in s.getvalue() and s.getvalue().endswith("opening the renderer")
-    bar.note("")
-    for _ in range(4):
+    assert "0/4 frames" in s.getvalue() and s.getvalue().endswith("opening the renderer\033[K")
+    bar.advance()                                    # progress ends the wait: the note goes
+    last = s.getvalue().split("\r")[-1]
+    assert last.startswith("video x.mp4 [######-------------------] 1/4 frames") and "opening" not in last
+    for _ in range(3):
         bar.advance()
     bar.log("done: x.mp4")
     bar.close()
