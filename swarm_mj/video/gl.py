@@ -66,10 +66,12 @@ def describe_import_failure() -> str:
     assert IMPORT_FAILURE is not None
     backend, exc = IMPORT_FAILURE
     text = re.sub(r"\s+", " ", " ".join(str(a) for a in getattr(exc, "args", ()) if a)).strip()
+    head = f"cannot render: MuJoCo could not load MUJOCO_GL={backend} ({type(exc).__name__}: {text})"
+    if backend == "egl":
+        return f"{head}; fix: apt-get install {EGL_PACKAGES} (Debian/Ubuntu) or install a GPU driver with EGL"
     hint = {"osmesa": "its library libOSMesa is not installed (apt-get install libosmesa6)",
             "glfw": "GLFW needs a display"}.get(backend, "it did not load")
-    return (f"cannot render: MuJoCo could not load MUJOCO_GL={backend} ({type(exc).__name__}: {text}): {hint}; "
-            f"for headless rendering set MUJOCO_GL=egl (apt-get install {EGL_PACKAGES})")
+    return f"{head}: {hint}; for headless rendering set MUJOCO_GL=egl (apt-get install {EGL_PACKAGES})"
 
 
 def mujoco_gl_backend() -> str:
