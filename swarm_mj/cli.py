@@ -1,4 +1,4 @@
-"""``swarm-mj`` command line: thin — parse, call, print (DESIGN "cli").
+"""``swarm-mj`` command line: thin — parse, call, print (docs/design.md, "Commands").
 
 Each subcommand lives in ``swarm_mj/commands/<name>.py`` with ``add_parser(subparsers)``
 and ``main(args) -> int``. Errors: a :class:`~swarm_mj.errors.UserError` prints one line
@@ -42,6 +42,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     try:
+        from .video.gl import import_mujoco
+
+        import_mujoco()         # a MUJOCO_GL backend that cannot load: fly anyway, fail rendering in one line
         return int(args.func(args) or 0)
     except SwarmError as exc:
         print(f"swarm-mj: error: {exc}", file=sys.stderr)

@@ -1,4 +1,4 @@
-"""Metrics of SPEC §7, as pure functions on logged arrays (time axis first)."""
+"""Metrics of docs/interpretations.md §7, as pure functions on logged arrays (time axis first)."""
 
 from __future__ import annotations
 

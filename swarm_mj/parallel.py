@@ -1,19 +1,46 @@
-"""What the parallel backends share: worker count, the optional Ray, the machine description.
+"""The one executor for experiments, and what the parallel backends share.
 
-Used by the tuner (``tuning.cost``), the sweeps and the report (``sweep``, ``report``) and the
-benchmarks, so that each backend does not carry its own copy.
+:func:`map_ordered` is ``[fn(x) for x in items]`` spread over worker processes, or over a Ray
+cluster, with the results in item order. The sweeps, the stress test and the report run through
+it (``sweep``, ``stress``, ``report``); the tuner's backends (``tuning``) can adopt it with the
+same call. It guarantees:
+
+* **spawn** start method: each worker is a fresh interpreter (no inherited MuJoCo, Numba or
+  thread state, the same on Linux and macOS);
+* **CPU affinity**: the default worker count is the CPUs this process may use
+  (``os.sched_getaffinity``), not the machine's count, so a ``taskset`` or a container quota is
+  respected;
+* **Ctrl-C**: workers ignore SIGINT (it reaches the whole process group); the parent alone
+  handles it, cancels what is queued, terminates its own workers by handle and re-raises
+  :class:`KeyboardInterrupt`, which the command line turns into exit status 130;
+* **ordered, deterministic results**: each item's result depends only on the item, and the list
+  comes back in item order whatever the completion order, so results do not depend on the number
+  of workers or the backend;
+* **optional progress**: a :class:`~swarm_mj.progress.Progress` that says what it waits for while the
+  workers start and is advanced once per completed item,
+  and ``on_result(index, result)`` called in this process in completion order (e.g. to print a line).
+
+``fn`` must be a module-level function (it is pickled by reference).
 """
 
 from __future__ import annotations
 
 import os
 import platform
+import signal
+from collections.abc import Callable, Iterable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import numpy as np
 
 from .errors import UserError
+
+if TYPE_CHECKING:
+    from .progress import Progress
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 RAY_INSTALL_HINT = "pip install 'swarm-mj[ray]'"
 
@@ -68,3 +95,110 @@ def machine_description() -> dict[str, Any]:
     return {"cpu": cpu, "cores": os.cpu_count(), "usable_cores": default_workers(),
             "python": platform.python_version(), "mujoco": mujoco.__version__, "numpy": np.__version__,
             "platform": platform.platform()}
+
+
+# --------------------------------------------------------------------------- the executor
+
+
+def _worker_init() -> None:
+    """Worker initializer: Ctrl-C reaches the whole process group; only the parent handles it."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def resolve_workers(workers: int | None, n_items: int | None = None) -> int:
+    """The worker count: ``workers`` (>= 1, else one clear UserError) or :func:`default_workers`,
+    at most ``n_items``."""
+    w = default_workers() if workers is None else int(workers)
+    if w < 1:
+        raise UserError(f"--workers must be >= 1, got {workers}")
+    return max(1, min(w, n_items)) if n_items is not None else w
+
+
+def backend_name(workers: int, ray_address: str | None) -> str:
+    """``"ray"``, ``"in-process"`` (one worker) or ``"processes"``."""
+    return "ray" if ray_address else ("in-process" if workers == 1 else "processes")
+
+
+def map_ordered(fn: Callable[[T], R], items: Iterable[T], *, workers: int | None = None,
+                ray_address: str | None = None, progress: Progress | None = None,
+                on_result: Callable[[int, R], None] | None = None) -> list[R]:
+    """``[fn(x) for x in items]`` in worker processes (or on Ray), results in item order.
+
+    ``workers``: local processes (default: the CPUs this process may use; 1 runs in this
+    process, with no pool). ``ray_address``: ``"local"``, ``"auto"`` or ``"ray://host:port"``
+    runs the items as Ray tasks instead (extra ``swarm-mj[ray]``). ``progress`` is advanced and
+    ``on_result(index, result)`` called as each item completes. Ctrl-C stops the workers and
+    propagates as KeyboardInterrupt.
+    """
+    items = list(items)
+    n = len(items)
+    results: list[Any] = [None] * n
+    if n == 0:
+        return results
+
+    def done(i: int, r: Any) -> None:
+        results[i] = r
+        if progress is not None:
+            progress.advance()
+        if on_result is not None:
+            on_result(i, r)
+
+    if ray_address:
+        if progress is not None:
+            progress.note(f"starting or reaching Ray at {ray_address}")
+        _map_ray(fn, items, ray_address, workers, done)
+        return results
+    w = resolve_workers(workers, n)
+    if w == 1:
+        for i, x in enumerate(items):
+            done(i, fn(x))
+        return results
+    if progress is not None:
+        progress.note(f"starting {w} worker processes (each loads MuJoCo and the compiled kernels)")
+    _map_processes(fn, items, w, done)
+    return results
+
+
+def _map_processes(fn: Callable, items: list, workers: int, done: Callable[[int, Any], None]) -> None:
+    import multiprocessing as mp
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    ex = ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn"), initializer=_worker_init)
+    ok = False
+    try:
+        futs = {ex.submit(fn, x): i for i, x in enumerate(items)}
+        pending = set(futs)
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for f in sorted(finished, key=lambda f: futs[f]):
+                done(futs[f], f.result())
+        ok = True
+    finally:
+        if ok:
+            ex.shutdown(wait=True)
+        else:                                    # Ctrl-C or a failed item: stop now, not after the queue
+            procs = list((getattr(ex, "_processes", None) or {}).values())
+            ex.shutdown(wait=False, cancel_futures=True)
+            for p in procs:                      # our own workers, by handle
+                if p.is_alive():
+                    p.terminate()
+            for p in procs:
+                p.join(timeout=5)
+
+
+def _map_ray(fn: Callable, items: list, address: str, workers: int | None,
+             done: Callable[[int, Any], None]) -> None:
+    ray = import_ray()
+    started = init_ray(ray, address, workers)
+    try:
+        remote = ray.remote(num_cpus=1)(fn)
+        refs = [remote.remote(x) for x in items]
+        index = {r: i for i, r in enumerate(refs)}
+        pending = list(refs)
+        while pending:
+            finished, pending = ray.wait(pending, num_returns=1)
+            for r in finished:
+                done(index[r], ray.get(r))
+    finally:
+        if started:
+            ray.shutdown()

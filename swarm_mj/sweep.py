@@ -22,28 +22,25 @@ and worst case of the key metrics (:data:`METRICS`) over the seeds.
   task order whatever order the workers finish in, so the statistics are identical for any
   number of workers (tested).
 
-:func:`run_parallel` is the executor underneath (also used by the report): it maps a
-top-level function over items in ``spawn`` worker processes (a fresh interpreter: no
-inherited MuJoCo or thread state), or over Ray with ``ray_address``, in order.
+The runs go through the one executor, :func:`swarm_mj.parallel.map_ordered` (spawn worker
+processes or Ray, results in task order, Ctrl-C handled by the parent). The command line
+(``--param KEY=V1,V2``, ``--seeds``) is parsed in ``swarm_mj/commands/sweep.py``.
 """
 
 from __future__ import annotations
 
 import math
-import signal
-import sys
 import time
-import tomllib
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from .errors import UserError
-from .parallel import default_workers, import_ray, init_ray
+from .parallel import backend_name, map_ordered, resolve_workers
+from .progress import Progress
 from .scenario import Scenario, load_scenario, parse_scenario
-
 
 #: (key, label, worst, swarm only). ``worst`` is "max" (an error: bigger is worse) or "min".
 METRICS: list[tuple[str, str, str, bool]] = [
@@ -123,56 +120,6 @@ def metric_stats(values: Sequence[float], seeds: Sequence[int], worst: str = "ma
 # --------------------------------------------------------------------------- parameters
 
 
-def _split_top(text: str) -> list[str]:
-    """Split on commas that are not inside brackets or quotes."""
-    parts, depth, quote, cur = [], 0, None, []
-    for ch in text:
-        if quote:
-            cur.append(ch)
-            if ch == quote:
-                quote = None
-            continue
-        if ch in "\"'":
-            quote = ch
-        elif ch in "[{":
-            depth += 1
-        elif ch in "]}":
-            depth -= 1
-        elif ch == "," and depth == 0:
-            parts.append("".join(cur).strip())
-            cur = []
-            continue
-        cur.append(ch)
-    parts.append("".join(cur).strip())
-    return parts
-
-
-def _literal(tok: str) -> Any:
-    try:
-        return tomllib.loads(f"v = {tok}")["v"]
-    except tomllib.TOMLDecodeError:
-        return tok
-
-
-def parse_param(text: str) -> tuple[str, list[Any]]:
-    """``"wind.sigma=0.4,0.8,1.2"`` → ``("wind.sigma", [0.4, 0.8, 1.2])``."""
-    example = "expected KEY=V1,V2,... e.g. wind.sigma=0.4,0.8,1.2 or formation.diameter=1,1.5,2"
-    if "=" not in text:
-        raise UserError(f"bad --param {text!r}: {example}")
-    key, _, vals = text.partition("=")
-    key = key.strip()
-    parts = key.split(".")
-    if not key or any(not p or not p.replace("_", "").isalnum() for p in parts):
-        raise UserError(f"bad --param {text!r}: key {key!r} must be a dotted name; {example}")
-    toks = _split_top(vals)
-    if not vals.strip() or any(t == "" for t in toks):
-        raise UserError(f"bad --param {text!r}: empty value; {example}")
-    values = [_literal(t) for t in toks]
-    if len({repr(v) for v in values}) != len(values):
-        raise UserError(f"bad --param {text!r}: repeated value")
-    return key, values
-
-
 def _set_path(doc: dict, key: str, value: Any) -> dict:
     """A deep copy of the TOML document with ``key`` (dotted) set to ``value``."""
     import copy
@@ -218,7 +165,7 @@ def apply_param(sc: Scenario, key: str, value: Any) -> Scenario:
     if key.startswith("wind.") and key != "wind.enabled" and not (base.wind.enabled and new.wind.enabled):
         raise UserError(f"{where}: scenario {sc.name!r} has no wind (wind.enabled = false), "
                         f"so {key} changes nothing")
-    changed = {}
+    changed: dict[str, Any] = {}
     for f in fields(Scenario):
         if f.name in ("raw", "path", "name"):
             continue
@@ -228,7 +175,7 @@ def apply_param(sc: Scenario, key: str, value: Any) -> Scenario:
         if is_dataclass(n) and type(n) is type(b) is type(cur):
             # e.g. WindConfig: change only the sub-fields the value changes, on sc's current value
             sub = {g.name: getattr(n, g.name) for g in fields(n) if not _same(getattr(b, g.name), getattr(n, g.name))}
-            changed[f.name] = replace(cur, **sub)
+            changed[f.name] = replace(cur, **sub)  # type: ignore[type-var]  # cur is a dataclass instance here
         elif isinstance(n, dict) and isinstance(b, dict) and isinstance(cur, dict):
             changed[f.name] = {**cur, **{k: v for k, v in n.items() if k not in b or not _same(b[k], v)}}
         else:
@@ -242,92 +189,6 @@ def seeded(sc: Scenario, seed: int) -> Scenario:
     if sc.random_start is not None:
         sc = sc.with_overrides(random_start=replace(sc.random_start, seed=int(seed)))
     return sc
-
-
-# --------------------------------------------------------------------------- executor
-
-
-def _worker_init() -> None:
-    # Ctrl-C reaches the whole process group: only the parent handles it (and stops us).
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def run_parallel(fn: Callable[[Any], Any], items: Sequence[Any], *, workers: int | None = None,
-                 ray_address: str | None = None,
-                 on_result: Callable[[int, Any], None] | None = None) -> list[Any]:
-    """``[fn(x) for x in items]`` in worker processes (or Ray), results in item order.
-
-    ``fn`` must be a module-level function (it is pickled by reference). ``workers = 1``
-    runs in this process. ``on_result(index, result)`` is called in this process as each
-    item completes (completion order). Ctrl-C stops the workers and propagates.
-    """
-    items = list(items)
-    n = len(items)
-    results: list[Any] = [None] * n
-    if n == 0:
-        return results
-    if ray_address:
-        return _run_ray(fn, items, ray_address, workers, on_result)
-    w = default_workers() if workers is None else int(workers)
-    if w < 1:
-        raise UserError(f"--workers must be >= 1, got {workers}")
-    w = min(w, n)
-    if w == 1:
-        for i, x in enumerate(items):
-            results[i] = fn(x)
-            if on_result:
-                on_result(i, results[i])
-        return results
-    import multiprocessing as mp
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-    ex = ProcessPoolExecutor(max_workers=w, mp_context=mp.get_context("spawn"), initializer=_worker_init)
-    ok = False
-    try:
-        futs = {ex.submit(fn, x): i for i, x in enumerate(items)}
-        pending = set(futs)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for f in sorted(done, key=lambda f: futs[f]):
-                i = futs[f]
-                results[i] = f.result()
-                if on_result:
-                    on_result(i, results[i])
-        ok = True
-    finally:
-        if ok:
-            ex.shutdown(wait=True)
-        else:
-            procs = list(getattr(ex, "_processes", {}).values())
-            ex.shutdown(wait=False, cancel_futures=True)
-            for p in procs:          # our own workers, by handle
-                if p.is_alive():
-                    p.terminate()
-            for p in procs:
-                p.join(timeout=5)
-    return results
-
-
-def _run_ray(fn, items, address, workers, on_result):
-    ray = import_ray()
-    started = init_ray(ray, address, workers)
-    try:
-        remote = ray.remote(num_cpus=1)(fn)
-        refs = [remote.remote(x) for x in items]
-        index = {r: i for i, r in enumerate(refs)}
-        results: list[Any] = [None] * len(items)
-        pending = list(refs)
-        while pending:
-            done, pending = ray.wait(pending, num_returns=1)
-            for r in done:
-                i = index[r]
-                results[i] = ray.get(r)
-                if on_result:
-                    on_result(i, results[i])
-        return results
-    finally:
-        if started:
-            ray.shutdown()
 
 
 # --------------------------------------------------------------------------- the sweep
@@ -387,12 +248,13 @@ def compute_stats(runs: Sequence[dict], n_values: int) -> list[dict[str, dict]]:
 
 def sweep(scenario: Scenario | str, seeds: int | Iterable[int] = 20, param: str | None = None,
           values: Sequence[Any] | None = None, *, workers: int | None = None, ray_address: str | None = None,
-          duration: float | None = None, progress: Callable[[str], None] | None = None) -> SweepResult:
+          duration: float | None = None, progress: bool = False) -> SweepResult:
     """Fly ``scenario`` for every (value, seed) and gather mean/std/worst of :data:`METRICS`.
 
     ``seeds``: a count N (seeds 0..N−1) or the seeds themselves. ``param``/``values``: a
     dotted TOML key and its values (:func:`apply_param`); none = the scenario as it is.
-    ``progress(line)`` gets one line per completed run.
+    ``progress``: one line per completed run on stderr, under a progress bar when stderr is a
+    terminal (:class:`~swarm_mj.progress.Progress`).
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     seed_list = list(range(int(seeds))) if isinstance(seeds, (int, np.integer)) else [int(s) for s in seeds]
@@ -412,37 +274,40 @@ def sweep(scenario: Scenario | str, seeds: int | Iterable[int] = 20, param: str 
         variants = [apply_param(sc, param, v) for v in vals]
     tasks = [SweepTask(v, s, vi, duration) for vi, v in enumerate(variants) for s in seed_list]
     total = len(tasks)
-    done = [0]
+    w = resolve_workers(workers)
     t0 = time.perf_counter()
+    bar = Progress(total, f"sweep {sc.name}", None if progress else False, unit="runs")
+    width = len(str(total))
 
     def on_result(i: int, r: dict) -> None:
-        done[0] += 1
-        if progress is None:
-            return
-        m = r["metrics"]
-        what = f"{param}={vals[r['value_index']]!r} " if param else ""
-        bits = [f"RMSE x {m['rmse_x']:.4f} y {m['rmse_y']:.4f} m"]
-        if "contacts" in m:
-            bits.append(f"contacts {m['contacts']:.0f}, min sep {m['min_separation_m']:.3f} m")
-        if r["stopped"]:
-            bits.append(f"STOPPED: {r['stopped']}")
-        progress(f"[{done[0]:>{len(str(total))}}/{total}] {sc.name} {what}seed {r['seed']}: {', '.join(bits)} "
-                 f"({r['wall_s']:.1f} s)")
+        bar.log(f"[{bar.done:>{width}}/{total}] {sc.name} {_run_line(r, param, vals)}")
 
-    w = default_workers() if workers is None else int(workers)
-    if w < 1:
-        raise UserError(f"--workers must be >= 1, got {workers}")
-    runs = run_parallel(run_task, tasks, workers=w, ray_address=ray_address, on_result=on_result)
+    try:
+        runs = map_ordered(run_task, tasks, workers=w, ray_address=ray_address, progress=bar, on_result=on_result)
+    finally:
+        bar.close()
     dur = float(duration if duration is not None else sc.duration)
+    used = min(w, total)
     res = SweepResult(scenario=sc.name, n_drones=sc.n_drones, seeds=seed_list, param=param,
-                      values=vals, duration=dur, runs=runs, workers=min(w, total),
-                      backend="ray" if ray_address else ("in-process" if min(w, total) == 1 else "processes"),
+                      values=vals, duration=dur, runs=runs, workers=used, backend=backend_name(used, ray_address),
                       wall_s=time.perf_counter() - t0)
     res.stats = compute_stats(runs, len(vals))
     return res
 
 
 # --------------------------------------------------------------------------- text
+
+
+def _run_line(r: dict, param: str | None, vals: Sequence[Any]) -> str:
+    """One completed run, for the progress lines: the value, the seed and its key figures."""
+    m = r["metrics"]
+    what = f"{param}={vals[r['value_index']]!r} " if param else ""
+    bits = [f"RMSE x {m['rmse_x']:.4f} y {m['rmse_y']:.4f} m"]
+    if "contacts" in m:
+        bits.append(f"contacts {m['contacts']:.0f}, min sep {m['min_separation_m']:.3f} m")
+    if r["stopped"]:
+        bits.append(f"STOPPED: {r['stopped']}")
+    return f"{what}seed {r['seed']}: {', '.join(bits)} ({r['wall_s']:.1f} s)"
 
 
 def _fmt(v: float) -> str:
@@ -481,7 +346,3 @@ def format_sweep(res: SweepResult) -> str:
         lines.append("")
         lines.append(f"{stopped} run(s) stopped early (see --json for which)")
     return "\n".join(lines)
-
-
-def progress_to_stderr(line: str) -> None:
-    print(line, file=sys.stderr, flush=True)

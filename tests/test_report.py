@@ -9,10 +9,10 @@ import numpy as np
 import pytest
 
 from swarm_mj.cli import main as cli_main
+from swarm_mj.commands.sweep import parse_param
 from swarm_mj.errors import UserError
 from swarm_mj.scenario import load_scenario
-from swarm_mj.sweep import (METRICS, apply_param, compute_stats, metric_stats, parse_param, run_metrics, seeded,
-                            sweep)
+from swarm_mj.sweep import METRICS, apply_param, compute_stats, metric_stats, run_metrics, seeded, sweep
 from swarm_mj.wind import ALWAYS_ON
 
 
@@ -42,7 +42,8 @@ def test_metric_stats_known_values():
 
 
 def test_compute_stats_groups_by_value():
-    runs = [{"value_index": vi, "seed": s, "metrics": {"rmse_x": 0.1 * (vi + 1) + 0.01 * s, "min_separation_m": 1 - 0.1 * s}}
+    runs = [{"value_index": vi, "seed": s,
+             "metrics": {"rmse_x": 0.1 * (vi + 1) + 0.01 * s, "min_separation_m": 1 - 0.1 * s}}
             for vi in range(2) for s in range(3)]
     st = compute_stats(runs, 2)
     assert st[0]["rmse_x"]["mean"] == pytest.approx(np.mean([0.10, 0.11, 0.12]))
@@ -79,9 +80,9 @@ def test_sweep_swarm_metrics_and_random_start_seed():
     st = res.stats[0]
     for k in ("contacts", "min_separation_m", "formation_settling_s", "max_distance_error_m"):
         assert k in st
-    from swarm_mj.report import _random_crossing
+    from swarm_mj.report import random_crossing
 
-    rc = _random_crossing(1.0)
+    rc = random_crossing(1.0)
     assert not np.allclose(seeded(rc, 1).initial_positions(), seeded(rc, 2).initial_positions())
 
 

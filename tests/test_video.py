@@ -18,7 +18,10 @@ What is checked, and against what:
   with no driver (GLVND told to look for vendor files in an empty place: what a machine
   without libegl-mesa0 looks like) and no libEGL.so.1 at all (the dynamic loader's
   "cannot open shared object file" raised where PyOpenGL opens it). The in-process test
-  replaces the renderer factory with one raising PyOpenGL's own exception.
+  replaces the renderer factory with one raising PyOpenGL's own exception;
+* a MUJOCO_GL backend that cannot load (``osmesa`` without libOSMesa, which makes ``import
+  mujoco`` itself fail): the run still flies and its recording is written, the still gives one
+  line and exit status 1 (issue 16 item 11).
 
 Rendering-dependent tests are marked ``egl`` (deselect with ``-m 'not egl'``).
 """
@@ -42,6 +45,7 @@ import pytest  # noqa: E402
 from swarm_mj import cli, video  # noqa: E402
 from swarm_mj.errors import RenderError, UserError
 from swarm_mj.runner import run
+from swarm_mj.video import gl as video_gl  # noqa: E402
 
 LEADER = np.array(video.LEADER_RGB) * 255
 FOLLOWER = np.array(video.FOLLOWER_RGB) * 255
@@ -165,7 +169,7 @@ def test_camera_path_keeps_every_drone_in_frame(circle20):
 
 
 def test_missing_egl_message_names_cause_and_fix(monkeypatch):
-    monkeypatch.setattr(video, "mujoco_gl_backend", lambda: "egl")
+    monkeypatch.setattr(video_gl, "mujoco_gl_backend", lambda: "egl")
     msg = video.describe_gl_failure(ImportError(
         "Unable to load EGL library", "libEGL.so.1: cannot open shared object file: No such file or directory"))
     assert "\n" not in msg and "libEGL.so.1 is not installed" in msg and "apt-get install libegl1" in msg
@@ -327,8 +331,8 @@ def test_missing_egl_in_process_one_line_exit_1_recording_kept(tmp_path, monkeyp
         raise ImportError("Unable to load EGL library",
                           "libEGL.so.1: cannot open shared object file: No such file or directory")
 
-    monkeypatch.setattr(video, "renderer_factory", no_egl)
-    monkeypatch.setattr(video, "mujoco_gl_backend", lambda: "egl")
+    monkeypatch.setattr(video_gl, "renderer_factory", no_egl)
+    monkeypatch.setattr(video_gl, "mujoco_gl_backend", lambda: "egl")
     rrd, png = tmp_path / "c.rrd", tmp_path / "c.png"
     rc = cli.main(["run", "circle", "--duration", "0.5", "--quiet", "-o", str(rrd), "--snapshot", str(png),
                    "--snapshot-time", "0.2"])
@@ -377,4 +381,37 @@ def test_missing_egl_subprocess(case, tmp_path):
     assert len(err) == 1 and err[0].startswith("swarm-mj: error: headless rendering needs EGL"), p.stderr
     assert cause in err[0] and "apt-get install libegl1" in err[0]
     assert (tmp_path / "c.rrd").exists() and not (tmp_path / "c.png").exists()
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["c.rrd"]
+
+
+_NO_OSMESA = textwrap.dedent("""
+    import ctypes, sys
+    _init = ctypes.CDLL.__init__
+    def _init_without_osmesa(self, name, *a, **kw):
+        if name and "osmesa" in str(name).lower():
+            raise OSError(f"{name}: cannot open shared object file: No such file or directory")
+        _init(self, name, *a, **kw)
+    ctypes.CDLL.__init__ = _init_without_osmesa
+    from swarm_mj.cli import main
+    sys.exit(main(sys.argv[1:]))
+""")
+
+
+def test_osmesa_that_cannot_load_is_one_line_exit_1_recording_kept(tmp_path):
+    """MUJOCO_GL=osmesa without libOSMesa (hidden here even where it is installed): import mujoco
+    fails inside PyOpenGL with an AttributeError. The run flies with rendering off, the recording
+    is written, and the still fails in one line naming MUJOCO_GL=osmesa and the EGL fix."""
+    env = dict(os.environ, MUJOCO_GL="osmesa")
+    env.pop("PYOPENGL_PLATFORM", None)
+    argv = ["run", "circle", "--duration", "0.5", "--quiet", "-o", "c.rrd", "--snapshot", "c.png",
+            "--snapshot-time", "0.2"]
+    p = subprocess.run([sys.executable, "-c", _NO_OSMESA, *argv], cwd=tmp_path, env=env, capture_output=True,
+                       text=True, timeout=600)
+    err = p.stderr.strip().splitlines()
+    assert p.returncode == 1, p.stderr
+    assert "Traceback" not in p.stderr, p.stderr
+    assert len(err) == 1 and err[0].startswith("swarm-mj: error: cannot render: MuJoCo could not load "
+                                               "MUJOCO_GL=osmesa"), p.stderr
+    assert "MUJOCO_GL=egl" in err[0]
+    assert (tmp_path / "c.rrd").stat().st_size > 0 and not (tmp_path / "c.png").exists()
     assert sorted(x.name for x in tmp_path.iterdir()) == ["c.rrd"]

@@ -40,10 +40,10 @@ import tempfile
 import time
 from pathlib import Path
 
+import mujoco
 import numpy as np
 
 import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
-import mujoco
 
 SECTIONS = ("core", "runs", "env", "tuning", "video", "scaling")
 ROWS: list[dict] = []

@@ -28,8 +28,15 @@ import numpy as np
 from swarm_mj.metrics import ise
 from swarm_mj.runner import run
 from swarm_mj.state import wrap_angle
-from swarm_mj.tuning.cost import (StepCostSettings, TuneOptions, default_workers, evaluate_batch, step_ise,
-                                  table4_ise, tune_gains)
+from swarm_mj.tuning.cost import (
+    StepCostSettings,
+    TuneOptions,
+    default_workers,
+    evaluate_batch,
+    step_ise,
+    table4_ise,
+    tune_gains,
+)
 
 GOAL_WALL_S = 60.0
 GOAL_SPEEDUP = 10.0

@@ -93,10 +93,10 @@ def anticollision(r: dict) -> str:
     for x in r["anti_collision"]["rows"]:
         by.setdefault(x["scenario"], {})[x["rule"]] = x
     for sc, d in by.items():
-        L, P, O = d.get("layers"), d.get("paper"), d.get("off")
+        L, P, N = d.get("layers"), d.get("paper"), d.get("off")
         stop = lambda x: " (diverged)" if x and x.get("stopped") else ""  # noqa: E731
         rows.append(f"| {sc} | {L['contacts']} / {L['min_separation_m']:.2f} m / {f(L['settling_s'][0], '{:.2f}')} s | "
-                    f"{P['contacts']} / {P['min_separation_m']:.2f} m{stop(P)} | {O['contacts']}{stop(O)} |")
+                    f"{P['contacts']} / {P['min_separation_m']:.2f} m{stop(P)} | {N['contacts']}{stop(N)} |")
     rc = r["sweeps"].get("random_crossing")
     if rc:
         for res in rc["results"]:
@@ -152,7 +152,7 @@ def main() -> None:
         pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
         if not pat.search(text):
             raise SystemExit(f"README has no <!-- tables:{name} --> markers")
-        text = pat.sub(lambda mm: mm.group(1) + body + "\n" + mm.group(2), text)
+        text = pat.sub(lambda mm, body=body: mm.group(1) + body + "\n" + mm.group(2), text)
     Path(a.readme).write_text(text)
     print(f"updated {a.readme}")
 

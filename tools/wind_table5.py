@@ -3,8 +3,8 @@
     .venv/bin/python tools/wind_table5.py [--seeds 0 1 2] [--json out.json]
 
 Runs the bundled single-drone scenarios (180 s each, ~4 s of wall time each) and prints
-RMSE (eq. 38) of x, y (m), roll, pitch (deg), whole run and from t = 10 s on (SPEC §7),
-with the paper's Table 5 and SPEC §7's independent-model figures beside them, and the
+RMSE (eq. 38) of x, y (m), roll, pitch (deg), whole run and from t = 10 s on (docs/interpretations.md §7),
+with the paper's Table 5 and docs/interpretations.md §7's independent-model figures beside them, and the
 issue-5 bars: lemniscate under wind (feedforward on) x <= 0.0321, y <= 0.0249 m; circle
 under wind x whole-run <= 2 x 0.0398 m, y from 10 s <= 2 x 0.0689 m. With several seeds
 the wind rows show the worst seed and the spread (the turbulence is seeded).
@@ -27,8 +27,8 @@ ROWS = [  # (label, scenario, trajectory, wind, feedforward)
     ("lemniscate, wind, ff off", "wind_lemniscate_noff", "lemniscate", True, False),
 ]
 KEYS = ("x", "y", "roll_deg", "pitch_deg")
-# SPEC §7, independent eq.-(1) model, whole run from the ground at the origin (m).
-SPEC_INDEPENDENT = {
+# docs/interpretations.md §7, independent eq.-(1) model, whole run from the ground at the origin (m).
+INDEPENDENT_MODEL = {
     "circle_single": {"y": 0.160}, "wind_circle": {"y": 0.160},
     "lemniscate_single": {"x": 0.0014, "y": 0.0007}, "wind_lemniscate": {"x": 0.0017, "y": 0.0008},
     "wind_lemniscate_noff": {"x": 0.0335, "y": 0.0108},
@@ -57,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
             per.append({"seed": s, "rmse": d["rmse"], "rmse_steady": d["rmse_steady"]})
         out[name] = {"label": label, "trajectory": traj, "wind": wind, "feedforward": ff, "runs": per}
 
-    print("RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on (SPEC §7)")
+    print("RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on "
+          "(docs/interpretations.md §7)")
     print(f"seeds: {args.seeds}" + ("  (wind rows: worst seed over the seeds)" if len(args.seeds) > 1 else ""))
     print(f"{'':<26} {'':<6} {'x':>8} {'y':>8} {'roll':>8} {'pitch':>8}")
     for name, o in out.items():
@@ -67,10 +68,10 @@ def main(argv: list[str] | None = None) -> int:
         paper = PAPER_TABLE5[(o["trajectory"], o["wind"])]
         note = "" if o["feedforward"] or not o["wind"] else "   (paper uses feedforward: reported only)"
         print(f"{'':<26} {'paper':<6} {_fmt(paper)}{note}")
-        ind = SPEC_INDEPENDENT.get(name)
+        ind = INDEPENDENT_MODEL.get(name)
         if ind:
             print(f"{'':<26} {'indep.':<6} " + " ".join(f"{ind[k]:>8.4f}" if k in ind else f"{'':>8}"
-                                                        for k in KEYS) + "   (SPEC §7 independent model)")
+                                                        for k in KEYS) + "   (interpretations.md §7 model)")
         if len(o["runs"]) > 1:
             lo = {k: min(r["rmse"][k] for r in o["runs"]) for k in KEYS}
             print(f"{'':<26} {'min':<6} {_fmt(lo)}   (whole run, best seed)")
@@ -90,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{'PASS' if passed else 'FAIL'}  {label}: {v:.4f}")
     print(f"note: circle whole-run y {cir['rmse']['y']:.4f} m vs the paper's 0.0689 m: the drone starts on the "
           "ground at the origin, 2.5 m from the circle's start, and the whole-run RMSE is that first flight "
-          "(SPEC §7; the paper does not say where its drone starts).")
+          "(docs/interpretations.md §7; the paper does not say where its drone starts).")
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=2)

@@ -24,12 +24,11 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
     from ..report import build_report
-    from ..sweep import progress_to_stderr
 
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     res = build_report(args.output, quick=args.quick, workers=args.workers,
-                       progress=None if args.quiet else progress_to_stderr)
+                       progress=not args.quiet)
     print(f"report: {args.output}/README.md ({len(res['figures'])} figures, results.json) in "
           f"{res['meta']['wall_s']:.0f} s")
     return 0

@@ -4,6 +4,10 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tomllib
+from typing import Any
+
+from ..errors import UserError
 
 
 def add_parser(sub) -> None:
@@ -32,10 +36,64 @@ def add_parser(sub) -> None:
     p.set_defaults(func=main)
 
 
+# --------------------------------------------------------------------------- --param KEY=V1,V2,...
+
+
+def _split_top(text: str) -> list[str]:
+    """Split on commas that are not inside brackets or quotes."""
+    parts: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, None
+    for ch in text:
+        if quote:
+            cur.append(ch)
+            if ch == quote:
+                quote = None
+            continue
+        if ch in "\"'":
+            quote = ch
+        elif ch in "[{":
+            depth += 1
+        elif ch in "]}":
+            depth -= 1
+        elif ch == "," and depth == 0:
+            parts.append("".join(cur).strip())
+            cur = []
+            continue
+        cur.append(ch)
+    parts.append("".join(cur).strip())
+    return parts
+
+
+def _literal(tok: str) -> Any:
+    try:
+        return tomllib.loads(f"v = {tok}")["v"]
+    except tomllib.TOMLDecodeError:
+        return tok
+
+
+def parse_param(text: str) -> tuple[str, list[Any]]:
+    """``"wind.sigma=0.4,0.8,1.2"`` → ``("wind.sigma", [0.4, 0.8, 1.2])``."""
+    example = "expected KEY=V1,V2,... e.g. wind.sigma=0.4,0.8,1.2 or formation.diameter=1,1.5,2"
+    if "=" not in text:
+        raise UserError(f"bad --param {text!r}: {example}")
+    key, _, vals = text.partition("=")
+    key = key.strip()
+    parts = key.split(".")
+    if not key or any(not p or not p.replace("_", "").isalnum() for p in parts):
+        raise UserError(f"bad --param {text!r}: key {key!r} must be a dotted name; {example}")
+    toks = _split_top(vals)
+    if not vals.strip() or any(t == "" for t in toks):
+        raise UserError(f"bad --param {text!r}: empty value; {example}")
+    values = [_literal(t) for t in toks]
+    if len({repr(v) for v in values}) != len(values):
+        raise UserError(f"bad --param {text!r}: repeated value")
+    return key, values
+
+
 def main(args: argparse.Namespace) -> int:
-    from ..errors import UserError
     from ..scenario import load_scenario
-    from ..sweep import format_sweep, parse_param, progress_to_stderr, sweep
+    from ..sweep import format_sweep, sweep
     from .run import write_json_atomic
 
     if args.seeds < 1:
@@ -50,7 +108,7 @@ def main(args: argparse.Namespace) -> int:
         from ..control.backstepping import load_gains
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
     res = sweep(sc, args.seeds, param, values, workers=args.workers, ray_address=args.ray,
-                duration=args.duration, progress=None if args.quiet else progress_to_stderr)
+                duration=args.duration, progress=not args.quiet)
     if args.json:
         write_json_atomic(args.json, _jsonable(res.to_dict()))
     print(format_sweep(res))

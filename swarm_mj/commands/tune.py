@@ -1,7 +1,7 @@
 """``swarm-mj tune``: tune the 12 backstepping gains with the Flower Pollination Algorithm.
 
-Paper §3.2, Fig. 3, Table 2 (SPEC §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
-gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (SPEC §3),
+Paper §3.2, Fig. 3, Table 2 (docs/interpretations.md §6): FPA (N = 50, 14 iterations, p = 0.04, γ = 0.02,
+gains in [0.1, 12]) minimising the ISE of eq. (25) over the step manoeuvre (docs/interpretations.md §3),
 t_sim = 10 s, by default subject to the controller's step bars (overshoot ≤ 1 %, settling
 ≤ 2 / 2 / 1.5 / 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°; Deb's feasibility rules,
 ``swarm_mj.tuning.constraints``) and starting from a population that holds the paper's
@@ -21,7 +21,7 @@ import os
 import sys
 import tempfile
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -86,12 +86,12 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
     from .. import __version__
 
     o, s = outcome.options, outcome.settings
-    created = created or datetime.now(timezone.utc)
+    created = created or datetime.now(UTC)
     done = len(outcome.history) - 1
     lines = [
         "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
         "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
-        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (SPEC §3, §6)"
+        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3, §6)"
         + (", subject to the step bars [bars]." if s.bars is not None else "."),
         "# Use: swarm-mj run step --gains FILE, or [controller] gains = \"FILE\" in a scenario.",
         "# nan: no candidate met the bars (yet).",
@@ -182,8 +182,9 @@ def _check_output(path: Path) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
-    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
+    from ..progress import Progress
     from ..tuning.constraints import INFEASIBLE, StepBars
+    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
     # Validate everything before any worker starts.
     opts = TuneOptions(population=args.population, iterations=args.iterations, p=args.p, gamma=args.gamma,
@@ -219,6 +220,8 @@ def main(args: argparse.Namespace) -> int:
            else "; initial population: uniform"))
     t0 = time.perf_counter()
     last: list = []
+    bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
+    bar.note("evaluating the initial population")
 
     def on_iteration(o) -> None:
         last[:] = [o]
@@ -226,10 +229,15 @@ def main(args: argparse.Namespace) -> int:
         it = len(o.history) - 1
         best = (f"best ISE {o.best_ise:10.5f}" if o.best_feasible or not math.isfinite(o.best_cost)
                 else f"none meets the bars yet (least violation {o.best_cost - INFEASIBLE:.3g})")
-        say(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
+        bar.note("")
+        bar.update(it)
+        bar.log(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
 
     try:
-        res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+        try:
+            res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+        finally:
+            bar.close()
     except KeyboardInterrupt:
         if last:
             print(f"swarm-mj: interrupted after iteration {len(last[0].history) - 1}; best gains so far "

@@ -2,13 +2,97 @@
 
 The run is simulated first, then replayed from its log at the video's frame rate
 (``swarm_mj.video``). No Rerun recording is written unless ``--record`` asks for one.
+
+The video options are checked here, before anything is simulated (:func:`check_video_args`,
+also used by ``swarm-mj run --video/--snapshot``), and :func:`render_outputs` writes what they
+ask for once the run is done.
 """
 
 from __future__ import annotations
 
 import argparse
+import math
+import os
+import re
 import sys
+from collections.abc import Sequence
 from pathlib import Path
+
+from ..errors import UserError
+from ..video.style import DEFAULT_FPS, DEFAULT_SNAPSHOT_TIME, MAX_SIZE, VideoStyle
+
+# --------------------------------------------------------------------------- option checks (before simulating)
+
+
+def parse_size(text: str) -> tuple[int, int]:
+    """``"1280x720"`` -> ``(1280, 720)``; raises :class:`UserError` on anything else."""
+    m = re.fullmatch(r"\s*(\d+)\s*[xX×]\s*(\d+)\s*", str(text))
+    if not m:
+        raise UserError(f"--size must be WIDTHxHEIGHT in pixels, e.g. 1280x720, got {text!r}")
+    w, h = int(m.group(1)), int(m.group(2))
+    if not (16 <= w <= MAX_SIZE and 16 <= h <= MAX_SIZE):
+        raise UserError(f"--size {w}x{h}: width and height must be between 16 and {MAX_SIZE} pixels")
+    return w, h
+
+
+def check_output_path(path: str | Path, suffixes: Sequence[str], option: str) -> Path:
+    p = Path(path)
+    if p.suffix.lower() not in suffixes:
+        raise UserError(f"{option} {path}: the file name must end in {' or '.join(suffixes)}")
+    folder = p.parent if str(p.parent) else Path(".")
+    if not folder.is_dir():
+        raise UserError(f"{option} {path}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK):
+        raise UserError(f"{option} {path}: folder {folder} is not writable")
+    if p.is_dir():
+        raise UserError(f"{option} {path}: is a folder")
+    return p
+
+
+def check_video_args(args) -> None:
+    """Check the rendering options of ``swarm-mj run`` / ``swarm-mj video`` before simulating.
+
+    Reads ``args.video``, ``args.snapshot``, ``args.snapshot_time``, ``args.fps``, ``args.size``
+    and, where present, ``args.duration`` / ``args.scenario`` (to check the still's time and
+    the video's window against the run's length). Raises :class:`UserError`.
+    """
+    video = getattr(args, "video", None)
+    snapshot = getattr(args, "snapshot", None)
+    fps = getattr(args, "fps", DEFAULT_FPS)
+    if video is not None or snapshot is not None:
+        if not isinstance(fps, (int, float)) or not math.isfinite(fps) or fps <= 0:
+            raise UserError(f"--fps must be a positive number of frames per second, got {fps}")
+        if fps > 1000:
+            raise UserError(f"--fps {fps} is more than 1000 frames per second")
+        w, h = parse_size(getattr(args, "size", "1280x720"))
+        if video is not None:
+            check_output_path(video, (".mp4",), "--video")
+            if w % 2 or h % 2:
+                raise UserError(f"--size {w}x{h}: H.264 video needs an even width and height")
+        if snapshot is not None:
+            check_output_path(snapshot, (".png",), "--snapshot")
+    duration = getattr(args, "duration", None)
+    if duration is None and getattr(args, "scenario", None) is not None and (video or snapshot):
+        from ..scenario import load_scenario
+
+        duration = load_scenario(args.scenario).duration
+    if snapshot is not None:
+        ts = getattr(args, "snapshot_time", DEFAULT_SNAPSHOT_TIME)
+        if ts is None or not math.isfinite(ts) or ts < 0:
+            raise UserError(f"--snapshot-time must be a time >= 0 s, got {ts}")
+        if duration is not None and ts > duration + 1e-9:
+            raise UserError(f"--snapshot-time {ts:g} s is after the end of the run ({duration:g} s); "
+                            f"lower it or raise --duration")
+    start, end = getattr(args, "start", None), getattr(args, "end", None)
+    if start is not None and (not math.isfinite(start) or start < 0):
+        raise UserError(f"--start must be a time >= 0 s, got {start}")
+    if end is not None and (not math.isfinite(end) or end <= (start or 0.0)):
+        raise UserError(f"--end must be after --start, got {end}")
+    if duration is not None and start is not None and start >= duration:
+        raise UserError(f"--start {start:g} s is not before the end of the run ({duration:g} s)")
+
+
+# --------------------------------------------------------------------------- the command
 
 
 def add_parser(sub) -> None:
@@ -38,10 +122,8 @@ def add_parser(sub) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import load_gains
-    from ..errors import UserError
     from ..runner import run
     from ..scenario import load_scenario
-    from ..video import check_output_path, check_video_args, render_outputs
 
     sc = load_scenario(args.scenario)
     if args.duration is not None and not args.duration > 0:
@@ -81,3 +163,30 @@ def main(args: argparse.Namespace) -> int:
         print(f"swarm-mj: error: {result.error} (the video shows what ran)", file=sys.stderr)
         return 1
     return rc
+
+
+def render_outputs(result, args) -> int:
+    """Render what ``args`` asks for (``--video``, ``--snapshot``); returns the exit status.
+
+    Called by ``swarm-mj run`` after the recording is written and by ``swarm-mj video``.
+    A renderer that cannot start raises :class:`RenderError` (one line, exit status 1).
+    """
+    from ..video.encode import render_snapshot, render_video
+
+    size = parse_size(getattr(args, "size", "1280x720"))
+    quiet = bool(getattr(args, "quiet", False))
+    style = VideoStyle.preset(getattr(args, "quality", None) or "high")
+    snapshot = getattr(args, "snapshot", None)
+    video = getattr(args, "video", None)
+    if snapshot:
+        ts = getattr(args, "snapshot_time", DEFAULT_SNAPSHOT_TIME)
+        out = render_snapshot(result, snapshot, time=float(ts), size=size, style=style)
+        if not quiet:
+            print(f"snapshot: {out}  (t = {ts:g} s, {size[0]}x{size[1]})", file=sys.stderr)
+    if video:
+        fps = getattr(args, "fps", DEFAULT_FPS)
+        out = render_video(result, video, fps=fps, size=size, start=getattr(args, "start", None),
+                           end=getattr(args, "end", None), style=style, progress=None if not quiet else False)
+        if not quiet:
+            print(f"video: {out}  ({fps:g} fps, {size[0]}x{size[1]}, H.264)", file=sys.stderr)
+    return 0
