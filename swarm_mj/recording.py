@@ -77,7 +77,8 @@ def _scalars(path: str, times, values: np.ndarray, names: list[str]) -> None:
 
 def write_recording(result, path: str | Path, *, spawn: bool = False, L: float = 0.25,
                     safety_distance: float = 0.8) -> Path:
-    """Write the run's recording to ``path`` (atomically) and return the path."""
+    """Write the run's recording to ``path`` (atomically) and return the path; ``spawn`` then opens
+    it in the desktop viewer where a display exists (else a one-line note, see ``viewer.spawn_note``)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
     log = result.log
@@ -86,8 +87,6 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
     try:
         with rec:
             rr.save(tmp, default_blueprint=blueprint(names))
-            if spawn:
-                rr.spawn(connect=True)
             _log_run(result, names, L, safety_distance)
             rec.flush()
             rr.disconnect()
@@ -97,6 +96,11 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
         tmp.unlink(missing_ok=True)
         raise
     os.replace(tmp, path)
+    if spawn:  # the file first: a viewer that cannot start (no display) never costs the recording
+        import sys
+
+        from .viewer import spawn_note
+        print(spawn_note(path), file=sys.stderr)
     return path
 
 
