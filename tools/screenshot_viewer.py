@@ -113,24 +113,28 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, time
             page.add_init_script(_CAPTURE_HANDLE)
             page.goto(url, timeout=60_000, wait_until="load")
             info["page_loaded_s"] = round(time.monotonic() - t0, 1)
+            # the recording streams in: loaded = the viewer's copy stopped growing (3 polls, 6 s)
             state: dict = {}
+            sizes: list[int] = []
             while time.monotonic() - t0 < timeout:
                 state = page.evaluate(_POLL)
-                if state["state"] in ("recording", "panicked"):
+                if state["state"] == "panicked":
                     break
+                if state["state"] == "recording":
+                    if "recording_seen_s" not in info:
+                        info["recording_seen_s"] = round(time.monotonic() - t0, 1)
+                    sizes.append(state["bytes"])
+                    if len(sizes) >= 3 and len(set(sizes[-3:])) == 1:
+                        break
                 page.wait_for_timeout(2000)
             info["viewer_state"] = state
-            if state.get("state") != "recording":
+            if state.get("state") != "recording" or len(sizes) < 3 or len(set(sizes[-3:])) != 1:
                 page.screenshot(path=str(png))
                 info["error"] = f"the viewer did not load the recording within {timeout:.0f} s: {state}"
                 return info
             info["recording_loaded_s"] = round(time.monotonic() - t0, 1)
-            if page_rrd is not None:
-                data = page.evaluate("() => Array.from(window.__swarm_rerun_handle.save_recording())")
-                Path(page_rrd).write_bytes(bytes(data))
-                info["page_rrd_bytes"] = len(data)
             # rendering on the CPU takes a while: wait for the picture to stop changing
-            prev = page.screenshot()
+            prev = cur = page.screenshot()
             t_settle = time.monotonic()
             while time.monotonic() - t_settle < settle:
                 page.wait_for_timeout(3000)
@@ -141,6 +145,10 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, time
             png.write_bytes(prev)
             info["settled"] = cur == prev
             info["screenshot_s"] = round(time.monotonic() - t0, 1)
+            if page_rrd is not None:  # what the viewer holds as the picture is taken
+                data = page.evaluate("() => Array.from(window.__swarm_rerun_handle.save_recording())")
+                Path(page_rrd).write_bytes(bytes(data))
+                info["page_rrd_bytes"] = len(data)
         finally:
             browser.close()
     return info
