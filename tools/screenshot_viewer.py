@@ -57,6 +57,14 @@ _POLL = """() => {
 }"""
 
 
+_SAVE_B64 = """() => {
+  const b = window.__swarm_rerun_handle.save_recording();
+  let s = "";
+  for (let i = 0; i < b.length; i += 0x8000) s += String.fromCharCode.apply(null, b.subarray(i, i + 0x8000));
+  return btoa(s);
+}"""
+
+
 def region_3d(width: int, height: int) -> tuple[int, int, int, int]:
     """(x0, y0, x1, y1) well inside the 3D view: the blueprint gives it 3/5 of the width, below
     the top bar (~35 px) and above the time panel (~45 px)."""
@@ -95,11 +103,17 @@ def rrd_contents(rrd: str | Path, timeout: float = 60) -> dict:
     return {"rc": out.returncode, "application_ids": apps, "entities": entities}
 
 
-def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, timeout: float = 180,
-          size: tuple[int, int] = (1600, 900), chromium: str = CHROMIUM, settle: float = 60) -> dict:
-    """Open ``url`` in headless Chromium, wait (at most ``timeout`` s) for the viewer to hold a
+def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, expected_bytes: int | None = None,
+          timeout: float = 240, size: tuple[int, int] = (1600, 900), chromium: str = CHROMIUM,
+          settle: float = 60) -> dict:
+    """Open ``url`` in headless Chromium, wait (at most ``timeout`` s) for the viewer to hold the
     recording, then (at most ``settle`` s more) for two screenshots 3 s apart to match; save the
-    last as ``png``. Returns the timings and, with ``page_rrd``, what the page loaded."""
+    last as ``png``. Returns the timings and, with ``page_rrd``, what the page loaded.
+
+    Loaded: the viewer's own encoding of its recording reaches half of ``expected_bytes`` (the
+    served file's size; the viewer's copy measured 97 % of it for circle) and then stops growing
+    for two polls; without ``expected_bytes``, stops growing for five polls (it streams in, and
+    on a busy CPU it can stall for seconds)."""
     from playwright.sync_api import sync_playwright
 
     png = Path(png)
@@ -109,7 +123,12 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, time
         browser = p.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS, timeout=60_000)
         try:
             page = browser.new_page(viewport={"width": size[0], "height": size[1]})
-            page.on("console", lambda m: m.type == "error" and info["console_errors"].append(m.text[:300]))
+            def on_console(m) -> None:  # distinct first lines (offline: fonts and update checks fail)
+                line = m.text.splitlines()[0][:200] if m.text else ""
+                if m.type == "error" and line not in info["console_errors"] and len(info["console_errors"]) < 10:
+                    info["console_errors"].append(line)
+
+            page.on("console", on_console)
             page.add_init_script(_CAPTURE_HANDLE)
             page.goto(url, timeout=60_000, wait_until="load")
             info["page_loaded_s"] = round(time.monotonic() - t0, 1)
@@ -124,11 +143,11 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, time
                     if "recording_seen_s" not in info:
                         info["recording_seen_s"] = round(time.monotonic() - t0, 1)
                     sizes.append(state["bytes"])
-                    if len(sizes) >= 3 and len(set(sizes[-3:])) == 1:
+                    if _loaded(sizes, expected_bytes):
                         break
                 page.wait_for_timeout(2000)
             info["viewer_state"] = state
-            if state.get("state") != "recording" or len(sizes) < 3 or len(set(sizes[-3:])) != 1:
+            if state.get("state") != "recording" or not _loaded(sizes, expected_bytes):
                 page.screenshot(path=str(png))
                 info["error"] = f"the viewer did not load the recording within {timeout:.0f} s: {state}"
                 return info
@@ -146,12 +165,20 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, time
             info["settled"] = cur == prev
             info["screenshot_s"] = round(time.monotonic() - t0, 1)
             if page_rrd is not None:  # what the viewer holds as the picture is taken
-                data = page.evaluate("() => Array.from(window.__swarm_rerun_handle.save_recording())")
-                Path(page_rrd).write_bytes(bytes(data))
+                import base64
+
+                data = base64.b64decode(page.evaluate(_SAVE_B64))
+                Path(page_rrd).write_bytes(data)
                 info["page_rrd_bytes"] = len(data)
         finally:
             browser.close()
     return info
+
+
+def _loaded(sizes: list[int], expected_bytes: int | None) -> bool:
+    if expected_bytes:
+        return len(sizes) >= 3 and sizes[-1] >= 0.5 * expected_bytes and len(set(sizes[-3:])) == 1
+    return len(sizes) >= 5 and len(set(sizes[-5:])) == 1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -161,7 +188,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--url", help="an already served page (default: serve RRD on --port)")
     ap.add_argument("--port", type=int, default=9090, help="web page port; the recording on PORT+1")
     ap.add_argument("--size", default="1600x900", help="viewport WxH (default 1600x900)")
-    ap.add_argument("--timeout", type=float, default=180, help="max wait for the recording (s)")
+    ap.add_argument("--timeout", type=float, default=240, help="max wait for the recording (s)")
     ap.add_argument("--page-rrd", help="also save the recording as the page holds it, and list it")
     ap.add_argument("--chromium", default=CHROMIUM, help=f"browser executable (default {CHROMIUM})")
     a = ap.parse_args(argv)
@@ -172,8 +199,8 @@ def main(argv: list[str] | None = None) -> int:
         info = shoot(a.url, a.output, page_rrd=a.page_rrd, timeout=a.timeout, size=size, chromium=a.chromium)
     else:
         with serve_web(a.rrd, a.port):
-            info = shoot(web_url(a.port), a.output, page_rrd=a.page_rrd, timeout=a.timeout, size=size,
-                         chromium=a.chromium)
+            info = shoot(web_url(a.port), a.output, page_rrd=a.page_rrd, expected_bytes=Path(a.rrd).stat().st_size,
+                         timeout=a.timeout, size=size, chromium=a.chromium)
     if "error" not in info:
         info["screenshot"] = pixel_stats(a.output)
         info["region_3d"] = region_3d(*size)
