@@ -87,7 +87,7 @@ def pixel_stats(png: str | Path, box: tuple[int, int, int, int] | None = None) -
     blue = (b > 150) & (r < 110) & (g < 160) & (b - r > 80)
     flat = img.reshape(-1, 3)
     return {"shape": list(img.shape[:2]), "grey_std": float(img.mean(axis=2).std()),
-            "distinct_colours": int(len(np.unique(flat[:, 0] * 65536 + flat[:, 1] * 256 + flat[:, 2]))),
+            "distinct_colours": len(np.unique(flat[:, 0] * 65536 + flat[:, 1] * 256 + flat[:, 2])),
             "leader_red_fraction": float(red.mean()), "follower_blue_fraction": float(blue.mean())}
 
 
@@ -96,7 +96,7 @@ def rrd_contents(rrd: str | Path, timeout: float = 60) -> dict:
     from swarm_mj.viewer import find_rerun
 
     out = subprocess.run([str(find_rerun()), "rrd", "print", str(rrd)], capture_output=True, text=True,
-                         timeout=timeout)
+                         timeout=timeout, check=False)
     text = out.stdout + out.stderr
     apps = sorted(set(re.findall(r'StoreId\(\s*Recording,\s*"([^"]+)"', text)))
     entities = sorted(set(re.findall(r" - (/[^\s]+) - data columns", text)))
