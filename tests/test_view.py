@@ -380,3 +380,28 @@ def test_browser_loads_the_recording_and_shows_the_drones(tmp_path, chromium):
     print("3D view", view3d)
     assert view3d["grey_std"] > 10, view3d
     assert view3d["leader_red_fraction"] > 1e-3 and view3d["follower_blue_fraction"] > 1e-3, view3d
+
+
+# --------------------------------------------------------------------------- what the 3D view shows
+
+def test_slot_markers_follow_the_logged_slots(small_rrd):
+    """The 3D view draws each slot as a dot under a moving transform (world/slot_markers), so the
+    10-s trails stay visible; the dot must sit on the slot that world/slots logs at every sample."""
+    import numpy as np
+
+    rr = pytest.importorskip("rerun")
+    pytest.importorskip("datafusion")
+    with rr.server.Server(datasets={"ds": [str(small_rrd)]}) as server:
+        client = server.client()
+        df = client.get_dataset("ds").reader(index="sim_time").to_pandas()
+    slots = np.array([np.stack(list(v)).astype(np.float64) for v in df["/world/slots:Points3D:positions"]])
+    assert slots.ndim == 3 and slots.shape[1:] == (5, 3)
+    for j, name in enumerate(DRONES[1:]):
+        tr = np.array([np.stack(list(v)).astype(np.float64)
+                       for v in df[f"/world/slot_markers/{name}:Transform3D:translation"]])[:, 0]
+        np.testing.assert_allclose(tr, slots[:, j], atol=1e-6)
+    from swarm_mj.recording import blueprint
+
+    view3d = blueprint(DRONES).root_container.contents[0]
+    assert isinstance(view3d, rr.blueprint.Spatial3DView)
+    assert "- /world/slots" in view3d.contents and "+ /world/**" in view3d.contents

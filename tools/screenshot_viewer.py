@@ -110,10 +110,9 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, expe
     recording, then (at most ``settle`` s more) for two screenshots 3 s apart to match; save the
     last as ``png``. Returns the timings and, with ``page_rrd``, what the page loaded.
 
-    Loaded: the viewer's own encoding of its recording reaches half of ``expected_bytes`` (the
-    served file's size; the viewer's copy measured 97 % of it for circle) and then stops growing
-    for two polls; without ``expected_bytes``, stops growing for five polls (it streams in, and
-    on a busy CPU it can stall for seconds)."""
+    Loaded: the viewer's own encoding of its recording reaches 90 % of ``expected_bytes`` (the
+    served file's size; the viewer's copy measured 97 % of it for circle) and holds for one poll,
+    or stops growing for ten polls (it streams in, and on a busy CPU it can stall for seconds)."""
     from playwright.sync_api import sync_playwright
 
     png = Path(png)
@@ -176,9 +175,10 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, expe
 
 
 def _loaded(sizes: list[int], expected_bytes: int | None) -> bool:
-    if expected_bytes:
-        return len(sizes) >= 3 and sizes[-1] >= 0.5 * expected_bytes and len(set(sizes[-3:])) == 1
-    return len(sizes) >= 5 and len(set(sizes[-5:])) == 1
+    """Reached 90 % of the file's size and steady for two polls, or steady for ten polls (20 s)."""
+    if expected_bytes and len(sizes) >= 2 and sizes[-1] >= 0.9 * expected_bytes and sizes[-1] == sizes[-2]:
+        return True
+    return len(sizes) >= 10 and len(set(sizes[-10:])) == 1
 
 
 def main(argv: list[str] | None = None) -> int:
