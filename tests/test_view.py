@@ -405,3 +405,24 @@ def test_slot_markers_follow_the_logged_slots(small_rrd):
     view3d = blueprint(DRONES).root_container.contents[0]
     assert isinstance(view3d, rr.blueprint.Spatial3DView)
     assert "- /world/slots" in view3d.contents and "+ /world/**" in view3d.contents
+
+
+def test_pixel_stats_tell_a_drone_from_an_empty_view(tmp_path):
+    """The browser test's measure can fail: an empty (white) 3D view has no variance and none of
+    the drones' colours; a patch of the leader's red and the followers' blue is counted."""
+    import numpy as np
+    from PIL import Image
+
+    tool = _load_tool()
+    img = np.full((100, 200, 3), 255, np.uint8)
+    Image.fromarray(img).save(tmp_path / "white.png")
+    s = tool.pixel_stats(tmp_path / "white.png")
+    assert s["grey_std"] == 0 and s["leader_red_fraction"] == 0 and s["follower_blue_fraction"] == 0
+    img[10:20, 10:30] = (220, 40, 40)                 # 200 px of recording.LEADER_COLOR
+    img[50:60, 100:150] = (40, 110, 220)              # 500 px of recording.FOLLOWER_COLOR
+    Image.fromarray(img).save(tmp_path / "drones.png")
+    s = tool.pixel_stats(tmp_path / "drones.png")
+    assert s["leader_red_fraction"] == pytest.approx(200 / 20000)
+    assert s["follower_blue_fraction"] == pytest.approx(500 / 20000)
+    box = tool.pixel_stats(tmp_path / "drones.png", (0, 0, 100, 100))   # only the red patch inside
+    assert box["shape"] == [100, 100] and box["follower_blue_fraction"] == 0 and box["leader_red_fraction"] > 0
