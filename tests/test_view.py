@@ -44,9 +44,9 @@ def free_port_pair(preferred: int = 9099) -> int:
     for p in candidates:
         try:
             viewer.check_port(p)
-            return p
-        except Exception:
+        except viewer.UserError:
             continue
+        return p
     pytest.skip("no free pair of local ports")
 
 
@@ -86,7 +86,7 @@ def wait_for_url(proc: subprocess.Popen, timeout: float = HANG_GUARD_S) -> str:
         if not line and proc.poll() is not None:
             break
     proc.kill()
-    out, err = proc.communicate(timeout=30)
+    _, err = proc.communicate(timeout=30)
     pytest.fail(f"no URL printed (rc {proc.returncode}): {err[-2000:]}")
 
 
