@@ -14,7 +14,7 @@ import sys
 from . import __version__
 from .errors import SwarmError
 
-COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report"]
+COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report", "view"]
 
 
 def build_parser() -> argparse.ArgumentParser:

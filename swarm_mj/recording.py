@@ -7,7 +7,11 @@ Entities, on the ``sim_time`` timeline:
   its safety circle (``.../safety``, radius D̄/2 so two circles touch at the safety distance);
 * ``world/trails/<name>``: the position as a point per sample (the blueprint shows the
   last 10 s as a trail);
-* ``world/reference``: the leader's reference path (static); ``world/slots``: formation slots;
+* ``world/reference``: the leader's reference path (static); ``world/slots``: formation slots,
+  all five per sample (the data); ``world/slot_markers/<follower>``: the same slot as a moving
+  transform with a green dot under it, which is what the 3D view shows (a transform is drawn at
+  the time cursor only, so the slot is a dot where the follower should be, not a 10-s smear
+  that would hide the trails);
 * ``plots/error/<name>``: position errors (x, y, z); ``plots/U/<name>``: U1..U4;
   ``plots/rotors/<name>``: F1..F4; ``plots/distance/leader/<follower>`` and
   ``plots/distance/followers/<fi>_<fj>`` (paper Fig. 14); ``plots/wind/speed`` and
@@ -33,12 +37,16 @@ FOLLOWER_COLOR = [40, 110, 220]
 
 
 def blueprint(names: list[str]) -> rrb.Blueprint:
-    """3D view beside the plots, so the file opens ready to read."""
+    """3D view beside the plots, so the file opens ready to read: the swarm with 10-s trails,
+    the current slots (``world/slot_markers``), the reference path and the safety circles; the
+    position errors and the distances (paper Fig. 14) on the right, U1..U4, rotor thrusts, wind
+    and anti-collision events in tabs below them."""
     trail = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
                                  end=rrb.TimeRangeBoundary.cursor_relative())
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="/world", name="swarm", contents=["/world/**"], time_ranges=[trail]),
+            rrb.Spatial3DView(origin="/world", name="swarm", contents=["+ /world/**", "- /world/slots"],
+                              time_ranges=[trail]),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="/plots/error", name="position error (m)"),
                 rrb.TimeSeriesView(origin="/plots/distance", name="distances (m, Fig. 14)"),
@@ -77,7 +85,8 @@ def _scalars(path: str, times, values: np.ndarray, names: list[str]) -> None:
 
 def write_recording(result, path: str | Path, *, spawn: bool = False, L: float = 0.25,
                     safety_distance: float = 0.8) -> Path:
-    """Write the run's recording to ``path`` (atomically) and return the path."""
+    """Write the run's recording to ``path`` (atomically) and return the path; ``spawn`` then opens
+    it in the desktop viewer where a display exists (else a one-line note, see ``viewer.spawn_note``)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
     log = result.log
@@ -86,8 +95,6 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
     try:
         with rec:
             rr.save(tmp, default_blueprint=blueprint(names))
-            if spawn:
-                rr.spawn(connect=True)
             _log_run(result, names, L, safety_distance)
             rec.flush()
             rr.disconnect()
@@ -97,6 +104,11 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
         tmp.unlink(missing_ok=True)
         raise
     os.replace(tmp, path)
+    if spawn:  # the file first: a viewer that cannot start (no display) never costs the recording
+        import sys
+
+        from .viewer import spawn_note
+        print(spawn_note(path), file=sys.stderr)
     return path
 
 
@@ -135,6 +147,11 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
         rr.log("/world/slots", rr.Points3D.from_fields(colors=[[60, 200, 90]], radii=[0.03]), static=True)
         rr.send_columns("/world/slots", indexes=[times],
                         columns=rr.Points3D.columns(positions=slots.reshape(-1, 3)).partition([n_f] * len(t)))
+        for j in range(n_f):
+            marker = f"/world/slot_markers/{names[j + 1]}"
+            rr.log(f"{marker}/dot", rr.Points3D([[0.0, 0.0, 0.0]], colors=[[60, 200, 90]], radii=[0.06]),
+                   static=True)
+            rr.send_columns(marker, indexes=[times], columns=rr.Transform3D.columns(translation=slots[:, j]))
         ld = leader_distances(log.pos)
         for j in range(n_f):
             _scalars(f"/plots/distance/leader/{names[j + 1]}", times, ld[:, j:j + 1], [f"L-{names[j + 1]}"])

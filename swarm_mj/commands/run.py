@@ -16,7 +16,8 @@ def add_parser(sub) -> None:
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("-o", "--output", help="recording path (default: ./NAME.rrd)")
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
-    p.add_argument("--spawn", action="store_true", help="also open the Rerun viewer")
+    p.add_argument("--spawn", action="store_true",
+                   help="also open the desktop Rerun viewer (without a display: a note, the recording kept)")
     p.add_argument("--summary", metavar="PATH", help="write the summary as JSON")
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
@@ -28,6 +29,8 @@ def add_parser(sub) -> None:
     p.add_argument("--fps", type=int, default=30, help="video frame rate (default 30)")
     p.add_argument("--size", default="1280x720", help="video size WxH (default 1280x720)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
+    from .view import add_web_arguments
+    add_web_arguments(p)  # --web, --port: serve the recording to a browser after the run
     p.set_defaults(func=main)
 
 
@@ -80,15 +83,23 @@ def main(args: argparse.Namespace) -> int:
     if args.video or args.snapshot:
         from ..video import check_video_args
         check_video_args(args)
+    if args.web:
+        from ..viewer import check_port
+        if args.no_record:
+            raise UserError("--web serves the recording: it cannot go with --no-record")
+        check_port(args.port)  # before flying; checked again when the server starts
     result = run(sc, anti_collision=args.anti_collision, seed=args.seed,
                  progress=None if not args.quiet else False, duration=args.duration)
     rc = 0
+    out = None
     if not args.no_record:
         out = Path(args.output) if args.output else Path(f"{sc.name}.rrd")
-        write_recording(result, out, spawn=args.spawn,
-                        safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
+        write_recording(result, out, safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
         if not args.quiet:
-            print(f"recording: {out}  (open with: rerun {out})", file=sys.stderr)
+            print(f"recording: {out}  (open with: swarm-mj view {out})", file=sys.stderr)
+        if args.spawn:  # after the file is complete, so that the recording is kept whatever happens
+            from ..viewer import spawn_note
+            print(spawn_note(out), file=sys.stderr)
     if args.summary:
         write_json_atomic(args.summary, result.summary)
     if not args.quiet:
@@ -98,8 +109,23 @@ def main(args: argparse.Namespace) -> int:
             print("swarm-mj: interrupted; the recording holds what ran", file=sys.stderr)
             return 130
         print(f"swarm-mj: error: {result.error} (the recording holds what ran)", file=sys.stderr)
-        return 1
+        return _serve(args, out, 1)
     if args.video or args.snapshot:
         from ..video import render_outputs
         rc = render_outputs(result, args)
-    return rc
+    return _serve(args, out, rc)
+
+
+def _serve(args: argparse.Namespace, out: Path | None, rc: int) -> int:
+    """``--web``: serve the recording until Ctrl-C (exit 130), or ``rc`` when the run failed."""
+    if not args.web:
+        return rc
+    from ..viewer import serve_until_interrupted
+    try:
+        served = serve_until_interrupted(out, args.port)
+    except KeyboardInterrupt:
+        if rc:  # the run's own failure is the exit status
+            print("swarm-mj: stopped the web viewer", file=sys.stderr)
+            return rc
+        raise
+    return rc or served
