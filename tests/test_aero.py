@@ -430,3 +430,31 @@ def test_ground_contacts_monitor_ignores_resting_start():
     sim.step(np.zeros((2, 4)))
     assert mon.in_contact.all() and not mon.airborne.any() and mon.ground_contacts == 0
     assert isinstance(sim.force_stages[1], GroundEffectStage)
+
+
+def test_recording_holds_aero_forces_and_jets(tmp_path):
+    """Rerun: each drone's downwash and ground-effect force as time series equal to the run's log, and
+    its jet drawn under it with a scale that follows its thrust."""
+    rr = pytest.importorskip("rerun")
+    pytest.importorskip("datafusion")
+    from swarm_mj.recording import write_recording
+    from swarm_mj.runner import run
+
+    res = run(with_aero(load_scenario("anti_collision"), "realistic"), progress=False, duration=3.0)
+    assert res.error is None
+    out = write_recording(res, tmp_path / "a.rrd")
+    with rr.server.Server(datasets={"ds": [str(out)]}) as server:
+        client = server.client()          # keep every object alive until the query has run
+        dataset = client.get_dataset("ds")
+        df = dataset.reader(index="sim_time").to_pandas()
+    log = res.log
+    assert np.abs(log.downwash).max() > 0.05 and np.abs(log.ground_effect).max() > 0.05
+    for i, name in enumerate(log.names):
+        dw = np.array([np.asarray(v, float) for v in df[f"/plots/aero/downwash/{name}:Scalars:scalars"]])
+        ge = np.array([np.asarray(v, float) for v in df[f"/plots/aero/ground_effect/{name}:Scalars:scalars"]])
+        np.testing.assert_allclose(dw, log.downwash[:, i], atol=1e-6)
+        np.testing.assert_allclose(ge, log.ground_effect[:, i], atol=1e-6)
+        scale = np.array([np.stack(list(v)).astype(float).ravel() for v in
+                          df[f"/world/drones/{name}/jet:Transform3D:scale"]])
+        np.testing.assert_allclose(scale[:, 0], np.clip(log.rotor[:, i].sum(axis=1) / (P.m * P.g), 0, 3),
+                                   rtol=1e-6, atol=1e-6)
