@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 
 from .errors import SimulationDiverged, UserError
-from .kernels import drag_kernel, saturate_kernel, state_ok, unmix_kernel
+from .kernels import drag_kernel, flush_stage_forces, saturate_kernel, state_ok, unmix_kernel
 from .mixing import _MIX_T, _UNMIX_T
 from .world import World
 
@@ -114,6 +114,8 @@ class Sim:
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
         self.rotor_command[:] = 0.0
+        self._stage_force[:] = 0.0
+        self._stage_torque[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         for stage in self.force_stages:
             stage.reset(self)
@@ -143,13 +145,10 @@ class Sim:
             if lag:
                 unmix_kernel(self._act, _UNMIX_T, self.rotor_thrust)     # produced rotor thrusts
             if stages:
-                f, tq = self._stage_force, self._stage_torque
-                f[:] = 0.0
-                tq[:] = 0.0
+                f, tq = self._stage_force, self._stage_torque          # zero here (flushed each step)
                 for stage in stages:
                     stage.apply(self, f, tq)
-                xf += f
-                self._xfrc_torque[:] = tq
+                flush_stage_forces(xf, self._xfrc_torque, f, tq)        # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()

@@ -104,14 +104,19 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
             drone.actuator.add("general", name=act, site=site, gear=gear, dyntype="filter",
                                dynprm=[float(motor_tau)], gainprm=[1.0], biastype="none")
     if ground:
-        # Landing legs (docs/aero.md): they touch only the floor (contype 2 / conaffinity 0; the
-        # floor has conaffinity 3), so drone-drone contacts stay the paper's.
+        # Landing legs (docs/aero.md) touch only the floor: collision bit 4 (the floor has contype 4,
+        # the legs conaffinity 4 and contype 0). The rotor disc (the drone's outline) also gets
+        # conaffinity bit 4, so that a tilted drone hits the floor with it; drone-drone pairs are
+        # unchanged (bit 1), and the floor is tested against 5 geoms per drone, not all of them.
         from .aero.ground import LEG_BOTTOM, LEG_RADIUS, LEG_TOP, LEG_XY
 
         body = drone.find("body", "body")
         for k, (x, y) in enumerate(LEG_XY, start=1):
             body.add("geom", name=f"leg{k}", type="capsule", fromto=[x, y, LEG_TOP, x, y, LEG_BOTTOM],
-                     size=[LEG_RADIUS], contype=2, conaffinity=0, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+                     size=[LEG_RADIUS], contype=0, conaffinity=4, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+        disc = drone.find("geom", "rotor_plane")
+        if disc is not None:
+            disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
     for geom in drone.find_all("geom"):
         if geom.name in ("hub",):
             geom.rgba = list(rgba)
@@ -197,10 +202,10 @@ def build_world(
     arena.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=[0.55, 0.7, 0.9],
                     rgb2=[0.95, 0.97, 1.0], width=256, height=256)
     if ground:
-        # A solid floor (aero presets with ground = true, docs/aero.md): it touches every drone geom
-        # (contype 1) and the landing legs (contype 2).
+        # A solid floor (aero presets with ground = true, docs/aero.md): it touches each drone's rotor
+        # disc and landing legs (collision bit 4, see _drone_mjcf).
         arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
-                            contype=2, conaffinity=3, group=0)
+                            contype=4, conaffinity=0, group=0)
     elif floor:
         # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
         # and a drone below the floor is reported as a divergence by the simulator.

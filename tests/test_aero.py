@@ -309,13 +309,24 @@ def test_paper_preset_has_no_lag_legs_or_solid_floor():
     wr = build_world(2, ground=True, motor_tau=0.02)
     assert wr.model.na == 8
     assert wr.model.ngeom == w.model.ngeom + 8             # four legs per drone
-    # the legs never touch another drone: drone-drone geometry is the paper's
-    legs = [mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, f"leader/leg{k}") for k in range(1, 5)]
-    drone_geoms = np.flatnonzero(wr.model.geom_contype == 1)
-    for g in legs:
-        for h in drone_geoms:
-            assert not (wr.model.geom_contype[g] & wr.model.geom_conaffinity[h]
-                        or wr.model.geom_contype[h] & wr.model.geom_conaffinity[g])
+    # drone-drone geometry is the paper's: the same pairs of geoms of two drones can collide, and the
+    # legs touch only the floor
+    def collide(m, g, h):
+        return bool(m.geom_contype[g] & m.geom_conaffinity[h] or m.geom_contype[h] & m.geom_conaffinity[g])
+
+    def pairs(m):
+        gd = np.full(m.ngeom, -1)
+        for k, name in enumerate(("leader", "follower1")):
+            gd[m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{name}/body")] = k
+        return {(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, h))
+                for g in np.flatnonzero(gd == 0) for h in np.flatnonzero(gd == 1) if collide(m, g, h)}
+
+    assert pairs(wr.model) == pairs(w.model) and len(pairs(w.model)) == 9
+    floor_r = mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    touching = {mujoco.mj_id2name(wr.model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(wr.model.ngeom)
+                if collide(wr.model, floor_r, g)}
+    assert touching == {f"{d}/{g}" for d in ("leader", "follower1")
+                        for g in ("rotor_plane", "leg1", "leg2", "leg3", "leg4")}
 
 
 # ------------------------------------------------------------------ the solid ground
