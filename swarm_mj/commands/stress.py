@@ -87,7 +87,9 @@ def summarize_rule(rows: list[dict]) -> dict:
             "settling_median_s": float(np.median(settle)) if len(settle) else float("nan"),
             "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
             "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
-            "stopped": [r["seed"] for r in rows if r["stopped"]]}
+            "stopped": [r["seed"] for r in rows if r["stopped"]],
+            "crashes": sum(r.get("crashes", 0) for r in rows),
+            "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows)}
 
 
 def stress(rules: list[str], starts: int, followers: int, radius: float, min_spacing: float,
