@@ -392,6 +392,8 @@ def test_aero_table_and_overrides():
             parse_aero(bad)
     sc = load_scenario("circle")
     assert sc.aero.is_paper
+    with pytest.raises(UserError, match="aero.motor_tau"):          # shorter than the physics step
+        parse_scenario(dict(sc.raw, aero={"motor_tau": 0.001}), "<t>")
     data = dict(sc.raw, aero={"model": "realistic", "ground_effect": False})
     sc2 = parse_scenario(data, "<t>")
     sc3 = with_aero(sc2, "paper")                     # --aero keeps the scenario's own overrides
