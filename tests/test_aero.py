@@ -471,3 +471,19 @@ def test_recording_holds_aero_forces_and_jets(tmp_path):
                           df[f"/world/drones/{name}/jet:Transform3D:scale"]])
         np.testing.assert_allclose(scale[:, 0], np.clip(log.rotor[:, i].sum(axis=1) / (P.m * P.g), 0, 3),
                                    rtol=1e-6, atol=1e-6)
+
+
+def test_tilted_touchdown_is_a_crash_even_when_slow():
+    """A drone tilted 40° dropped 3 cm onto its rotor disc's edge: touchdown at ~0.7 m/s (below the
+    1 m/s bar) but tilted more than 30°, so a crash."""
+    cfg = parse_aero({"ground": True})
+    a = np.deg2rad(40.0)
+    sim = _sim([[0, 0, 0.2]], cfg=cfg, quats=np.array([[np.cos(a / 2), np.sin(a / 2), 0.0, 0.0]]))
+    lowest = 0.25 * np.sin(a) + 0.015 * np.cos(a) - 0.01 * np.cos(a)    # disc edge below the CoM
+    for _ in range(50):
+        sim.step(np.zeros((1, 4)))
+    mon = sim.monitors[0]
+    assert mon.ground_contacts == 1 and mon.crashes == 1
+    t, i, speed, tilt, crash = mon.log[0]
+    assert speed == pytest.approx(np.sqrt(2 * P.g * (0.2 - lowest)), rel=0.1) and speed < 1.0
+    assert tilt == pytest.approx(40.0, abs=1.0) and crash
