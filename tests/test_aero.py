@@ -484,6 +484,6 @@ def test_tilted_touchdown_is_a_crash_even_when_slow():
         sim.step(np.zeros((1, 4)))
     mon = sim.monitors[0]
     assert mon.ground_contacts == 1 and mon.crashes == 1
-    t, i, speed, tilt, crash = mon.log[0]
+    _t, _i, speed, tilt, crash = mon.log[0]
     assert speed == pytest.approx(np.sqrt(2 * P.g * (0.2 - lowest)), rel=0.1) and speed < 1.0
     assert tilt == pytest.approx(40.0, abs=1.0) and crash
