@@ -300,7 +300,7 @@ def test_motor_lag_step_response(tau):
     np.testing.assert_allclose(sim.rotor_command[0], F, rtol=1e-12)
 
 
-def test_paper_preset_has_no_lag_legs_or_solid_floor():
+def test_paper_preset_has_no_lag_landing_gear_or_solid_floor():
     w = build_world(2)
     assert w.model.na == 0
     floor = mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
@@ -308,9 +308,9 @@ def test_paper_preset_has_no_lag_legs_or_solid_floor():
     assert w.xml == build_world(2, ground=False, motor_tau=0.0).xml
     wr = build_world(2, ground=True, motor_tau=0.02)
     assert wr.model.na == 8
-    assert wr.model.ngeom == w.model.ngeom + 8             # four legs per drone
+    assert wr.model.ngeom == w.model.ngeom + 4             # a strut and a skid per drone
     # drone-drone geometry is the paper's: the same pairs of geoms of two drones can collide, and the
-    # legs touch only the floor
+    # landing gear touches only the floor
     def collide(m, g, h):
         return bool(m.geom_contype[g] & m.geom_conaffinity[h] or m.geom_contype[h] & m.geom_conaffinity[g])
 
@@ -325,8 +325,7 @@ def test_paper_preset_has_no_lag_legs_or_solid_floor():
     floor_r = mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
     touching = {mujoco.mj_id2name(wr.model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(wr.model.ngeom)
                 if collide(wr.model, floor_r, g)}
-    assert touching == {f"{d}/{g}" for d in ("leader", "follower1")
-                        for g in ("rotor_plane", "leg1", "leg2", "leg3", "leg4")}
+    assert touching == {f"{d}/{g}" for d in ("leader", "follower1") for g in ("rotor_plane", "skid")}
 
 
 # ------------------------------------------------------------------ the solid ground
@@ -340,7 +339,7 @@ def test_ground_holds_a_drone_at_rest_with_zero_thrust():
     for _ in range(300):                                   # 3 s
         sim.step(U)
         sim.check()
-    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3          # resting on its legs (contact compliance: mm)
+    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3          # resting on its skid (contact compliance: mm)
     assert np.abs(sim.vel).max() < 1e-3
     assert 1 - 2 * (sim.quat[0, 1] ** 2 + sim.quat[0, 2] ** 2) > np.cos(np.deg2rad(0.5))
     mon = sim.monitors[0]
