@@ -486,3 +486,27 @@ def test_tilted_touchdown_is_a_crash_even_when_slow():
     _t, _i, speed, tilt, crash = mon.log[0]
     assert speed == pytest.approx(np.sqrt(2 * P.g * (0.2 - lowest)), rel=0.1) and speed < 1.0
     assert tilt == pytest.approx(40.0, abs=1.0) and crash
+
+
+def test_compiled_kernels_equal_their_numpy_source():
+    """The Numba-compiled stages compute what their plain-Python source computes (SWARM_MJ_NO_JIT=1)."""
+    from swarm_mj.aero.downwash import downwash_kernel
+    from swarm_mj.aero.ground_effect import ground_effect_kernel
+
+    if not hasattr(downwash_kernel, "py_func"):
+        pytest.skip("numba not in use")
+    rng = np.random.default_rng(3)
+    N = 8
+    pos = rng.uniform(-1, 1, (N, 3)) + [0, 0, 1.0]
+    quat = rng.normal(size=(N, 4)) * [1, 0.2, 0.2, 1]
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    thrust = rng.uniform(0, 2, (N, 4))
+    for fn, args in ((downwash_kernel, (pos, quat, thrust, 4, 0.25, 1.225, 0.09, 0.018, 0.01, 0.09)),
+                     (ground_effect_kernel, (pos, quat, thrust, 0.25, 0.02, 0.09, 0.045))):
+        a = [np.zeros((N, 3)) for _ in range(4)]
+        b = [np.zeros((N, 3)) for _ in range(4)]
+        fn(*args, *a)
+        fn.py_func(*args, *b)
+        for x, y in zip(a, b):
+            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-15)
+        assert np.abs(a[0]).max() > 0
