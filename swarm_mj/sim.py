@@ -5,8 +5,9 @@ drone body (world frame, at the centre of mass):
 
     F = −(Kx·ẋ, Ky·ẏ, Kz·ż) + F_ext          (paper eq. 1 drag; wind F^w of eq. 37)
 
-The drag uses the velocity at the start of that physics step, i.e. it is refreshed
-every physics step (twice per 10-ms control period at the 5-ms default) and held
+plus, under an aerodynamic preset (docs/aero.md), the force and torque of each of
+``force_stages`` (downwash, ground effect). The drag uses the velocity at the start of that
+physics step, i.e. it is refreshed every physics step (twice per 10-ms control period at the 5-ms default) and held
 over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
 for the whole control period: a zero-order hold (SPEC §2).
 
