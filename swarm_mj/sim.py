@@ -7,8 +7,8 @@ drone body (world frame, at the centre of mass):
 
 plus, under an aerodynamic preset (docs/aero.md), the force and torque of each of
 ``force_stages`` (downwash, ground effect). The drag uses the velocity at the start of that
-physics step, i.e. it is refreshed every physics step (twice per 10-ms control period at the 5-ms default) and held
-over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
+physics step, i.e. it is refreshed every physics step (twice per 10-ms control period at the
+5-ms default) and held over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
 for the whole control period: a zero-order hold (SPEC §2).
 
 State arrays are views into MjData with the drone axis first:
