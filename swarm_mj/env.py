@@ -57,6 +57,8 @@ import numpy as np
 from dm_env import specs
 
 from ._jit import jit
+from .aero.ground import rest_positions
+from .aero.presets import install as install_aero
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
@@ -96,6 +98,8 @@ class StepRecord:
     vel_d: np.ndarray | None       # (n, 3)
     acc_d: np.ndarray | None       # (n, 3)
     att_d: np.ndarray | None       # (n, 3) commanded (φ_d, θ_d, ψ_d)
+    aero_forces: dict[str, np.ndarray] | None = None   # name -> (n, 3) force of each extra stage (N),
+    #                                                    over the period's last physics step (docs/aero.md)
 
 
 @jit(samples=lambda: [(np.zeros((2, 4)),)])
@@ -147,10 +151,15 @@ class SwarmEnv(dm_env.Environment):
         self.names = sc.names
         self.T = sc.control_period
         self.n_steps = int(round(sc.duration / self.T))
-        self.world = build_world(n, positions=sc.initial_positions(), names=sc.names,
+        aero = sc.aero
+        starts = sc.initial_positions() if not aero.ground else rest_positions(sc.initial_positions())
+        self.world = build_world(n, positions=starts, names=sc.names,
                                  yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
-                                 timestep=sc.timestep, integrator=sc.integrator)
+                                 timestep=sc.timestep, integrator=sc.integrator,
+                                 ground=aero.ground, motor_tau=aero.motor_tau)
         self.sim = Sim(self.world, self.T)
+        if not aero.is_paper:
+            install_aero(self.sim, aero)      # downwash, ground effect, ground contacts (docs/aero.md)
         self.params = self.world.params
         # Leader reference, precomputed at every control instant (analytic, docs/interpretations.md §3).
         self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)
@@ -219,7 +228,8 @@ class SwarmEnv(dm_env.Environment):
         self.sim.step(U, force)
         sim = self.sim
         self.last_applied = StepRecord(t, sim.ctrl.copy(), sim.rotor_thrust.copy(), force,
-                                       *(refs if refs is not None else (None, None, None, None)))
+                                       *(refs if refs is not None else (None, None, None, None)),
+                                       aero_forces=sim.stage_forces())
         self.k += 1
         diverged = None
         try:

@@ -20,11 +20,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ._jit import warm_up
+from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
 from .metrics import formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
+from .progress import Progress
 from .scenario import Scenario, load_scenario
 
 __all__ = ["PAPER_FORMATION_SETTLING_S", "PAPER_STEP", "PAPER_TABLE5", "Progress", "RunLog", "RunResult", "run",
@@ -49,13 +51,15 @@ class RunLog:
     wind_speed: np.ndarray   # (k, 3)
     wind_force: np.ndarray   # (k, n, 3) applied wind force over the following period
     D: np.ndarray            # (k,)
+    downwash: np.ndarray | None = None       # (k, n, 3) downwash force on each drone (docs/aero.md), N
+    ground_effect: np.ndarray | None = None  # (k, n, 3) ground-effect force on each drone, N
 
     @classmethod
     def allocate(cls, names: list[str], k: int) -> "RunLog":
         n = len(names)
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
         return cls(names, z(k), z(k, n, 3), z(k, n, 3), z(k, n, 4), z(k, n, 3), z(k, n, 3), z(k, n, 3),
-                   z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k))
+                   z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k), z(k, n, 3), z(k, n, 3))
 
     def observe(self, k: int, obs: dict, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
         """Sample k from the observation and the command computed from it (before the step)."""
@@ -75,11 +79,19 @@ class RunLog:
         self.U[k] = rec.U
         self.rotor[k] = rec.rotor_thrust
         self.wind_force[k] = rec.wind_force
+        if rec.aero_forces:
+            if "downwash" in rec.aero_forces:
+                self.downwash[k] = rec.aero_forces["downwash"]
+            if "ground_effect" in rec.aero_forces:
+                self.ground_effect[k] = rec.aero_forces["ground_effect"]
 
     def truncated(self, k: int) -> "RunLog":
-        return RunLog(self.names, *(getattr(self, f)[:k] for f in
-                                    ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor",
-                                     "wind_speed", "wind_force", "D")))
+        log = RunLog(self.names, *(getattr(self, f)[:k] for f in
+                                   ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor",
+                                    "wind_speed", "wind_force", "D")))
+        log.downwash = None if self.downwash is None else self.downwash[:k]
+        log.ground_effect = None if self.ground_effect is None else self.ground_effect[:k]
+        return log
 
 
 @dataclass
@@ -93,39 +105,16 @@ class RunResult:
     extra: dict = field(default_factory=dict)
 
 
-class Progress:
-    """A one-line progress bar on stderr (quiet when not a terminal unless forced)."""
-
-    def __init__(self, total: int, label: str, enabled: bool | None = None) -> None:
-        self.total, self.label = total, label
-        self.enabled = sys.stderr.isatty() if enabled is None else enabled
-        self._last = -1
-        self._t0 = _time.perf_counter()
-
-    def update(self, k: int) -> None:
-        if not self.enabled:
-            return
-        pct = int(100 * k / max(self.total, 1))
-        if pct != self._last:
-            self._last = pct
-            bar = "#" * (pct // 4) + "-" * (25 - pct // 4)
-            el = _time.perf_counter() - self._t0
-            sys.stderr.write(f"\r{self.label} [{bar}] {pct:3d}%  {el:5.1f} s")
-            sys.stderr.flush()
-
-    def close(self) -> None:
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
-
-
 def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_collision: str | None = None,
-        seed: int | None = None, progress: bool | None = None, duration: float | None = None) -> RunResult:
+        seed: int | None = None, progress: bool | None = None, duration: float | None = None,
+        aero: str | None = None) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
+    aero: a physics preset (``"paper"``, ``"realistic"``; docs/aero.md) replacing the scenario's.
     Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = with_aero(sc, aero)
     if duration is not None:
         sc = sc.with_overrides(duration=float(duration))
     if gains is not None:
@@ -139,6 +128,8 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps
     log = RunLog.allocate(env.names, K + 1)
+    log.downwash[:] = 0.0          # zero under the paper's model (no such stage)
+    log.ground_effect[:] = 0.0
     bar = Progress(K, sc.name, progress)
     error: BaseException | None = None
     wall0 = _time.perf_counter()
@@ -172,6 +163,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)
         log.U[k], log.rotor[k] = log.U[k - 1], log.rotor[k - 1]
+        log.downwash[k], log.ground_effect[k] = log.downwash[k - 1], log.ground_effect[k - 1]
         log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
     log = log.truncated(max(n_samples, 1))
     summary = summarize(sc, log, env, policy, wall)
@@ -235,6 +227,13 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["drones"][name] = d
     out["contacts"] = int(env.sim.contact_events)
     out["contact_steps"] = int(env.sim.contact_steps)
+    # Ground contacts and crashes (docs/aero.md); 0 when the preset has no solid ground.
+    ground = next((m for m in getattr(env.sim, "monitors", []) if getattr(m, "name", "") == "ground"), None)
+    out["aero"] = sc.aero.to_dict()
+    out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
+    out["crashes"] = int(ground.crashes) if ground is not None else 0
+    if log.downwash is not None and len(t):
+        out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos)
         out["min_separation_m"] = sep

@@ -14,7 +14,9 @@
       :class:`WindStage` (the wind force F^w of eq. 37, held over the control period), then any
       extra stage in the order given; the sum goes to ``xfrc_applied``;
    b. ``mujoco.mj_step``;
-   c. **contacts** between drones (rising edges counted, :attr:`Sim.contact_log`);
+   c. **contacts** between drones (rising edges counted, :attr:`Sim.contact_log`), then the
+      **monitors** (:class:`Monitor`, e.g. the ground contacts and crashes of
+      :class:`swarm_mj.aero.ground.GroundContacts`), each reading the state after the step;
 
 3. the **health mask** (:meth:`Sim.health`): per copy, a non-finite state, a drone below
    ``floor_z`` or beyond ``max_distance`` (optionally tilted beyond ``max_tilt``), or a new
@@ -53,6 +55,16 @@ HEALTH_NAMES = {HEALTHY: "healthy", NON_FINITE: "non-finite state", BELOW_FLOOR:
 #: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
 DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                        mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADCTRL)
+
+
+class Monitor(Protocol):
+    """Reads the state after every physics step (never writes it): counters such as ground contacts."""
+
+    name: str
+
+    def reset(self, sim: "Sim") -> None: ...
+
+    def after_step(self, sim: "Sim") -> None: ...
 
 
 class ForceStage(Protocol):
@@ -139,6 +151,30 @@ def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.
             out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
 
 
+@jit(samples=lambda: [(np.zeros((5, 6))[1::2, 0:3], np.zeros((5, 6))[1::2, 3:6], np.zeros((2, 3)),
+                       np.zeros((2, 3)))])
+def flush_stage_forces(xf: np.ndarray, xtorque: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+    """xf (N, 3) += force, xtorque (N, 3) = torque (the extra stages' sum of one physics step), then
+    force and torque back to zero for the next step."""
+    for i in range(force.shape[0]):
+        for c in range(3):
+            xf[i, c] += force[i, c]
+            xtorque[i, c] = torque[i, c]
+            force[i, c] = 0.0
+            torque[i, c] = 0.0
+
+
+@jit(samples=lambda: [(np.zeros((2, 4)), np.eye(4), np.zeros((2, 4)))])
+def unmix_kernel(U: np.ndarray, unmix_t: np.ndarray, F_out: np.ndarray) -> None:
+    """F_out (N, 4) = U (N, 4) · UNMIXᵀ: rotor thrusts F1..F4 of the wrench U1..U4 (eqs. 26–29)."""
+    for i in range(U.shape[0]):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = f
+
+
 @jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)))])
 def add_drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, force: np.ndarray) -> None:
     """force (N, 3) += −K·v (N, 3): the linear drag of paper eq. (1)."""
@@ -206,11 +242,12 @@ class Sim:
 
     world: N drones = ``n_copies`` copies of n = N / n_copies drones, copy-major.
     force_stages: extra :class:`ForceStage` s, applied after drag and wind (also :meth:`add_stage`).
+    monitors: :class:`Monitor` s run after every physics step (also :meth:`add_monitor`).
     floor_z, max_distance, max_tilt: the health limits (m, m, rad; ``max_tilt`` None: not checked).
     """
 
     def __init__(self, world: World, control_period: float = 0.01, *, n_copies: int = 1,
-                 force_stages: Sequence[ForceStage] = (), floor_z: float = -0.5, max_distance: float = 1e3,
+                 force_stages: Sequence[ForceStage] = (), monitors: Sequence[Monitor] = (), floor_z: float = -0.5, max_distance: float = 1e3,
                  max_tilt: float | None = None) -> None:
         m = world.model
         dt = m.opt.timestep
@@ -251,13 +288,20 @@ class Sim:
         self._warnings = d.warning.number                # (7,) live view of MuJoCo's warning counters
         self._bad_warnings = np.array([int(w) for w in DIVERGENCE_WARNINGS], dtype=np.int64)
         self._geom_drone = world.geom_drone
-        self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 of the last step
+        self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 produced (the last step's)
+        # First-order rotor lag (actuators with dyntype="filter", docs/aero.md): MuJoCo integrates the
+        # actuator states; rotor_thrust reports the produced thrust (from the states), rotor_command
+        # what was commanded (after saturation). Without lag the two are the same.
+        self.motor_lag = m.na == 4 * N and m.na > 0
+        self._act = d.act.reshape(N, 4) if self.motor_lag else None
+        self.rotor_command = np.zeros((N, 4))            # (N, 4)
         self._force = np.zeros((N, 3))                   # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
         self._health = np.zeros(self.n_copies, dtype=np.int8)  # (m,) check()'s buffer
         self.drag = DragStage()
         self.wind = WindStage()
         self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
+        self.monitors: list[Monitor] = list(monitors)
         self.reset()
 
     @property
@@ -269,7 +313,31 @@ class Sim:
         """Append a force stage (applied after the others); it is reset now."""
         self.stages.append(stage)
         stage.reset(self)
-        self._fused = False
+        self._set_path()
+
+    @property
+    def force_stages(self) -> list[ForceStage]:
+        """The extra force stages (after drag and wind), in the order they are applied."""
+        return self.stages[2:] if self._fused else [s for s in self.stages if s is not self.drag and s is not self.wind]
+
+    def stage_forces(self) -> dict[str, np.ndarray] | None:
+        """Copies of the force (N, 3) of each extra stage that keeps one (``stage.force``, e.g.
+        downwash, ground effect) over the last physics step; None when there is no extra stage."""
+        if len(self.stages) <= 2:
+            return None
+        return {s.name: s.force.copy() for s in self.stages[2:] if hasattr(s, "force")}
+
+    def add_monitor(self, monitor: Monitor) -> None:
+        """Append a monitor (run after every physics step); it is reset now."""
+        self.monitors.append(monitor)
+        monitor.reset(self)
+
+    def _set_path(self) -> None:
+        """Drag and wind first (the default): they run fused in one compiled call and the extra
+        stages add into zeroed buffers; else every stage in turn (the general path)."""
+        head = [type(s) for s in self.stages[:2]]
+        self._fused = head == [DragStage, WindStage]
+        self._extra = self.stages[2:] if self._fused else []
 
     # ------------------------------------------------------------------ state
     @property
@@ -289,6 +357,9 @@ class Sim:
         if velocities is not None:
             self.vel[:] = velocities
         self.rotor_thrust[:] = 0.0
+        self.rotor_command[:] = 0.0
+        self._force[:] = 0.0
+        self._torque[:] = 0.0
         self.contact_events = 0          # pairs of drones coming into contact (rising edges)
         self.contact_steps = 0           # physics steps with any drone–drone contact
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
@@ -299,8 +370,10 @@ class Sim:
         self._park_qpos = self.qpos.copy()                   # (N, 7) where parked drones are held
         for stage in self.stages:
             stage.reset(self)
-        self._fused = [type(s) for s in self.stages] == [DragStage, WindStage]
+        self._set_path()
         mujoco.mj_forward(self.model, self.data)
+        for mon in self.monitors:
+            mon.reset(self)
 
     # ------------------------------------------------------------------ step
     def step(self, U: np.ndarray, wind_force: np.ndarray | None = None) -> None:
@@ -316,22 +389,37 @@ class Sim:
             U = self._hold_parked(U)
         saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         self.wind.set(wind_force)
+        if self.motor_lag:
+            self.rotor_command[:] = self.rotor_thrust
         if self._fused:
             self._substeps_fused()
         else:
             self._substeps()
+        if self.motor_lag:
+            unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)
         if parked:
             self._put_back()
 
     def _substeps_fused(self) -> None:
-        """Drag + wind only: one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind)."""
+        """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
+        then the extra stages' sum added (and their torque set)."""
         m, d = self.model, self.data
         xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
+        extra, monitors, lag = self._extra, self.monitors, self.motor_lag
+        force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
+            if lag:
+                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)     # produced rotor thrusts
+            if extra:
+                for stage in extra:
+                    stage.apply(self, force, torque)
+                flush_stage_forces(xf, self._xfrc_torque, force, torque)   # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
+            for mon in monitors:
+                mon.after_step(self)
 
     def _substeps(self) -> None:
         """Every stage adds its force and torque, the sums go to xfrc_applied, then mj_step and contacts."""
@@ -340,6 +428,8 @@ class Sim:
         for _ in range(self.n_substeps):
             force[:] = 0.0
             torque[:] = 0.0
+            if self.motor_lag:
+                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)
             for stage in self.stages:
                 stage.apply(self, force, torque)
             self._xfrc_force[:] = force
@@ -347,6 +437,8 @@ class Sim:
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
+            for mon in self.monitors:
+                mon.after_step(self)
 
     # ------------------------------------------------------------------ health
     def health(self, out: np.ndarray | None = None) -> np.ndarray:

@@ -39,6 +39,7 @@ class StressCase:
     sensing_range: float = 4.0
     trajectory: str = "circle"
     diameter: float = 1.0
+    aero: str = "paper"           # physics preset (docs/aero.md)
 
 
 def stress_scenario(case: StressCase):
@@ -52,7 +53,8 @@ def stress_scenario(case: StressCase):
                           "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
                                            "seed": case.seed}},
             "formation": {"diameter": case.diameter, "anti_collision": case.rule,
-                          "sensing_range": case.sensing_range}}
+                          "sensing_range": case.sensing_range},
+            "aero": {"model": case.aero}}
     return parse_scenario(data, "<stress>")
 
 
@@ -68,7 +70,8 @@ def fly_case(case: StressCase) -> dict:
             "min_separation_m": float(s["min_separation_m"]),
             "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
             "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
-            "stopped": s.get("stopped")}
+            "stopped": s.get("stopped"), "crashes": int(s.get("crashes", 0)),
+            "ground_contacts": int(s.get("ground_contacts", 0))}
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -80,12 +83,14 @@ def summarize_rule(rows: list[dict]) -> dict:
             "settling_median_s": float(np.median(settle)) if len(settle) else float("nan"),
             "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
             "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
-            "stopped": [r["seed"] for r in rows if r["stopped"]]}
+            "stopped": [r["seed"] for r in rows if r["stopped"]],
+            "crashes": sum(r.get("crashes", 0) for r in rows),
+            "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows)}
 
 
 def stress(rules: list[str], starts: int, followers: int, radius: float, min_spacing: float,
            duration: float, seed0: int = 0, workers: int | None = None,
-           sensing_range: float = 4.0, progress: bool = False) -> tuple[dict, list[dict]]:
+           sensing_range: float = 4.0, progress: bool = False, aero: str = "paper") -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows).
 
     The flights go through :func:`swarm_mj.parallel.map_ordered` (spawn workers, CPU affinity,
@@ -101,7 +106,7 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
     if workers is not None and workers < 1:
         raise UserError("--workers must be at least 1")
     check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
-    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range)
+    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
              for rule in rules for k in range(starts)]
     with Progress(len(cases), "stress", None if progress else False, unit="starts") as bar:
         rows = map_ordered(fly_case, cases, workers=workers, progress=bar)

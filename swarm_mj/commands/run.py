@@ -23,6 +23,8 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=["layers", "paper", "off"], help="override the rule")
+    p.add_argument("--aero", choices=["paper", "realistic"],
+                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--video", metavar="MP4", help="also render an MP4 video (EGL)")
     p.add_argument("--snapshot", metavar="PNG", help="also render a still image")
     p.add_argument("--snapshot-time", type=float, default=20.0, help="time of the still (s, default 20)")
@@ -88,7 +90,7 @@ def main(args: argparse.Namespace) -> int:
         if args.no_record:
             raise UserError("--web serves the recording: it cannot go with --no-record")
         check_port(args.port)  # before flying; checked again when the server starts
-    result = run(sc, anti_collision=args.anti_collision, seed=args.seed,
+    result = run(sc, anti_collision=args.anti_collision, seed=args.seed, aero=args.aero,
                  progress=None if not args.quiet else False, duration=args.duration)
     rc = 0
     out = None

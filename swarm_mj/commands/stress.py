@@ -40,6 +40,8 @@ def add_parser(sub) -> None:
                         "are capped so that it can stop within it)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: the CPUs this process may use)")
+    p.add_argument("--aero", choices=["paper", "realistic"],
+                   help="physics preset (default: paper; docs/aero.md)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
@@ -48,7 +50,8 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
-                         args.seed0, args.workers, args.sensing_range, progress=not args.quiet)
+                         args.seed0, args.workers, args.sensing_range, progress=not args.quiet,
+                         aero=args.aero or "paper")
     print(format_table(table, args.followers))
     if args.json:
         from .run import write_json_atomic
