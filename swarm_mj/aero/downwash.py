@@ -37,7 +37,7 @@ import numpy as np
 
 from .._jit import jit
 from ._frames import body_axes, rotor_offset
-from .presets import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
+from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
 
 #: Far-field fit of Bauersfeld et al. (2024), their eq. (9).
 BD = 10.11

@@ -19,7 +19,7 @@ import numpy as np
 
 from .._jit import jit
 from ._frames import body_axes, rotor_offset
-from .presets import ROTOR_PLANE_Z, ROTOR_RADIUS
+from .constants import ROTOR_PLANE_Z, ROTOR_RADIUS
 
 #: Heights below Z_CLIP_FRACTION · R are clipped to it (gain cap 1 / (1 − 1/4) = 4/3).
 Z_CLIP_FRACTION = 0.5

@@ -22,19 +22,11 @@ from typing import Any
 import numpy as np
 
 from ..errors import UserError
+from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_PLANE_Z, ROTOR_RADIUS  # noqa: F401 (re-exported)
 
 AERO_MODELS = ("paper", "realistic")
 _KEYS = {"model", "ground", "downwash", "ground_effect", "motor_tau"}
 
-#: Air density (kg/m³), ISA sea level.
-AIR_DENSITY = 1.225
-#: Rotor radius (m): the drawn rotor discs of assets/quadrotor.xml (0.09 m, as the issue states).
-ROTOR_RADIUS = 0.09
-#: Height of the rotor plane above the centre of mass (m), the rotor discs of the asset.
-ROTOR_PLANE_Z = 0.02
-#: Drag coefficient of a rotor disc in the jet: a flat disc normal to the flow (Hoerner, Fluid-Dynamic
-#: Drag, 1965, ch. 3: C_D = 1.17).
-DISC_DRAG_COEFFICIENT = 1.17
 #: Motor time constant of the ``realistic`` preset (s).
 REALISTIC_MOTOR_TAU = 0.015
 

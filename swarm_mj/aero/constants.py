@@ -1,0 +1,11 @@
+"""Physical constants of the aerodynamic stages (docs/aero.md): air, rotors, plates."""
+
+#: Air density (kg/m³), ISA sea level.
+AIR_DENSITY = 1.225
+#: Rotor radius (m): the drawn rotor discs of assets/quadrotor.xml (0.09 m, as the issue states).
+ROTOR_RADIUS = 0.09
+#: Height of the rotor plane above the centre of mass (m), the rotor discs of the asset.
+ROTOR_PLANE_Z = 0.02
+#: Drag coefficient of a rotor disc in the jet: a flat disc normal to the flow (Hoerner, Fluid-Dynamic
+#: Drag, 1965, ch. 3: C_D = 1.17).
+DISC_DRAG_COEFFICIENT = 1.17
