@@ -9,6 +9,7 @@ the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got 
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -97,15 +98,166 @@ class Scenario:
                                                                     self.random_start, where=self.path)])
 
     def with_overrides(self, **kw) -> "Scenario":
-        """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``)."""
+        """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``).
+
+        ``seed=s`` is the scenario's seed s everywhere (``run --seed``, ``sweep``, ``stress``,
+        the report): it seeds the wind turbulence **and** re-derives seeded random follower
+        starts with seed s (unless ``random_start`` is given too). ``duration`` and ``seed``
+        are checked as in a scenario file (:class:`UserError` naming the field).
+        """
+        if "seed" in kw:
+            kw["seed"] = check_seed(kw["seed"], "seed")
+            if self.random_start is not None and "random_start" not in kw:
+                kw["random_start"] = replace(self.random_start, seed=kw["seed"])
+        if "duration" in kw or "control_period" in kw:
+            T = float(kw.get("control_period", self.control_period))
+            kw["duration"] = check_duration(kw.get("duration", self.duration), T,
+                                            int(kw.get("n_followers", self.n_followers)) + 1, "duration")
         return replace(self, **kw)
 
 
 #: Centre distance below which two level drones may already touch on the ground: rotor tip
-#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (SPEC §1
-#: geometry), plus 2 cm. Measured in MuJoCo: two followers 0.60 m or 0.65 m apart along x
-#: are in contact from the first physics step; 0.70 m apart they are not.
+#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (the
+#: drone's geometry, ``assets/quadrotor.xml``), plus 2 cm. Measured in MuJoCo: two followers
+#: 0.60 m or 0.65 m apart along x are in contact from the first physics step; 0.70 m apart
+#: they are not. Random starts keep at least this spacing; explicit starts closer than this
+#: (3D centre distance, whatever the heights) are refused (docs/interpretations.md, "starts").
 START_CLEARANCE_M = 0.70
+
+#: Largest seed: numpy's legacy and most external generators take 32-bit seeds; one range everywhere.
+MAX_SEED = 2**32 - 1
+
+#: Most followers a scenario may hold: the neighbour arrays grow as n², and the model compiles
+#: and the random starts are drawn in Python (the paper flies 5).
+MAX_FOLLOWERS = 200
+
+#: Most draws of the random starts' rejection sampling.
+MAX_TRIES = 1_000_000
+
+#: Share of the available memory a run's log may take before the run is refused.
+MEMORY_SHARE = 0.5
+
+
+def check_seed(v: Any, where: str = "seed") -> int:
+    """A seed: an integer in [0, 2**32 − 1] (:class:`UserError` naming ``where`` otherwise)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise UserError(f"must be an integer >= 0 and <= {MAX_SEED}, got {v!r}", where=where)
+    if not 0 <= int(v) <= MAX_SEED:
+        raise UserError(f"must be >= 0 and <= {MAX_SEED}, got {int(v)}", where=where)
+    return int(v)
+
+
+def available_memory_bytes() -> int | None:
+    """MemAvailable of /proc/meminfo (Linux), else free physical pages × page size; None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def run_log_bytes(n_steps: int, n_drones: int) -> int:
+    """Bytes of the arrays a run keeps for ``n_steps`` control periods of ``n_drones`` drones:
+    the log (``runner.RunLog``: 33 floats per drone and 5 shared per sample) plus the
+    precomputed reference, D schedule and wind series (about 30 floats per sample), float64."""
+    return 8 * (int(n_steps) + 1) * (33 * int(n_drones) + 35)
+
+
+def _gib(b: float) -> str:
+    return f"{b / 2**30:.3g} GiB" if b >= 2**30 else f"{b / 2**20:.3g} MiB"
+
+
+def check_duration(duration: Any, control_period: float, n_drones: int, where: str = "duration") -> float:
+    """A run's duration: a finite positive number of seconds, at least one control period, and
+    short enough that the run's log (:func:`run_log_bytes`) fits in :data:`MEMORY_SHARE` of the
+    available memory. Returns it as a float; :class:`UserError` naming ``where`` otherwise."""
+    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)):
+        raise UserError(f"must be a number of seconds, got {duration!r}", where=where)
+    d = float(duration)
+    if not np.isfinite(d):
+        raise UserError(f"must be a finite number of seconds, got {d}", where=where)
+    if d <= 0:
+        raise UserError(f"must be positive, got {d:g} s", where=where)
+    if d < control_period * (1 - 1e-9):
+        raise UserError(f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would "
+                        f"be simulated", where=where)
+    n_steps = round(d / control_period)
+    need = run_log_bytes(n_steps, n_drones)
+    avail = available_memory_bytes()
+    if avail is not None and need > MEMORY_SHARE * avail:
+        raise UserError(f"{d:g} s at {control_period:g} s per step is {n_steps:.3g} steps of {n_drones} drone(s); "
+                        f"its log would take about {_gib(need)}, more than {MEMORY_SHARE:.0%} of the "
+                        f"{_gib(avail)} of memory available: shorten the run", where=where)
+    return d
+
+
+def check_trajectory_params(name: str, params: dict, where: str) -> None:
+    """Every trajectory parameter by type before the trajectory is built: scalars finite
+    numbers, points (``target``, ``position``, ``center``) lists of finite numbers of the
+    right length. ``where`` is e.g. ``file: leader.params``."""
+    import inspect
+
+    sig = inspect.signature(TRAJECTORIES[name])
+    for key, v in params.items():
+        if key not in sig.parameters:
+            raise UserError(f"unknown parameter of trajectory {name!r}; allowed: {', '.join(sig.parameters)}",
+                            where=f"{where}.{key}")
+        default = sig.parameters[key].default
+        if isinstance(default, (tuple, list)):
+            m = len(default)
+            if (not isinstance(v, list) or len(v) != m
+                    or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+                raise UserError(f"must be a list of {m} numbers, got {v!r}", where=f"{where}.{key}")
+            if not all(np.isfinite(x) for x in v):
+                raise UserError(f"must be finite numbers, got {v!r}", where=f"{where}.{key}")
+        else:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise UserError(f"must be a number, got {v!r}", where=f"{where}.{key}")
+            if not np.isfinite(v):
+                raise UserError(f"must be finite, got {v!r}", where=f"{where}.{key}")
+
+
+def check_reference(traj, duration: float, control_period: float, where: str) -> None:
+    """The leader's reference is finite and above the ground over the whole run (sampled at up to
+    10 001 control instants, ends included): a parameter that makes it overflow (``omega = 1e200``)
+    or go underground is refused before anything flies."""
+    n = int(round(duration / control_period))
+    k = np.unique(np.r_[np.linspace(0, n, min(n + 1, 10001)).round().astype(np.int64), n])
+    t = k * control_period
+    with np.errstate(all="ignore"):
+        ref = traj(t)
+    for f in ("pos", "vel", "acc", "yaw", "yaw_rate", "yaw_acc"):
+        a = np.asarray(getattr(ref, f), float)
+        bad = ~np.isfinite(a.reshape(len(t), -1)).all(axis=1)
+        if bad.any():
+            raise UserError(f"the reference's {f.replace('_', ' ')} is not finite at t = {t[bad][0]:g} s; "
+                            f"check the parameters", where=where)
+    z = ref.pos[:, 2]
+    if (z < 0).any():
+        i = int(np.argmax(z < 0))
+        raise UserError(f"the reference goes below the ground (z = {z[i]:g} m at t = {t[i]:g} s)", where=where)
+
+
+def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> None:
+    """Explicit starts: on or above the ground (z >= 0) and every two drones at least
+    :data:`START_CLEARANCE_M` apart (3D centre distance), as random starts are."""
+    below = np.flatnonzero(starts[:, 2] < 0)
+    if len(below):
+        i = int(below[0])
+        raise UserError(f"{names[i]} starts below the ground (z = {starts[i, 2]:g} m); z must be >= 0", where=where)
+    d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)   # (n, n)
+    d[np.diag_indices(len(starts))] = np.inf
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    if d[i, j] < START_CLEARANCE_M:
+        i, j = sorted((int(i), int(j)))
+        raise UserError(f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
+                        f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)", where=where)
 
 
 def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
@@ -209,6 +361,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     w = f"{path}: "
     duration = float(_number(data, "duration", None, w, positive=True))
     T = float(_number(data, "control_period", 0.01, w, positive=True))
+    if T > duration:
+        raise UserError(f"{T:g} s is longer than the duration ({duration:g} s): nothing would be simulated",
+                        where=f"{w}control_period")
     dt = float(_number(data, "timestep", 0.005, w, positive=True))
     nsub = round(T / dt)
     if nsub < 1 or abs(nsub * dt - T) > 1e-9:
@@ -217,7 +372,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast",
                         where=f"{w}integrator")
-    seed = int(_number(data, "seed", 0, w, integer=True, minimum=0))
+    seed = check_seed(data.get("seed", 0), f"{w}seed")
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
     leader = _check_keys(data.get("leader", None) if "leader" in data else _missing(w + "leader"),
@@ -231,6 +386,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     tparams = leader.get("params", {})
     if not isinstance(tparams, dict):
         raise UserError("must be a table", where=f"{w}leader.params")
+    check_trajectory_params(traj, tparams, f"{w}leader.params")
     make_trajectory(traj, tparams, where=f"{w}leader.params")   # validates the parameters
     leader_start = _vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{w}leader.start")
     yaw_deg = float(_number(leader, "yaw_deg", 0.0, f"{w}leader."))
@@ -241,6 +397,8 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     default_count = len(fol["start"]) if isinstance(fol.get("start"), list) else None
     n_f = int(_number(fol, "count", default_count if default_count is not None else None,
                       f"{w}followers.", integer=True, minimum=0))
+    if n_f > MAX_FOLLOWERS:
+        raise UserError(f"at most {MAX_FOLLOWERS} followers, got {n_f}", where=f"{w}followers.count")
     starts = None
     rstart = None
     if n_f > 0:
@@ -254,8 +412,10 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             wr = f"{w}followers.random_start."
             rstart = RandomStart(radius=float(_number(r, "radius", 3.0, wr, positive=True)),
                                  min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
-                                 seed=int(_number(r, "seed", seed, wr, integer=True, minimum=0)),
+                                 seed=check_seed(r.get("seed", seed), f"{wr}seed"),
                                  max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)))
+            if rstart.max_tries > MAX_TRIES:
+                raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
             check_random_start_feasible(n_f, rstart, path)
         else:
             raise UserError("followers need start positions or random_start", where=f"{w}followers")
@@ -296,6 +456,15 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if not isinstance(wind_table, dict):
         raise UserError("must be a table", where=f"{w}wind")
     wind = WindConfig.from_dict(wind_table, where=path)
+
+    # Checks across fields, still before anything flies.
+    check_duration(duration, T, 1 + n_f, f"{w}duration")
+    check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
+    names = ["leader"] + [f"follower{k}" for k in range(1, n_f + 1)]
+    if starts is not None:
+        check_start_spacing(np.vstack([leader_start, starts]), names, f"{w}followers.start")
+    else:
+        check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start")
 
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
     return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
