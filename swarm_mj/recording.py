@@ -96,7 +96,9 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
         rec.disconnect()
         tmp.unlink(missing_ok=True)
         raise
-    os.replace(tmp, path)
+    from .atomic import replace_into
+
+    replace_into(tmp, path)       # never replaces a FIFO or device; a symlink is written through
     return path
 
 

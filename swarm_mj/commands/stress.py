@@ -50,14 +50,18 @@ def stress_scenario(case: StressCase):
     ground flying ``case.trajectory``, random follower starts seeded ``case.seed``."""
     from ..scenario import parse_scenario
 
-    data = {"name": f"stress-{case.rule}-{case.seed}", "duration": case.duration, "seed": case.seed,
+    return parse_scenario(stress_data(case), "<stress>")
+
+
+def stress_data(case: StressCase) -> dict:
+    """The scenario table of one case (``--save-scenario`` writes it as TOML)."""
+    return {"name": f"stress-{case.rule}-{case.seed}", "duration": case.duration, "seed": case.seed,
             "leader": {"trajectory": case.trajectory, "start": [0.0, 0.0, 0.0]},
             "followers": {"count": case.followers,
                           "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
                                            "seed": case.seed}},
             "formation": {"diameter": case.diameter, "anti_collision": case.rule,
                           "sensing_range": case.sensing_range}}
-    return parse_scenario(data, "<stress>")
 
 
 def fly_case(case: StressCase) -> dict:
@@ -146,14 +150,51 @@ def add_parser(sub) -> None:
                         "are capped so that it can stop within it)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: os.cpu_count())")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
+    p.add_argument("--save-scenario", metavar="TOML",
+                   help="write the flown scenario as a file: 'swarm-mj run TOML --seed S --anti-collision RULE' "
+                        "replays start S exactly")
     p.set_defaults(func=main)
+
+
+def replay_lines(table: dict, rows: list[dict], scenario_file: str | None) -> list[str]:
+    """One line per rule: its worst start (most contacts, then smallest airborne separation) and
+    the ``swarm-mj run`` command that flies it again (same starts, same wind: seed S)."""
+    import shlex
+
+    f = shlex.quote(scenario_file) if scenario_file else "STRESS.toml"
+    out = []
+    for rule in table:
+        rs = [r for r in rows if r["rule"] == rule]
+        if not rs:
+            continue
+        w = max(rs, key=lambda r: (r["contacts"], -r["min_separation_airborne_m"]))
+        out.append(f"worst '{rule}' start: seed {w['seed']} ({w['contacts']} contacts, min airborne separation "
+                   f"{w['min_separation_airborne_m']:.3f} m); replay: swarm-mj run {f} --seed {w['seed']} "
+                   f"--anti-collision {rule}")
+    if not scenario_file:
+        out.append("  (STRESS.toml: add --save-scenario STRESS.toml to write the scenario these starts flew)")
+    return out
 
 
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
+    save = getattr(args, "save_scenario", None)
+    if save:
+        from ..atomic import check_output_path
+        from ..scenario import scenario_toml
+
+        check_output_path(save, "--save-scenario", (".toml",))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
                          args.seed0, args.workers, args.sensing_range)
+    if save:
+        from ..atomic import write_text_atomic
+
+        case = StressCase(rules[0], args.seed0, args.followers, args.radius, args.min_spacing, args.duration,
+                          args.sensing_range)
+        write_text_atomic(save, "# written by swarm-mj stress; replay start S with rule R:\n"
+                          "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)))
     print(format_table(table, args.followers))
+    print("\n".join(replay_lines(table, rows, save)))
     if args.json:
         from .run import write_json_atomic
 

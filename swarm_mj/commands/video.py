@@ -38,14 +38,14 @@ def add_parser(sub) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import load_gains
-    from ..errors import UserError
     from ..runner import run
     from ..scenario import load_scenario
     from ..video import check_output_path, check_video_args, render_outputs
 
     sc = load_scenario(args.scenario)
-    if args.duration is not None and not args.duration > 0:
-        raise UserError(f"--duration must be positive, got {args.duration}")
+    if args.duration is not None:
+        from ..scenario import check_duration
+        check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
     args.video = args.output or f"{sc.name}.mp4"
     if args.duration is None:
         args.duration = sc.duration
@@ -55,6 +55,8 @@ def main(args: argparse.Namespace) -> int:
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
+    if args.seed is not None:
+        sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts (as in 'swarm-mj run')
     result = run(sc, anti_collision=args.anti_collision, seed=args.seed,
                  progress=None if not args.quiet else False, duration=args.duration)
     if isinstance(result.error, KeyboardInterrupt):
