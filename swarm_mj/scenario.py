@@ -230,8 +230,11 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
     n = int(round(duration / control_period))
     k = np.unique(np.r_[np.linspace(0, n, min(n + 1, 10001)).round().astype(np.int64), n])
     t = k * control_period
-    with np.errstate(all="ignore"):
-        ref = traj(t)
+    try:
+        with np.errstate(all="ignore"):
+            ref = traj(t)
+    except (ArithmeticError, ValueError) as exc:        # e.g. omega**2 overflowing a Python float
+        raise UserError(f"the reference is not finite ({exc}); check the parameters", where=where) from None
     for f in ("pos", "vel", "acc", "yaw", "yaw_rate", "yaw_acc"):
         a = np.asarray(getattr(ref, f), float)
         bad = ~np.isfinite(a.reshape(len(t), -1)).all(axis=1)
