@@ -345,7 +345,16 @@ def _number(table: dict, key: str, default, where: str, *, positive: bool = Fals
     return v
 
 
+def _only_numbers(v) -> bool:
+    """A number or (nested) lists of numbers, no booleans or strings."""
+    if isinstance(v, list):
+        return all(_only_numbers(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _vec(v, n: int | None, where: str) -> np.ndarray:
+    if not _only_numbers(v):
+        raise UserError(f"must be numbers, got {v!r}", where=where)
     try:
         a = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
@@ -372,7 +381,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if nsub < 1 or abs(nsub * dt - T) > 1e-9:
         raise UserError(f"must divide control_period = {T} s (got {dt} s)", where=f"{w}timestep")
     integrator = data.get("integrator", "RK4")
-    if integrator not in ("RK4", "Euler", "implicitfast"):
+    if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast",
                         where=f"{w}integrator")
     seed = check_seed(data.get("seed", 0), f"{w}seed")
@@ -383,7 +392,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if "trajectory" not in leader:
         raise UserError("missing field", where=f"{w}leader.trajectory")
     traj = leader["trajectory"]
-    if traj not in TRAJECTORIES:
+    if not isinstance(traj, str) or traj not in TRAJECTORIES:
         raise UserError(f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
                         where=f"{w}leader.trajectory")
     tparams = leader.get("params", {})
@@ -425,9 +434,12 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
 
     form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
     diameter = form.get("diameter", 1.0)
+    if not _only_numbers(diameter):
+        raise UserError(f"must be a number or a list of [time, D] pairs, got {diameter!r}",
+                        where=f"{w}formation.diameter")
     DiameterSchedule(diameter, where=f"{w}formation.diameter")
     rule = form.get("anti_collision", "layers")
-    if rule not in ANTI_COLLISION_RULES:
+    if not isinstance(rule, str) or rule not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
                         where=f"{w}formation.anti_collision")
     wf = f"{w}formation."
@@ -447,12 +459,14 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             except UserError as exc:
                 raise UserError(str(exc), where=f"{w}controller.gains") from None
     else:
+        if not _only_numbers(g):
+            raise UserError(f"must be \"table4\", a gains file or 12 numbers, got {g!r}", where=f"{w}controller.gains")
         gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
     ff = ctl.get("wind_feedforward", True)
     if not isinstance(ff, bool):
         raise UserError(f"must be true or false, got {ff!r}", where=f"{w}controller.wind_feedforward")
     amap = ctl.get("attitude_map", "exact")
-    if amap not in ("exact", "paper"):
+    if not isinstance(amap, str) or amap not in ("exact", "paper"):
         raise UserError(f"must be 'exact' or 'paper', got {amap!r}", where=f"{w}controller.attitude_map")
 
     wind_table = data.get("wind", {"enabled": False})
@@ -469,6 +483,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     else:
         check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start")
 
+    for key in ("name", "description"):
+        if key in data and not isinstance(data[key], str):
+            raise UserError(f"must be a string, got {data[key]!r}", where=f"{w}{key}")
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
     return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
                     control_period=T, timestep=dt, integrator=integrator, seed=seed, steady_after=steady_after,
