@@ -22,11 +22,16 @@ import numpy as np
 import pytest
 
 from swarm_mj import cli
-from swarm_mj.atomic import (check_output_path, dumps_strict, json_safe, replace_into, write_json_atomic,
-                             write_text_atomic)
+from swarm_mj.atomic import (
+    check_output_path,
+    dumps_strict,
+    json_safe,
+    replace_into,
+    write_json_atomic,
+    write_text_atomic,
+)
 from swarm_mj.errors import OutputError, UserError
-from swarm_mj.scenario import (MAX_SEED, START_CLEARANCE_M, load_scenario, parse_scenario, run_log_bytes,
-                               scenario_toml)
+from swarm_mj.scenario import MAX_SEED, START_CLEARANCE_M, load_scenario, parse_scenario, run_log_bytes, scenario_toml
 
 CIRCLE = """
 name = "c"
@@ -55,7 +60,7 @@ def scenario_file(tmp_path: Path, *, duration="0.3", control_period="0.01", traj
 @pytest.fixture
 def no_flight(monkeypatch):
     """Fail the test if anything is flown (the runner's entry point or the environment)."""
-    import swarm_mj.runner as runner
+    from swarm_mj import runner
 
     def boom(*a, **k):
         raise AssertionError("a simulation started before the bad input was refused")
@@ -112,7 +117,7 @@ def test_recording_and_summary_at_the_same_path_are_refused(tmp_path, monkeypatc
 @pytest.mark.parametrize("out", ["nodir/g.toml", "."])
 def test_tune_output_checked_first(tmp_path, monkeypatch, capsys, out):
     monkeypatch.chdir(tmp_path)
-    import swarm_mj.tuning.cost as cost
+    from swarm_mj.tuning import cost
 
     monkeypatch.setattr(cost, "tune_gains", lambda *a, **k: pytest.fail("tuned before checking -o"))
     cli_error(capsys, ["tune", "-o", out])
@@ -337,7 +342,7 @@ def test_reproducers_in_a_subprocess_leave_nothing(tmp_path):
                                                         os.environ.get("PYTHONPATH", "")])}
     for argv in (["run", "circle", "--duration", "inf"], ["run", "circle", "-o", "nodir/x.rrd"]):
         p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", *argv], cwd=tmp_path, capture_output=True,
-                           text=True, env=env, timeout=300, stdin=subprocess.DEVNULL)
+                           text=True, env=env, timeout=300, stdin=subprocess.DEVNULL, check=False)
         assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
         assert len(p.stderr.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
@@ -435,7 +440,7 @@ def test_summary_text_of_a_long_run_cites_the_docs():
 
 
 def test_interrupt_with_no_record_does_not_claim_a_recording(tmp_path, monkeypatch, capsys):
-    import swarm_mj.runner as runner
+    from swarm_mj import runner
     real = runner.run
 
     def interrupted(*a, **k):

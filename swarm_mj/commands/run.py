@@ -68,7 +68,6 @@ def check_args(args: argparse.Namespace, sc) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import load_gains
-    from ..errors import UserError
     from ..recording import write_recording
     from ..report_table import format_summary
     from ..runner import run
@@ -97,8 +96,8 @@ def main(args: argparse.Namespace) -> int:
             print(f"recording: {out}  (open with: rerun {out})", file=sys.stderr)
     if args.summary:
         write_json_atomic(args.summary, result.summary)
-    if not args.quiet:
-        print(format_summary(result.summary, result.scenario))
+    if not args.quiet:   # with --summary - the JSON alone goes to standard output
+        print(format_summary(result.summary, result.scenario), file=sys.stderr if args.summary == "-" else sys.stdout)
     if result.error is not None:
         kept = "; the recording holds what ran" if not args.no_record else ""
         if isinstance(result.error, KeyboardInterrupt):

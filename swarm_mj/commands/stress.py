@@ -179,6 +179,9 @@ def replay_lines(table: dict, rows: list[dict], scenario_file: str | None) -> li
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
     save = getattr(args, "save_scenario", None)
+    if args.json:
+        from ..atomic import check_output_path
+        check_output_path(args.json, "--json", allow_stdout=True)
     if save:
         from ..atomic import check_output_path
         from ..scenario import scenario_toml

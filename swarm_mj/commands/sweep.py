@@ -42,10 +42,14 @@ def main(args: argparse.Namespace) -> int:
         raise UserError(f"--seeds must be >= 1, got {args.seeds}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
-    if args.duration is not None and not args.duration > 0:
-        raise UserError(f"--duration must be positive, got {args.duration}")
     param, values = parse_param(args.param) if args.param else (None, None)
     sc = load_scenario(args.scenario)
+    if args.duration is not None:
+        from ..scenario import check_duration
+        check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
+    if args.json:
+        from ..atomic import check_output_path
+        check_output_path(args.json, "--json", allow_stdout=True)
     if args.gains:
         from ..control.backstepping import load_gains
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
