@@ -404,6 +404,29 @@ def test_stress_prints_the_replay_command(tmp_path, monkeypatch, capsys):
     assert load_scenario("st.toml").random_start is not None
 
 
+def test_sweep_prints_a_replay_command_that_flies_the_same_run(tmp_path, monkeypatch, capsys):
+    """The sweep's worst run (most contacts, else smallest separation) replayed by the command it
+    prints: the same metrics (same random starts, same wind)."""
+    import shlex
+
+    monkeypatch.chdir(tmp_path)
+    f = tmp_path / "rs.toml"
+    f.write_text(scenario_toml(_random_start_table()))
+    assert cli.main(["sweep", str(f), "--seeds", "3", "--duration", "0.3", "--workers", "1", "--quiet",
+                     "--json", "sw.json"]) == 0
+    out = capsys.readouterr().out
+    line = next(ln for ln in out.splitlines() if "replay: swarm-mj run" in ln)
+    argv = shlex.split(line.split("replay: ", 1)[1])[1:]
+    runs = json.loads(Path("sw.json").read_text())["runs"]
+    seed = int(argv[argv.index("--seed") + 1])
+    worst = min(runs, key=lambda r: r["metrics"]["min_separation_m"])
+    assert seed == worst["seed"]
+    assert cli.main([*argv, "--no-record", "--quiet", "--summary", "r.json"]) == 0
+    s = json.loads(Path("r.json").read_text())
+    assert s["min_separation_m"] == worst["metrics"]["min_separation_m"]
+    assert s["drones"]["leader"]["rmse"]["x"] == worst["metrics"]["rmse_x"]
+
+
 # --------------------------------------------------------------------------- item 13: the summary text
 
 
