@@ -336,6 +336,14 @@ def test_gains_files_that_cannot_be_read(tmp_path, monkeypatch, capsys, no_fligh
     assert "somedir" in line
 
 
+def test_gains_file_with_the_wrong_number_of_rows(tmp_path, monkeypatch, capsys, no_flight):
+    monkeypatch.chdir(tmp_path)
+    g = tmp_path / "g2.toml"
+    g.write_text("gains = [" + ", ".join(["[" + ", ".join(["2.0"] * 12) + "]"] * 2) + "]\n")
+    line = cli_error(capsys, ["run", "circle", "--gains", g])
+    assert "g2.toml: gains" in line and "(2, 12)" in line
+
+
 def test_reproducers_in_a_subprocess_leave_nothing(tmp_path):
     """Two of the issue's reproducers as a user types them: one line, exit 2, nothing written."""
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),

@@ -67,7 +67,7 @@ def check_args(args: argparse.Namespace, sc) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..control.backstepping import load_gains
+    from ..control.backstepping import check_gains, load_gains
     from ..recording import write_recording
     from ..report_table import format_summary
     from ..runner import run
@@ -77,6 +77,7 @@ def main(args: argparse.Namespace) -> int:
     check_args(args, sc)
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
+        gains = check_gains(gains, sc.n_drones, where=f"{args.gains}: gains")   # (12,) or one row per drone
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
     if args.seed is not None:
         sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts, as sweep/stress call seed s
