@@ -66,7 +66,7 @@ def no_flight(monkeypatch):
         raise AssertionError("a simulation started before the bad input was refused")
 
     monkeypatch.setattr(runner, "run", boom)
-    monkeypatch.setattr(runner, "SwarmEnv", boom)
+    monkeypatch.setattr(runner, "SwarmEnv", boom, raising=False)
 
 
 def cli_error(capsys, argv: list[str], code: int = 2) -> str:
