@@ -211,6 +211,17 @@ def test_dev_full_is_a_one_line_error_and_stays_a_device(monkeypatch, capsys):
     assert stat.S_ISCHR(os.stat("/dev/full").st_mode)
 
 
+def test_recording_through_a_symlink_keeps_the_link(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "runs").mkdir()
+    link = tmp_path / "latest.rrd"
+    link.symlink_to("runs/real.rrd")                     # dangling until the run writes its target
+    assert cli.main(["run", "circle", "--duration", "0.2", "--quiet", "-o", "latest.rrd"]) == 0, \
+        capsys.readouterr().err
+    assert link.is_symlink() and (tmp_path / "runs" / "real.rrd").stat().st_size > 0
+    assert not list(tmp_path.rglob("*.partial"))
+
+
 def test_dash_is_standard_output(capsys):
     write_json_atomic("-", {"w": np.inf})
     assert json.loads(capsys.readouterr().out) == {"w": None}
