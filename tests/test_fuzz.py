@@ -262,7 +262,7 @@ def _non_finite_paths(o, path="") -> list[str]:
     return []
 
 
-def call_cli(argv: list[str], monkeypatch) -> Outcome:
+def call_cli(argv: list[str]) -> Outcome:
     """``swarm-mj ARGV`` in this process; the raw summary handed to the JSON writer is kept."""
     from swarm_mj import atomic
 
@@ -273,9 +273,9 @@ def call_cli(argv: list[str], monkeypatch) -> Outcome:
         seen["summary"] = data
         real(path, data)
 
-    monkeypatch.setattr(atomic, "write_json_atomic", spy)
     out, err = io.StringIO(), io.StringIO()
-    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+    with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        mp.setattr(atomic, "write_json_atomic", spy)        # undone after each example
         try:
             rc = cli.main(argv)
         except SystemExit as exc:                       # argparse: usage errors exit 2, --help 0
@@ -307,7 +307,7 @@ def files(tmp_path_factory):
 
 @SCENARIO_SETTINGS
 @given(data=st.data())
-def test_fuzz_scenario_tables(files, monkeypatch, data):
+def test_fuzz_scenario_tables(files, data):
     table = data.draw(scenario_tables(str(files / "gains.toml"), str(files / "gainsdir")))
     if data.draw(st.integers(0, 40)) == 0:        # now and then a file that is not TOML at all
         text = data.draw(st.sampled_from(["[leader", "duration = ", "x = 1\nx = 2", "\x00\xff", "= 3"]))
@@ -318,7 +318,7 @@ def test_fuzz_scenario_tables(files, monkeypatch, data):
     out = files / "summary.json"
     out.unlink(missing_ok=True)
     extra = data.draw(st.sampled_from([[], [], ["--anti-collision", "off"], ["--seed", "5"], ["--duration", "0.1"]]))
-    o = call_cli(["run", str(scen), "--no-record", "--quiet", "--summary", str(out), *extra], monkeypatch)
+    o = call_cli(["run", str(scen), "--no-record", "--quiet", "--summary", str(out), *extra])
     check(o, out)
 
 
@@ -364,7 +364,7 @@ def test_fuzz_cli_arguments(files, monkeypatch, argv):
         (files / name).unlink(missing_ok=True)
     argv = [a.replace("GAINSDIR", str(files / "gainsdir")).replace("GAINS", str(files / "gains.toml"))
             for a in argv]
-    o = call_cli(argv, monkeypatch)
+    o = call_cli(argv)
     check(o, files / "s.json" if "s.json" in argv and "--help" not in argv else None)
 
 
