@@ -127,6 +127,10 @@ START_CLEARANCE_M = 0.70
 #: Largest seed: numpy's legacy and most external generators take 32-bit seeds; one range everywhere.
 MAX_SEED = 2**32 - 1
 
+#: Largest distance a scenario may ask for (random start radius, spacing): the simulator stops
+#: a run when a drone is farther than 1 km from the origin (``sim.Sim(max_distance=1e3)``).
+MAX_RANGE_M = 1000.0
+
 #: Most followers a scenario may hold: the neighbour arrays grow as n², and the model compiles
 #: and the random starts are drawn in Python (the paper flies 5).
 MAX_FOLLOWERS = 200
@@ -241,6 +245,10 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
         if bad.any():
             raise UserError(f"the reference's {f.replace('_', ' ')} is not finite at t = {t[bad][0]:g} s; "
                             f"check the parameters", where=where)
+    far = np.linalg.norm(ref.pos, axis=1) > MAX_RANGE_M
+    if far.any():
+        raise UserError(f"the reference goes farther than {MAX_RANGE_M:g} m from the origin (at t = {t[far][0]:g} s), "
+                        f"where the simulator stops the run", where=where)
     z = ref.pos[:, 2]
     if (z < 0).any():
         i = int(np.argmax(z < 0))
@@ -248,12 +256,17 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
 
 
 def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> None:
-    """Explicit starts: on or above the ground (z >= 0) and every two drones at least
-    :data:`START_CLEARANCE_M` apart (3D centre distance), as random starts are."""
+    """Explicit starts: on or above the ground (z >= 0), within :data:`MAX_RANGE_M` of the origin
+    and every two drones at least :data:`START_CLEARANCE_M` apart (3D centre distance), as random
+    starts are."""
     below = np.flatnonzero(starts[:, 2] < 0)
     if len(below):
         i = int(below[0])
         raise UserError(f"{names[i]} starts below the ground (z = {starts[i, 2]:g} m); z must be >= 0", where=where)
+    far = np.flatnonzero(np.linalg.norm(starts, axis=1) > MAX_RANGE_M)
+    if len(far):
+        raise UserError(f"{names[int(far[0])]} starts farther than {MAX_RANGE_M:g} m from the origin, where the "
+                        f"simulator stops the run", where=where)
     d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)   # (n, n)
     d[np.diag_indices(len(starts))] = np.inf
     i, j = np.unravel_index(np.argmin(d), d.shape)
@@ -307,6 +320,9 @@ def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> Non
     wr = f"{where}: followers.random_start"
     if not (np.isfinite(r) and np.isfinite(s)) or r <= 0 or s <= 0:
         raise UserError("radius and min_spacing must be positive", where=wr)
+    if r > MAX_RANGE_M or s > MAX_RANGE_M:
+        raise UserError(f"radius and min_spacing must be at most {MAX_RANGE_M:g} m (a drone farther than that "
+                        f"from the origin stops the run)", where=wr)
     if n < 0:
         raise UserError(f"follower count must be >= 0, got {n}", where=wr)
     se = max(s, START_CLEARANCE_M)
