@@ -313,18 +313,20 @@ def test_file_durations_against_control_period_and_memory(tmp_path, monkeypatch,
     assert f"{f}: {field}" in line and problem in line, line
 
 
-def test_memory_estimate_counts_steps_drones_and_fields():
+def test_memory_estimate_counts_steps_drones_and_fields(monkeypatch):
+    from swarm_mj import scenario
+
     assert run_log_bytes(99, 6) == 8 * 100 * (33 * 6 + 35)
-    from swarm_mj.scenario import available_memory_bytes, check_duration
-    avail = available_memory_bytes()
-    if avail is None:
-        pytest.skip("available memory unknown here")
+    assert scenario.available_memory_bytes() is None or scenario.available_memory_bytes() > 0
+    avail = 2**30                                             # pretend 1 GiB is available
+    monkeypatch.setattr(scenario, "available_memory_bytes", lambda: avail)
     # the largest accepted duration's log is at most half the memory; a little more is refused
     n = 6
     steps = int(0.5 * avail / (8 * (33 * n + 35)))
-    check_duration(0.01 * (steps - 10), 0.01, n)
-    with pytest.raises(UserError, match="GiB|MiB"):
-        check_duration(0.01 * (steps + 10), 0.01, n)
+    scenario.check_duration(0.01 * (steps - 10), 0.01, n)
+    with pytest.raises(UserError, match="MiB") as ei:
+        scenario.check_duration(0.01 * (steps + 10), 0.01, n)
+    assert "of the 1 GiB of memory available" in str(ei.value), str(ei.value)
 
 
 @pytest.mark.parametrize("make", ["dir", "malformed", "missing", "unreadable"])
