@@ -43,9 +43,11 @@ def main(args: argparse.Namespace) -> int:
     from ..video import check_output_path, check_video_args, render_outputs
 
     sc = load_scenario(args.scenario)
+    from ..scenario import check_duration, check_seed
     if args.duration is not None:
-        from ..scenario import check_duration
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
+    if args.seed is not None:
+        check_seed(args.seed, "--seed")
     args.video = args.output or f"{sc.name}.mp4"
     if args.duration is None:
         args.duration = sc.duration
