@@ -1,10 +1,13 @@
-"""Scenario files: TOML data in ``scenarios/``, validated into dataclasses (DESIGN "Scenario").
+"""Scenario files: TOML data in ``scenarios/``, validated into dataclasses.
 
 A scenario names the drones and their starts, the leader's trajectory, the D schedule,
 the anti-collision rule, the controller gains, the wind, the duration, the control
 period, the physics timestep and the seed. Code never branches on a scenario's name.
 Every mistake is reported as one :class:`~swarm_mj.errors.UserError` naming the file and
-the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got -1 m``.
+the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got -1 m``,
+before anything flies: field types and ranges, trajectory parameters (and the reference they
+give: finite, above the ground, within 1 km), start spacing, the duration against the control
+period and against the memory its log would take, and seeds in [0, 2**32 − 1].
 """
 
 from __future__ import annotations
@@ -277,8 +280,8 @@ def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> Non
 
 
 def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
-    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (SPEC §4's
-    "seeded random crossing starts"), every two drones (leader included) at least
+    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (seeded
+    random crossing starts; docs/interpretations.md, "starts"), every two drones (leader included) at least
     max(``rs.min_spacing``, :data:`START_CLEARANCE_M`) apart; rejection sampling, seeded.
 
     The floor of 0.70 m keeps a start from being a contact before anything flies: with a
