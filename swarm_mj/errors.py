@@ -1,7 +1,7 @@
 """Exception types shared by every room of the package.
 
 The CLI turns :class:`UserError` into one line on stderr and exit status 2, and
-:class:`SimulationDiverged` into one line and exit status 1 (DESIGN "Errors").
+:class:`SimulationDiverged` or :class:`OutputError` into one line and exit status 1.
 """
 
 from __future__ import annotations
@@ -28,6 +28,12 @@ class UserError(SwarmError, ValueError):
 
 class SimulationDiverged(SwarmError, RuntimeError):
     """The physics produced NaN, a drone fell through the floor or flew away. Exit status 1."""
+
+    exit_code = 1
+
+
+class OutputError(SwarmError, OSError):
+    """An output file could not be written (e.g. no space left on the device). Exit status 1."""
 
     exit_code = 1
 

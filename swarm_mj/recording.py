@@ -108,7 +108,9 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
         rec.disconnect()
         tmp.unlink(missing_ok=True)
         raise
-    os.replace(tmp, path)
+    from .atomic import replace_into
+
+    replace_into(tmp, path)       # never replaces a FIFO or device; a symlink is written through
     if spawn:  # the file first: a viewer that cannot start (no display) never costs the recording
         import sys
 

@@ -1,14 +1,18 @@
-"""Scenario files: TOML data in ``scenarios/``, validated into dataclasses (DESIGN "Scenario").
+"""Scenario files: TOML data in ``scenarios/``, validated into dataclasses.
 
 A scenario names the drones and their starts, the leader's trajectory, the D schedule,
 the anti-collision rule, the controller gains, the wind, the duration, the control
 period, the physics timestep and the seed. Code never branches on a scenario's name.
 Every mistake is reported as one :class:`~swarm_mj.errors.UserError` naming the file and
-the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got -1 m``.
+the field, e.g. ``scenarios/x.toml: formation.diameter: D must be positive, got -1 m``,
+before anything flies: field types and ranges, trajectory parameters (and the reference they
+give: finite, above the ground, within 1 km), start spacing, the duration against the control
+period and against the memory its log would take, and seeds in [0, 2**32 − 1].
 """
 
 from __future__ import annotations
 
+import os
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -99,20 +103,187 @@ class Scenario:
                                                                     self.random_start, where=self.path)])
 
     def with_overrides(self, **kw) -> "Scenario":
-        """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``)."""
+        """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``).
+
+        ``seed=s`` is the scenario's seed s everywhere (``run --seed``, ``sweep``, ``stress``,
+        the report): it seeds the wind turbulence **and** re-derives seeded random follower
+        starts with seed s (unless ``random_start`` is given too). ``duration`` and ``seed``
+        are checked as in a scenario file (:class:`UserError` naming the field).
+        """
+        if "seed" in kw:
+            kw["seed"] = check_seed(kw["seed"], "seed")
+            if self.random_start is not None and "random_start" not in kw:
+                kw["random_start"] = replace(self.random_start, seed=kw["seed"])
+        if "duration" in kw or "control_period" in kw:
+            T = float(kw.get("control_period", self.control_period))
+            kw["duration"] = check_duration(kw.get("duration", self.duration), T,
+                                            int(kw.get("n_followers", self.n_followers)) + 1, "duration")
         return replace(self, **kw)
 
 
 #: Centre distance below which two level drones may already touch on the ground: rotor tip
-#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (SPEC §1
-#: geometry), plus 2 cm. Measured in MuJoCo: two followers 0.60 m or 0.65 m apart along x
-#: are in contact from the first physics step; 0.70 m apart they are not.
+#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (the
+#: drone's geometry, ``assets/quadrotor.xml``), plus 2 cm. Measured in MuJoCo: two followers
+#: 0.60 m or 0.65 m apart along x are in contact from the first physics step; 0.70 m apart
+#: they are not. Random starts keep at least this spacing; explicit starts closer than this
+#: (3D centre distance, whatever the heights) are refused (docs/interpretations.md, "starts").
 START_CLEARANCE_M = 0.70
+
+#: Largest seed: numpy's legacy and most external generators take 32-bit seeds; one range everywhere.
+MAX_SEED = 2**32 - 1
+
+#: Largest distance a scenario may ask for (random start radius, spacing): the simulator stops
+#: a run when a drone is farther than 1 km from the origin (``sim.Sim(max_distance=1e3)``).
+MAX_RANGE_M = 1000.0
+
+#: Most followers a scenario may hold: the neighbour arrays grow as n², and the model compiles
+#: and the random starts are drawn in Python (the paper flies 5).
+MAX_FOLLOWERS = 200
+
+#: Most draws of the random starts' rejection sampling.
+MAX_TRIES = 1_000_000
+
+#: Share of the available memory a run's log may take before the run is refused.
+MEMORY_SHARE = 0.5
+
+
+def check_seed(v: Any, where: str = "seed") -> int:
+    """A seed: an integer in [0, 2**32 − 1] (:class:`UserError` naming ``where`` otherwise)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise UserError(f"must be an integer >= 0 and <= {MAX_SEED}, got {v!r}", where=where)
+    if not 0 <= int(v) <= MAX_SEED:
+        raise UserError(f"must be >= 0 and <= {MAX_SEED}, got {int(v)}", where=where)
+    return int(v)
+
+
+def available_memory_bytes() -> int | None:
+    """MemAvailable of /proc/meminfo (Linux), else free physical pages × page size; None if unknown."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def run_log_bytes(n_steps: int, n_drones: int) -> int:
+    """Bytes of the arrays a run keeps for ``n_steps`` control periods of ``n_drones`` drones:
+    the log (``runner.RunLog``: 33 floats per drone and 5 shared per sample) plus the
+    precomputed reference, D schedule and wind series (about 30 floats per sample), float64."""
+    return 8 * (int(n_steps) + 1) * (33 * int(n_drones) + 35)
+
+
+def _gib(b: float) -> str:
+    return f"{b / 2**30:.3g} GiB" if b >= 2**30 else f"{b / 2**20:.3g} MiB"
+
+
+def check_duration(duration: Any, control_period: float, n_drones: int, where: str = "duration") -> float:
+    """A run's duration: a finite positive number of seconds, at least one control period, and
+    short enough that the run's log (:func:`run_log_bytes`) fits in :data:`MEMORY_SHARE` of the
+    available memory. Returns it as a float; :class:`UserError` naming ``where`` otherwise."""
+    if isinstance(duration, bool) or not isinstance(duration, (int, float, np.integer, np.floating)):
+        raise UserError(f"must be a number of seconds, got {duration!r}", where=where)
+    d = float(duration)
+    if not np.isfinite(d):
+        raise UserError(f"must be a finite number of seconds, got {d}", where=where)
+    if d <= 0:
+        raise UserError(f"must be positive, got {d:g} s", where=where)
+    if d < control_period * (1 - 1e-9):
+        raise UserError(f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would "
+                        f"be simulated", where=where)
+    n_steps = round(d / control_period)
+    need = run_log_bytes(n_steps, n_drones)
+    avail = available_memory_bytes()
+    if avail is not None and need > MEMORY_SHARE * avail:
+        raise UserError(f"{d:g} s at {control_period:g} s per step is {n_steps:.3g} steps of {n_drones} drone(s); "
+                        f"its log would take about {_gib(need)}, more than {MEMORY_SHARE:.0%} of the "
+                        f"{_gib(avail)} of memory available: shorten the run", where=where)
+    return d
+
+
+def check_trajectory_params(name: str, params: dict, where: str) -> None:
+    """Every trajectory parameter by type before the trajectory is built: scalars finite
+    numbers, points (``target``, ``position``, ``center``) lists of finite numbers of the
+    right length. ``where`` is e.g. ``file: leader.params``."""
+    import inspect
+
+    sig = inspect.signature(TRAJECTORIES[name])
+    for key, v in params.items():
+        if key not in sig.parameters:
+            raise UserError(f"unknown parameter of trajectory {name!r}; allowed: {', '.join(sig.parameters)}",
+                            where=f"{where}.{key}")
+        default = sig.parameters[key].default
+        if isinstance(default, (tuple, list)):
+            m = len(default)
+            if (not isinstance(v, list) or len(v) != m
+                    or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+                raise UserError(f"must be a list of {m} numbers, got {v!r}", where=f"{where}.{key}")
+            if not all(np.isfinite(x) for x in v):
+                raise UserError(f"must be finite numbers, got {v!r}", where=f"{where}.{key}")
+        else:
+            if isinstance(v, bool) or not isinstance(v, (int, float)):
+                raise UserError(f"must be a number, got {v!r}", where=f"{where}.{key}")
+            if not np.isfinite(v):
+                raise UserError(f"must be finite, got {v!r}", where=f"{where}.{key}")
+
+
+def check_reference(traj, duration: float, control_period: float, where: str) -> None:
+    """The leader's reference is finite and above the ground over the whole run (sampled at up to
+    10 001 control instants, ends included): a parameter that makes it overflow (``omega = 1e200``)
+    or go underground is refused before anything flies."""
+    n = int(round(duration / control_period))
+    k = np.unique(np.r_[np.linspace(0, n, min(n + 1, 10001)).round().astype(np.int64), n])
+    t = k * control_period
+    try:
+        with np.errstate(all="ignore"):
+            ref = traj(t)
+    except (ArithmeticError, ValueError) as exc:        # e.g. omega**2 overflowing a Python float
+        raise UserError(f"the reference is not finite ({exc}); check the parameters", where=where) from None
+    for f in ("pos", "vel", "acc", "yaw", "yaw_rate", "yaw_acc"):
+        a = np.asarray(getattr(ref, f), float)
+        bad = ~np.isfinite(a.reshape(len(t), -1)).all(axis=1)
+        if bad.any():
+            raise UserError(f"the reference's {f.replace('_', ' ')} is not finite at t = {t[bad][0]:g} s; "
+                            f"check the parameters", where=where)
+    far = np.linalg.norm(ref.pos, axis=1) > MAX_RANGE_M
+    if far.any():
+        raise UserError(f"the reference goes farther than {MAX_RANGE_M:g} m from the origin (at t = {t[far][0]:g} s), "
+                        f"where the simulator stops the run", where=where)
+    z = ref.pos[:, 2]
+    if (z < 0).any():
+        i = int(np.argmax(z < 0))
+        raise UserError(f"the reference goes below the ground (z = {z[i]:g} m at t = {t[i]:g} s)", where=where)
+
+
+def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> None:
+    """Explicit starts: on or above the ground (z >= 0), within :data:`MAX_RANGE_M` of the origin
+    and every two drones at least :data:`START_CLEARANCE_M` apart (3D centre distance), as random
+    starts are."""
+    below = np.flatnonzero(starts[:, 2] < 0)
+    if len(below):
+        i = int(below[0])
+        raise UserError(f"{names[i]} starts below the ground (z = {starts[i, 2]:g} m); z must be >= 0", where=where)
+    far = np.flatnonzero(np.linalg.norm(starts, axis=1) > MAX_RANGE_M)
+    if len(far):
+        raise UserError(f"{names[int(far[0])]} starts farther than {MAX_RANGE_M:g} m from the origin, where the "
+                        f"simulator stops the run", where=where)
+    d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)   # (n, n)
+    d[np.diag_indices(len(starts))] = np.inf
+    i, j = np.unravel_index(np.argmin(d), d.shape)
+    if d[i, j] < START_CLEARANCE_M:
+        i, j = sorted((int(i), int(j)))
+        raise UserError(f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
+                        f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)", where=where)
 
 
 def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
-    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (SPEC §4's
-    "seeded random crossing starts"), every two drones (leader included) at least
+    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (seeded
+    random crossing starts; docs/interpretations.md, "starts"), every two drones (leader included) at least
     max(``rs.min_spacing``, :data:`START_CLEARANCE_M`) apart; rejection sampling, seeded.
 
     The floor of 0.70 m keeps a start from being a contact before anything flies: with a
@@ -154,6 +325,9 @@ def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> Non
     wr = f"{where}: followers.random_start"
     if not (np.isfinite(r) and np.isfinite(s)) or r <= 0 or s <= 0:
         raise UserError("radius and min_spacing must be positive", where=wr)
+    if r > MAX_RANGE_M or s > MAX_RANGE_M:
+        raise UserError(f"radius and min_spacing must be at most {MAX_RANGE_M:g} m (a drone farther than that "
+                        f"from the origin stops the run)", where=wr)
     if n < 0:
         raise UserError(f"follower count must be >= 0, got {n}", where=wr)
     se = max(s, START_CLEARANCE_M)
@@ -192,7 +366,16 @@ def _number(table: dict, key: str, default, where: str, *, positive: bool = Fals
     return v
 
 
+def _only_numbers(v) -> bool:
+    """A number or (nested) lists of numbers, no booleans or strings."""
+    if isinstance(v, list):
+        return all(_only_numbers(x) for x in v)
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
 def _vec(v, n: int | None, where: str) -> np.ndarray:
+    if not _only_numbers(v):
+        raise UserError(f"must be numbers, got {v!r}", where=where)
     try:
         a = np.asarray(v, dtype=float)
     except (TypeError, ValueError):
@@ -211,15 +394,18 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     w = f"{path}: "
     duration = float(_number(data, "duration", None, w, positive=True))
     T = float(_number(data, "control_period", 0.01, w, positive=True))
+    if T > duration:
+        raise UserError(f"{T:g} s is longer than the duration ({duration:g} s): nothing would be simulated",
+                        where=f"{w}control_period")
     dt = float(_number(data, "timestep", 0.005, w, positive=True))
     nsub = round(T / dt)
     if nsub < 1 or abs(nsub * dt - T) > 1e-9:
         raise UserError(f"must divide control_period = {T} s (got {dt} s)", where=f"{w}timestep")
     integrator = data.get("integrator", "RK4")
-    if integrator not in ("RK4", "Euler", "implicitfast"):
+    if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast",
                         where=f"{w}integrator")
-    seed = int(_number(data, "seed", 0, w, integer=True, minimum=0))
+    seed = check_seed(data.get("seed", 0), f"{w}seed")
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
     leader = _check_keys(data.get("leader", None) if "leader" in data else _missing(w + "leader"),
@@ -227,12 +413,13 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if "trajectory" not in leader:
         raise UserError("missing field", where=f"{w}leader.trajectory")
     traj = leader["trajectory"]
-    if traj not in TRAJECTORIES:
+    if not isinstance(traj, str) or traj not in TRAJECTORIES:
         raise UserError(f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
                         where=f"{w}leader.trajectory")
     tparams = leader.get("params", {})
     if not isinstance(tparams, dict):
         raise UserError("must be a table", where=f"{w}leader.params")
+    check_trajectory_params(traj, tparams, f"{w}leader.params")
     make_trajectory(traj, tparams, where=f"{w}leader.params")   # validates the parameters
     leader_start = _vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{w}leader.start")
     yaw_deg = float(_number(leader, "yaw_deg", 0.0, f"{w}leader."))
@@ -243,6 +430,8 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     default_count = len(fol["start"]) if isinstance(fol.get("start"), list) else None
     n_f = int(_number(fol, "count", default_count if default_count is not None else None,
                       f"{w}followers.", integer=True, minimum=0))
+    if n_f > MAX_FOLLOWERS:
+        raise UserError(f"at most {MAX_FOLLOWERS} followers, got {n_f}", where=f"{w}followers.count")
     starts = None
     rstart = None
     if n_f > 0:
@@ -256,17 +445,22 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             wr = f"{w}followers.random_start."
             rstart = RandomStart(radius=float(_number(r, "radius", 3.0, wr, positive=True)),
                                  min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
-                                 seed=int(_number(r, "seed", seed, wr, integer=True, minimum=0)),
+                                 seed=check_seed(r.get("seed", seed), f"{wr}seed"),
                                  max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)))
+            if rstart.max_tries > MAX_TRIES:
+                raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
             check_random_start_feasible(n_f, rstart, path)
         else:
             raise UserError("followers need start positions or random_start", where=f"{w}followers")
 
     form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
     diameter = form.get("diameter", 1.0)
+    if not _only_numbers(diameter):
+        raise UserError(f"must be a number or a list of [time, D] pairs, got {diameter!r}",
+                        where=f"{w}formation.diameter")
     DiameterSchedule(diameter, where=f"{w}formation.diameter")
     rule = form.get("anti_collision", "layers")
-    if rule not in ANTI_COLLISION_RULES:
+    if not isinstance(rule, str) or rule not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
                         where=f"{w}formation.anti_collision")
     wf = f"{w}formation."
@@ -286,12 +480,14 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             except UserError as exc:
                 raise UserError(str(exc), where=f"{w}controller.gains") from None
     else:
+        if not _only_numbers(g):
+            raise UserError(f"must be \"table4\", a gains file or 12 numbers, got {g!r}", where=f"{w}controller.gains")
         gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
     ff = ctl.get("wind_feedforward", True)
     if not isinstance(ff, bool):
         raise UserError(f"must be true or false, got {ff!r}", where=f"{w}controller.wind_feedforward")
     amap = ctl.get("attitude_map", "exact")
-    if amap not in ("exact", "paper"):
+    if not isinstance(amap, str) or amap not in ("exact", "paper"):
         raise UserError(f"must be 'exact' or 'paper', got {amap!r}", where=f"{w}controller.attitude_map")
 
     wind_table = data.get("wind", {"enabled": False})
@@ -305,6 +501,18 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
                         where=f"{w}aero.motor_tau")
     _check_above_ground(leader_start, starts, traj, tparams, duration, T, w)
 
+    # Checks across fields, still before anything flies.
+    check_duration(duration, T, 1 + n_f, f"{w}duration")
+    check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
+    names = ["leader"] + [f"follower{k}" for k in range(1, n_f + 1)]
+    if starts is not None:
+        check_start_spacing(np.vstack([leader_start, starts]), names, f"{w}followers.start")
+    else:
+        check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start")
+
+    for key in ("name", "description"):
+        if key in data and not isinstance(data[key], str):
+            raise UserError(f"must be a string, got {data[key]!r}", where=f"{w}{key}")
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
     return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
                     control_period=T, timestep=dt, integrator=integrator, seed=seed, steady_after=steady_after,
@@ -369,3 +577,40 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"TOML syntax error: {exc}", where=str(path)) from None
     return parse_scenario(data, str(path), name=path.stem)
+
+
+def _toml_scalar(v: Any) -> str:
+    import json
+    import math
+
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        f = float(v)
+        return ("inf" if f > 0 else "-inf") if math.isinf(f) else ("nan" if math.isnan(f) else repr(f))
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_scalar(x) for x in v) + "]"
+    raise TypeError(f"cannot write {type(v).__name__} to TOML")
+
+
+def scenario_toml(data: dict) -> str:
+    """A scenario table (as :func:`parse_scenario` reads it) as TOML text: scalars and lists at the
+    top, then one ``[section]`` per sub-table (one level of nesting inside a section, written as
+    an inline table). ``load_scenario`` of the text gives the same scenario."""
+    top = [f"{k} = {_toml_scalar(v)}" for k, v in data.items() if not isinstance(v, dict)]
+    out = top + [""]
+    for k, v in data.items():
+        if isinstance(v, dict):
+            out.append(f"[{k}]")
+            for kk, vv in v.items():
+                if isinstance(vv, dict):
+                    inner = ", ".join(f"{a} = {_toml_scalar(b)}" for a, b in vv.items())
+                    out.append(f"{kk} = {{ {inner} }}")
+                else:
+                    out.append(f"{kk} = {_toml_scalar(vv)}")
+            out.append("")
+    return "\n".join(out)

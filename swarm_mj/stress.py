@@ -47,7 +47,12 @@ def stress_scenario(case: StressCase):
     ground flying ``case.trajectory``, random follower starts seeded ``case.seed``."""
     from .scenario import parse_scenario
 
-    data = {"name": f"stress-{case.rule}-{case.seed}", "duration": case.duration, "seed": case.seed,
+    return parse_scenario(stress_data(case), "<stress>")
+
+
+def stress_data(case: StressCase) -> dict:
+    """The scenario table of one case (``swarm-mj stress --save-scenario`` writes it as TOML)."""
+    return {"name": f"stress-{case.rule}-{case.seed}", "duration": case.duration, "seed": case.seed,
             "leader": {"trajectory": case.trajectory, "start": [0.0, 0.0, 0.0]},
             "followers": {"count": case.followers,
                           "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
@@ -55,7 +60,6 @@ def stress_scenario(case: StressCase):
             "formation": {"diameter": case.diameter, "anti_collision": case.rule,
                           "sensing_range": case.sensing_range},
             "aero": {"model": case.aero}}
-    return parse_scenario(data, "<stress>")
 
 
 def fly_case(case: StressCase) -> dict:
@@ -128,3 +132,23 @@ def format_table(table: dict, followers: int) -> str:
             lines.append(f"         seeds with contact: {', '.join(map(str, seeds[:20]))}"
                          f"{' ...' if len(seeds) > 20 else ''}")
     return "\n".join(lines)
+
+
+def replay_lines(table: dict, rows: list[dict], scenario_file: str | None) -> list[str]:
+    """One line per rule: its worst start (most contacts, then smallest airborne separation) and
+    the ``swarm-mj run`` command that flies it again (same starts, same wind: seed S)."""
+    import shlex
+
+    f = shlex.quote(scenario_file) if scenario_file else "STRESS.toml"
+    out = []
+    for rule in table:
+        rs = [r for r in rows if r["rule"] == rule]
+        if not rs:
+            continue
+        w = max(rs, key=lambda r: (r["contacts"], -r["min_separation_airborne_m"]))
+        out.append(f"worst '{rule}' start: seed {w['seed']} ({w['contacts']} contacts, min airborne separation "
+                   f"{w['min_separation_airborne_m']:.3f} m); replay: swarm-mj run {f} --seed {w['seed']} "
+                   f"--anti-collision {rule}")
+    if not scenario_file:
+        out.append("  (STRESS.toml: add --save-scenario STRESS.toml to write the scenario these starts flew)")
+    return out

@@ -278,7 +278,9 @@ def test_atomic_write_keeps_the_old_file_when_interrupted(tmp_path, monkeypatch)
     def boom(fd):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(tune_cmd.os, "fsync", boom)
+    import swarm_mj.atomic as atomic
+
+    monkeypatch.setattr(atomic.os, "fsync", boom)      # tune writes through swarm_mj.atomic
     with pytest.raises(KeyboardInterrupt):
         tune_cmd.write_text_atomic(path, "gains = [2.0]\n" * 1000)
     assert path.read_text() == "gains = [1.0]\n"

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
@@ -37,51 +36,58 @@ def add_parser(sub) -> None:
 
 
 def write_json_atomic(path: str | Path, data: dict) -> None:
-    path = Path(path)
-    tmp = path.with_name(path.name + ".partial")
-    tmp.write_text(json.dumps(_finite(data), indent=2, default=_json_default, allow_nan=False) + "\n")
-    os.replace(tmp, path)
+    """Strict JSON, written atomically (kept here for the callers of ``commands.run``; see
+    :mod:`swarm_mj.atomic`)."""
+    from ..atomic import write_json_atomic as _write
+
+    _write(path, data)
 
 
-def _finite(o):
-    """Strict JSON: a non-finite number (a formation that never settled) becomes null."""
-    import math
+def check_args(args: argparse.Namespace, sc) -> None:
+    """Every option of ``swarm-mj run`` checked against the scenario before anything flies:
+    --seed, --duration (finite, at least one control period, a log that fits in memory),
+    every output path (-o, --summary, --video, --snapshot). Raises :class:`UserError`."""
+    from ..atomic import check_output_path
+    from ..errors import UserError
+    from ..scenario import check_duration, check_seed
 
-    import numpy as np
-
-    if isinstance(o, dict):
-        return {k: _finite(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_finite(v) for v in o]
-    if isinstance(o, (float, np.floating)) and not math.isfinite(float(o)):
-        return None
-    return o
-
-
-def _json_default(o):
-    import numpy as np
-
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    raise TypeError(f"not JSON serialisable: {type(o)}")
+    if args.seed is not None:
+        check_seed(args.seed, "--seed")
+    if args.duration is not None:
+        check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
+    if not args.no_record:
+        check_output_path(args.output if args.output else f"{sc.name}.rrd", "-o/--output")
+    if args.summary:
+        check_output_path(args.summary, "--summary", allow_stdout=True)
+    outs = [("-o/--output", None if args.no_record else (args.output or f"{sc.name}.rrd")),
+            ("--summary", args.summary), ("--video", args.video), ("--snapshot", args.snapshot)]
+    seen: dict[str, str] = {}
+    for opt, p in outs:
+        if p is None or p == "-":
+            continue
+        key = os.path.realpath(p)
+        if key in seen:
+            raise UserError(f"{opt} {p}: the same file as {seen[key]}")
+        seen[key] = opt
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..control.backstepping import load_gains
-    from ..errors import UserError
+    from ..control.backstepping import check_gains, load_gains
     from ..recording import write_recording
     from ..report_table import format_summary
     from ..runner import run
     from ..scenario import load_scenario
 
     sc = load_scenario(args.scenario)
-    if args.duration is not None and not args.duration > 0:
-        raise UserError(f"--duration must be positive, got {args.duration}")
+    check_args(args, sc)
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
+        gains = check_gains(gains, sc.n_drones, where=f"{args.gains}: gains")   # (12,) or one row per drone
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
+    if args.seed is not None:
+        sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts, as sweep/stress call seed s
+    if args.duration is not None:
+        sc = sc.with_overrides(duration=args.duration)
     if args.video or args.snapshot:
         from ..video import check_video_args
         check_video_args(args)
@@ -104,13 +110,14 @@ def main(args: argparse.Namespace) -> int:
             print(spawn_note(out), file=sys.stderr)
     if args.summary:
         write_json_atomic(args.summary, result.summary)
-    if not args.quiet:
-        print(format_summary(result.summary, result.scenario))
+    if not args.quiet:   # with --summary - the JSON alone goes to standard output
+        print(format_summary(result.summary, result.scenario), file=sys.stderr if args.summary == "-" else sys.stdout)
     if result.error is not None:
+        kept = "; the recording holds what ran" if not args.no_record else ""
         if isinstance(result.error, KeyboardInterrupt):
-            print("swarm-mj: interrupted; the recording holds what ran", file=sys.stderr)
+            print(f"swarm-mj: interrupted{kept}", file=sys.stderr)
             return 130
-        print(f"swarm-mj: error: {result.error} (the recording holds what ran)", file=sys.stderr)
+        print(f"swarm-mj: error: {result.error}{f' ({kept[2:]})' if kept else ''}", file=sys.stderr)
         return _serve(args, out, 1)
     if args.video or args.snapshot:
         from ..video import render_outputs

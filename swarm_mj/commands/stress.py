@@ -22,7 +22,8 @@ from __future__ import annotations
 
 import argparse
 
-from ..stress import RULES, StressCase, fly_case, format_table, stress, stress_scenario, summarize_rule  # noqa: F401
+from ..stress import (RULES, StressCase, fly_case, format_table, replay_lines, stress, stress_data,  # noqa: F401
+                      stress_scenario, summarize_rule)
 
 
 def add_parser(sub) -> None:
@@ -43,16 +44,35 @@ def add_parser(sub) -> None:
     p.add_argument("--aero", choices=["paper", "realistic"],
                    help="physics preset (default: paper; docs/aero.md)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
+    p.add_argument("--save-scenario", metavar="TOML",
+                   help="write the flown scenario as a file: 'swarm-mj run TOML --seed S --anti-collision RULE' "
+                        "replays start S exactly")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
 
 
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
+    save = getattr(args, "save_scenario", None)
+    if args.json:
+        from ..atomic import check_output_path
+        check_output_path(args.json, "--json", allow_stdout=True)
+    if save:
+        from ..atomic import check_output_path
+        check_output_path(save, "--save-scenario", (".toml",))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
                          args.seed0, args.workers, args.sensing_range, progress=not args.quiet,
                          aero=args.aero or "paper")
+    if save:
+        from ..atomic import write_text_atomic
+        from ..scenario import scenario_toml
+
+        case = StressCase(rules[0], args.seed0, args.followers, args.radius, args.min_spacing, args.duration,
+                          args.sensing_range, aero=args.aero or "paper")
+        write_text_atomic(save, "# written by swarm-mj stress; replay start S with rule R:\n"
+                          "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)))
     print(format_table(table, args.followers))
+    print("\n".join(replay_lines(table, rows, save)))
     if args.json:
         from .run import write_json_atomic
 

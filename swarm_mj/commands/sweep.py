@@ -102,10 +102,14 @@ def main(args: argparse.Namespace) -> int:
         raise UserError(f"--seeds must be >= 1, got {args.seeds}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
-    if args.duration is not None and not args.duration > 0:
-        raise UserError(f"--duration must be positive, got {args.duration}")
     param, values = parse_param(args.param) if args.param else (None, None)
     sc = load_scenario(args.scenario)
+    if args.duration is not None:
+        from ..scenario import check_duration
+        check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
+    if args.json:
+        from ..atomic import check_output_path
+        check_output_path(args.json, "--json", allow_stdout=True)
     if args.gains:
         from ..control.backstepping import load_gains
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
@@ -117,8 +121,39 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         write_json_atomic(args.json, _jsonable(res.to_dict()))
     print(format_sweep(res))
+    print(replay_line(args, res))
     sys.stdout.flush()
     return 1 if any(r["stopped"] for r in res.runs) else 0
+
+
+def replay_line(args: argparse.Namespace, res) -> str:
+    """The ``swarm-mj run`` command that flies the sweep's worst run again (its seed means the
+    same wind and random starts there): most contacts, else smallest separation, else the
+    largest leader RMSE x."""
+    import math
+    import shlex
+
+    best = None
+    for vi, v in enumerate(res.values):
+        for r in (r for r in res.runs if r["value_index"] == vi):
+            m = r["metrics"]
+            sep = m.get("min_separation_m", math.inf)
+            key = (m.get("stopped", 0), m.get("contacts", 0), -sep if math.isfinite(sep) else -math.inf,
+                   m.get("rmse_x", 0) if math.isfinite(m.get("rmse_x", 0)) else math.inf)
+            if best is None or key > best[0]:
+                best = (key, r["seed"], v)
+    _, seed, value = best
+    cmd = ["swarm-mj", "run", args.scenario, "--seed", str(seed)]
+    if args.duration is not None:
+        cmd += ["--duration", repr(float(args.duration))]
+    if args.gains:
+        cmd += ["--gains", args.gains]
+    note = ""
+    if res.param == "formation.anti_collision":
+        cmd += ["--anti-collision", str(value)]
+    elif res.param:
+        note = f"  (with {res.param} = {value!r} in the scenario file)"
+    return f"worst run: seed {seed}; replay: {shlex.join(cmd)}{note}"
 
 
 def _jsonable(o):

@@ -17,9 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
-import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
@@ -142,22 +140,12 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` through a temporary file in the same folder and ``os.replace``:
-    a reader (or an interruption) sees the old file or the new one, never half of one."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".partial")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
-            f.write(text)
-            f.flush()
-            os.fsync(f.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
+    """Write ``text`` to ``path`` atomically (:func:`swarm_mj.atomic.write_text_atomic`): a reader
+    (or an interruption) sees the old file or the new one, never half of one; a FIFO or device
+    is written in place, a symlink through to its target."""
+    from ..atomic import write_text_atomic as _write
+
+    _write(path, text)
 
 
 def write_gains_file(path: str | Path, outcome) -> None:
@@ -169,15 +157,9 @@ def write_gains_file(path: str | Path, outcome) -> None:
 
 
 def _check_output(path: Path) -> None:
-    from ..errors import UserError
+    from ..atomic import check_output_path
 
-    if path.is_dir():
-        raise UserError("is a folder; give a file name such as tuned_gains.toml", where=str(path))
-    parent = path.parent if str(path.parent) else Path(".")
-    if not parent.is_dir():
-        raise UserError(f"folder {parent} does not exist", where=str(path))
-    if not os.access(parent, os.W_OK):
-        raise UserError(f"folder {parent} is not writable", where=str(path))
+    check_output_path(path, "-o/--output")
 
 
 def main(args: argparse.Namespace) -> int:
@@ -191,6 +173,10 @@ def main(args: argparse.Namespace) -> int:
                        lower=args.lower, upper=args.upper, seed=args.seed, init=args.init)
     if not (math.isfinite(args.t_sim) and args.t_sim > 0):
         raise UserError(f"--t-sim must be a positive number of seconds, got {args.t_sim}")
+    from ..scenario import check_duration, check_seed
+
+    check_seed(args.seed, "--seed")
+    check_duration(args.t_sim, 0.01, max(int(args.population), 1), "--t-sim")
     settings = StepCostSettings(t_sim=float(args.t_sim),
                                 bars=StepBars() if args.constraints == "step-bars" else None)
     if args.workers is not None and args.workers < 1:

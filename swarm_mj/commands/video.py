@@ -128,8 +128,11 @@ def main(args: argparse.Namespace) -> int:
     from ..scenario import load_scenario
 
     sc = load_scenario(args.scenario)
-    if args.duration is not None and not args.duration > 0:
-        raise UserError(f"--duration must be positive, got {args.duration}")
+    from ..scenario import check_duration, check_seed
+    if args.duration is not None:
+        check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
+    if args.seed is not None:
+        check_seed(args.seed, "--seed")
     args.video = args.output or f"{sc.name}.mp4"
     if args.duration is None:
         args.duration = sc.duration
@@ -139,6 +142,8 @@ def main(args: argparse.Namespace) -> int:
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
+    if args.seed is not None:
+        sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts (as in 'swarm-mj run')
     result = run(sc, anti_collision=args.anti_collision, seed=args.seed, aero=args.aero,
                  progress=None if not args.quiet else False, duration=args.duration)
     if isinstance(result.error, KeyboardInterrupt):

@@ -49,10 +49,14 @@ def load_gains(path: str | Path) -> np.ndarray:
     path = Path(path)
     if not path.exists():
         raise UserError("gains file not found", where=str(path))
+    if path.is_dir():
+        raise UserError("is a folder, not a gains file", where=str(path))
     try:
         data = tomllib.loads(path.read_text())
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise UserError(f"not valid TOML: {exc}", where=str(path)) from None
+    except OSError as exc:
+        raise UserError(f"cannot read the gains file: {exc.strerror or exc}", where=str(path)) from None
     if "gains" not in data:
         raise UserError("missing field 'gains' (12 numbers)", where=f"{path}: gains")
     return check_gains(data["gains"], where=f"{path}: gains")
