@@ -21,6 +21,7 @@ through :func:`replace_into`) goes through this module, so that:
 
 from __future__ import annotations
 
+import datetime as _dt
 import errno
 import json
 import math
@@ -43,32 +44,38 @@ STDOUT = "-"
 # --------------------------------------------------------------------------- strict JSON
 
 
-def json_safe(o: Any) -> Any:
-    """``o`` with every non-finite float (NaN, ±inf) replaced by ``None`` and numpy types made
-    Python ones (arrays -> lists, tuples -> lists, Path -> str): what ``json.dumps(...,
-    allow_nan=False)`` accepts."""
+def json_safe(o: Any, inf_as_string: bool = False) -> Any:
+    """``o`` with every non-finite float made JSON (NaN -> ``None``; ±inf -> ``None``, or the strings
+    ``"inf"``/``"-inf"`` with ``inf_as_string``, which the report and sweep results use so that their
+    tables can tell "never settled" from "not measured") and numpy types made Python ones
+    (arrays -> lists, tuples -> lists, Path and dates -> str): what ``json.dumps(...,
+    allow_nan=False)`` accepts. The one sanitiser of every JSON file swarm-mj writes."""
     if isinstance(o, dict):
-        return {str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k: json_safe(v)
-                for k, v in o.items()}
+        return {str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k:
+                json_safe(v, inf_as_string) for k, v in o.items()}
     if isinstance(o, (list, tuple)):
-        return [json_safe(v) for v in o]
+        return [json_safe(v, inf_as_string) for v in o]
     if isinstance(o, np.ndarray):
-        return json_safe(o.tolist())
+        return json_safe(o.tolist(), inf_as_string)
     if isinstance(o, (bool, np.bool_)):
         return bool(o)
     if isinstance(o, (int, np.integer)):
         return int(o)
     if isinstance(o, (float, np.floating)):
         v = float(o)
-        return v if math.isfinite(v) else None
-    if isinstance(o, Path):
+        if math.isfinite(v):
+            return v
+        if inf_as_string and math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return None
+    if isinstance(o, (Path, _dt.datetime, _dt.date, _dt.time)):
         return str(o)
     return o
 
 
-def dumps_strict(data: Any, indent: int | None = 2) -> str:
+def dumps_strict(data: Any, indent: int | None = 2, inf_as_string: bool = False) -> str:
     """Strict JSON text of ``data`` (see :func:`json_safe`), ending in a newline."""
-    return json.dumps(json_safe(data), indent=indent, allow_nan=False) + "\n"
+    return json.dumps(json_safe(data, inf_as_string), indent=indent, allow_nan=False) + "\n"
 
 
 # --------------------------------------------------------------------------- checks before a run
@@ -198,9 +205,9 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     write_bytes_atomic(path, text.encode("utf-8"))
 
 
-def write_json_atomic(path: str | Path, data: Any) -> None:
+def write_json_atomic(path: str | Path, data: Any, inf_as_string: bool = False) -> None:
     """Strict JSON (:func:`dumps_strict`) written with :func:`write_bytes_atomic`."""
-    write_text_atomic(path, dumps_strict(data))
+    write_text_atomic(path, dumps_strict(data, inf_as_string=inf_as_string))
 
 
 def replace_into(tmp: str | Path, path: str | Path) -> None:

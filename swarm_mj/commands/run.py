@@ -73,6 +73,7 @@ def check_args(args: argparse.Namespace, sc) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import check_gains, load_gains
+    from ..errors import UserError
     from ..recording import write_recording
     from ..report_table import format_summary
     from ..runner import run

@@ -22,8 +22,17 @@ from __future__ import annotations
 
 import argparse
 
-from ..stress import (RULES, StressCase, fly_case, format_table, replay_lines, stress, stress_data,  # noqa: F401
-                      stress_scenario, summarize_rule)
+from ..stress import (  # noqa: F401
+    RULES,
+    StressCase,
+    fly_case,
+    format_table,
+    replay_lines,
+    stress,
+    stress_data,
+    stress_scenario,
+    summarize_rule,
+)
 
 
 def add_parser(sub) -> None:
@@ -74,7 +83,7 @@ def main(args: argparse.Namespace) -> int:
     print(format_table(table, args.followers))
     print("\n".join(replay_lines(table, rows, save)))
     if args.json:
-        from .run import write_json_atomic
+        from ..atomic import write_json_atomic
 
         write_json_atomic(args.json, {"settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
                                       "table": table, "starts": rows})

@@ -94,9 +94,9 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
 
 
 def main(args: argparse.Namespace) -> int:
+    from ..atomic import write_json_atomic
     from ..scenario import load_scenario
     from ..sweep import format_sweep, sweep
-    from .run import write_json_atomic
 
     if args.seeds < 1:
         raise UserError(f"--seeds must be >= 1, got {args.seeds}")
@@ -119,7 +119,7 @@ def main(args: argparse.Namespace) -> int:
     res = sweep(sc, args.seeds, param, values, workers=args.workers, ray_address=args.ray,
                 duration=args.duration, progress=not args.quiet)
     if args.json:
-        write_json_atomic(args.json, _jsonable(res.to_dict()))
+        write_json_atomic(args.json, res.to_dict(), inf_as_string=True)
     print(format_sweep(res))
     print(replay_line(args, res))
     sys.stdout.flush()
@@ -154,19 +154,3 @@ def replay_line(args: argparse.Namespace, res) -> str:
     elif res.param:
         note = f"  (with {res.param} = {value!r} in the scenario file)"
     return f"worst run: seed {seed}; replay: {shlex.join(cmd)}{note}"
-
-
-def _jsonable(o):
-    """Infinities as the strings "inf"/"-inf" and NaN as null: strict JSON."""
-    import math
-
-    if isinstance(o, dict):
-        return {k: _jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [_jsonable(v) for v in o]
-    if isinstance(o, float):
-        if math.isnan(o):
-            return None
-        if math.isinf(o):
-            return "inf" if o > 0 else "-inf"
-    return o

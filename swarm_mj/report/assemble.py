@@ -7,14 +7,11 @@ Every number of the report's README and of the README tables comes from here
 from __future__ import annotations
 
 import datetime as _dt
-import math
 import sys
 from dataclasses import asdict
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
+from ..atomic import json_safe
 from ..parallel import machine_description
 from ..runner import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..sweep import compute_stats
@@ -190,22 +187,7 @@ def sweeps_section(jl: JobList, res: JobResults) -> dict:
 
 
 def jsonable(o: Any) -> Any:
-    """Strict JSON: NaN as null, infinities as the strings "inf"/"-inf", arrays as lists."""
-    if isinstance(o, dict):
-        return {str(k): jsonable(v) for k, v in o.items()}
-    if isinstance(o, (list, tuple)):
-        return [jsonable(v) for v in o]
-    if isinstance(o, np.ndarray):
-        return jsonable(o.tolist())
-    if isinstance(o, np.generic):
-        return jsonable(o.item())
-    if isinstance(o, float):
-        if math.isnan(o):
-            return None
-        if math.isinf(o):
-            return "inf" if o > 0 else "-inf"
-    if isinstance(o, (_dt.datetime, _dt.date, _dt.time, Path)):
-        return str(o)
-    return o
+    """results.json's strict JSON: :func:`swarm_mj.atomic.json_safe` with infinities as "inf"/"-inf"."""
+    return json_safe(o, inf_as_string=True)
 
 

@@ -81,7 +81,7 @@ def _draw_figures(out: Path, R: dict, by_key: dict[str, Any], plan: Plan, tell) 
 
 def _write(out: Path, R: dict) -> dict:
     """results.json (strict JSON) and README.md, each written atomically; returns the JSON data."""
-    from ..commands.run import write_json_atomic
+    from ..atomic import write_json_atomic
 
     data = jsonable(R)
     write_json_atomic(out / "results.json", data)
