@@ -499,8 +499,6 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if 0 < aero.motor_tau < dt:
         raise UserError(f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
                         where=f"{w}aero.motor_tau")
-    _check_above_ground(leader_start, starts, traj, tparams, duration, T, w)
-
     # Checks across fields, still before anything flies.
     check_duration(duration, T, 1 + n_f, f"{w}duration")
     check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
@@ -521,23 +519,6 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
                     diameter=diameter, anti_collision=rule, anti_collision_params=ac_params,
                     sensing_range=sensing, gains=gains, gains_source=source, wind_feedforward=ff,
                     attitude_map=amap, wind=wind, path=path, raw=data, aero=aero)
-
-
-def _check_above_ground(leader_start: np.ndarray, starts: np.ndarray | None, traj: str, tparams: dict,
-                        duration: float, T: float, w: str) -> None:
-    """The floor is the plane z = 0 (docs/aero.md): a start or a leader reference below it is bad input."""
-    if leader_start[2] < 0:
-        raise UserError(f"z = {leader_start[2]:g} m is below the ground (z = 0)", where=f"{w}leader.start")
-    if starts is not None and (starts[:, 2] < 0).any():
-        k = int(np.argmax(starts[:, 2] < 0))
-        raise UserError(f"follower {k + 1} starts at z = {starts[k, 2]:g} m, below the ground (z = 0)",
-                        where=f"{w}followers.start")
-    ref = make_trajectory(traj, tparams)(np.arange(round(duration / T) + 1) * T)
-    zmin = float(ref.pos[:, 2].min())
-    if zmin < 0:
-        k = int(np.argmin(ref.pos[:, 2]))
-        raise UserError(f"the leader's reference goes below the ground (z = {zmin:g} m at t = {k * T:g} s)",
-                        where=f"{w}leader.params")
 
 
 def _missing(where: str):
