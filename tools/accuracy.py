@@ -1,0 +1,750 @@
+"""The physics step chosen by measured accuracy (issue 20): every bundled scenario at several steps.
+
+    python tools/accuracy.py [--scenarios a,b] [--duration S] [--workers N] [--json report/accuracy.json]
+                             [--markdown PATH] [--docs docs/physics_step.md] [--readme README.md]
+    python tools/accuracy.py --contacts [--starts 100] [--duration 15] [--fine 5] [--coarse 10]
+                             [--json report/accuracy_contacts.json]
+    python tools/accuracy.py --from-json report/accuracy.json [--contacts-json PATH] --docs docs/physics_step.md
+
+Study mode (default). Each bundled scenario (``scenarios/*.toml``, flown with its own rule), plus
+the rule variants that the README's anti-collision table prints (``anti_collision``, ``scenario1..3``
+with each of ``layers``, ``paper``, ``off``; ``--no-rule-variants`` leaves them out), is flown with
+``swarm_mj.runner.run`` at every setting of ``--settings`` (default RK4 at 1, 2.5, 5 and 10 ms, and
+Euler and implicitfast at 5 and 10 ms, the two steps that divide the 10-ms control period and are
+candidates for the default). The 1-ms RK4 run is the reference. Per case and setting it gives
+
+* the largest distance between the drone's centre of mass and where it is in the reference run, over
+  every control-period sample, per drone (and the largest over drones), and the same for attitude;
+* every summary figure that the README prints, rounded to the digits it is printed with
+  (``tools/readme_tables.py``): step overshoot and settling (2 decimals), peak roll/pitch of the step
+  (1 decimal), RMSE x, y (4 decimals, m) and roll, pitch (3 decimals, °) of the whole run and from
+  10 s, formation settling after the start and after every change of D (2 decimals, s), contacts,
+  minimum separation (2 decimals, m) and whether the run stopped. The same formats are applied to
+  every case, also where the README does not print that figure (marked "not in the README");
+* the contact count; the wall time of the loop as a ratio to the reference run's.
+
+``--duration S`` shortens every case to at most S simulated seconds (quick runs; a step scenario of
+10 s stays 10 s). The output is a full table (``--markdown``, and in ``--docs``), a short one (per
+setting: worst deviation over all cases, whether all figures match, total contacts, time ratios;
+``--readme`` writes it between ``<!-- tables:accuracy -->`` markers) and JSON (``--json``).
+
+Contacts mode (``--contacts``). The same starts as ``swarm-mj stress --rule paper --starts 100``
+(``swarm_mj.commands.stress.StressCase`` / ``stress_scenario``: 5 followers within 3 m, at least 0.6 m
+apart, seeds ``--seed0`` .. ``--seed0 + starts - 1``, the leader flying the circle, 15 s), flown at the
+fine step (``--fine``, 5 ms) and at the candidate (``--coarse``, 10 ms), both RK4. MuJoCo detects
+contacts once per physics step, so a coarser step might let a touch fall between two steps. The
+verdict holds when the total contact count at the candidate is within 5 % of the fine count and no
+start with a contact at the fine step has none at the candidate.
+
+Worker processes (``--workers``) use the spawn start method; each runs whole cases (every setting of
+one case in one process, so that the time ratios compare runs in the same process).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import multiprocessing as mp
+import os
+import re
+import sys
+import time
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import asdict
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: (integrator, timestep in s); the first is the reference.
+DEFAULT_SETTINGS: tuple[tuple[str, float], ...] = (
+    ("RK4", 0.001), ("RK4", 0.0025), ("RK4", 0.005), ("RK4", 0.01),
+    ("Euler", 0.005), ("Euler", 0.01), ("implicitfast", 0.005), ("implicitfast", 0.01))
+#: The rules the README's anti-collision table prints for these scenarios (readme_tables.anticollision).
+RULE_VARIANT_SCENARIOS = ("anti_collision", "scenario1", "scenario2", "scenario3")
+RULES = ("layers", "paper", "off")
+#: Position deviation bar of the issue: the default step keeps every scenario within 1 mm of 1-ms RK4.
+DEVIATION_BAR_M = 1e-3
+#: Contacts mode: the total count at the candidate step within 5 % of the fine step's.
+CONTACT_TOLERANCE = 0.05
+
+# Where the README prints which figure (tools/readme_tables.py): the reproduction table prints the
+# step of `step`, the Table 5 RMSE of the four single-drone runs with a paper row, the formation
+# settling, contacts and minimum separation of the swarm scenarios and variable D; the anti-collision
+# table prints contacts / min separation / settling of `layers`, contacts / min separation of `paper`,
+# contacts of `off`.
+_README_RMSE = {"circle_single", "lemniscate_single", "wind_circle", "wind_lemniscate"}
+_README_SWARM = {"circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3",
+                 "variable_diameter", "anti_collision"}
+
+
+# --------------------------------------------------------------------------- printed digits
+
+
+def printed(v: Any, fmt: str) -> str:
+    """``v`` as the README prints it with format ``fmt`` (None: "–", inf: "never", like readme_tables.f)."""
+    if v is None:
+        return "–"
+    if isinstance(v, str):
+        if v.lower() == "inf":
+            return "never"
+        if v.lower() == "nan":
+            return "–"
+        return v
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, float) and not math.isfinite(v):
+        return "never" if v > 0 else ("–" if math.isnan(v) else "-never")
+    s = fmt.format(v)
+    # "-0.00" and "0.00" are the same printed figure
+    return s[1:] if s.startswith("-") and not any(c in s for c in "123456789") else s
+
+
+def same_printed(a: Any, b: Any, fmt: str) -> bool:
+    """Whether ``a`` and ``b`` print the same with ``fmt`` (the README's digits)."""
+    return printed(a, fmt) == printed(b, fmt)
+
+
+def printed_figures(summary: dict, case: str, rule: str | None = None) -> dict[str, tuple[Any, str, bool]]:
+    """The README's figures of one run summary: name -> (value, format, printed in the README).
+
+    ``case`` is the scenario name (decides only the "printed in the README" flag); ``rule`` the
+    anti-collision rule the case is flown with (None: the scenario's own).
+    """
+    out: dict[str, tuple[Any, str, bool]] = {}
+    lead = summary["drones"]["leader"]
+    is_step = "step" in lead
+    if is_step:
+        for ax, m in lead["step"].items():
+            out[f"step {ax} overshoot %"] = (m["overshoot_pct"], "{:.2f}", True)
+            out[f"step {ax} settling s"] = (m["settling_s"], "{:.2f}", True)
+        out["step peak |roll| °"] = (lead["max_abs_roll_deg"], "{:.1f}", True)
+        out["step peak |pitch| °"] = (lead["max_abs_pitch_deg"], "{:.1f}", True)
+    rm = case in _README_RMSE
+    for key, label in (("rmse", "RMSE"), ("rmse_steady", "RMSE from 10 s")):
+        r = lead.get(key)
+        if r is None:
+            continue
+        out[f"{label} x m"] = (r["x"], "{:.4f}", rm)
+        out[f"{label} y m"] = (r["y"], "{:.4f}", rm)
+        out[f"{label} roll °"] = (r["roll_deg"], "{:.3f}", rm)
+        out[f"{label} pitch °"] = (r["pitch_deg"], "{:.3f}", rm)
+    sw = case in _README_SWARM
+    own = rule is None or rule == "layers"
+    out["contacts"] = (int(summary["contacts"]), "{}", sw)
+    if summary.get("min_separation_m") is not None:
+        out["min separation m"] = (summary["min_separation_m"], "{:.2f}", sw and rule != "off")
+    form = summary.get("formation")
+    if form:
+        for j, s in enumerate(form["settling_s"]):
+            label = "formation settling s" if j == 0 else f"settling after change {j} s"
+            out[label] = (s, "{:.2f}", sw and own)
+    out["stopped"] = (bool(summary.get("stopped")), "{}", True)
+    return out
+
+
+def differing(ref: dict[str, tuple[Any, str, bool]], other: dict[str, tuple[Any, str, bool]]) -> list[dict]:
+    """Figures of ``ref`` whose printed value differs in ``other`` (or that ``other`` lacks)."""
+    out = []
+    for name, (v, fmt, in_readme) in ref.items():
+        w = other.get(name, (None, fmt, in_readme))[0]
+        if not same_printed(v, w, fmt):
+            out.append({"figure": name, "reference": printed(v, fmt), "value": printed(w, fmt),
+                        "in_readme": in_readme})
+    for name in other.keys() - ref.keys():
+        v, fmt, in_readme = other[name]
+        out.append({"figure": name, "reference": "–", "value": printed(v, fmt), "in_readme": in_readme})
+    return out
+
+
+# --------------------------------------------------------------------------- deviations
+
+
+def position_deviation(pos: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(n,) largest distance over time between ``pos`` (k, n, 3) and ``ref`` (k', n, 3) (common samples)."""
+    k = min(len(pos), len(ref))
+    return np.linalg.norm(pos[:k] - ref[:k], axis=2).max(axis=0)
+
+
+def attitude_deviation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """(n,) largest rotation angle (°) over time between attitudes ``quat`` (k, n, 4) and ``ref``."""
+    k = min(len(quat), len(ref))
+    dot = np.abs(np.einsum("kni,kni->kn", quat[:k], ref[:k]))
+    return np.rad2deg(2 * np.arccos(np.clip(dot, 0.0, 1.0))).max(axis=0)
+
+
+# --------------------------------------------------------------------------- study (worker side)
+
+
+def _label(integrator: str, dt: float) -> str:
+    return f"{integrator} {dt * 1e3:g} ms"
+
+
+def _case_scenario(case: dict):
+    from swarm_mj.scenario import load_scenario
+
+    sc = load_scenario(case["scenario"])
+    if case["rule"] is not None:
+        sc = sc.with_overrides(anti_collision=case["rule"])
+    if case["duration"] is not None:
+        sc = sc.with_overrides(duration=min(sc.duration, float(case["duration"])))
+    return sc
+
+
+def fly_case(case: dict) -> dict:
+    """Fly one case at every setting (the first is the reference); the study's numbers of that case.
+
+    Each setting is compared with the reference and with ``case["current"]`` (the default step before
+    this study, RK4 at 5 ms), whose figures the README printed.
+    """
+    from swarm_mj.runner import run
+
+    base = _case_scenario(case)
+    settings = [tuple(s) for s in case["settings"]]
+    runs = []
+    for integ, dt in settings:
+        sc = base.with_overrides(timestep=float(dt), integrator=integ)
+        t0 = time.perf_counter()
+        res = run(sc, progress=False)
+        wall_total = time.perf_counter() - t0
+        s = res.summary
+        runs.append({"pos": np.asarray(res.log.pos), "quat": np.asarray(res.log.quat), "summary": s,
+                     "figs": printed_figures(s, case["scenario"], case["rule"]),
+                     "wall": float(s.get("wall_time_s", wall_total))})
+    ref = runs[0]
+    labels = [_label(i, d) for i, d in settings]
+    cur = runs[labels.index(case["current"])] if case.get("current") in labels else None
+    rows = []
+    for (integ, dt), r in zip(settings, runs):
+        s = r["summary"]
+        dev = position_deviation(r["pos"], ref["pos"])
+        att = attitude_deviation_deg(r["quat"], ref["quat"])
+        row = {"integrator": integ, "timestep_s": float(dt), "label": _label(integ, dt),
+               "max_deviation_m": float(dev.max()), "deviation_m": dict(zip(base.names, map(float, dev))),
+               "max_attitude_deviation_deg": float(att.max()),
+               "contacts": int(s["contacts"]), "stopped": s.get("stopped"),
+               "samples": int(len(r["pos"])), "reference_samples": int(len(ref["pos"])),
+               "wall_s": r["wall"], "wall_ratio": r["wall"] / ref["wall"] if ref["wall"] else float("nan"),
+               "differing": differing(ref["figs"], r["figs"]),
+               "figures": {k: printed(v, f) for k, (v, f, _) in r["figs"].items()}}
+        if cur is not None:
+            row["max_deviation_vs_current_m"] = float(position_deviation(r["pos"], cur["pos"]).max())
+            row["differing_vs_current"] = differing(cur["figs"], r["figs"])
+        rows.append(row)
+    return {"case": case["name"], "scenario": case["scenario"], "rule": case["rule"] or base.anti_collision,
+            "rule_variant": case["rule"] is not None, "n_drones": base.n_drones, "duration_s": base.duration,
+            "current": case.get("current"), "rows": rows}
+
+
+# --------------------------------------------------------------------------- study (driver side)
+
+
+def make_cases(names: list[str], duration: float | None, settings: list[tuple[str, float]],
+               rule_variants: bool, current: str = "RK4 5 ms") -> list[dict]:
+    """Every scenario with its own rule, then the README's rule variants of the anti-collision table."""
+    from swarm_mj.scenario import load_scenario
+
+    cases = []
+    for name in names:
+        cases.append({"name": name, "scenario": name, "rule": None, "duration": duration, "settings": settings,
+                      "current": current})
+    if rule_variants:
+        for name in RULE_VARIANT_SCENARIOS:
+            if name not in names:
+                continue
+            own = load_scenario(name).anti_collision
+            for rule in RULES:
+                if rule != own:
+                    cases.append({"name": f"{name} ({rule})", "scenario": name, "rule": rule,
+                                  "duration": duration, "settings": settings, "current": current})
+    return cases
+
+
+def _cost(case: dict) -> float:
+    from swarm_mj.scenario import load_scenario
+
+    sc = load_scenario(case["scenario"])
+    d = sc.duration if case["duration"] is None else min(sc.duration, case["duration"])
+    return d * (1 + 0.5 * sc.n_followers)
+
+
+def run_parallel(fn, jobs: list, workers: int, say) -> list:
+    """``fn`` over ``jobs`` in ``workers`` spawned processes (in order of the jobs); longest first."""
+    order = sorted(range(len(jobs)), key=lambda i: -jobs[i][1])
+    out: list = [None] * len(jobs)
+    t0 = time.perf_counter()
+    if workers <= 1:
+        for n, i in enumerate(order, 1):
+            out[i] = fn(jobs[i][0])
+            say(f"[{n}/{len(jobs)}] {jobs[i][0].get('name', i)}  {time.perf_counter() - t0:5.0f} s elapsed")
+        return out
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        futs = {pool.submit(fn, jobs[i][0]): i for i in order}
+        for n, fut in enumerate(as_completed(futs), 1):
+            i = futs[fut]
+            out[i] = fut.result()
+            say(f"[{n}/{len(jobs)}] {jobs[i][0].get('name', i)}  {time.perf_counter() - t0:5.0f} s elapsed")
+    return out
+
+
+def summarize_settings(cases: list[dict]) -> list[dict]:
+    """The short table: per setting, worst deviation over all cases, figures, contacts, time ratios."""
+    labels = [r["label"] for r in cases[0]["rows"]] if cases else []
+    out = []
+    for j, label in enumerate(labels):
+        rows = [(c, c["rows"][j]) for c in cases]
+        worst_c, worst_r = max(rows, key=lambda cr: cr[1]["max_deviation_m"])
+        diffs = [{"case": c["case"], **d} for c, r in rows for d in r["differing"]]
+        wall = sum(r["wall_s"] for _, r in rows)
+        wall_ref = sum(c["rows"][0]["wall_s"] for c in cases)
+        out.append({"label": label, "integrator": worst_r["integrator"], "timestep_s": worst_r["timestep_s"],
+                    "worst_deviation_m": worst_r["max_deviation_m"], "worst_case": worst_c["case"],
+                    "worst_attitude_deviation_deg": max(r["max_attitude_deviation_deg"] for _, r in rows),
+                    "all_figures_match": not diffs, "readme_figures_match": not any(d["in_readme"] for d in diffs),
+                    "differing": diffs, "contacts": sum(r["contacts"] for _, r in rows),
+                    "stopped": [c["case"] for c, r in rows if r["stopped"]],
+                    "wall_s": wall, "wall_ratio": wall / wall_ref if wall_ref else float("nan")})
+        if all("max_deviation_vs_current_m" in r for _, r in rows):
+            wc, wr = max(rows, key=lambda cr: cr[1]["max_deviation_vs_current_m"])
+            dc = [{"case": c["case"], **d} for c, r in rows for d in r["differing_vs_current"]]
+            out[-1].update({"worst_deviation_vs_current_m": wr["max_deviation_vs_current_m"],
+                            "worst_case_vs_current": wc["case"], "differing_vs_current": dc,
+                            "all_figures_match_current": not dc})
+    by = {s["label"]: s for s in out}
+    if "RK4 5 ms" in by:
+        for s in out:
+            s["speed_vs_rk4_5ms"] = by["RK4 5 ms"]["wall_s"] / s["wall_s"] if s["wall_s"] else float("nan")
+    return out
+
+
+def choose_step(settings: list[dict], bar_m: float = DEVIATION_BAR_M) -> dict | None:
+    """The largest RK4 step whose figures all match the reference and whose deviation is <= ``bar_m``."""
+    ok = [s for s in settings if s["integrator"] == "RK4" and s["all_figures_match"]
+          and s["worst_deviation_m"] <= bar_m and not s["stopped"]]
+    return max(ok, key=lambda s: s["timestep_s"]) if ok else None
+
+
+def study(names: list[str], *, duration: float | None, workers: int, settings: list[tuple[str, float]],
+          rule_variants: bool = True, say=print) -> dict:
+    """Fly the study and return the JSON document."""
+    import mujoco
+
+    from swarm_mj.parallel import machine_description
+
+    cases = make_cases(names, duration, settings, rule_variants)
+    t0 = time.perf_counter()
+    results = run_parallel(fly_case, [(c, _cost(c)) for c in cases], workers, say)
+    per_setting = summarize_settings(results)
+    chosen = choose_step(per_setting)
+    return {"meta": {"generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                     "machine": machine_description(), "mujoco": mujoco.__version__, "workers": workers,
+                     "duration_override_s": duration, "wall_s": time.perf_counter() - t0,
+                     "reference": _label(*settings[0]), "deviation_bar_m": DEVIATION_BAR_M,
+                     "argv": sys.argv[1:]},
+            "settings": per_setting, "cases": results,
+            "chosen": None if chosen is None else {"label": chosen["label"], "timestep_s": chosen["timestep_s"]}}
+
+
+# --------------------------------------------------------------------------- markdown
+
+
+def _mm(v: float) -> str:
+    mm = v * 1e3
+    if mm == 0:
+        return "0"
+    return f"{mm:.2g}" if mm < 0.01 else (f"{mm:.3f}" if mm < 10 else f"{mm:.1f}")
+
+
+def _diff_text(diffs: list[dict], limit: int = 4) -> str:
+    if not diffs:
+        return "all match"
+    parts = [f"{d['figure']} {d['reference']} → {d['value']}" + ("" if d["in_readme"] else " (not in the README)")
+             for d in diffs[:limit]]
+    more = f"; +{len(diffs) - limit} more" if len(diffs) > limit else ""
+    return "; ".join(parts) + more
+
+
+def full_table(doc: dict) -> str:
+    """Per case and setting (the form for docs/physics_step.md)."""
+    head = ("| case | setting | max deviation (mm) | per drone (mm) | max attitude deviation (°) | contacts | "
+            "printed figures vs 1-ms RK4 | wall time ÷ reference |")
+    lines = [head, "|---|---|---|---|---|---|---|---|"]
+    for c in doc["cases"]:
+        for j, r in enumerate(c["rows"]):
+            per = ", ".join(_mm(v) for v in r["deviation_m"].values()) if len(r["deviation_m"]) > 1 else "–"
+            name = f"{c['case']} ({c['duration_s']:g} s)" if j == 0 else ""
+            stop = " (stopped)" if r["stopped"] else ""
+            fig = "reference" if j == 0 else _diff_text(r["differing"])
+            lines.append(f"| {name} | {r['label']}{stop} | {_mm(r['max_deviation_m'])} | {per} | "
+                         f"{r['max_attitude_deviation_deg']:.2g} | {r['contacts']} | {fig} | {r['wall_ratio']:.2f} |")
+    return "\n".join(lines)
+
+
+def short_table(doc: dict) -> str:
+    """Per setting over every case (the form for the README)."""
+    lines = ["| physics step | worst position deviation from 1-ms RK4 (mm) | every printed figure as at 1 ms | "
+             "contacts (all cases) | wall time ÷ 1-ms RK4 | speed vs RK4 5 ms |", "|---|---|---|---|---|---|"]
+    for s in doc["settings"]:
+        match = "yes" if s["all_figures_match"] else (
+            f"no: {len(s['differing'])} figure(s), e.g. {s['differing'][0]['case']}: "
+            f"{s['differing'][0]['figure']} {s['differing'][0]['reference']} → {s['differing'][0]['value']}")
+        stop = f" ({len(s['stopped'])} stopped)" if s["stopped"] else ""
+        speed = s.get("speed_vs_rk4_5ms")
+        lines.append(f"| {s['label']}{stop} | {_mm(s['worst_deviation_m'])} ({s['worst_case']}) | {match} | "
+                     f"{s['contacts']} | {s['wall_ratio']:.2f} | "
+                     f"{'–' if speed is None else f'{speed:.2f}×'} |")
+    return "\n".join(lines)
+
+
+def contacts_table(doc: dict) -> str:
+    """The contacts mode as markdown: totals, verdict, the starts whose counts differ."""
+    f, c = doc["fine"], doc["coarse"]
+    lines = [f"| rule | starts | step | starts with a contact | contacts | runs that stopped | wall time (s) |",
+             "|---|---|---|---|---|---|---|"]
+    for s in (f, c):
+        lines.append(f"| `{doc['settings']['rule']}` | {doc['settings']['starts']} | {s['label']} | "
+                     f"{s['starts_with_contact']} | {s['contacts']} | {len(s['stopped'])} | {s['wall_s']:.0f} |")
+    diff = [r for r in doc["starts"] if r["fine"] != r["coarse"]]
+    lines.append("")
+    if diff:
+        lines.append("Starts whose counts differ (seed: fine → candidate): "
+                     + ", ".join(f"{r['seed']}: {r['fine']} → {r['coarse']}" for r in diff) + ".")
+    else:
+        lines.append("Every start has the same contact count at both steps.")
+    return "\n".join(lines)
+
+
+def replace_block(text: str, name: str, body: str) -> str:
+    pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
+    if not pat.search(text):
+        raise SystemExit(f"no <!-- tables:{name} --> ... <!-- /tables:{name} --> markers")
+    return pat.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
+
+
+# --------------------------------------------------------------------------- docs/physics_step.md
+
+DOC = """# The physics step
+
+<!-- Written by `python tools/accuracy.py --docs docs/physics_step.md` from {source}; edit the tool, not this file. -->
+
+swarm-mj's controller runs every T = 10 ms (paper eq. 38) and holds its inputs U1..U4 constant
+over the period (zero-order hold); the wind force is also computed once per period. MuJoCo
+integrates the rigid bodies in between with a fixed physics step h that divides T. This page
+shows how h was chosen: by measuring what each candidate changes.
+
+## Why a step as long as the control period can be enough
+
+Over one control period the drones obey an ODE whose inputs do not change: thrust and torques
+are held, the wind force is held, and the only forces that depend on the state within the
+period are gravity (constant), the linear drag −K·v and the rigid-body terms (ω × Iω, the
+rotation of the thrust with the body). Nothing jumps inside the period, so the right-hand side
+is smooth and a single-step method of order p makes a global error ∝ h^p on it. MuJoCo's RK4
+is fourth order: going from 1 ms to 10 ms multiplies its truncation error by 10⁴ from a very
+small start, because the motion inside 10 ms is gentle (at most tens of rad/s of body rate
+during the step's take-off, i.e. h·ω ≲ 0.3 rad per step at 10 ms). Two parts are first order
+in h on purpose and stay so at any step: the drag is evaluated with the velocity at the start
+of each physics step and held over its RK4 stages (K/m ≈ 0.012 s⁻¹, so the drag changes by a
+negligible amount within a step), and contact detection runs once per physics step (measured
+below). Euler (semi-implicit in MuJoCo) and implicitfast are first order: their error falls
+only in proportion to h, which the table shows for contrast.
+
+The control period is where the sampling error of the closed loop lives, and it does not
+depend on h: the inputs are the same zero-order-held values whatever the physics step, so a
+smaller h only resolves the same piecewise-constant inputs more finely.
+
+## The measurement
+
+Every bundled scenario (and the rule variants that the README's anti-collision table prints)
+was flown with {settings_list}, against the 1-ms RK4 run as reference (`{reference}`). For
+each run the table gives the largest distance between a drone and where it is in the reference
+run at the same control-period sample, over the whole run (per drone for swarms); the largest
+attitude difference; whether every summary figure the README prints is the same at the digits
+it is printed with (step overshoot and settling 2 decimals, peak roll/pitch 1 decimal, RMSE x, y
+4 decimals in m and roll, pitch 3 decimals in °, whole run and from 10 s, formation settling
+and settling after each change of D 2 decimals in s, contacts, minimum separation 2 decimals in
+m; the same formats are applied to every case); the contact count; and the wall time of the
+simulation loop as a ratio to the reference run. {duration_note}
+
+Measured on {machine} with MuJoCo {mujoco}, {workers} worker process(es){load_note}.
+
+### Summary
+
+{short_table}
+
+### Per case
+
+{full_table}
+
+## Contacts at the coarser step
+
+{contacts_section}
+
+## The choice
+
+{choice}
+
+A scenario file can still ask for any step that divides its control period, e.g.
+`timestep = 0.005` (and `integrator = "RK4" | "Euler" | "implicitfast"`).
+
+Regenerate this page with
+
+    python tools/accuracy.py --workers 2 --json report/accuracy.json --docs docs/physics_step.md
+    python tools/accuracy.py --contacts --workers 2 --json report/accuracy_contacts.json
+    python tools/accuracy.py --from-json report/accuracy.json --contacts-json report/accuracy_contacts.json \\
+        --docs docs/physics_step.md
+"""
+
+
+def contacts_verdict(doc: dict) -> str:
+    f, c = doc["fine"], doc["coarse"]
+    v = doc["verdict"]
+    text = (f"The paper's rule (`anti_collision = \"{doc['settings']['rule']}\"`) over the "
+            f"{doc['settings']['starts']} stress starts (`swarm-mj stress --rule {doc['settings']['rule']} --starts "
+            f"{doc['settings']['starts']}`: {doc['settings']['followers']} followers within "
+            f"{doc['settings']['radius']:g} m, seeds {doc['settings']['seed0']}..{doc['settings']['seed0'] + doc['settings']['starts'] - 1}, "
+            f"{doc['settings']['duration']:g} s each), RK4 at {f['label'].split()[1]} ms and at {c['label'].split()[1]} ms: "
+            f"{f['contacts']} contacts in {f['starts_with_contact']} starts at the fine step, "
+            f"{c['contacts']} in {c['starts_with_contact']} at the candidate "
+            f"({v['relative_difference'] * 100:+.1f} %, bar ±{CONTACT_TOLERANCE * 100:g} %); "
+            f"starts with a contact at the fine step and none at the candidate: "
+            f"{', '.join(map(str, v['missed_starts'])) or 'none'}. ")
+    text += ("**Contacts are counted equivalently at the candidate step.**" if v["holds"] else
+             "**Contacts are not counted equivalently at the candidate step**: keep the finer step for runs "
+             "that count contacts (a scenario's `timestep = 0.005`).")
+    return text
+
+
+def render_docs(doc: dict, contacts: dict | None, source: str) -> str:
+    settings = doc["settings"]
+    labels = [s["label"] for s in settings]
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    m = doc["meta"]["machine"]
+    dur = doc["meta"]["duration_override_s"]
+    duration_note = (f"**Every case was shortened to at most {dur:g} s of simulated time** (a quick run; "
+                     f"the full study flies each scenario for its own duration)." if dur else
+                     "Every case is flown for its scenario's own duration (10 s to 180 s).")
+    chosen = doc.get("chosen")
+    by = {s["label"]: s for s in settings}
+    if chosen:
+        s = by[chosen["label"]]
+        choice = (f"The largest RK4 step that keeps every printed figure of every case as at 1 ms and stays within "
+                  f"{DEVIATION_BAR_M * 1e3:g} mm of the 1-ms run in every case is **{chosen['label']}** "
+                  f"(worst deviation {_mm(s['worst_deviation_m'])} mm, in {s['worst_case']}).")
+        if "speed_vs_rk4_5ms" in s:
+            choice += f" Over the whole study it runs {s['speed_vs_rk4_5ms']:.2f}× as fast as RK4 at 5 ms."
+    else:
+        choice = ("No RK4 step coarser than the reference keeps every printed figure within the bars; "
+                  "the default stays where it is.")
+    if contacts is None:
+        csec = "Not measured yet: run `python tools/accuracy.py --contacts`."
+    else:
+        csec = contacts_verdict(contacts) + "\n\n" + contacts_table(contacts)
+    return DOC.format(source=source, settings_list=", ".join(labels), reference=doc["meta"]["reference"],
+                      duration_note=duration_note, machine=f"{m['cpu']} ({m['cores']} cores)",
+                      mujoco=doc["meta"]["mujoco"], workers=doc["meta"]["workers"],
+                      load_note="" if load is None else ", on a machine shared with other jobs (the time ratios "
+                      "are indicative; `tools/bench.py` measures speed)",
+                      short_table=short_table(doc), full_table=full_table(doc), contacts_section=csec, choice=choice)
+
+
+# --------------------------------------------------------------------------- contacts mode
+
+
+def fly_contacts(job: dict) -> dict:
+    """One stress start at one step: contacts, contact times, whether it stopped, wall time."""
+    from swarm_mj.commands.stress import StressCase, stress_scenario
+    from swarm_mj.runner import run
+
+    case = StressCase(**job["case"])
+    sc = stress_scenario(case).with_overrides(timestep=float(job["timestep"]), integrator="RK4")
+    res = run(sc, progress=False)
+    s = res.summary
+    return {"seed": case.seed, "timestep_s": float(job["timestep"]), "contacts": int(s["contacts"]),
+            "contact_log": [list(c) for c in res.contact_log], "stopped": s.get("stopped"),
+            "min_separation_airborne_m": s.get("min_separation_airborne_m"),
+            "wall_s": float(s.get("wall_time_s", float("nan")))}
+
+
+def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius: float, min_spacing: float,
+                   duration: float, fine: float, coarse: float, workers: int, say=print) -> dict:
+    from swarm_mj.commands.stress import StressCase
+
+    jobs = []
+    for k in range(starts):
+        case = StressCase(rule, seed0 + k, followers, radius, min_spacing, duration)
+        for dt in (fine, coarse):
+            jobs.append(({"name": f"seed {seed0 + k} at {dt * 1e3:g} ms", "case": asdict(case), "timestep": dt},
+                         dt and 1.0 / dt))
+    t0 = time.perf_counter()
+    rows = run_parallel(fly_contacts, jobs, workers, say)
+    by = {(r["seed"], r["timestep_s"]): r for r in rows}
+    per_start = []
+    for k in range(starts):
+        a, b = by[(seed0 + k, fine)], by[(seed0 + k, coarse)]
+        per_start.append({"seed": seed0 + k, "fine": a["contacts"], "coarse": b["contacts"],
+                          "fine_stopped": a["stopped"], "coarse_stopped": b["stopped"],
+                          "fine_times": [c[0] for c in a["contact_log"]],
+                          "coarse_times": [c[0] for c in b["contact_log"]]})
+
+    def side(dt: float, key: str) -> dict:
+        rs = [r for r in rows if r["timestep_s"] == dt]
+        return {"label": _label("RK4", dt), "timestep_s": dt, "contacts": sum(p[key] for p in per_start),
+                "starts_with_contact": sum(p[key] > 0 for p in per_start),
+                "stopped": [r["seed"] for r in rs if r["stopped"]], "wall_s": sum(r["wall_s"] for r in rs)}
+
+    F, C = side(fine, "fine"), side(coarse, "coarse")
+    rel = (C["contacts"] - F["contacts"]) / F["contacts"] if F["contacts"] else (0.0 if C["contacts"] == 0 else
+                                                                                   float("inf"))
+    missed = [p["seed"] for p in per_start if p["fine"] > 0 and p["coarse"] == 0]
+    holds = abs(rel) <= CONTACT_TOLERANCE and not missed
+    return {"meta": {"generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                     "wall_s": time.perf_counter() - t0, "workers": workers, "argv": sys.argv[1:]},
+            "settings": {"rule": rule, "starts": starts, "seed0": seed0, "followers": followers, "radius": radius,
+                         "min_spacing": min_spacing, "duration": duration, "fine_s": fine, "coarse_s": coarse},
+            "fine": F, "coarse": C, "starts": per_start,
+            "verdict": {"relative_difference": rel, "tolerance": CONTACT_TOLERANCE, "missed_starts": missed,
+                        "new_starts": [p["seed"] for p in per_start if p["coarse"] > 0 and p["fine"] == 0],
+                        "holds": holds}}
+
+
+def format_contacts(doc: dict) -> str:
+    F, C, v = doc["fine"], doc["coarse"], doc["verdict"]
+    lines = [f"rule {doc['settings']['rule']}, {doc['settings']['starts']} starts, {doc['settings']['duration']:g} s each",
+             f"{F['label']:>10}: {F['contacts']} contacts in {F['starts_with_contact']} starts "
+             f"({len(F['stopped'])} stopped), loop {F['wall_s']:.1f} s",
+             f"{C['label']:>10}: {C['contacts']} contacts in {C['starts_with_contact']} starts "
+             f"({len(C['stopped'])} stopped), loop {C['wall_s']:.1f} s",
+             "per start (seed: fine / candidate), those with any contact:"]
+    lines += [f"  {p['seed']:>4}: {p['fine']} / {p['coarse']}" + ("  <- differs" if p["fine"] != p["coarse"] else "")
+              for p in doc["starts"] if p["fine"] or p["coarse"]]
+    lines.append(f"difference {v['relative_difference'] * 100:+.1f} % (bar ±{v['tolerance'] * 100:g} %); "
+                 f"starts missed at the candidate: {v['missed_starts'] or 'none'}; "
+                 f"new at the candidate: {v['new_starts'] or 'none'}")
+    lines.append("verdict: " + ("contacts counted equivalently" if v["holds"] else "NOT equivalent"))
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def parse_settings(text: str) -> list[tuple[str, float]]:
+    """``"RK4:1,RK4:10,Euler:5"`` (step in ms) -> [("RK4", 0.001), ...]; the first is the reference."""
+    out = []
+    for part in text.split(","):
+        try:
+            integ, ms = part.strip().split(":")
+            dt = float(ms) / 1e3
+        except ValueError:
+            raise SystemExit(f"accuracy: error: bad setting {part!r}; write INTEGRATOR:MS, e.g. RK4:10") from None
+        if integ not in ("RK4", "Euler", "implicitfast") or not dt > 0:
+            raise SystemExit(f"accuracy: error: bad setting {part!r}")
+        out.append((integ, dt))
+    return out
+
+
+def _write(path: str, text: str) -> None:
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    tmp = p.with_suffix(p.suffix + ".tmp")
+    tmp.write_text(text)
+    tmp.replace(p)
+
+
+def _json(o: Any) -> Any:
+    if isinstance(o, float) and not math.isfinite(o):
+        return str(o)
+    if isinstance(o, dict):
+        return {k: _json(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_json(v) for v in o]
+    if isinstance(o, np.generic):
+        return o.item()
+    return o
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--scenarios", help="comma-separated bundled scenario names (default: all)")
+    ap.add_argument("--duration", type=float, help="fly each case for at most this many seconds (quick runs); "
+                    "contacts mode: seconds per start (default 15)")
+    ap.add_argument("--workers", type=int, default=1, help="processes (spawn), default 1")
+    ap.add_argument("--settings", default=None,
+                    help="INTEGRATOR:MS list, the first the reference (default RK4:1,RK4:2.5,RK4:5,RK4:10,"
+                         "Euler:5,Euler:10,implicitfast:5,implicitfast:10)")
+    ap.add_argument("--no-rule-variants", action="store_true",
+                    help="leave out the anti-collision table's other rules of anti_collision, scenario1..3")
+    ap.add_argument("--json", metavar="PATH", help="write the numbers as JSON")
+    ap.add_argument("--markdown", metavar="PATH", help="write the short and the full table as markdown")
+    ap.add_argument("--docs", metavar="PATH", help="write docs/physics_step.md (the full form with the reasoning)")
+    ap.add_argument("--readme", metavar="PATH", help="put the short table between <!-- tables:accuracy --> markers")
+    ap.add_argument("--from-json", metavar="PATH", help="do not fly: read a study's JSON (for --docs/--markdown)")
+    ap.add_argument("--contacts-json", metavar="PATH", help="a contacts-mode JSON to include in --docs")
+    g = ap.add_argument_group("contacts mode")
+    g.add_argument("--contacts", action="store_true", help="compare contact counts over the stress starts")
+    g.add_argument("--rule", default="paper", help="anti-collision rule (default paper)")
+    g.add_argument("--starts", type=int, default=100, help="stress starts (default 100)")
+    g.add_argument("--seed0", type=int, default=0, help="first seed (default 0, as swarm-mj stress)")
+    g.add_argument("--followers", type=int, default=5)
+    g.add_argument("--radius", type=float, default=3.0)
+    g.add_argument("--min-spacing", type=float, default=0.6)
+    g.add_argument("--fine", type=float, default=5.0, help="fine step in ms (default 5)")
+    g.add_argument("--coarse", type=float, default=10.0, help="candidate step in ms (default 10)")
+    a = ap.parse_args(argv)
+    if a.workers < 1:
+        ap.error("--workers must be at least 1")
+    if a.duration is not None and not a.duration > 0:
+        ap.error("--duration must be positive")
+    say = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+
+    if a.contacts:
+        if a.starts < 1:
+            ap.error("--starts must be at least 1")
+        doc = contacts_study(rule=a.rule, starts=a.starts, seed0=a.seed0, followers=a.followers, radius=a.radius,
+                             min_spacing=a.min_spacing, duration=a.duration or 15.0, fine=a.fine / 1e3,
+                             coarse=a.coarse / 1e3, workers=a.workers, say=say)
+        print(format_contacts(doc))
+        if a.json:
+            _write(a.json, json.dumps(_json(doc), indent=1) + "\n")
+        if a.markdown:
+            _write(a.markdown, contacts_verdict(doc) + "\n\n" + contacts_table(doc) + "\n")
+        return 0 if doc["verdict"]["holds"] else 1
+
+    if a.from_json:
+        doc = json.loads(Path(a.from_json).read_text())
+        source = a.from_json
+    else:
+        from swarm_mj.scenario import bundled_scenarios
+
+        found = bundled_scenarios()
+        names = list(found) if not a.scenarios else [s.strip() for s in a.scenarios.split(",") if s.strip()]
+        unknown = [n for n in names if n not in found]
+        if unknown:
+            ap.error(f"unknown scenario(s) {', '.join(unknown)}; bundled: {', '.join(found)}")
+        settings = parse_settings(a.settings) if a.settings else list(DEFAULT_SETTINGS)
+        doc = study(names, duration=a.duration, workers=a.workers, settings=settings,
+                    rule_variants=not a.no_rule_variants, say=say)
+        doc = _json(doc)
+        source = a.json or "a run of the tool"
+        if a.json:
+            _write(a.json, json.dumps(doc, indent=1) + "\n")
+    print(short_table(doc))
+    ch = doc.get("chosen")
+    print(f"\nlargest RK4 step with every figure as at 1 ms and <= {DEVIATION_BAR_M * 1e3:g} mm: "
+          f"{ch['label'] if ch else 'none'}")
+    if a.markdown:
+        _write(a.markdown, "## Summary\n\n" + short_table(doc) + "\n\n## Per case\n\n" + full_table(doc) + "\n")
+    if a.readme:
+        p = Path(a.readme)
+        _write(a.readme, replace_block(p.read_text(), "accuracy", short_table(doc)))
+    if a.docs:
+        contacts = json.loads(Path(a.contacts_json).read_text()) if a.contacts_json else None
+        _write(a.docs, render_docs(doc, contacts, source))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
