@@ -51,7 +51,7 @@ def fly(dt: float, params: QuadParams = DEFAULT_PARAMS, integrator: str = "RK4")
     sim = Sim(world, T)
     d = sim.data
     d.qvel[0:3] = V0
-    k = int(round(DURATION / T))
+    k = round(DURATION / T)
     pos, quat = np.empty((k + 1, 3)), np.empty((k + 1, 4))
     pos[0], quat[0] = d.qpos[0:3], d.qpos[3:7]
     for i in range(1, k + 1):
@@ -202,7 +202,7 @@ def test_tool_runs_end_to_end(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
     r = subprocess.run([sys.executable, str(ROOT / "tools" / "accuracy.py"), "--scenarios", "step", "--duration", "2",
                         "--settings", "RK4:1,RK4:5,RK4:10", "--json", str(js), "--markdown", str(md),
-                        "--docs", str(doc)], capture_output=True, text=True, env=env, cwd=tmp_path)
+                        "--docs", str(doc)], check=False, capture_output=True, text=True, env=env, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     d = json.loads(js.read_text())
     rows = d["cases"][0]["rows"]

@@ -46,7 +46,6 @@ import argparse
 import json
 import math
 import multiprocessing as mp
-import os
 import re
 import sys
 import time
@@ -241,7 +240,7 @@ def fly_case(case: dict) -> dict:
                "max_deviation_m": float(dev.max()), "deviation_m": dict(zip(base.names, map(float, dev))),
                "max_attitude_deviation_deg": float(att.max()),
                "contacts": int(s["contacts"]), "stopped": s.get("stopped"),
-               "samples": int(len(r["pos"])), "reference_samples": int(len(ref["pos"])),
+               "samples": len(r["pos"]), "reference_samples": len(ref["pos"]),
                "wall_s": r["wall"], "wall_ratio": r["wall"] / ref["wall"] if ref["wall"] else float("nan"),
                "differing": differing(ref["figs"], r["figs"]),
                "figures": {k: printed(v, f) for k, (v, f, _) in r["figs"].items()}}
@@ -476,7 +475,7 @@ def short_table(doc: dict) -> str:
 def contacts_table(doc: dict) -> str:
     """The contacts mode as markdown: totals, verdict, the starts whose counts differ."""
     f, c = doc["fine"], doc["coarse"]
-    lines = [f"| rule | starts | step | starts with a contact | contacts | runs that stopped | wall time (s) |",
+    lines = ["| rule | starts | step | starts with a contact | contacts | runs that stopped | wall time (s) |",
              "|---|---|---|---|---|---|---|"]
     for s in (f, c):
         lines.append(f"| `{doc['settings']['rule']}` | {doc['settings']['starts']} | {s['label']} | "
@@ -492,7 +491,7 @@ def contacts_table(doc: dict) -> str:
 
 
 def replace_block(text: str, name: str, body: str) -> str:
-    pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
+    pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.DOTALL)
     if not pat.search(text):
         raise SystemExit(f"no <!-- tables:{name} --> ... <!-- /tables:{name} --> markers")
     return pat.sub(lambda m: m.group(1) + body + "\n" + m.group(2), text)
@@ -738,12 +737,11 @@ def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius
 
 def format_contacts(doc: dict) -> str:
     F, C, v = doc["fine"], doc["coarse"], doc["verdict"]
-    lines = [f"rule {doc['settings']['rule']}, {doc['settings']['starts']} starts, {doc['settings']['duration']:g} s each",
-             f"{F['label']:>10}: {F['contacts']} contacts in {F['starts_with_contact']} starts "
-             f"({len(F['stopped'])} stopped), loop {F['wall_s']:.1f} s",
-             f"{C['label']:>10}: {C['contacts']} contacts in {C['starts_with_contact']} starts "
-             f"({len(C['stopped'])} stopped), loop {C['wall_s']:.1f} s",
-             "per start (seed: fine / candidate), those with any contact:"]
+    st = doc["settings"]
+    lines = [f"rule {st['rule']}, {st['starts']} starts, {st['duration']:g} s each"]
+    lines += [f"{x['label']:>10}: {x['contacts']} contacts in {x['starts_with_contact']} starts "
+              f"({len(x['stopped'])} stopped), loop {x['wall_s']:.1f} s" for x in (F, C)]
+    lines.append("per start (seed: fine / candidate), those with any contact:")
     lines += [f"  {p['seed']:>4}: {p['fine']} / {p['coarse']}" + ("  <- differs" if p["fine"] != p["coarse"] else "")
               for p in doc["starts"] if p["fine"] or p["coarse"]]
     lines.append(f"difference {v['relative_difference'] * 100:+.1f} % (bar ±{v['tolerance'] * 100:g} %); "
@@ -827,7 +825,7 @@ def main(argv: list[str] | None = None) -> int:
         ap.error("--workers must be at least 1")
     if a.duration is not None and not a.duration > 0:
         ap.error("--duration must be positive")
-    say = lambda s: print(s, file=sys.stderr, flush=True)  # noqa: E731
+    say = lambda s: print(s, file=sys.stderr, flush=True)
 
     if a.contacts:
         if a.starts < 1:
