@@ -218,17 +218,32 @@ def fly_case(case: dict) -> dict:
     ref = runs[0]
     perturbed = None
     if case.get("perturb_m"):
-        # the reference again, the leader starting perturb_m further along x: how much the run moves
-        # for a change of its initial state that has nothing to do with the step (its sensitivity)
+        # the reference again, the leader's start moved perturb_m along +x, +y, +z, −x, ... (perturb_dirs of
+        # them): how much the run moves for changes of its initial state that have nothing to do with the
+        # step (its sensitivity); a figure is sensitive when any of these runs changes it
         integ, dt = settings[0]
-        sc = base.with_overrides(timestep=float(dt), integrator=integ,
-                                 leader_start=base.leader_start + np.array([case["perturb_m"], 0.0, 0.0]))
-        res = run(sc, progress=False)
-        figs = printed_figures(res.summary, case["scenario"], case["rule"])
-        perturbed = {"perturb_m": case["perturb_m"], "label": f"{_label(integ, dt)}, leader start +{case['perturb_m'] * 1e6:g} µm",
-                     "max_deviation_m": float(position_deviation(np.asarray(res.log.pos), ref["pos"]).max()),
-                     "contacts": int(res.summary["contacts"]), "stopped": res.summary.get("stopped"),
-                     "differing": differing(ref["figs"], figs)}
+        eps = float(case["perturb_m"])
+        dirs = np.vstack([np.eye(3), -np.eye(3)])[: max(1, int(case.get("perturb_dirs", 1)))]   # (d, 3)
+        runs_p = []
+        for e in dirs:
+            sc = base.with_overrides(timestep=float(dt), integrator=integ, leader_start=base.leader_start + eps * e)
+            res = run(sc, progress=False)
+            figs = printed_figures(res.summary, case["scenario"], case["rule"])
+            runs_p.append({"direction": e.tolist(),
+                           "max_deviation_m": float(position_deviation(np.asarray(res.log.pos), ref["pos"]).max()),
+                           "contacts": int(res.summary["contacts"]), "stopped": res.summary.get("stopped"),
+                           "differing": differing(ref["figs"], figs)})
+        diffs: dict[str, dict] = {}
+        for rp in runs_p:
+            for d in rp["differing"]:
+                diffs.setdefault(d["figure"], d)
+        perturbed = {"perturb_m": eps, "directions": len(dirs),
+                     "label": f"{_label(integ, dt)}, leader start moved {eps * 1e6:g} µm"
+                              + (f" ({len(dirs)} directions)" if len(dirs) > 1 else " along x"),
+                     "max_deviation_m": max(rp["max_deviation_m"] for rp in runs_p),
+                     "contacts": [rp["contacts"] for rp in runs_p],
+                     "stopped": [rp["stopped"] for rp in runs_p if rp["stopped"]],
+                     "differing": list(diffs.values()), "runs": runs_p}
     labels = [_label(i, d) for i, d in settings]
     cur = runs[labels.index(case["current"])] if case.get("current") in labels else None
     rows = []
@@ -258,14 +273,15 @@ def fly_case(case: dict) -> dict:
 
 
 def make_cases(names: list[str], duration: float | None, settings: list[tuple[str, float]],
-               rule_variants: bool, current: str = "RK4 5 ms", perturb_m: float = 0.0) -> list[dict]:
+               rule_variants: bool, current: str = "RK4 5 ms", perturb_m: float = 0.0,
+               perturb_dirs: int = 1) -> list[dict]:
     """Every scenario with its own rule, then the README's rule variants of the anti-collision table."""
     from swarm_mj.scenario import load_scenario
 
     cases = []
     for name in names:
         cases.append({"name": name, "scenario": name, "rule": None, "duration": duration, "settings": settings,
-                      "current": current, "perturb_m": perturb_m})
+                      "current": current, "perturb_m": perturb_m, "perturb_dirs": perturb_dirs})
     if rule_variants:
         for name in RULE_VARIANT_SCENARIOS:
             if name not in names:
@@ -275,7 +291,7 @@ def make_cases(names: list[str], duration: float | None, settings: list[tuple[st
                 if rule != own:
                     cases.append({"name": f"{name} ({rule})", "scenario": name, "rule": rule,
                                   "duration": duration, "settings": settings, "current": current,
-                                  "perturb_m": perturb_m})
+                                  "perturb_m": perturb_m, "perturb_dirs": perturb_dirs})
     return cases
 
 
@@ -374,19 +390,20 @@ def choose_step(settings: list[dict], bar_m: float = DEVIATION_BAR_M, *, allow_s
 
 
 def study(names: list[str], *, duration: float | None, workers: int, settings: list[tuple[str, float]],
-          rule_variants: bool = True, perturb_m: float = 1e-6, say=print) -> dict:
+          rule_variants: bool = True, perturb_m: float = 1e-6, perturb_dirs: int = 3, say=print) -> dict:
     """Fly the study and return the JSON document."""
     import mujoco
 
     from swarm_mj.parallel import machine_description
 
-    cases = make_cases(names, duration, settings, rule_variants, perturb_m=perturb_m)
+    cases = make_cases(names, duration, settings, rule_variants, perturb_m=perturb_m, perturb_dirs=perturb_dirs)
     t0 = time.perf_counter()
     results = run_parallel(fly_case, [(c, _cost(c)) for c in cases], workers, say)
     return conclude({"meta": {"generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
                      "machine": machine_description(), "mujoco": mujoco.__version__, "workers": workers,
                      "duration_override_s": duration, "wall_s": time.perf_counter() - t0,
                      "reference": _label(*settings[0]), "deviation_bar_m": DEVIATION_BAR_M, "perturb_m": perturb_m,
+                     "perturb_dirs": perturb_dirs,
                      "argv": sys.argv[1:]},
             "cases": results})
 
@@ -439,7 +456,8 @@ def full_table(doc: dict) -> str:
         p = c.get("perturbed")
         if p:
             stop = " (stopped)" if p["stopped"] else ""
-            lines.append(f"| | *{p['label']}*{stop} | *{_mm(p['max_deviation_m'])}* | | | | {p['contacts']} | "
+            pc = p["contacts"] if isinstance(p["contacts"], int) else ", ".join(map(str, p["contacts"]))
+            lines.append(f"| | *{p['label']}*{stop} | *{_mm(p['max_deviation_m'])}* | | | | {pc} | "
                          f"{_diff_text(p['differing'])} | |")
     return "\n".join(lines)
 
@@ -450,8 +468,8 @@ def _readme_diffs(diffs: list[dict]) -> str:
         return "yes"
     sens = sum(1 for d in rd if d.get("sensitive"))
     cases = sorted({d["case"] for d in rd})
-    return (f"no: {len(rd)} in {', '.join(cases)}" + (f" ({sens} of them also change with a 1-µm start change)"
-                                                      if sens else ""))
+    names = ", ".join(cases[:4]) + (f" and {len(cases) - 4} more cases" if len(cases) > 4 else "")
+    return f"no: {len(rd)} in {names}" + (f" ({sens} of them change with the perturbed start too)" if sens else "")
 
 
 def short_table(doc: dict) -> str:
@@ -553,9 +571,10 @@ the reference run. {duration_note}
 rules yield, hop and change layers when a distance crosses a threshold; a rotor saturates) can
 turn a tiny difference into a large one: a decision taken one control period later moves a drone
 by millimetres. To tell such a run from a step that is too coarse, each case is also flown at the
-reference step with the leader's start moved {perturb_um:g} µm along x (the italic rows): what
-that changes, no step can be expected to keep. A case is *sensitive* when this alone moves it by
-more than 1 mm.
+reference step with the leader's start moved {perturb_um:g} µm along {perturb_axes}, one run each
+(the italic rows give the largest deviation and every figure any of them changes): what that
+changes, no step can be expected to keep. A case is *sensitive* when this alone moves it by more
+than 1 mm.
 
 Measured on {machine} with MuJoCo {mujoco}, {workers} worker process(es), on a machine shared with
 other jobs: the time ratios are indicative (`tools/bench.py` measures speed).
@@ -630,10 +649,11 @@ def _choice_text(doc: dict) -> str:
         rd = [d for d in s["differing"] if d["in_readme"]]
         parts = []
         if over:
+            pert = doc["meta"].get("perturb_m") or 0.0
             parts.append("over " + bar + " in " + ", ".join(
-                f"{o['case']} ({_mm(o['deviation_m'])} mm; a {doc['meta'].get('perturb_m', 0) * 1e6:g}-µm start "
-                f"change: {_mm(o['perturbed_deviation_m']) if o['perturbed_deviation_m'] is not None else '–'} mm)"
-                for o in over))
+                f"{o['case']} ({_mm(o['deviation_m'])} mm" + (
+                    f"; the {pert * 1e6:g}-µm start change alone: {_mm(o['perturbed_deviation_m'])} mm)"
+                    if pert and o["perturbed_deviation_m"] is not None else ")") for o in over))
         if rd:
             parts.append("README figures that differ from 1 ms: " + "; ".join(
                 f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}"
@@ -644,7 +664,7 @@ def _choice_text(doc: dict) -> str:
             parts.append(f"{len(nr)} figure(s) the README does not print differ at its digits")
         out.append(f"**{s['label']}**: " + ("; ".join(parts) if parts else "holds") + ".")
     cs = doc.get("chosen_allowing_sensitive")
-    if cs and (not chosen or cs["timestep_s"] > chosen["timestep_s"]):
+    if cs and cs["label"] != doc["meta"]["reference"] and (not chosen or cs["timestep_s"] > chosen["timestep_s"]):
         s = by[cs["label"]]
         out.append(f"Counting only what a {doc['meta'].get('perturb_m', 0) * 1e6:g}-µm change of the start does not "
                    f"change as well (every case over {bar} and every differing figure at {cs['label']} also moves "
@@ -669,6 +689,7 @@ def render_docs(doc: dict, contacts: dict | None, source: str) -> str:
     cur = doc["cases"][0].get("current") if doc["cases"] else "RK4 5 ms"
     return DOC.format(source=source, settings_list=", ".join(labels), reference=doc["meta"]["reference"],
                       current=cur, perturb_um=doc["meta"].get("perturb_m", 0) * 1e6,
+                      perturb_axes=", ".join(["+x", "+y", "+z", "−x", "−y", "−z"][: doc["meta"].get("perturb_dirs", 1)]),
                       duration_note=duration_note, machine=f"{m['cpu']} ({m['cores']} cores)",
                       mujoco=doc["meta"]["mujoco"], workers=doc["meta"]["workers"],
                       short_table=short_table(doc), full_table=full_table(doc), contacts_section=csec,
@@ -802,6 +823,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--perturb", type=float, default=1.0, metavar="UM",
                     help="also fly the reference with the leader's start moved UM µm along x, to measure each "
                          "case's sensitivity to its initial state (default 1; 0: not)")
+    ap.add_argument("--perturb-dirs", type=int, default=3, metavar="N",
+                    help="perturbed reference runs per case: the start moved along +x, +y, +z, -x, -y, -z, the "
+                         "first N (default 3)")
     ap.add_argument("--no-rule-variants", action="store_true",
                     help="leave out the anti-collision table's other rules of anti_collision, scenario1..3")
     ap.add_argument("--json", metavar="PATH", help="write the numbers as JSON")
@@ -853,7 +877,8 @@ def main(argv: list[str] | None = None) -> int:
             ap.error(f"unknown scenario(s) {', '.join(unknown)}; bundled: {', '.join(found)}")
         settings = parse_settings(a.settings) if a.settings else list(DEFAULT_SETTINGS)
         doc = study(names, duration=a.duration, workers=a.workers, settings=settings,
-                    rule_variants=not a.no_rule_variants, perturb_m=a.perturb * 1e-6, say=say)
+                    rule_variants=not a.no_rule_variants, perturb_m=a.perturb * 1e-6,
+                    perturb_dirs=a.perturb_dirs, say=say)
         doc = _json(doc)
         source = a.json or "a run of the tool"
         if a.json:
