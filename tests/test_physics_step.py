@@ -210,3 +210,10 @@ def test_tool_runs_end_to_end(tmp_path):
     assert rows[0]["max_deviation_m"] == 0.0
     assert 0.0 < rows[2]["max_deviation_m"] < 1e-3
     assert "RK4 10 ms" in md.read_text() and "zero-order hold" in doc.read_text()
+
+
+def test_contact_episodes_merge_a_pairs_quick_retouches():
+    acc = _tool()
+    log = [[1.00, 0, 1], [1.02, 0, 1], [1.05, 0, 1], [1.05, 1, 2], [1.50, 0, 1], [1.58, 1, 2]]
+    assert acc._episodes(log, 0.1) == 4          # (0,1) at 1.00–1.05 and at 1.50; (1,2) at 1.05 and at 1.58
+    assert acc._episodes(log, 0.01) == 6

@@ -645,6 +645,28 @@ def contacts_verdict(doc: dict) -> str:
     return text
 
 
+def _split_text(doc: dict, label: str) -> str:
+    """One step's outcome in the cases without drone-drone contact at the reference and in those with."""
+    quiet = [c for c in doc["cases"] if c["rows"][0]["contacts"] == 0 and not c["rows"][0]["stopped"]]
+    loud = [c for c in doc["cases"] if c not in quiet]
+    out = []
+    for group, name in ((quiet, "without contact"), (loud, "with contacts or a run that stopped (a drone knocked down)")):
+        if not group:
+            continue
+        rows = [(c, next(r for r in c["rows"] if r["label"] == label)) for c in group]
+        wc, wr = max(rows, key=lambda cr: cr[1]["max_deviation_m"])
+        over = [c["case"] for c, r in rows if r["max_deviation_m"] > DEVIATION_BAR_M]
+        sens = [c["case"] for c in group if c.get("sensitive")]
+        rd = [(c["case"], d) for c, r in rows for d in r["differing"] if d["in_readme"]]
+        rc = [(c["case"], d) for c, r in rows for d in r.get("differing_vs_current", []) if d["in_readme"]]
+        out.append(f"In the {len(group)} cases {name}: worst deviation {_mm(wr['max_deviation_m'])} mm ({wc['case']}); "
+                   f"over 1 mm: {', '.join(over) or 'none'}"
+                   + (f" (sensitive, i.e. over 1 mm with the perturbed start alone: {', '.join(sens)})" if sens else "")
+                   + f"; README figures that differ from 1 ms: {len(rd)}, from {doc['cases'][0].get('current')}: "
+                   f"{len(rc)}.")
+    return " ".join(out)
+
+
 def _choice_text(doc: dict) -> str:
     by = {s["label"]: s for s in doc["settings"]}
     bar = f"{DEVIATION_BAR_M * 1e3:g} mm"
@@ -681,7 +703,13 @@ def _choice_text(doc: dict) -> str:
         nr = [d for d in s["differing"] if not d["in_readme"]]
         if nr:
             parts.append(f"{len(nr)} figure(s) the README does not print differ at its digits")
+        rc = [d for d in s.get("differing_vs_current", []) if d["in_readme"]]
+        if s["label"] != doc["cases"][0].get("current"):
+            parts.append(f"README figures that differ from {doc['cases'][0].get('current')} (the README's step): " + (
+                "; ".join(f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}" for d in rc[:12])
+                + (f"; +{len(rc) - 12} more" if len(rc) > 12 else "") if rc else "none"))
         out.append(f"**{s['label']}**: " + ("; ".join(parts) if parts else "holds") + ".")
+        out.append(_split_text(doc, s["label"]))
     cs = doc.get("chosen_allowing_sensitive")
     if cs and cs["label"] != doc["meta"]["reference"] and (not chosen or cs["timestep_s"] > chosen["timestep_s"]):
         s = by[cs["label"]]
