@@ -658,9 +658,15 @@ def contacts_verdict(doc: dict) -> str:
                  f"{v['pairs_relative_difference'] * 100:+.1f} %; contact episodes: "
                  f"{v['episodes_relative_difference'] * 100:+.1f} %.")
     if "control_relative_difference" in v:
+        both = [p for p in doc["starts"] if p.get("fine_first_s") is not None and p.get("control_first_s") is not None]
+        same = sum(1 for p in both if abs(p["control_first_s"] - p["fine_first_s"]) <= st["coarse_s"] + 1e-9)
+        ndiff = sum(1 for p in doc["starts"] if p["fine"] != p.get("control", p["fine"]))
+        ndiff_c = sum(1 for p in doc["starts"] if p["fine"] != p["coarse"])
         text += (f" Control: the fine step again with the start moved {st['control_m'] * 1e6:g} µm changes the "
-                 f"contact count by {v['control_relative_difference'] * 100:+.1f} % and the pairs that touched by "
-                 f"{v['control_pairs_relative_difference'] * 100:+.1f} %.")
+                 f"contact count by {v['control_relative_difference'] * 100:+.1f} % (the candidate step: "
+                 f"{v['relative_difference'] * 100:+.1f} %), the count of {ndiff} starts (the candidate: {ndiff_c}) and "
+                 f"the pairs that touched by {v['control_pairs_relative_difference'] * 100:+.1f} %; its first contact "
+                 f"comes within one control period of the fine run's in {same} of {len(both)} starts.")
     text += (" **By the issue's bar, contacts are counted equivalently at the candidate step.**" if v["holds"] else
              " **By the issue's bar (within 5 % and no start missed), contacts are not counted equivalently at the "
              "candidate step.**")
@@ -995,7 +1001,7 @@ def main(argv: list[str] | None = None) -> int:
         doc = _json(doc)
         source = a.json or "a run of the tool"
         if a.json:
-            _write(a.json, json.dumps(doc, indent=1) + "\n")
+            _write(a.json, json.dumps(doc, separators=(",", ":")) + "\n")
     print(short_table(doc))
     ch = doc.get("chosen")
     cs = doc.get("chosen_allowing_sensitive")
