@@ -682,13 +682,14 @@ def _split_text(doc: dict, label: str) -> str:
             continue
         rows = [(c, next(r for r in c["rows"] if r["label"] == label)) for c in group]
         wc, wr = max(rows, key=lambda cr: cr[1]["max_deviation_m"])
-        over = [c["case"] for c, r in rows if r["max_deviation_m"] > DEVIATION_BAR_M]
-        sens = [c["case"] for c in group if c.get("sensitive")]
+        over = [c for c, r in rows if r["max_deviation_m"] > DEVIATION_BAR_M]
+        not_sens = [c["case"] for c in over if not c.get("sensitive")]
         rd = [(c["case"], d) for c, r in rows for d in r["differing"] if d["in_readme"]]
         rc = [(c["case"], d) for c, r in rows for d in r.get("differing_vs_current", []) if d["in_readme"]]
         out.append(f"In the {len(group)} cases {name}: worst deviation {_mm(wr['max_deviation_m'])} mm ({wc['case']}); "
-                   f"over 1 mm: {', '.join(over) or 'none'}"
-                   + (f" (sensitive, i.e. over 1 mm with the perturbed start alone: {', '.join(sens)})" if sens else "")
+                   f"over 1 mm: {', '.join(c['case'] for c in over) or 'none'}"
+                   + ((" (every one of them sensitive: the perturbed start alone moves it more than 1 mm)"
+                       if not not_sens else f" (not sensitive: {', '.join(not_sens)})") if over else "")
                    + f"; README figures that differ from 1 ms: {len(rd)}, from {doc['cases'][0].get('current')}: "
                    f"{len(rc)}.")
     return " ".join(out)
@@ -720,7 +721,7 @@ def _choice_text(doc: dict) -> str:
             pert = doc["meta"].get("perturb_m") or 0.0
             parts.append("over " + bar + " in " + ", ".join(
                 f"{o['case']} ({_mm(o['deviation_m'])} mm" + (
-                    f"; the {pert * 1e6:g}-µm start change alone: {_mm(o['perturbed_deviation_m'])} mm)"
+                    f"; a {pert * 1e6:g}-µm start change alone: {_mm(o['perturbed_deviation_m'])} mm)"
                     if pert and o["perturbed_deviation_m"] is not None else ")") for o in over))
         if rd:
             parts.append("README figures that differ from 1 ms: " + "; ".join(
