@@ -154,8 +154,9 @@ def differing(ref: dict[str, tuple[Any, str, bool]], other: dict[str, tuple[Any,
     for name, (v, fmt, in_readme) in ref.items():
         w = other.get(name, (None, fmt, in_readme))[0]
         if not same_printed(v, w, fmt):
+            num = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (v, w))
             out.append({"figure": name, "reference": printed(v, fmt), "value": printed(w, fmt),
-                        "in_readme": in_readme})
+                        "in_readme": in_readme, "change": float(w - v) if num else None})
     for name in other.keys() - ref.keys():
         v, fmt, in_readme = other[name]
         out.append({"figure": name, "reference": "–", "value": printed(v, fmt), "in_readme": in_readme})
@@ -433,8 +434,9 @@ def _mm(v: float) -> str:
 def _diff_text(diffs: list[dict], limit: int = 4) -> str:
     if not diffs:
         return "all match"
-    parts = [f"{d['figure']} {d['reference']} → {d['value']}" + ("" if d["in_readme"] else " (not in the README)")
-             for d in diffs[:limit]]
+    parts = [f"{d['figure']} {d['reference']} → {d['value']}"
+             + (f" (by {d['change']:+.2g})" if d.get("change") is not None and "contacts" not in d["figure"] else "")
+             + ("" if d["in_readme"] else " (not in the README)") for d in diffs[:limit]]
     more = f"; +{len(diffs) - limit} more" if len(diffs) > limit else ""
     return "; ".join(parts) + more
 
