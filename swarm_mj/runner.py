@@ -15,7 +15,9 @@ import signal
 import sys
 import threading
 import time as _time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -28,6 +30,7 @@ from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .progress import Progress
 from .scenario import Scenario, load_scenario
+from .sim import ForceStage
 
 __all__ = ["PAPER_FORMATION_SETTLING_S", "PAPER_STEP", "PAPER_TABLE5", "Progress", "RunLog", "RunResult", "run",
            "summarize"]
@@ -107,10 +110,12 @@ class RunResult:
 
 def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_collision: str | None = None,
         seed: int | None = None, progress: bool | None = None, duration: float | None = None,
-        aero: str | None = None) -> RunResult:
+        aero: str | None = None, force_stages: Sequence[ForceStage] = ()) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
     aero: a physics preset (``"paper"``, ``"realistic"``; docs/aero.md) replacing the scenario's.
+    ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator (after drag and wind;
+    the preset's aerodynamic stages come after them).
     Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
@@ -124,7 +129,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     compile_s = warm_up()
     if compile_s > 1.0 and progress is not False:
         print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
-    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed)
+    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps
     log = RunLog.allocate(env.names, K + 1)
@@ -147,7 +152,9 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
                 if interrupt.requested:
                     raise KeyboardInterrupt
                 ts = env.step(cmd)
-                log.applied(k, env.last_applied)
+                rec = env.last_applied
+                assert rec is not None
+                log.applied(k, rec)
                 obs = ts.observation
                 k += 1
                 if k % 50 == 0:
@@ -179,7 +186,7 @@ class _CooperativeInterrupt:
 
     def __init__(self) -> None:
         self.requested = False
-        self._previous = None
+        self._previous: Any = None
 
     def _handler(self, signum, frame) -> None:
         self.requested = True
@@ -237,7 +244,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos)
         out["min_separation_m"] = sep
-        out["min_separation_at_s"] = float(t[kk]) if kk >= 0 else None
+        out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
         out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
         airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
         if airborne.any():
