@@ -49,3 +49,9 @@ PAPER_TABLE5 = {
 
 #: §5.2: the formation settles in about 3 s.
 PAPER_FORMATION_SETTLING_S = 3.0
+
+#: Paper Table 3: run, initial ISE, final ISE, improvement (%).
+PAPER_TABLE3 = [(1, 59.24, 52.92, 10.67), (2, 60.47, 51.84, 14.27), (3, 60.34, 45.15, 25.17),
+                (5, 68.35, 44.12, 35.45)]
+#: Paper Fig. 7(b): roll and pitch reach ±45° (the clip of the desired angles).
+PAPER_STEP_MAX_ANGLE_DEG = 45.0

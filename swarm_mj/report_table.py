@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .runner import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
+from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 
 
 def _f(v, fmt: str = "{:.4f}") -> str:

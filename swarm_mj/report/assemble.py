@@ -12,8 +12,8 @@ from dataclasses import asdict
 from typing import Any
 
 from ..atomic import json_safe
+from ..paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..parallel import machine_description
-from ..runner import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..sweep import compute_stats
 from .jobs import JobResults
 from .plan import (

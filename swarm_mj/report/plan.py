@@ -24,12 +24,7 @@ ALL_FIGURES = {"fig07_step.png", "fig08_rotors.png", "fig09_lemniscate.png", "fi
                "fig14_variable_d.png", "fig16_anticollision.png", "wind_robustness.png", "wind_sigma.png",
                "fpa_convergence.png", "snapshot_scenario1.png"}
 
-#: Paper Table 3: run, initial ISE, final ISE, improvement (%).
-PAPER_TABLE3 = [(1, 59.24, 52.92, 10.67), (2, 60.47, 51.84, 14.27), (3, 60.34, 45.15, 25.17),
-                (5, 68.35, 44.12, 35.45)]
-#: Paper Fig. 7(b): roll and pitch reach ±45° (the clip of the desired angles).
-PAPER_STEP_MAX_ANGLE_DEG = 45.0
-
+from ..paper import PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3  # noqa: F401 (re-exported)
 
 #: Table 5's scenarios (single drone; each flown from the ground, on its path and with the FPA gains).
 TABLE5_SCENARIOS = ["circle_single", "wind_circle", "lemniscate_single", "wind_lemniscate"]
