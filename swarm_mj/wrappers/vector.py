@@ -188,6 +188,12 @@ def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarr
     info["_" + key] = mask
 
 
+def _prune(info: dict[str, Any]) -> dict[str, Any]:
+    """Without the keys no copy has (as Gymnasium's vector envs leave them out)."""
+    return {key: v for key, v in info.items()
+            if (key[1:] if key.startswith("_") else key) not in info or info["_" + key.lstrip("_")].any()}
+
+
 class SwarmVectorEnv(VectorEnv):
     """``num_envs`` independent copies of a scenario's swarm as one Gymnasium ``VectorEnv`` (module docstring).
 
@@ -451,6 +457,7 @@ class SwarmVectorEnv(VectorEnv):
         truncated[resetting] = False
         info = self._step_info(~resetting, terminated, diverged, health)
         if resetting.any():
+            info["_time"][:] = True                # a reset copy's info is its reset info: time 0, its seed
             _info_add(info, "wind_seed", self.wind_seed.copy(), resetting)
         done = terminated | truncated
         obs_flat = self._obs.copy()
@@ -461,16 +468,22 @@ class SwarmVectorEnv(VectorEnv):
             final = self._observation(obs_flat.copy())
             for c in np.flatnonzero(done):
                 final_obs[c] = final[c] if self.flatten else {key: v[c] for key, v in final.items()}
-            final_info = {key: (v & done if key.startswith("_") else v) for key, v in info.items()}
+            final_info = _prune({key: (v & done if key.startswith("_") else v) for key, v in info.items()})
             self._begin(done, None)
             self._put_back(done)
             self._new_contacts[done] = 0
             self._observe(np.flatnonzero(done).astype(np.int64))
             obs_flat = self._obs.copy()
+            # the ended copies' info is their reset info (time 0, their seed); what ended is in final_info
+            for key in ("contacts", "new_contacts", "min_separation"):
+                info["_" + key] = info["_" + key] & ~done
+            info.pop("termination", None), info.pop("_termination", None)
+            info.pop("error", None), info.pop("_error", None)
+            info["time"] = np.where(done, 0.0, info["time"])
             _info_add(info, "final_obs", final_obs, done.copy())
             _info_add(info, "final_info", final_info, done.copy())
             _info_add(info, "wind_seed", self.wind_seed.copy(), done | resetting)
-        return self._observation(obs_flat), rewards, terminated, truncated, info
+        return self._observation(obs_flat), rewards, terminated, truncated, _prune(info)
 
     def _step_info(self, stepped: np.ndarray, terminated: np.ndarray, diverged: np.ndarray,
                    health: np.ndarray) -> dict[str, Any]:
