@@ -22,8 +22,7 @@ import numpy as np
 from ._jit import warm_up
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
-from .metrics import (follower_distances, formation_settling, leader_distances, min_separation, rmse,
-                      step_metrics)
+from .metrics import formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .scenario import Scenario, load_scenario

@@ -44,7 +44,6 @@ from ._jit import jit
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
 from .params import QuadParams
-from .state import quat_to_euler_kernel
 from .world import World
 
 #: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
@@ -96,12 +95,14 @@ def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_
 @jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(14, dtype=np.int32)[::2],
                        np.array([5, 3, 4, 6]), np.zeros(1, dtype=np.int8))])
 def health_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float,
-                  max_tilt: float, warnings: np.ndarray, bad_warnings: np.ndarray, out: np.ndarray) -> None:
+                  max_tilt: float, warnings: np.ndarray, bad_warnings: np.ndarray, out: np.ndarray) -> int:
     """The health mask: out (m,) = per copy of n drones (rows c·n .. c·n + n − 1 of qpos (N, 7),
     qvel (N, 6)) the code of its first unhealthy drone (:func:`drone_state`; TILTED where |roll|
     or |pitch| > ``max_tilt``), MUJOCO_WARNING for every copy if a counter of ``warnings`` (MuJoCo's
-    warning counts) at an index of ``bad_warnings`` is nonzero (MuJoCo resets all copies), else 0."""
+    warning counts) at an index of ``bad_warnings`` is nonzero (MuJoCo resets all copies), else 0.
+    Returns the first nonzero code (0: all healthy)."""
     m = out.shape[0]
+    first = HEALTHY
     warned = False
     for w in bad_warnings:
         if warnings[w] != 0:
@@ -113,13 +114,19 @@ def health_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, ma
             if code != HEALTHY:
                 break
             if max_tilt < np.inf:
-                rpy = quat_to_euler_kernel(qpos[i:i + 1, 3:7])
-                if not (abs(rpy[0, 0]) <= max_tilt and abs(rpy[0, 1]) <= max_tilt):
+                # roll and pitch of the quaternion (w, x, y, z): the formulas of swarm_mj.state
+                w, x, y, z = qpos[i, 3], qpos[i, 4], qpos[i, 5], qpos[i, 6]
+                roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+                pitch = np.arcsin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+                if not (abs(roll) <= max_tilt and abs(pitch) <= max_tilt):
                     code = TILTED
                     break
         if warned:
             code = MUJOCO_WARNING
         out[c] = code
+        if code != HEALTHY and first == HEALTHY:
+            first = code
+    return first
 
 
 @jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)), np.zeros((5, 6))[1::2, 0:3])])
@@ -247,7 +254,7 @@ class Sim:
         self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 of the last step
         self._force = np.zeros((N, 3))                   # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
-        self._health = np.zeros(self.n_copies, dtype=np.int8)
+        self._health = np.zeros(self.n_copies, dtype=np.int8)  # (m,) check()'s buffer
         self.drag = DragStage()
         self.wind = WindStage()
         self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
@@ -287,6 +294,8 @@ class Sim:
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
         self.parked = np.zeros(self.n_copies, dtype=bool)    # (m,) copies held at their start
+        self._parked_rows = np.zeros((self.n_total, 1), dtype=bool)
+        self._any_parked = False
         self._park_qpos = self.qpos.copy()                   # (N, 7) where parked drones are held
         for stage in self.stages:
             stage.reset(self)
@@ -328,20 +337,31 @@ class Sim:
         Parked copies get zero input and are put back at their start first.
         """
         U = np.asarray(U, dtype=np.float64)
-        if self.parked.any():
+        parked = self._any_parked
+        if parked:
             U = self._hold_parked(U)
         saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         self.wind.set(wind_force)
-        m, d = self.model, self.data
         if self._fused:
-            # drag + wind only: one compiled call, xf = −K·v + F_wind (the same sum, 0 + (−K·v) + F_wind)
-            xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
-            for _ in range(self.n_substeps):
-                drag_kernel(vel, k, ext, xf)
-                mujoco.mj_step(m, d)
-                if d.ncon or self._pairs_in_contact:
-                    self._count_contacts()
-            return
+            self._substeps_fused()
+        else:
+            self._substeps()
+        if parked:
+            self._put_back()
+
+    def _substeps_fused(self) -> None:
+        """Drag + wind only: one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind)."""
+        m, d = self.model, self.data
+        xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
+        for _ in range(self.n_substeps):
+            drag_kernel(vel, k, ext, xf)
+            mujoco.mj_step(m, d)
+            if d.ncon or self._pairs_in_contact:
+                self._count_contacts()
+
+    def _substeps(self) -> None:
+        """Every stage adds its force and torque, the sums go to xfrc_applied, then mj_step and contacts."""
+        m, d = self.model, self.data
         force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
             force[:] = 0.0
@@ -355,22 +375,23 @@ class Sim:
                 self._count_contacts()
 
     # ------------------------------------------------------------------ health
-    def health(self) -> np.ndarray:
+    def health(self, out: np.ndarray | None = None) -> np.ndarray:
         """The health mask (m,) int8, one code per copy (``HEALTHY`` = 0, see :data:`HEALTH_NAMES`):
         non-finite state, a drone below the floor, too far, tilted beyond ``max_tilt``, or a
-        MuJoCo divergence warning since the last reset. A fresh array."""
+        MuJoCo divergence warning since the last reset. Written into ``out`` (m,) int8 if given,
+        else a fresh array."""
+        if out is None:
+            out = np.empty(self.n_copies, dtype=np.int8)
         health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
-                      self._warnings, self._bad_warnings, self._health)
-        return self._health.copy()
+                      self._warnings, self._bad_warnings, out)
+        return out
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
-        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
-                      self._warnings, self._bad_warnings, self._health)
-        bad = np.flatnonzero(self._health)
-        if len(bad) == 0:
+        code = health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
+                             self._warnings, self._bad_warnings, self._health)
+        if code == HEALTHY:
             return
-        code = int(self._health[bad[0]])
         pos = self.pos
         when = f"simulation diverged at t = {self.time:.2f} s"
         if code == MUJOCO_WARNING:
@@ -388,24 +409,23 @@ class Sim:
 
     def park(self, copies: np.ndarray | Iterable[int]) -> None:
         """Hold the given copies (a bool mask (m,) or indices) at rest at their start with zero input
-        from now on (e.g. diverged tuner candidates), so that a bad state never reaches MuJoCo,
-        which would reset every copy."""
+        (put back before and after every step) from now on (e.g. diverged tuner candidates), so that
+        a bad state never reaches MuJoCo, which would reset every copy."""
         mask = np.zeros(self.n_copies, dtype=bool)
-        mask[np.asarray(copies) if not isinstance(copies, np.ndarray) else copies] = True
+        mask[copies] = True
         self.parked |= mask
+        self._any_parked = bool(self.parked.any())
+        self._parked_rows = np.repeat(self.parked, self.n)[:, None]     # (N, 1)
         self._put_back()
 
     def _put_back(self) -> None:
-        rows = np.repeat(self.parked, self.n)                # (N,)
-        self.qpos[rows] = self._park_qpos[rows]
-        self.qvel[rows] = 0.0
+        rows = self._parked_rows
+        np.copyto(self.qpos, self._park_qpos, where=rows)
+        np.copyto(self.qvel, 0.0, where=rows)
 
     def _hold_parked(self, U: np.ndarray) -> np.ndarray:
-        rows = np.repeat(self.parked, self.n)                # (N,)
-        U = U.copy()
-        U[rows] = 0.0
         self._put_back()
-        return U
+        return np.where(self._parked_rows, 0.0, U)
 
     # ------------------------------------------------------------------ contacts
     def _count_contacts(self) -> None:

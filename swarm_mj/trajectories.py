@@ -1,4 +1,4 @@
-"""Reference trajectories with analytic position, velocity and acceleration (SPEC §3).
+"""Reference trajectories with analytic position, velocity and acceleration (docs/interpretations.md §3).
 
 Every trajectory is a callable ``traj(t)`` taking a scalar or an array of times (k,) and
 returning a :class:`Reference` whose arrays have the time axis first: ``pos (k, 3)``,
@@ -38,7 +38,7 @@ def _constant(t, pos, yaw) -> Reference:
 
 
 def step(target=(1.0, 1.0, 1.0), yaw_deg: float = 25.0) -> Callable[[np.ndarray], Reference]:
-    """Step of SPEC §3: x_d = y_d = z_d = 1 m, ψ_d = 25° from t = 0 (derivatives zero)."""
+    """Step of docs/interpretations.md §3: x_d = y_d = z_d = 1 m, ψ_d = 25° from t = 0 (derivatives zero)."""
     return lambda t: _constant(t, target, np.deg2rad(yaw_deg))
 
 
@@ -71,7 +71,7 @@ def lemniscate(amplitude: float = 2.5, omega: float = 0.08, altitude: float = 2.
 
 def circle(radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, climb_rate: float = 0.0,
            center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
-    """SPEC §3 circle: x = 2.5 sin(0.08t), y = 2.5 cos(0.08t), z = altitude + climb_rate·t."""
+    """docs/interpretations.md §3 circle: x = 2.5 sin(0.08t), y = 2.5 cos(0.08t), z = altitude + climb_rate·t."""
     def f(t):
         t = _t(t)
         k = len(t)
@@ -86,7 +86,7 @@ def circle(radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, clim
 
 def ascending_orbit(radius: float = 2.5, omega: float = 0.08, altitude: float = 1.0,
                     climb_rate: float = 0.02, center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
-    """SPEC §3 ascending orbit: the circle with z = 1 + 0.02t."""
+    """docs/interpretations.md §3 ascending orbit: the circle with z = 1 + 0.02t."""
     return circle(radius, omega, altitude, climb_rate, center)
 
 

@@ -439,11 +439,13 @@ class WindSeries:
         The one place that chooses between the two: the simulator's wind, the controller's
         feedforward and the log all call it.
         """
-        vel = np.asarray(drone_vel, dtype=float).reshape(-1, 3)  # (n, 3)
         if not self.relative_airspeed:
-            out = np.empty(vel.shape)
+            n = drone_vel.shape[0] if isinstance(drone_vel, np.ndarray) and drone_vel.ndim == 2 \
+                else np.asarray(drone_vel, dtype=float).reshape(-1, 3).shape[0]
+            out = np.empty((n, 3))
             out[:] = self.force[i]
             return out
+        vel = np.asarray(drone_vel, dtype=float).reshape(-1, 3)  # (n, 3)
         return relative_force(self.speed[i], vel, self.on_mask[i], self.rho, self.cd, self.area)
 
 

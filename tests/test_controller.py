@@ -1,11 +1,11 @@
-"""Backstepping controller (paper §3.1, eqs. 4–24; SPEC §2) and its single-drone results in MuJoCo.
+"""Backstepping controller (paper §3.1, eqs. 4–24; docs/interpretations.md §2) and its single-drone results in MuJoCo.
 
 Unit part: equilibria, the closed-loop characteristic polynomial s² + (α_a + α_b)s + (1 + α_a·α_b)
 of every axis (from the paper's Lyapunov design: ė1 = e2 − α_a e1, ė2 = −e1 − α_b e2), found by
 linearising eq. (1) under the controller, gain shapes, vectorisation, validation and the wind
-feedforward of eqs. (23)–(24) with F^w/m (SPEC §2 typo fix).
+feedforward of eqs. (23)–(24) with F^w/m (docs/interpretations.md §2 typo fix).
 
-Integration part (issue 3 "Done when"): the step of SPEC §3 and the 180-s lemniscate without
+Integration part (issue 3 "Done when"): the step of docs/interpretations.md §3 and the 180-s lemniscate without
 wind, simulated by MuJoCo through ``runner.run``, against the bars of the issue.
 """
 
@@ -305,7 +305,7 @@ def _ux_uy(att_d: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @pytest.mark.parametrize("amap", ["exact", "paper"])
 def test_wind_feedforward_shifts_ux_uy_by_minus_f_over_u1(amap):
-    """Eqs. (23)–(24) with F^w/m (SPEC §2): Ux_on − Ux_off = −(m/U1)·F_x/m = −F_x/U1, same for y."""
+    """Eqs. (23)–(24) with F^w/m (docs/interpretations.md §2): Ux_on − Ux_off = −(m/U1)·F_x/m = −F_x/U1, same for y."""
     n = 6
     rng = np.random.default_rng(5)
     s = _random_states(rng, n)
@@ -408,7 +408,7 @@ def test_step_response_meets_issue_3(step_run, axis):
 
 @pytest.mark.slow
 def test_step_attitude_stays_within_55_degrees(step_run):
-    """SPEC §2: the issue's 50° reads 55° (the pitch overshoots the 45° clip to about 51°)."""
+    """docs/interpretations.md §2: the issue's 50° reads 55° (the pitch overshoots the 45° clip to about 51°)."""
     log = step_run.log
     peak = np.rad2deg(np.abs(log.rpy[:, 0, :2]).max(axis=0))
     assert (peak <= 55.0).all(), peak
@@ -423,7 +423,7 @@ def test_step_rotor_thrusts_within_limits_and_reported(step_run):
     F = log.rotor[:-1, 0]             # the last sample has no following period
     assert np.isfinite(F).all()
     assert F.min() >= -1e-12 and F.max() <= 4.5 + 1e-12
-    # the wrench applied is the one those rotors give (SPEC §1 configuration)
+    # the wrench applied is the one those rotors give (docs/interpretations.md §1 configuration)
     U = log.U[:-1, 0]
     F1, F2, F3, F4 = F.T
     np.testing.assert_allclose(U[:, 0], F1 + F2 + F3 + F4, atol=1e-9)

@@ -1,4 +1,4 @@
-"""Unit tests of the formation layer (paper §4, Fig. 4b, Fig. 5, eq. 34; SPEC §4).
+"""Unit tests of the formation layer (paper §4, Fig. 4b, Fig. 5, eq. 34; docs/interpretations.md §4).
 
 Slots and the D schedule are checked against their closed forms; the anti-collision rules
 are driven without physics: a "kinematic" swarm whose drones sit exactly where the rule
@@ -35,7 +35,7 @@ from swarm_mj.scenario import (
     random_follower_starts,
 )
 
-T = 0.01  # control period (s), SPEC §2
+T = 0.01  # control period (s), docs/interpretations.md §2
 
 
 # --------------------------------------------------------------------------- slots, D(t)
@@ -49,7 +49,7 @@ def test_polygon_slots_are_a_regular_polygon_of_circumradius_D(n_f):
     np.testing.assert_allclose(np.hypot(off[:, 0], off[:, 1]), D, atol=1e-12)
     np.testing.assert_allclose(off[:, 2], 0.0)
     ang = np.arctan2(off[:, 1], off[:, 0])
-    expected = np.pi / 2 + 2 * np.pi * np.arange(n_f) / n_f           # SPEC §4: π/2 + 2π(k−1)/n_f
+    expected = np.pi / 2 + 2 * np.pi * np.arange(n_f) / n_f           # docs/interpretations.md §4: π/2 + 2π(k−1)/n_f
     np.testing.assert_allclose(np.cos(ang - expected), 1.0, atol=1e-12)
     if n_f > 1:                                                        # adjacent slots 2·D·sin(π/n_f) apart
         gaps = np.linalg.norm(off - np.roll(off, -1, axis=0), axis=1)
@@ -57,7 +57,7 @@ def test_polygon_slots_are_a_regular_polygon_of_circumradius_D(n_f):
 
 
 def test_pentagon_adjacent_followers_clear_the_safety_distance():
-    # SPEC §4: with D the circumradius, adjacent followers are 1.18·D apart (> 0.8 m for D = 1)
+    # docs/interpretations.md §4: with D the circumradius, adjacent followers are 1.18·D apart (> 0.8 m for D = 1)
     off = polygon_offsets(5, 1.0)
     assert np.linalg.norm(off[0] - off[1]) == pytest.approx(1.1756, abs=1e-4)
 
@@ -380,7 +380,7 @@ def test_random_starts_are_seeded_spaced_and_within_the_radius():
 
 
 def test_start_clearance_covers_the_rotor_span():
-    # SPEC §1 geometry: rotor centres L = 0.25 m out, rotor radius 0.09 m
+    # docs/interpretations.md §1 geometry: rotor centres L = 0.25 m out, rotor radius 0.09 m
     assert START_CLEARANCE_M > 2 * (0.25 + 0.09)
 
 

@@ -1,4 +1,4 @@
-"""Unit tests of the Flower Pollination Algorithm optimiser (swarm_mj.tuning.fpa, SPEC §6)."""
+"""Unit tests of the Flower Pollination Algorithm optimiser (swarm_mj.tuning.fpa, docs/interpretations.md §6)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Physics of the MuJoCo swarm model (SPEC §1, paper eq. (1), Table 1, eqs. (26)–(29)).
+"""Physics of the MuJoCo swarm model (docs/interpretations.md §1, paper eq. (1), Table 1, eqs. (26)–(29)).
 
 Every expected value below is computed in this file with numpy from the physics
 (rigid-body equations, rotations, mixing written out here). swarm_mj.state and the
@@ -382,7 +382,7 @@ def test_external_force_acceleration():
     # exact solution from rest with linear drag: v = F/K·(1 − e^{−Kt/m}), x = F/K·(t − m/K·(1 − e^{−Kt/m}))
     v_exp = F / K * (1.0 - decay)
     p_exp = p0 + F / K * (t - M / K * (1.0 - decay))
-    # Sim holds the drag of the start of each 5-ms physics step (SPEC §1): it lags by h/2, which
+    # Sim holds the drag of the start of each 5-ms physics step (docs/interpretations.md §1): it lags by h/2, which
     # makes v and x small by the relative amount h·K/(2m) ≈ 3e-5. The drag itself is 0.6 % of v
     # after 1 s, so rtol 1e-4 sees it (and F/Ix, the paper's typo, is 128× off).
     np.testing.assert_allclose(sim.vel, v_exp, rtol=1e-4, atol=1e-12)
@@ -423,7 +423,7 @@ def test_mujoco_matches_newton_euler_reference():
     (waypoints within ±3 m, random headings, tilts up to ~45°), random thrust/torque noise and a
     random wind force are added; the reference replays exactly the U that MuJoCo received (after
     rotor saturation). What remains is the product's drag, held over each 5-ms physics step
-    (SPEC §1): it lags by h/2, a relative error ≈ h·K/(2m) ≈ 3e-5 of the distance flown
+    (docs/interpretations.md §1): it lags by h/2, a relative error ≈ h·K/(2m) ≈ 3e-5 of the distance flown
     (measured 0.17 mm here; with the drag held the same way in the reference the two agree to
     2 µm and 1e-6°). Tolerances as asked: 1 mm, 0.1°.
     """

@@ -1,6 +1,6 @@
-"""Trajectories (SPEC §3) and metrics (SPEC §7, paper eqs. 25 and 38) on known signals.
+"""Trajectories (docs/interpretations.md §3) and metrics (docs/interpretations.md §7, paper eqs. 25 and 38) on known signals.
 
-Every expected value here comes from the formula in SPEC/paper or from a closed-form
+Every expected value here comes from the formula in docs/interpretations.md / the paper or from a closed-form
 signal (first-order and second-order step responses, sinusoids), never from the code
 under test.
 """

@@ -1,4 +1,4 @@
-"""Gain tuning (issue 6, SPEC §6): the ISE cost of eq. (25) over the step, its batched and
+"""Gain tuning (issue 6, docs/interpretations.md §6): the ISE cost of eq. (25) over the step, its batched and
 parallel evaluation, ``swarm-mj tune`` and its gains file."""
 
 from __future__ import annotations
@@ -21,7 +21,6 @@ from swarm_mj.tuning import (BatchEvaluator, StepBars, StepCostSettings, TuneOpt
                              tune_gains)
 from swarm_mj.tuning import cost as cost_mod
 from swarm_mj.tuning import evaluator as evaluator_mod
-from swarm_mj.world import build_world
 
 REPO = Path(__file__).resolve().parents[1]
 SEED1_FILE = REPO / "scenarios" / "gains" / "fpa_seed1.toml"

@@ -1,4 +1,4 @@
-"""Tests of swarm_mj.wind: paper eqs. (35)–(37) as fixed by SPEC §5.
+"""Tests of swarm_mj.wind: paper eqs. (35)–(37) as fixed by docs/interpretations.md §5.
 
 Statistical tolerances are derived from the sample size in each test (effective
 sample size of an AR(1) series, variances of the estimators); the reasoning is

@@ -2,15 +2,15 @@
 
 What is checked, and where each bar comes from:
 
-* physics: the wind force reaches the drone as an acceleration F/m (SPEC §2 fixes the
-  paper's F/Ix typo; SPEC §5: world frame, at the CoM), it is zero outside the schedule of
+* physics: the wind force reaches the drone as an acceleration F/m (docs/interpretations.md §2 fixes the
+  paper's F/Ix typo; docs/interpretations.md §5: world frame, at the CoM), it is zero outside the schedule of
   paper §5.3 (F_x from 20 s, F_x and F_y from 50 s), the force applied is
-  ½ρC_dA|V|V (eq. 37, SPEC §5 constants) of the logged speed (eq. 35), the
+  ½ρC_dA|V|V (eq. 37, docs/interpretations.md §5 constants) of the logged speed (eq. 35), the
   relative-airspeed option uses V − v_drone as documented in ``swarm_mj/wind.py``, and
   a seed fixes the run. The expected values are written out here from the paper's
   equations, not taken from ``swarm_mj.wind``.
 * Table 5 (paper): lemniscate under wind with feedforward x ≤ 0.0321 m, y ≤ 0.0249 m;
-  circle under wind "within 2× of the paper" as SPEC §7 defines it: x whole-run
+  circle under wind "within 2× of the paper" as docs/interpretations.md §7 defines it: x whole-run
   ≤ 2 × 0.0398 m and y from t = 10 s on ≤ 2 × 0.0689 m. Without feedforward the
   figures are reported only (no bar); we check that the scenario really turns it off.
 * wind_swarm: zero MuJoCo drone–drone contacts and every leader–follower horizontal
@@ -37,7 +37,7 @@ from swarm_mj.policy import BacksteppingPolicy
 from swarm_mj.runner import run
 from swarm_mj.scenario import load_scenario, parse_scenario
 
-# SPEC §5 / paper eq. (37) and Table 1, written out independently of the code under test.
+# docs/interpretations.md §5 / paper eq. (37) and Table 1, written out independently of the code under test.
 RHO, CD, AREA = 1.225, 1.0, 0.025
 C_AIR = 0.5 * RHO * CD * AREA          # N / (m/s)^2
 MASS = 0.486                            # kg
@@ -125,7 +125,7 @@ def paper_wind_hover():
     hover thrust, 51 s: covers the x-only window and the start of the x+y window.
 
     Nothing holds the drone, so the wind blows it ~700 m downwind by 51 s; it starts 600 m
-    upwind so that it stays inside the simulator's 1000 m divergence bound (SPEC constants
+    upwind so that it stays inside the simulator's 1000 m divergence bound (docs/interpretations.md constants
     do not depend on where the drone is)."""
     sc = _scenario({"enabled": True}, duration=51.0, start=(-600.0, 0.0, 2.0))
     return _hover_flight(sc)
@@ -158,7 +158,7 @@ def test_applied_force_is_eq37_of_logged_speed_and_mask(paper_wind_hover):
     expected = np.where(paper_schedule(t), eq37(speed), 0.0)
     np.testing.assert_allclose(f, expected, rtol=1e-12, atol=1e-15)
     # The deterministic part of the logged speed is eq. (35); the rest is the OU turbulence
-    # (SPEC §5: sigma_x 0.8, sigma_y 0.5 m/s, tau 2 s). Over 51 s (~13 correlation times)
+    # (docs/interpretations.md §5: sigma_x 0.8, sigma_y 0.5 m/s, tau 2 s). Over 51 s (~13 correlation times)
     # the sample std lands well inside [0.3, 1.6] x sigma for a correct generator; a series
     # without turbulence gives 0, one with sigma^2 in place of sigma (0.64 / 0.25) fails y.
     resid = speed[:, :2] - paper_eq35(t)
@@ -189,7 +189,7 @@ def test_wind_force_shows_as_acceleration_f_over_m(paper_wind_hover):
 def test_constant_mean_wind_gives_f_over_m_and_eq35_speed():
     """sigma = 0, schedule always on, mean (2, -1) m/s, no sinusoids: F = (0.049, -0.01225) N.
 
-    Over 5 s at hover thrust the drone must follow m dv/dt = F − K v (SPEC §1 drag), whose
+    Over 5 s at hover thrust the drone must follow m dv/dt = F − K v (docs/interpretations.md §1 drag), whose
     solution is v(t) = F/K (1 − exp(−K t / m)); the bar 1e-4 m/s is 1/2000 of the 0.5 m/s
     it reaches.
     """
@@ -258,7 +258,7 @@ def test_relative_airspeed_uses_wind_minus_drone_velocity():
 @pytest.mark.parametrize("relative", [False, True])
 @pytest.mark.parametrize("feedforward", [True, False])
 def test_controller_sees_the_force_applied_only_with_feedforward(relative, feedforward):
-    """Observation ``wind_force`` at step k = the force MuJoCo gets during step k (SPEC §2:
+    """Observation ``wind_force`` at step k = the force MuJoCo gets during step k (docs/interpretations.md §2:
     feedforward with the true wind force), and zeros when the scenario turns it off."""
     sc = _scenario({"enabled": True, "relative_airspeed": relative}, duration=22.0,
                    start=(0.0, 0.0, 0.0), feedforward=feedforward)
@@ -327,7 +327,7 @@ def test_table5_lemniscate_under_wind_within_paper(table5):
 
 @pytest.mark.slow
 def test_table5_circle_under_wind_within_twice_paper(table5):
-    """SPEC §7: "within 2× of the paper" = x whole-run and y from t = 10 s on."""
+    """docs/interpretations.md §7: "within 2× of the paper" = x whole-run and y from t = 10 s on."""
     s = table5["wind_circle"]
     assert s["wind"] is True and s["wind_feedforward"] is True and s["sim_time_s"] == pytest.approx(180.0)
     assert "stopped" not in s
@@ -339,7 +339,7 @@ def test_table5_circle_under_wind_within_twice_paper(table5):
 @pytest.mark.slow
 def test_feedforward_off_scenario_really_turns_it_off(table5):
     """No bar on the figures (issue 5); but the _noff scenario must fly the same wind with the
-    controller blind to it. SPEC §7's independent model: 0.0017 m with feedforward, 0.0335 m
+    controller blind to it. docs/interpretations.md §7's independent model: 0.0017 m with feedforward, 0.0335 m
     without (x, lemniscate): a factor 20, so a factor 3 cannot come from noise."""
     on, off = table5["wind_lemniscate"], table5["wind_lemniscate_noff"]
     assert off["wind"] is True and off["wind_feedforward"] is False and off["seed"] == on["seed"]
@@ -380,7 +380,7 @@ def test_wind_swarm_no_contacts_and_formation_within_10cm_after_wind_on():
     assert res.summary["contacts"] == 0 and res.contact_log == []
     log = res.log
     on = log.t >= 20.0
-    # The wind blows on every drone alike (SPEC §5 default) from 20 s on.
+    # The wind blows on every drone alike (docs/interpretations.md §5 default) from 20 s on.
     f = log.wind_force[on][:-1]
     assert np.abs(f[:, :, 0]).mean() > 0.3 and np.abs(f[log.t[on][:-1] >= 50.0, :, 1]).mean() > 0.1
     assert np.abs(f - f[:, :1, :]).max() == 0.0

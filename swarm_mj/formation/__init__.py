@@ -1,4 +1,4 @@
-"""Formation layer (paper §4, SPEC §4): polygon slots around the leader and anti-collision."""
+"""Formation layer (paper §4, docs/interpretations.md §4): polygon slots around the leader and anti-collision."""
 
 from .anticollision import ANTI_COLLISION_RULES, AntiCollision, LayeredRule, NoRule, PaperRule, make_rule
 from .slots import DiameterSchedule, polygon_offsets, slot_positions

@@ -1,4 +1,4 @@
-"""Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; SPEC §4).
+"""Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; docs/interpretations.md §4).
 
 Every rule has the same small interface, vectorised over drones (index 0 is the leader):
 
@@ -16,7 +16,7 @@ it in one compiled kernel). Each rule appends its decisions to ``rule.events`` a
 ``{t, drone, other, action}``: up, down, release (the paper's rule); cross, hold, aside,
 drop (the layered rule's transition).
 
-Decentralised (SPEC §4): a drone's decision uses only its own state, the leader's position
+Decentralised (docs/interpretations.md §4): a drone's decision uses only its own state, the leader's position
 (through its slot and the formation altitude) and the positions of drones within its
 sensing range (velocities of neighbours are estimated from their successive positions).
 No rule reads another drone's internal state; the layered rule uses the other drones'
@@ -138,13 +138,13 @@ def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
 
 
 class PaperRule(_Rule):
-    """The paper's rule exactly as printed (Fig. 5, §4), with the details SPEC §4 fixes.
+    """The paper's rule exactly as printed (Fig. 5, §4), with the details docs/interpretations.md §4 fixes.
 
     When two drones are closer than the safety distance D̄ = 0.8 m in the horizontal
     plane, the one with the higher index yields (a follower always yields to the leader):
     its altitude setpoint moves by ``hop`` = 0.4 m, up if it is not below the other drone,
     else down, its (x, y) setpoint unchanged. It returns to the formation altitude once
-    every drone it yields to is back beyond D̄ + ``hysteresis`` (SPEC §4: "a little
+    every drone it yields to is back beyond D̄ + ``hysteresis`` (docs/interpretations.md §4: "a little
     hysteresis"; the paper does not say when a drone returns).
     """
 
@@ -196,16 +196,16 @@ class PaperRule(_Rule):
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
-G = 9.81            # m/s², SPEC §1
+G = 9.81            # m/s², paper Table 1 (docs/interpretations.md §1)
 HOVER_MIN_M = 0.3   # a waiting follower lifts off the ground to this height when there is room
-FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (SPEC §1 geometry), rounded up
+FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (docs/interpretations.md §1), rounded
 
 
 class LayeredRule(PaperRule):
     """Ours (the default, ``anti_collision = "layers"``): altitude layers for the transition
     from the start to the slot, then the paper's rule.
 
-    **Why not the printed rule alone** (SPEC §4, and measured here in MuJoCo with
+    **Why not the printed rule alone** (docs/interpretations.md §4, and measured here in MuJoCo with
     ``swarm-mj stress``): drones close at 2–4 m/s while forming up, so the 0.8 m trigger
     leaves 0.1–0.2 s, and a 0.4 m altitude hop takes about 0.5 s: the printed rule lets them
     touch.
@@ -219,7 +219,7 @@ class LayeredRule(PaperRule):
     **What is ours**, per follower k (1-based), each decision using only the leader's
     position and the drones within ``sensing_range`` (3D):
 
-    1. *climb* — in place, to its own layer: formation altitude + k·``hop`` (SPEC §4's
+    1. *climb* — in place, to its own layer: formation altitude + k·``hop`` (docs/interpretations.md §4's
        design). It does not climb into a drone above it that is (or, predicted over
        ``horizon`` s, will be) within D̄ + 0.2 m horizontally — 2·FOOTPRINT + 0.1 m for a
        follower that hovers — nor into the leader when level with it: it waits ``hop``
@@ -237,7 +237,7 @@ class LayeredRule(PaperRule):
        band it sweeps (``clearance``).
     3. *drop* — within ``arrive`` of its slot it descends to the formation altitude, but
        only when no drone still in transit is (or will be) within D̄ under it, and while
-       descending it never comes within ``hop`` above one (SPEC §4: the one failure of the
+       descending it never comes within ``hop`` above one (docs/interpretations.md §4: the one failure of the
        layered design on the independent model was a drone dropping through another's
        layer).
     4. *formed* — the paper's reactive rule.
@@ -485,7 +485,7 @@ class LayeredRule(PaperRule):
         formed[0] = False
         z_target[formed] = formation_alt + self.offset[formed]
         # a formed drone still descending never descends onto a drone in transit within D̄
-        # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
+        # (now or soon) below it: it waits hop above it (docs/interpretations.md §4's failure case)
         below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
             & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance) if in_transit else None
         if below is not None and below.any():

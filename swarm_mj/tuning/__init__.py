@@ -10,5 +10,5 @@ from .backends import make_population_cost
 from .fpa import FPAResult, fpa, levy_steps, random_search
 
 __all__ = ["FPAResult", "fpa", "levy_steps", "random_search",
-           "BatchEvaluator", "StepBars", "StepCheck", "StepCostSettings", "TuneOptions", "TuneOutcome", "evaluate_batch",
-           "make_population_cost", "step_check", "step_ise", "table4_ise", "tune_gains"]
+           "BatchEvaluator", "StepBars", "StepCheck", "StepCostSettings", "TuneOptions", "TuneOutcome",
+           "evaluate_batch", "make_population_cost", "step_check", "step_ise", "table4_ise", "tune_gains"]

@@ -220,6 +220,7 @@ class BatchEvaluator:
         self._yaw_d = np.full(self.m, np.deg2rad(s.yaw_deg))               # (m,)
         self._qpos = np.empty((self.m, 7))                                 # (m, 7) gathered state
         self._qvel = np.empty((self.m, 6))                                 # (m, 6)
+        self._codes = np.zeros(self.m, dtype=np.int8)                      # (m,) the health mask
         self._errors = np.empty((self.K, self.m, 6))                       # (K, m, 6) e_x..e_ψ
         self._track = np.zeros((self.K + 1, self.m, 4))                    # (K+1, m, 4) x, y, z, ψ
         self._t = np.arange(self.K + 1) * s.control_period                 # (K+1,) sample times
@@ -239,16 +240,20 @@ class BatchEvaluator:
 
     def _health(self) -> np.ndarray:
         """The health mask (m,) of all copies (:meth:`Sim.health` of each block): True where unhealthy."""
-        if len(self.sims) == 1:
-            return self.sims[0].health() != 0
-        return np.concatenate([sim.health() for sim in self.sims]) != 0
+        codes = self._codes
+        for sim, sl in zip(self.sims, self.slices):
+            sim.health(out=codes[sl])
+        return codes != 0
 
-    def _kill(self, alive: np.ndarray, bad: np.ndarray, k: int) -> None:
-        """Mark copies newly ``bad`` (m,) as diverged at control period k (``alive`` updated in place)."""
+    def _kill(self, alive: np.ndarray, bad: np.ndarray, k: int) -> bool:
+        """Mark copies newly ``bad`` (m,) as diverged at control period k (``alive`` updated in place);
+        True if there were any."""
         newly = bad & alive
         if newly.any():
             alive &= ~bad
             self.diverged_at[newly] = k
+            return True
+        return False
 
     def evaluate(self, gains: np.ndarray) -> np.ndarray:
         """ISE (m,) of eq. (25) for gains (m, 12); ``inf`` where a copy diverged."""
@@ -268,6 +273,7 @@ class BatchEvaluator:
         errors, track = self._errors, self._track
         tilt = np.zeros(m)                                                 # (m,) max |roll|, |pitch| (rad)
         blocks = list(zip(self.sims, self.slices))
+        must_park = not alive.all()                                        # invalid gains: parked from the start
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             for k in range(self.K + 1):
                 qpos, qvel = self._gather()
@@ -282,13 +288,13 @@ class BatchEvaluator:
                 pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
                 U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
                 error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k], bad)
-                self._kill(alive, bad, k)
-                if not alive.all():
+                if self._kill(alive, bad, k) or must_park:
                     if not alive.any():
                         break
                     for sim, sl in blocks:                                 # no input, held at the start
                         if not alive[sl].all():
                             sim.park(~alive[sl])
+                    must_park = False
                 for sim, sl in blocks:
                     sim.step(U[sl])
         cost = ise(errors, s.control_period)                               # (m,) eq. (25)

@@ -1,4 +1,4 @@
-"""Gymnasium and PettingZoo faces of :class:`~swarm_mj.env.SwarmEnv` (DESIGN "env").
+"""Gymnasium and PettingZoo faces of :class:`~swarm_mj.env.SwarmEnv` (docs/design.md, "env").
 
 * :class:`SwarmGymEnv` (``swarm_mj.wrappers.gymnasium``): the whole swarm as one
   ``gymnasium.Env``; also registered as ``"swarm_mj/Swarm-v0"``.
