@@ -15,15 +15,15 @@ import numpy as np
 import pytest
 
 gymnasium = pytest.importorskip("gymnasium", reason="the vector env needs the gym extra")
-from gymnasium import spaces  # noqa: E402
-from gymnasium.vector import AutoresetMode, SyncVectorEnv  # noqa: E402
-from gymnasium.vector.utils import batch_space  # noqa: E402
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, SyncVectorEnv
+from gymnasium.vector.utils import batch_space
 
-from swarm_mj.env import SwarmEnv  # noqa: E402
-from swarm_mj.errors import UserError  # noqa: E402
-from swarm_mj.scenario import RandomStart, load_scenario, random_follower_starts  # noqa: E402
-from swarm_mj.wind import ALWAYS_ON  # noqa: E402
-from swarm_mj.wrappers import SwarmGymEnv, SwarmVectorEnv  # noqa: E402
+from swarm_mj.env import SwarmEnv
+from swarm_mj.errors import UserError
+from swarm_mj.scenario import RandomStart, load_scenario, random_follower_starts
+from swarm_mj.wind import ALWAYS_ON
+from swarm_mj.wrappers import SwarmGymEnv, SwarmVectorEnv
 
 
 def windy(duration: float):
@@ -181,12 +181,12 @@ def test_per_copy_termination_on_divergence_equals_sync():
     env = SwarmVectorEnv(sc, num_envs=3)
     env.reset(seed=0)
     for k in range(45):
-        obs, reward, terminated, truncated, info = env.step(actions[k])
+        obs, reward, terminated, _, info = env.step(actions[k])
         if terminated.any():
             assert terminated.tolist() == [False, True, False]
             assert info["termination"][1] == "diverged" and info["error"][1] == "below the floor"
             assert reward[1] == -1000.0
-            obs, reward, terminated, truncated, info = env.step(actions[k + 1])
+            obs, reward, terminated, _, info = env.step(actions[k + 1])
             assert obs["time"].tolist() == [(k + 2) * sc.control_period, 0.0, (k + 2) * sc.control_period]
             assert reward[1] == 0.0 and not terminated.any()
             break
@@ -205,7 +205,7 @@ def test_termination_on_contact_within_a_copy_only():
     assert seen["terminated"] == 4           # steps 1 and 3 (step 2 resets both copies)
     env = SwarmVectorEnv(close, num_envs=2)
     env.reset(seed=0)
-    _, reward, terminated, _, info = env.step(hover_actions(env, 1, np.random.default_rng(0), sd=0)[0])
+    _, _, terminated, _, info = env.step(hover_actions(env, 1, np.random.default_rng(0), sd=0)[0])
     assert terminated.all() and list(info["termination"]) == ["contact", "contact"]
     assert info["new_contacts"].tolist() == [1, 1]
     # the circle's own starts: 4 copies in the same place, no contact anywhere
@@ -248,7 +248,7 @@ def test_copy_alone_equals_copy_among_63_others():
             a = actions[k].copy()
             if env.num_envs == 1:
                 a = a[5:6]
-            obs, reward, terminated, truncated, _ = env.step(a)
+            obs, reward, terminated, _, _ = env.step(a)
             traj.append(np.concatenate([obs[key][rows].reshape(-1) for key in sorted(obs)]))
             out.append((reward[rows].copy(), terminated[rows].copy()))
         runs.append((traj, out))
@@ -285,7 +285,7 @@ def test_sb3_ppo_trains_briefly():
     obs = venv.reset()
     assert obs.shape == (4, env.single_observation_space.shape[0])
     act, _ = model.predict(obs, deterministic=True)
-    _, reward, dones, infos = venv.step(act)
+    _, reward, dones, _ = venv.step(act)
     assert reward.shape == (4,) and dones.shape == (4,)
     with pytest.raises(UserError):
         SB3VecEnv(SwarmVectorEnv(sc, num_envs=2, flatten=True))

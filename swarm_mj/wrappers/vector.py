@@ -167,8 +167,7 @@ def observe_copies_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, sensing_ra
             best = np.inf
             for i in range(n):
                 for i2 in range(i + 1, n):
-                    if dist[i, i2] < best:
-                        best = dist[i, i2]
+                    best = min(best, dist[i, i2])
             min_sep[c] = best
 
 
@@ -191,7 +190,7 @@ def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarr
 def _prune(info: dict[str, Any]) -> dict[str, Any]:
     """Without the keys no copy has (as Gymnasium's vector envs leave them out)."""
     return {key: v for key, v in info.items()
-            if (key[1:] if key.startswith("_") else key) not in info or info["_" + key.lstrip("_")].any()}
+            if (key.removeprefix("_")) not in info or info["_" + key.lstrip("_")].any()}
 
 
 class SwarmVectorEnv(VectorEnv):
@@ -202,7 +201,7 @@ class SwarmVectorEnv(VectorEnv):
     drones' worth). ``autoreset_mode``: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP``.
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
 
     def __init__(self, scenario: Scenario | str = "circle", num_envs: int = 8, *, flatten: bool = False,
                  terminate_on_contact: bool = True, block: int | None = None,
@@ -226,7 +225,7 @@ class SwarmVectorEnv(VectorEnv):
         self.flatten = bool(flatten)
         self.terminate_on_contact = bool(terminate_on_contact)
         self.T = T = sc.control_period
-        self.n_steps = int(round(sc.duration / T))
+        self.n_steps = round(sc.duration / T)
         # the leader's reference and D at every control instant (SwarmEnv's)
         self.times = np.arange(self.n_steps + 1) * T                           # (K+1,)
         ref = sc.make_trajectory()(self.times)
