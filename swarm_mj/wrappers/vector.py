@@ -249,11 +249,12 @@ class SwarmVectorEnv(VectorEnv):
         self.observation_space = batch_space(self.single_observation_space, m)
 
         # the flat layout (the Dict's key order, as spaces.flatten writes it)
-        self._slots: dict[str, tuple[int, tuple[int, ...]]] = {}
+        self._slots: dict[str, tuple[int, int, tuple[int, ...]]] = {}   # key: offset, size, shape
         off = 0
         for key, space in self.single_dict_observation_space.spaces.items():
-            self._slots[key] = (off, space.shape)
-            off += int(np.prod(space.shape, dtype=np.int64))
+            size = int(np.prod(space.shape, dtype=np.int64))
+            self._slots[key] = (off, size, space.shape)
+            off += size
         self._dim = off
         self._offs = np.array([self._slots[key][0] for key in OBS_KEYS], dtype=np.int64)
 
@@ -374,8 +375,7 @@ class SwarmVectorEnv(VectorEnv):
         if self.flatten:
             return flat
         m = flat.shape[0]
-        return {key: flat[:, off:off + int(np.prod(shape, dtype=np.int64))].reshape((m, *shape))
-                for key, (off, shape) in self._slots.items()}
+        return {key: flat[:, off:off + size].reshape((m, *shape)) for key, (off, size, shape) in self._slots.items()}
 
     # ------------------------------------------------------------------ VectorEnv API
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
