@@ -50,6 +50,7 @@ seed replays the last one. The backstepping policy often asks for more than
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import dm_env
@@ -62,7 +63,7 @@ from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
 from .observation import observe_kernel
 from .scenario import Scenario, load_scenario
-from .sim import Sim
+from .sim import ForceStage, Sim
 from .wind import WindField
 from .world import build_world
 
@@ -132,10 +133,14 @@ def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, cl
 
 
 class SwarmEnv(dm_env.Environment):
-    """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``."""
+    """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``.
+
+    ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator, applied after
+    drag and wind (e.g. aerodynamic effects between drones)."""
 
     def __init__(self, scenario: Scenario | str, *, action: str = "thrust", terminate_on_contact: bool = True,
-                 raise_on_divergence: bool = False, seed: int | None = None) -> None:
+                 raise_on_divergence: bool = False, seed: int | None = None,
+                 force_stages: Sequence[ForceStage] = ()) -> None:
         self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         if action not in ("thrust", "setpoint"):
             raise UserError(f"action must be 'thrust' or 'setpoint', got {action!r}")
@@ -150,7 +155,7 @@ class SwarmEnv(dm_env.Environment):
         self.world = build_world(n, positions=sc.initial_positions(), names=sc.names,
                                  yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
                                  timestep=sc.timestep, integrator=sc.integrator)
-        self.sim = Sim(self.world, self.T)
+        self.sim = Sim(self.world, self.T, force_stages=force_stages)
         self.params = self.world.params
         # Leader reference, precomputed at every control instant (analytic, docs/interpretations.md §3).
         self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)
@@ -204,6 +209,7 @@ class SwarmEnv(dm_env.Environment):
             o = self._obs
             z = np.zeros((self.n, 3))
             ctl = self._setpoint_ctl
+            assert ctl is not None
             U = ctl.compute(o["rpy"], o["rpy_rate"], o["pos"], o["vel"], a, z, z, o["setpoint_yaw"],
                             wind_force=o["wind_force"], omega_body=o["body_rates"])
             refs = (a, z, z, ctl.att_d.copy())

@@ -8,6 +8,8 @@ returns the same U with the references and commanded attitude that produced it (
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .control.backstepping import Backstepping
@@ -27,8 +29,8 @@ class BacksteppingPolicy:
         self.controller = Backstepping(self.n, sc.gains if gains is None else gains, params=params,
                                        control_period=sc.control_period, wind_feedforward=sc.wind_feedforward,
                                        attitude_map=sc.attitude_map)
-        self.rule = make_rule(anti_collision or sc.anti_collision, self.n,
-                              **{"sensing_range": sc.sensing_range, **sc.anti_collision_params})
+        rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
+        self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **rule_params)
         self._started = False
 
     def reset(self) -> None:

@@ -16,6 +16,7 @@ import sys
 import threading
 import time as _time
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -156,7 +157,9 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
                 if interrupt.requested:
                     raise KeyboardInterrupt
                 ts = env.step(cmd)
-                log.applied(k, env.last_applied)
+                rec = env.last_applied
+                assert rec is not None
+                log.applied(k, rec)
                 obs = ts.observation
                 k += 1
                 if k % 50 == 0:
@@ -187,7 +190,7 @@ class _CooperativeInterrupt:
 
     def __init__(self) -> None:
         self.requested = False
-        self._previous = None
+        self._previous: Any = None
 
     def _handler(self, signum, frame) -> None:
         self.requested = True
@@ -238,7 +241,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos)
         out["min_separation_m"] = sep
-        out["min_separation_at_s"] = float(t[kk]) if kk >= 0 else None
+        out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
         out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
         airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
         if airborne.any():

@@ -412,7 +412,7 @@ class Sim:
         (put back before and after every step) from now on (e.g. diverged tuner candidates), so that
         a bad state never reaches MuJoCo, which would reset every copy."""
         mask = np.zeros(self.n_copies, dtype=bool)
-        mask[copies] = True
+        mask[np.asarray(copies)] = True
         self.parked |= mask
         self._any_parked = bool(self.parked.any())
         self._parked_rows = np.repeat(self.parked, self.n)[:, None]     # (N, 1)

@@ -136,7 +136,7 @@ def _sinusoids(name: str, v: Any) -> tuple[Sinusoid, ...]:
         if len(triple) != 3:
             raise _FieldError(where, f"must be [amplitude, omega, phase], got {item!r}")
         out.append(tuple(_number(where, t) for t in triple))
-    return tuple(out)  # type: ignore[return-value]
+    return tuple(out)  # type: ignore[return-value,arg-type]
 
 
 def _schedule(name: str, v: Any) -> tuple[Window, ...]:

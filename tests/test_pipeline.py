@@ -106,6 +106,23 @@ def test_a_stage_torque_turns_the_drone_as_euler_says():
     assert np.abs(sim.omega[0, :2]).max() < 1e-12
 
 
+def test_swarm_env_takes_extra_force_stages():
+    """A stage that adds nothing leaves a swarm run bit-identical (general path == fused path);
+    one that pushes moves the swarm."""
+    def fly(stages):
+        env = SwarmEnv("scenario1", force_stages=stages)
+        policy = BacksteppingPolicy(env.scenario, env.params)
+        ts = env.reset()
+        for _ in range(150):
+            ts = env.step(policy.command(ts.observation))
+        return ts.observation["pos"]
+
+    plain = fly(())
+    np.testing.assert_array_equal(fly([ConstantStage(np.zeros(3))]), plain)
+    pushed = fly([ConstantStage(np.array([0.0, 0.0, -1.0]))])          # about 2 m/s² down on every drone
+    assert (pushed[:, 2] < plain[:, 2] - 1e-3).all()
+
+
 # --------------------------------------------------------------------------- copies and health
 
 

@@ -27,6 +27,8 @@ its altitude (a formed drone flies at the formation altitude).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .._jit import jit
@@ -76,8 +78,31 @@ def horizontal_distances(pos: np.ndarray) -> np.ndarray:
     return h
 
 
-class _Rule:
-    """What every rule shares: :meth:`references` from the rule's own ``update``."""
+class Rule:
+    """What every rule shares: :meth:`references` from the rule's own ``update``.
+
+    A new rule subclasses it with ``name``, ``events``, ``vel_d``, ``acc_d`` (n, 3), ``reset(positions)``
+    and ``update(t, positions, pos_d, formation_alt) -> (pos_d, steer)`` (see the module docstring),
+    and is registered in :data:`ANTI_COLLISION_RULES` (which makes it a scenario's
+    ``formation.anti_collision`` value and a ``--anti-collision`` choice)."""
+
+    name: str
+    n: int
+    events: list[dict]
+    vel_d: np.ndarray          # (n, 3) velocity reference of the steered drones
+    acc_d: np.ndarray          # (n, 3) acceleration reference of the steered drones
+
+    def __init__(self, n: int, **params: Any) -> None:
+        self.n = n
+
+    def reset(self, positions: np.ndarray) -> None:
+        """Start of a run with the drones at positions (n, 3)."""
+        raise NotImplementedError
+
+    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
+               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+        """Adjusted setpoints pos_d (n, 3) and the drones it steers, steer (n,) bool."""
+        raise NotImplementedError
 
     def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
                    acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -86,7 +111,7 @@ class _Rule:
         return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
 
 
-class NoRule(_Rule):
+class NoRule(Rule):
     """No anti-collision (``anti_collision = "off"``): setpoints pass through unchanged."""
 
     name = "off"
@@ -137,7 +162,7 @@ def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
     return horizontal_distances(np.ascontiguousarray(positions, dtype=np.float64))
 
 
-class PaperRule(_Rule):
+class PaperRule(Rule):
     """The paper's rule exactly as printed (Fig. 5, §4), with the details docs/interpretations.md §4 fixes.
 
     When two drones are closer than the safety distance D̄ = 0.8 m in the horizontal
@@ -363,6 +388,10 @@ class LayeredRule(PaperRule):
                                 vu, au, vd, ad, self.jerk, self.k_v)
 
     # ------------------------------------------------------------------ the rule
+    def _update_formed(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float,
+                       dt: float) -> tuple[np.ndarray, np.ndarray]:
+        return _update_formed_impl(self, t, positions, pos_d, formation_alt, dt)
+
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
         """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
@@ -526,14 +555,16 @@ def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, po
     return out, rule._followers
 
 
-LayeredRule._update_formed = _update_formed_impl
 
 
-ANTI_COLLISION_RULES = {"layers": LayeredRule, "paper": PaperRule, "off": NoRule}
+ANTI_COLLISION_RULES: dict[str, type[Rule]] = {"layers": LayeredRule, "paper": PaperRule, "off": NoRule}
 AntiCollision = LayeredRule | PaperRule | NoRule
 
 
-def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: float):
+_Rule = Rule   # the former name
+
+
+def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:
     """Build an anti-collision rule by name (``layers`` default, ``paper``, ``off``)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)

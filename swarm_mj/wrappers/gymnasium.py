@@ -49,7 +49,7 @@ ENV_ID = "swarm_mj/Swarm-v0"
 _BOUNDS = {"time": (0.0, np.inf), "rpy": (-np.pi, np.pi), "neighbour_mask": (0.0, 1.0)}
 
 
-def _box(spec: specs.Array, low: float = -np.inf, high: float = np.inf) -> spaces.Box:
+def _box(spec: specs.Array, low: Any = -np.inf, high: Any = np.inf) -> spaces.Box:
     if isinstance(spec, specs.BoundedArray):
         low, high = spec.minimum, spec.maximum
     low = np.broadcast_to(np.asarray(low, np.float64), spec.shape).copy()

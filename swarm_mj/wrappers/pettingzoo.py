@@ -47,6 +47,8 @@ the last seeded reset created. ``options`` are accepted for API compatibility; n
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
@@ -55,6 +57,11 @@ from ..env import SwarmEnv
 from ..errors import UserError
 from ..scenario import Scenario
 from .gymnasium import as_swarm_env, fresh_observation, observation_space, seed_from, step_info
+
+
+def _one_drone(box: Any) -> spaces.Box:
+    """The Box of one drone's row of a per-drone Box (n, ...)."""
+    return spaces.Box(box.low[0], box.high[0], shape=box.shape[1:], dtype=np.float64)
 
 # SwarmEnv observation keys with a drone axis first (sliced per agent); the rest are shared.
 _PER_DRONE = ("pos", "vel", "quat", "rpy", "rpy_rate", "body_rates", "setpoint", "setpoint_vel",
@@ -81,8 +88,8 @@ class SwarmParallelEnv(ParallelEnv):
         full = observation_space(env)
         self._full_space = full
         self.state_space = spaces.flatten_space(full)
-        self._obs_space = spaces.Dict({key: spaces.Box(box.low[0], box.high[0], shape=box.shape[1:], dtype=np.float64)
-                                       if key in _PER_DRONE else box for key, box in full.spaces.items()})
+        self._obs_space = spaces.Dict({key: _one_drone(box) if key in _PER_DRONE else box
+                                       for key, box in full.spaces.items()})
         spec = env.action_spec()
         lo = np.broadcast_to(spec.minimum, spec.shape)
         hi = np.broadcast_to(spec.maximum, spec.shape)
@@ -90,7 +97,7 @@ class SwarmParallelEnv(ParallelEnv):
                             for name, i in self._index.items()}
         self._width = spec.shape[1]
         self._pairs = np.triu_indices(env.n, 1)
-        self._rng = None
+        self._rng: np.random.Generator | None = None
         self.wind_seed: int | None = None
         self._last: dict | None = None
 
@@ -153,7 +160,7 @@ class SwarmParallelEnv(ParallelEnv):
     def state(self) -> np.ndarray:
         if self._last is None:
             raise UserError("call reset() before state()")
-        return spaces.flatten(self._full_space, fresh_observation(self._last))
+        return np.asarray(spaces.flatten(self._full_space, fresh_observation(self._last)))
 
     def close(self) -> None:
         self.agents = []
