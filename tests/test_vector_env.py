@@ -289,3 +289,15 @@ def test_sb3_ppo_trains_briefly():
     assert reward.shape == (4,) and dones.shape == (4,)
     with pytest.raises(UserError):
         SB3VecEnv(SwarmVectorEnv(sc, num_envs=2, flatten=True))
+
+
+def test_kernel_samples_fit_the_kernel():
+    """warm_up calls the kernel with its samples, compiled (no bounds checks): run them as plain
+    Python, where an index out of bounds raises instead of corrupting memory."""
+    from swarm_mj.wrappers.vector import _observe_samples, observe_copies_kernel
+
+    fn = getattr(observe_copies_kernel, "py_func", observe_copies_kernel)
+    for args in _observe_samples():
+        fn(*args)
+        out = args[-4]
+        assert out.shape[1] == args[-5][-1] + 3 * args[2]        # the wind force is the last key

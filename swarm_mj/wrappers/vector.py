@@ -78,7 +78,7 @@ from ..scenario import Scenario, load_scenario, random_follower_starts
 from ..sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
 from ..wind import WindField
 from ..world import World, build_world
-from .gymnasium import _BOUNDS, _box, seed_from
+from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
 
@@ -94,11 +94,12 @@ def _observe_samples():
     n, m, K = 2, 2, 3
     qpos = np.zeros((m * n, 7))
     qpos[:, 3] = 1.0
-    offs = np.cumsum([0, 1, 6, 6, 8, 6, 6, 6, 6, 6, 6, 2, 3, 12, 4]).astype(np.int64)
+    sizes = [1, 3 * n, 3 * n, 4 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, n, 3, 3 * n * n, n * n, 3 * n]
+    offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)      # OBS_KEYS order
     z = np.zeros((K, 3))
     return [(qpos, np.zeros((m * n, 6)), n, 2.0, np.arange(m, dtype=np.int64), 0, np.zeros(m, np.int64), 0.01,
              z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3)), np.zeros((m, 3)), np.zeros((m, 3)),
-             np.zeros((m, n, 3)), offs, np.zeros((m, 66)), np.zeros(m, np.int64), np.zeros(m), np.zeros(m))]
+             np.zeros((m, n, 3)), offs, np.zeros((m, sum(sizes))), np.zeros(m, np.int64), np.zeros(m), np.zeros(m))]
 
 
 @jit(samples=_observe_samples)
@@ -241,9 +242,9 @@ class SwarmVectorEnv(VectorEnv):
         self._wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
 
         # spaces: SwarmGymEnv's, per copy
-        spec = SwarmEnv.observation_spec(types.SimpleNamespace(n=n))  # type: ignore[arg-type]
-        self.single_dict_observation_space = spaces.Dict(
-            {key: _box(s, *_BOUNDS.get(key, (-np.inf, np.inf))) for key, s in spec.items()})
+        shape_only = types.SimpleNamespace(n=n)                     # SwarmEnv's spec needs only n
+        shape_only.observation_spec = lambda: SwarmEnv.observation_spec(shape_only)  # type: ignore[arg-type]
+        self.single_dict_observation_space = observation_space(shape_only)  # type: ignore[arg-type]
         self.single_observation_space = (spaces.flatten_space(self.single_dict_observation_space) if self.flatten
                                          else self.single_dict_observation_space)
         self.observation_space = batch_space(self.single_observation_space, m)
