@@ -66,7 +66,6 @@ def _json_default(o):
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import load_gains
     from ..errors import UserError
-    from ..recording import write_recording
     from ..report_table import format_summary
     from ..runner import run
     from ..scenario import load_scenario
@@ -84,6 +83,8 @@ def main(args: argparse.Namespace) -> int:
                  progress=None if not args.quiet else False, duration=args.duration)
     rc = 0
     if not args.no_record:
+        from ..recording import write_recording        # Rerun's import: ~0.3 s, only when recording
+
         out = Path(args.output) if args.output else Path(f"{sc.name}.rrd")
         write_recording(result, out, spawn=args.spawn,
                         safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
