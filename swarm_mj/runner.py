@@ -15,6 +15,7 @@ import signal
 import sys
 import threading
 import time as _time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -27,6 +28,7 @@ from .metrics import formation_settling, leader_distances, min_separation, rmse,
 from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .scenario import Scenario, load_scenario
+from .sim import ForceStage
 
 __all__ = ["PAPER_FORMATION_SETTLING_S", "PAPER_STEP", "PAPER_TABLE5", "Progress", "RunLog", "RunResult", "run",
            "summarize"]
@@ -121,8 +123,11 @@ class Progress:
 
 
 def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_collision: str | None = None,
-        seed: int | None = None, progress: bool | None = None, duration: float | None = None) -> RunResult:
+        seed: int | None = None, progress: bool | None = None, duration: float | None = None,
+        force_stages: Sequence[ForceStage] = ()) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
+
+    ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator (after drag and wind).
 
     Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
     """
@@ -142,7 +147,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     compile_s = warm_up(announce=None if progress is False else announce)
     if announced:
         print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
-    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed)
+    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps
     log = RunLog.allocate(env.names, K + 1)

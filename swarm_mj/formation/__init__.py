@@ -1,7 +1,7 @@
 """Formation layer (paper §4, docs/interpretations.md §4): polygon slots around the leader and anti-collision."""
 
-from .anticollision import ANTI_COLLISION_RULES, AntiCollision, LayeredRule, NoRule, PaperRule, make_rule
+from .anticollision import ANTI_COLLISION_RULES, AntiCollision, LayeredRule, NoRule, PaperRule, Rule, make_rule
 from .slots import DiameterSchedule, polygon_offsets, slot_positions
 
-__all__ = ["ANTI_COLLISION_RULES", "AntiCollision", "LayeredRule", "NoRule", "PaperRule", "make_rule",
+__all__ = ["ANTI_COLLISION_RULES", "AntiCollision", "LayeredRule", "NoRule", "PaperRule", "Rule", "make_rule",
            "DiameterSchedule", "polygon_offsets", "slot_positions"]
