@@ -77,7 +77,7 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None)
 
 
 #: Rough compile time per kernel on an unloaded development machine (s), for the first-run notice.
-COMPILE_S_PER_KERNEL = 0.6
+COMPILE_S_PER_KERNEL = 0.4
 
 
 def uncached() -> list[str]:
