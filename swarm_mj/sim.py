@@ -53,6 +53,7 @@ HEALTH_NAMES = {HEALTHY: "healthy", NON_FINITE: "non-finite state", BELOW_FLOOR:
 #: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
 DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
                        mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADCTRL)
+_W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = (int(w) for w in DIVERGENCE_WARNINGS)
 
 
 class ForceStage(Protocol):
@@ -92,41 +93,42 @@ def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_
     return HEALTHY
 
 
-@jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(14, dtype=np.int32)[::2],
-                       np.array([5, 3, 4, 6]), np.zeros(1, dtype=np.int8))])
+@jit
+def copy_state(qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: float, max_distance: float,
+               max_tilt: float) -> int:
+    """The code of the first unhealthy drone of copy c (rows c·n .. c·n + n − 1 of qpos (N, 7),
+    qvel (N, 6)): :func:`drone_state`'s, or TILTED where |roll| or |pitch| > ``max_tilt``; 0 if none."""
+    for i in range(c * n, c * n + n):
+        code = drone_state(qpos, qvel, i, floor_z, max_distance)
+        if code != HEALTHY:
+            return code
+        if max_tilt < np.inf:
+            # roll and pitch of the quaternion (w, x, y, z): the formulas of swarm_mj.state
+            w, x, y, z = qpos[i, 3], qpos[i, 4], qpos[i, 5], qpos[i, 6]
+            roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+            pitch = np.arcsin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+            if not (abs(roll) <= max_tilt and abs(pitch) <= max_tilt):
+                return TILTED
+    return HEALTHY
+
+
+@jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(1, dtype=np.int8))])
 def health_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float,
-                  max_tilt: float, warnings: np.ndarray, bad_warnings: np.ndarray, out: np.ndarray) -> int:
-    """The health mask: out (m,) = per copy of n drones (rows c·n .. c·n + n − 1 of qpos (N, 7),
-    qvel (N, 6)) the code of its first unhealthy drone (:func:`drone_state`; TILTED where |roll|
-    or |pitch| > ``max_tilt``), MUJOCO_WARNING for every copy if a counter of ``warnings`` (MuJoCo's
-    warning counts) at an index of ``bad_warnings`` is nonzero (MuJoCo resets all copies), else 0.
-    Returns the first nonzero code (0: all healthy)."""
-    m = out.shape[0]
-    first = HEALTHY
-    warned = False
-    for w in bad_warnings:
-        if warnings[w] != 0:
-            warned = True
+                  max_tilt: float, out: np.ndarray) -> None:
+    """The state part of the health mask: out (m,) = :func:`copy_state` of each copy of n drones."""
+    for c in range(out.shape[0]):
+        out[c] = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
+
+
+@jit(samples=lambda: [(*_state_samples(), 2, 1, -0.5, 1e3, np.inf)])
+def first_unhealthy(qpos: np.ndarray, qvel: np.ndarray, n: int, m: int, floor_z: float, max_distance: float,
+                    max_tilt: float) -> int:
+    """The first nonzero :func:`copy_state` code of the m copies (0: all healthy)."""
     for c in range(m):
-        code = HEALTHY
-        for i in range(c * n, c * n + n):
-            code = drone_state(qpos, qvel, i, floor_z, max_distance)
-            if code != HEALTHY:
-                break
-            if max_tilt < np.inf:
-                # roll and pitch of the quaternion (w, x, y, z): the formulas of swarm_mj.state
-                w, x, y, z = qpos[i, 3], qpos[i, 4], qpos[i, 5], qpos[i, 6]
-                roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-                pitch = np.arcsin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
-                if not (abs(roll) <= max_tilt and abs(pitch) <= max_tilt):
-                    code = TILTED
-                    break
-        if warned:
-            code = MUJOCO_WARNING
-        out[c] = code
-        if code != HEALTHY and first == HEALTHY:
-            first = code
-    return first
+        code = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
+        if code != HEALTHY:
+            return code
+    return HEALTHY
 
 
 @jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)), np.zeros((5, 6))[1::2, 0:3])])
@@ -249,12 +251,10 @@ class Sim:
         if not np.shares_memory(self._xfrc_force, d.xfrc_applied):
             raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
         self._warnings = d.warning.number                # (7,) live view of MuJoCo's warning counters
-        self._bad_warnings = np.array([int(w) for w in DIVERGENCE_WARNINGS], dtype=np.int64)
         self._geom_drone = world.geom_drone
         self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 of the last step
         self._force = np.zeros((N, 3))                   # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
-        self._health = np.zeros(self.n_copies, dtype=np.int8)  # (m,) check()'s buffer
         self.drag = DragStage()
         self.wind = WindStage()
         self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
@@ -378,24 +378,33 @@ class Sim:
     def health(self, out: np.ndarray | None = None) -> np.ndarray:
         """The health mask (m,) int8, one code per copy (``HEALTHY`` = 0, see :data:`HEALTH_NAMES`):
         non-finite state, a drone below the floor, too far, tilted beyond ``max_tilt``, or a
-        MuJoCo divergence warning since the last reset. Written into ``out`` (m,) int8 if given,
-        else a fresh array."""
+        MuJoCo divergence warning since the last reset (every copy then: MuJoCo resets them all).
+        Written into ``out`` (m,) int8 if given, else a fresh array."""
         if out is None:
             out = np.empty(self.n_copies, dtype=np.int8)
-        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
-                      self._warnings, self._bad_warnings, out)
+        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt, out)
+        if self.mujoco_warned():
+            out[:] = MUJOCO_WARNING
         return out
+
+    def mujoco_warned(self) -> bool:
+        """MuJoCo counted a divergence warning (:data:`DIVERGENCE_WARNINGS`) since the last reset."""
+        w = self._warnings
+        return bool(w[_W_QACC] or w[_W_QPOS] or w[_W_QVEL] or w[_W_CTRL])
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
-        code = health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt,
-                             self._warnings, self._bad_warnings, self._health)
-        if code == HEALTHY:
-            return
+        if self.mujoco_warned():
+            code = MUJOCO_WARNING
+        else:
+            code = first_unhealthy(self.qpos, self.qvel, self.n, self.n_copies, self.floor_z, self.max_distance,
+                                   self.max_tilt)
+            if code == HEALTHY:
+                return
         pos = self.pos
         when = f"simulation diverged at t = {self.time:.2f} s"
         if code == MUJOCO_WARNING:
-            names = [mujoco.mjtWarning(int(w)).name for w in self._bad_warnings if self._warnings[int(w)]]
+            names = [mujoco.mjtWarning(int(w)).name for w in DIVERGENCE_WARNINGS if self._warnings[int(w)]]
             raise SimulationDiverged(f"simulation diverged: MuJoCo reported {', '.join(names)} (a state it cannot "
                                      f"integrate) and reset the simulation")
         if code == NON_FINITE:
