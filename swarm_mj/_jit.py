@@ -6,7 +6,8 @@ times the cost of the physics itself. The kernels are therefore written as plain
 functions on (n_drones, ...) arrays that Numba can compile unchanged. Numba is a
 dependency, but the code stays correct without it: set ``SWARM_MJ_NO_JIT=1`` (or uninstall
 numba) and the same functions run as ordinary numpy (tests check that both agree).
-Compiled code is cached next to the sources, so only the first run pays for compilation.
+Compiled code is cached next to the sources (or, for a read-only install, in the user's cache
+directory; see :func:`warm_up`), so only the first run pays for compilation.
 
 A kernel lives in the module of the concept it computes (mixing, sim, observation,
 formation, the layered rule, the controller, the tuner's record). Each is declared with
@@ -75,15 +76,46 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None)
     return register if fn is None else register(fn)
 
 
-def warm_up() -> float:
+#: Rough compile time per kernel on an unloaded development machine (s), for the first-run notice.
+COMPILE_S_PER_KERNEL = 0.4
+
+
+def uncached() -> list[str]:
+    """The registered kernels (with samples) that Numba's on-disk cache does not hold for their
+    current source, i.e. that :func:`warm_up` will compile. Uses Numba's cache index (an internal
+    API: on any surprise a kernel counts as cached, and only the notice is lost)."""
+    out = []
+    for name, (kernel, samples) in list(REGISTRY.items()):
+        if samples is None or not AVAILABLE:
+            continue
+        try:
+            if not kernel._cache._cache_file._load_index():
+                out.append(name)
+        except Exception:  # noqa: BLE001, S112 - numba internals changed: say nothing
+            continue
+    return out
+
+
+def warm_up(announce: Callable[[str], None] | None = None) -> float:
     """Compile (or load from the on-disk cache) every registered kernel; returns the seconds spent.
 
     Called before a run's clock starts so that the real-time factor measures simulation,
-    not compilation (the first run on a machine compiles for several seconds).
+    not compilation (the first run on a machine compiles for several seconds). ``announce``
+    gets one line BEFORE compiling when some kernel is not cached yet (the first run).
+
+    The cache is Numba's: next to the sources (``__pycache__``) when that directory is
+    writable, else (a read-only install) the user-wide cache directory,
+    ``$XDG_CACHE_HOME/numba`` (default ``~/.cache/numba``), or ``NUMBA_CACHE_DIR`` when set
+    (tested with a read-only copy of the package).
     """
     t0 = time.perf_counter()
     for name in KERNEL_MODULES:
         importlib.import_module(name)
+    if announce is not None:
+        missing = uncached()
+        if missing:
+            announce(f"compiling the control kernels (first run only, ~{max(1, round(COMPILE_S_PER_KERNEL * len(missing)))}"
+                     f" s)…")
     for kernel, samples in list(REGISTRY.values()):
         if samples is not None:
             for args in samples():

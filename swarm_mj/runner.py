@@ -126,8 +126,14 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
         sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
     if anti_collision is not None:
         sc = sc.with_overrides(anti_collision=anti_collision)
-    compile_s = warm_up()
-    if compile_s > 1.0 and progress is not False:
+    announced: list[str] = []      # the first run's notice, printed before compiling
+
+    def announce(msg: str) -> None:
+        announced.append(msg)
+        print(msg, file=sys.stderr, flush=True)
+
+    compile_s = warm_up(announce=None if progress is False else announce)
+    if announced:
         print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
     policy = BacksteppingPolicy(sc, env.params)

@@ -375,6 +375,32 @@ class Sim:
         for mon in self.monitors:
             mon.reset(self)
 
+    def reset_copies(self, copies: np.ndarray, positions: np.ndarray | None = None,
+                     yaws: np.ndarray | None = None) -> None:
+        """Put only the copies of the bool mask ``copies`` (m,) back at rest at the rows of ``positions``
+        (N, 3) and ``yaws`` (N,) (defaults: the world's), as :meth:`reset` would, leaving the other
+        copies alone (a vector environment's per-copy auto-reset): their state, inputs and applied
+        forces, the solver's warm start and the contact bookkeeping of their drones are cleared.
+        MuJoCo's warning counters and ``time`` are shared by all copies and are left as they are."""
+        mask = np.asarray(copies, dtype=bool).reshape(self.n_copies)
+        rows = np.repeat(mask, self.n)                       # (N,)
+        pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
+        yaw = self.world.initial_yaws if yaws is None else np.asarray(yaws, float)
+        self.qpos[rows, 0:3] = pos[rows]
+        self.qpos[rows, 3:7] = 0.0
+        self.qpos[rows, 3] = np.cos(yaw[rows] / 2)
+        self.qpos[rows, 6] = np.sin(yaw[rows] / 2)
+        self.qvel[rows] = 0.0
+        self.ctrl[rows] = 0.0
+        self.rotor_thrust[rows] = 0.0
+        self._xfrc_force[rows] = 0.0
+        self._xfrc_torque[rows] = 0.0
+        self.data.qacc_warmstart.reshape(self.n_total, 6)[rows] = 0.0
+        self.wind.force[rows] = 0.0
+        self.parked[mask] = False
+        self._park_qpos[rows] = self.qpos[rows]
+        self._pairs_in_contact = {p for p in self._pairs_in_contact if not rows[p[0]]}
+
     # ------------------------------------------------------------------ step
     def step(self, U: np.ndarray, wind_force: np.ndarray | None = None) -> None:
         """Advance one control period with commanded U (N, 4) and the wind force (N, 3) or (3,).

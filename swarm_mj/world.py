@@ -129,6 +129,23 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
     return drone
 
 
+def _take_colliders(drone: mjcf.RootElement) -> list[str]:
+    """The names of the drone's geoms that collide (contype or conaffinity nonzero, own or from their class);
+    their contype/conaffinity are set to 0 (contacts then come from explicit pairs only)."""
+    out = []
+    for geom in drone.find_all("geom"):
+        ct = geom.contype if geom.contype is not None else (geom.dclass.geom.contype if geom.dclass else None)
+        ca = geom.conaffinity if geom.conaffinity is not None else (
+            geom.dclass.geom.conaffinity if geom.dclass else None)
+        if (1 if ct is None else ct) or (1 if ca is None else ca):
+            if geom.name is None:
+                raise UserError("every colliding geom of the quadrotor asset needs a name (contact pairs)")
+            geom.contype = 0
+            geom.conaffinity = 0
+            out.append(geom.name)
+    return out
+
+
 def build_world(
     n_drones: int = 6,
     *,
@@ -144,6 +161,7 @@ def build_world(
     torque_motors: str = "joint",
     ground: bool = False,
     motor_tau: float = 0.0,
+    contact_groups: int | None = None,
 ) -> World:
     """Compose ``n_drones`` quadrotors into one MuJoCo model.
 
@@ -161,6 +179,12 @@ def build_world(
     (``swarm_mj.aero.ground``); False (the paper) leaves the floor drawn but never touched.
     motor_tau: rotor time constant (s); > 0 makes U1..U4 first-order filtered actuators
     (``dyntype="filter"``), 0 (the paper) ideal motors.
+    contact_groups: None (default): every two drones may touch (each geom's contype/conaffinity).
+    k: the drones form k groups of n/k consecutive drones (independent copies of one swarm, e.g.
+    :class:`~swarm_mj.wrappers.vector.SwarmVectorEnv`) and only drones of the same group touch:
+    the colliding geoms' contype/conaffinity are cleared and every pair of them on two drones of
+    one group becomes an explicit ``<pair>`` (condim 3, friction 1: the same contact as the
+    geoms' defaults). 32 contype bits cannot separate more than 32 groups; explicit pairs can.
     """
     if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
         raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
@@ -216,10 +240,19 @@ def build_world(
     arena.worldbody.add("light", name="sun", pos=[0, 0, 12], dir=[0, 0, -1], directional=True,
                         diffuse=[0.6, 0.6, 0.6], castshadow=True)
 
+    if contact_groups is not None and (not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1
+                                       or n_drones % contact_groups):
+        raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
+    if contact_groups is not None and ground:
+        raise UserError("contact_groups (independent copies) with a solid ground is not supported yet: "
+                        "the copies' floor contacts would need pairs too")
     frames = []
+    colliders: list[list[str]] = []  # per drone: its colliding geoms' full names (contact_groups only)
     for k, name in enumerate(names):
         rgba = LEADER_RGBA if k == 0 else FOLLOWER_RGBA
         drone = _drone_mjcf(name, params, rgba, asset_path, ground=ground, motor_tau=motor_tau)
+        if contact_groups is not None and collisions:
+            colliders.append([f"{name}/{geom}" for geom in _take_colliders(drone)])
         frame = arena.worldbody.attach(drone)
         frame.pos = positions[k]
         c, s = np.cos(yaws[k] / 2), np.sin(yaws[k] / 2)
@@ -235,6 +268,14 @@ def build_world(
                         pos=[-7.0, -7.0, 6.0], fovy=50)
 
     xml = arena.to_xml_string()
+    if colliders:
+        # written into the XML directly: PyMJCF's own pair elements cost O(pairs · geoms) to resolve
+        size = n_drones // contact_groups
+        pairs = [f'<pair geom1="{ga}" geom2="{gb}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>'
+                 for g in range(contact_groups) for a in range(g * size, (g + 1) * size)
+                 for b in range(a + 1, (g + 1) * size) for ga in colliders[a] for gb in colliders[b]]
+        head, tail = xml.rsplit("</mujoco>", 1)
+        xml = head + "  <contact>\n    " + "\n    ".join(pairs) + "\n  </contact>\n</mujoco>" + tail
     try:
         model = mujoco.MjModel.from_xml_string(xml, arena.get_assets())
     except Exception as exc:

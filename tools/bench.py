@@ -11,6 +11,13 @@ each row gives our time and the raw time for the same simulated work and their r
   30 s with --quick), without and with recording (``recording.write_recording`` to a temp
   file; overhead in %);
 * env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
+* vector: ``SwarmVectorEnv`` with 64 copies of the six-drone circle, random U near hover, in
+  drone-steps per second, against raw mj_step on the same batched models (its blocks), beside
+  ``SwarmEnv`` stepping one swarm at a time (against raw mj_step on its own model);
+* startup: wall time of ``python -m swarm_mj.cli run circle`` in a fresh process: start-up
+  (``--duration 0.1 --no-record``; baseline: a process that only imports mujoco and numpy), the
+  whole 180-s run with recording with a warm Numba cache, and the same with an EMPTY Numba
+  cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory: every kernel compiles);
 * tuning: ``tuning.cost.tune_gains`` (paper Table 2: population 50, 14 iterations) on one
   worker and on all CPUs (speed-up); baseline: raw mj_step on a 10-copy model (the cost's
   block size) for the same drone-seconds;
@@ -48,7 +55,7 @@ import numpy as np
 
 import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
 
-SECTIONS = ("core", "runs", "env", "tuning", "video", "scaling", "aero")
+SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero")
 ROWS: list[dict] = []
 
 
@@ -204,6 +211,84 @@ def bench_env(quick: bool, repeats: int) -> None:
         unit="steps/s", note=f"raw mj_step {K / raw:,.0f} env-steps/s ({nsub} mj_step each)")
     row("env", f"SwarmEnv.step + BacksteppingPolicy ({n} drones)", min(t_pol), raw, value=K / min(t_pol),
         unit="steps/s")
+
+
+def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
+    from swarm_mj.env import SwarmEnv
+    from swarm_mj.scenario import load_scenario
+    from swarm_mj.wrappers.vector import SwarmVectorEnv
+
+    K = 100 if quick else 300
+    sc = load_scenario("circle")
+    t0 = time.perf_counter()
+    venv = SwarmVectorEnv(sc, num_envs=num_envs)
+    build = time.perf_counter() - t0
+    m, n, nsub = venv.num_envs, venv.n, venv._blocks[0].sim.n_substeps
+    p = venv.params
+    rng = np.random.default_rng(0)
+    U = np.empty((K, m, n, 4))
+    U[..., 0] = p.hover_thrust * rng.uniform(0.95, 1.10, (K, m, n))
+    U[..., 1:] = rng.uniform(-0.002, 0.002, (K, m, n, 3))
+    U = U.reshape(K, m, 4 * n)
+    env = SwarmEnv(sc, terminate_on_contact=False)
+    t_vec, t_raw, t_one, t_one_raw = [], [], [], []
+    for _ in range(repeats):
+        venv.reset(seed=0)
+        venv.step(U[0])                                            # first call: kernels loaded
+        t0 = time.perf_counter()
+        for k in range(K):
+            venv.step(U[k])
+        t_vec.append(time.perf_counter() - t0)
+        t_raw.append(sum(raw_seconds(blk.sim.world, K * nsub) for blk in venv._blocks))
+        env.reset()
+        t0 = time.perf_counter()
+        for k in range(K):
+            env.step(U[k, 0].reshape(n, 4))
+        t_one.append(time.perf_counter() - t0)
+        t_one_raw.append(raw_seconds(env.world, K * nsub))
+    v, r = min(t_vec), min(t_raw)
+    blocks = sorted({blk.b for blk in venv._blocks})
+    row("vector", f"SwarmVectorEnv, {m} x {n} drones, random U near hover", v, r, value=K * m * n / v,
+        unit="drone-steps/s", note=f"raw mj_step on the same {len(venv._blocks)} models ({blocks} copies each) "
+                                   f"{K * m * n / r:,.0f} drone-steps/s; built in {build:.1f} s; best of {repeats}")
+    o, orw = min(t_one), min(t_one_raw)
+    row("vector", f"SwarmEnv one swarm at a time ({n} drones), random U near hover", o, orw, value=K * n / o,
+        unit="drone-steps/s", note=f"raw mj_step on its model {K * n / orw:,.0f} drone-steps/s; "
+                                   f"the vector env: {K * m * n / v / (K * n / o):.1f}x its drone-steps/s")
+
+
+def _wall(cmd: list[str], env: dict | None = None, cwd: str | None = None) -> float:
+    import subprocess
+
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, env=env, cwd=cwd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    return time.perf_counter() - t0
+
+
+def bench_startup(quick: bool, repeats: int) -> None:
+    py = sys.executable
+    base = {**os.environ}
+    cli = [py, "-m", "swarm_mj.cli", "run", "circle", "--quiet"]
+    with tempfile.TemporaryDirectory() as tmp:
+        _wall(cli + ["--duration", "0.1", "--no-record"], base, tmp)          # warm the cache and the disk
+        t_start = min(_wall(cli + ["--duration", "0.1", "--no-record"], base, tmp) for _ in range(repeats))
+        t_bare = min(_wall([py, "-c", "import mujoco, numpy"], base, tmp) for _ in range(repeats))
+        t_imp = min(_wall([py, "-c", "import swarm_mj.cli, swarm_mj.runner, swarm_mj.recording"], base, tmp)
+                    for _ in range(repeats))
+        row("startup", "start-up: run circle --duration 0.1 --no-record (warm cache)", t_start, t_bare,
+            value=t_start, unit="s", note=f"baseline: a process importing mujoco + numpy ({t_bare:.2f} s); "
+                                          f"importing swarm_mj's CLI, runner, recording: {t_imp:.2f} s")
+        full = cli + ([] if not quick else ["--duration", "30"])
+        t_warm = min(_wall(full + ["-o", str(Path(tmp) / "w.rrd")], base, tmp) for _ in range(repeats))
+        cold = []
+        for i in range(max(1, min(repeats, 2))):
+            cache = Path(tmp) / f"numba{i}"
+            cache.mkdir()
+            cold.append(_wall(full + ["-o", str(Path(tmp) / "c.rrd")], {**base, "NUMBA_CACHE_DIR": str(cache)}, tmp))
+        what = "run circle" + (" --duration 30" if quick else "") + " with recording"
+        row("startup", f"first {what}, EMPTY Numba cache", min(cold), t_warm, value=min(cold), unit="s",
+            note=f"ratio: against the same run with a warm cache ({t_warm:.2f} s)")
+        row("startup", f"later {what} (warm cache)", t_warm, None, value=t_warm, unit="s")
 
 
 def bench_tuning(quick: bool, repeats: int) -> None:
@@ -440,6 +525,10 @@ def main(argv: list[str] | None = None) -> int:
             bench_runs(args.quick, 1)
         elif sec == "env":
             bench_env(args.quick, repeats)
+        elif sec == "vector":
+            bench_vector(args.quick, repeats)
+        elif sec == "startup":
+            bench_startup(args.quick, repeats)
         elif sec == "tuning":
             bench_tuning(args.quick, 1)
         elif sec == "video":

@@ -4,6 +4,8 @@
   ``gymnasium.Env``; also registered as ``"swarm_mj/Swarm-v0"``.
 * :class:`SwarmParallelEnv` (``swarm_mj.wrappers.pettingzoo``): one agent per drone,
   a PettingZoo ``ParallelEnv``.
+* :class:`SwarmVectorEnv` (``swarm_mj.wrappers.vector``): m independent swarms in batched
+  MuJoCo models, a Gymnasium ``VectorEnv`` (auto-reset, per-copy seeds and termination).
 
 Both need the ``gym`` extra (``pip install swarm-mj[gym]``). The names are imported
 lazily, so ``import swarm_mj.wrappers`` works without it and only fails, with a clear
@@ -12,9 +14,9 @@ message, when a wrapper is used.
 
 from __future__ import annotations
 
-__all__ = ["SwarmGymEnv", "SwarmParallelEnv"]
+__all__ = ["SwarmGymEnv", "SwarmParallelEnv", "SwarmVectorEnv"]
 
-_WHERE = {"SwarmGymEnv": ".gymnasium", "SwarmParallelEnv": ".pettingzoo"}
+_WHERE = {"SwarmGymEnv": ".gymnasium", "SwarmParallelEnv": ".pettingzoo", "SwarmVectorEnv": ".vector"}
 
 
 def __getattr__(name: str):

@@ -1,0 +1,511 @@
+"""m independent swarms as one ``gymnasium.vector.VectorEnv``: :class:`SwarmVectorEnv`.
+
+    from swarm_mj.wrappers import SwarmVectorEnv
+    envs = SwarmVectorEnv("circle", num_envs=64, flatten=True)
+    obs, info = envs.reset(seed=0)              # copy i seeded with 0 + i
+    obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
+
+**One step pipeline over copies.** The m swarms of n drones are copies in MuJoCo models of
+the simulator's copies axis (:class:`~swarm_mj.sim.Sim` with ``n_copies``: the same
+saturation, drag and wind stages, ``mj_step``, contact bookkeeping and per-copy health mask
+as every run and as the tuner). Copies never interact: drones touch only drones of their own
+copy (``build_world(contact_groups=...)``: explicit contact pairs within a copy), and a free
+body's dynamics depend only on its own state and inputs, so a copy flies the same whether it
+is alone or among others (tested: copy 5 of 64 == the same copy alone, bit for bit, when no
+drones touch; with drones touching in every copy at once, to 1e-12, as MuJoCo's constraint
+solver works on all of a model's contacts together).
+
+**Blocks.** The copies are spread over blocks of at most ``block`` copies per MuJoCo model
+(default: as many as fit in :data:`BLOCK_DRONES` drones): MuJoCo's site motor (U1, see
+``build_world(torque_motors=...)``) costs O(drones²) per model (measured: mj_step per drone
+25 µs at 48 drones in one model, 182 µs at 384), like the tuner's blocks
+(:data:`swarm_mj.tuning.evaluator.DEFAULT_BLOCK`). Blocks of the same size share one model.
+``block=num_envs`` puts every copy in one model.
+
+**Spaces.** ``single_action_space``: a flat float64 ``Box`` (4n,), U1..U4 of drone 0, then
+drone 1, ... (``SwarmEnv.action_spec()`` reshaped: the same bounds); out-of-bound values are
+clipped per rotor by the saturation, a non-finite action raises ``UserError``.
+``single_observation_space``: :class:`~swarm_mj.wrappers.gymnasium.SwarmGymEnv`'s, a
+``spaces.Dict`` of SwarmEnv's observation keys, or with ``flatten=True`` its
+``gymnasium.spaces.flatten`` (one float64 Box, keys in sorted order). The batched spaces are
+``gymnasium.vector.utils.batch_space`` of these (leading axis m).
+
+**Episodes** are SwarmEnv's, per copy: the same observation, reward (formation keeping),
+termination on a drone–drone contact within the copy (``terminate_on_contact``) or on
+divergence (the copy's health code, reward −1000; after a non-finite state the observation
+is the last finite one), truncation at the scenario's duration. A MuJoCo divergence warning
+(MuJoCo then resets a whole model) terminates every copy of that block.
+
+**Auto-reset** (``metadata["autoreset_mode"]``): ``NEXT_STEP`` (Gymnasium's default): the
+step after a copy's episode ended resets it, ignoring its action, and returns its first
+observation with reward 0 and both flags False. ``SAME_STEP``: the step that ends an episode
+resets the copy at once; ``info["final_obs"]`` and ``info["final_info"]`` hold what ended.
+(The copy's physics runs with the others; a copy being reset gets zero input for that step
+and is put back at its start afterwards.)
+
+**Seeds.** ``reset(seed=s)`` seeds copy i with s + i (or ``seed=[s0, s1, ...]``): its wind
+turbulence and its random follower starts (scenarios with ``random_start``; SwarmGymEnv keeps
+the scenario's own starts). Each copy also gets a generator seeded with s + i
+(``gymnasium.utils.seeding.np_random``) from which an auto-reset or unseeded reset draws the
+copy's next seed, as ``SwarmGymEnv.reset()`` does; so for a scenario with fixed starts the
+vector env gives, bit for bit, what ``gymnasium.vector.SyncVectorEnv`` over m
+``SwarmGymEnv`` gives (tested).
+
+**Info** (Gymnasium's vector format: ``info[key]`` (m,) with a bool mask ``info["_key"]``):
+``time``, ``contacts``, ``new_contacts``, ``min_separation`` for copies that stepped,
+``wind_seed`` for copies that were reset, ``termination`` ("contact" / "diverged") and
+``error`` (why) for copies that terminated.
+"""
+
+from __future__ import annotations
+
+import types
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import gymnasium
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from .._jit import jit
+from ..env import CLOSE_PASS_M, SwarmEnv, all_finite, formation_reward
+from ..errors import UserError
+from ..formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
+from ..observation import observe_kernel
+from ..scenario import Scenario, load_scenario, random_follower_starts
+from ..sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
+from ..wind import WindField
+from ..world import World, build_world
+from .gymnasium import observation_space, seed_from
+
+__all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
+
+#: Drones per MuJoCo model at most (the default block is this many drones' worth of copies).
+BLOCK_DRONES = 48
+
+#: The observation keys in the order :func:`observe_copies_kernel` knows them (offs[i] is key i's offset).
+OBS_KEYS = ("time", "pos", "vel", "quat", "rpy", "rpy_rate", "body_rates", "setpoint", "setpoint_vel",
+            "setpoint_acc", "setpoint_yaw", "leader_pos", "neighbours", "neighbour_mask", "wind_force")
+
+
+def _observe_samples():
+    n, m, K = 2, 2, 3
+    qpos = np.zeros((m * n, 7))
+    qpos[:, 3] = 1.0
+    sizes = [1, 3 * n, 3 * n, 4 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, n, 3, 3 * n * n, n * n, 3 * n]
+    offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)      # OBS_KEYS order
+    z = np.zeros((K, 3))
+    return [(qpos, np.zeros((m * n, 6)), n, 2.0, np.arange(m, dtype=np.int64), 0, np.zeros(m, np.int64), 0.01,
+             z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3)), np.zeros((m, 3)), np.zeros((m, 3)),
+             np.zeros((m, n, 3)), offs, np.zeros((m, sum(sizes))), np.zeros(m, np.int64), np.zeros(m), np.zeros(m))]
+
+
+@jit(samples=_observe_samples)
+def observe_copies_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, sensing_range: float, copies: np.ndarray,
+                          c0: int, ks: np.ndarray, T: float, ref_pos: np.ndarray, ref_vel: np.ndarray,
+                          ref_acc: np.ndarray, ref_yaw: np.ndarray, D: np.ndarray, unit_offsets: np.ndarray,
+                          prev_leader: np.ndarray, leader_vel: np.ndarray, wind_obs: np.ndarray, offs: np.ndarray,
+                          out: np.ndarray, new_contacts: np.ndarray, reward: np.ndarray, min_sep: np.ndarray) -> None:
+    """SwarmEnv's observation, reward and minimum separation for the given copies (global indices;
+    copy c's drones are rows (c − c0)·n .. of this block's qpos (b·n, 7), qvel (b·n, 6)), each
+    at its own sample ks[c] of the leader reference ref_* (K+1, ...) and D (K+1,): the same
+    kernels as :meth:`SwarmEnv._observe` (observe_kernel, setpoints_kernel; prev_leader and
+    leader_vel (m, 3) updated in place) and :func:`formation_reward`. The observation of copy c
+    goes to out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i]; wind_obs (m, n, 3) is its
+    wind feedforward. A copy with a non-finite state is skipped (its last observation stays)."""
+    for idx in range(copies.shape[0]):
+        c = copies[idx]
+        r0 = (c - c0) * n
+        q = qpos[r0:r0 + n]
+        v = qvel[r0:r0 + n]
+        finite = True
+        for i in range(n):
+            for j in range(7):
+                if not np.isfinite(q[i, j]):
+                    finite = False
+            for j in range(6):
+                if not np.isfinite(v[i, j]):
+                    finite = False
+        if not finite:
+            continue
+        k = ks[c]
+        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(q, v, sensing_range)
+        sp, sp_vel, sp_acc, yaw = setpoints_kernel(k, T, pos[0], prev_leader[c], leader_vel[c], ref_pos[k],
+                                                   ref_vel[k], ref_acc[k], ref_yaw[k], D[k], unit_offsets)
+        o = out[c]
+        o[offs[0]] = k * T
+        for i in range(n):
+            for j in range(3):
+                o[offs[1] + 3 * i + j] = pos[i, j]
+                o[offs[2] + 3 * i + j] = vel[i, j]
+                o[offs[4] + 3 * i + j] = rpy[i, j]
+                o[offs[5] + 3 * i + j] = rpy_rate[i, j]
+                o[offs[6] + 3 * i + j] = omega[i, j]
+                o[offs[7] + 3 * i + j] = sp[i, j]
+                o[offs[8] + 3 * i + j] = sp_vel[i, j]
+                o[offs[9] + 3 * i + j] = sp_acc[i, j]
+                o[offs[14] + 3 * i + j] = wind_obs[c, i, j]
+            for j in range(4):
+                o[offs[3] + 4 * i + j] = quat[i, j]
+            o[offs[10] + i] = yaw[i]
+            for i2 in range(n):
+                o[offs[13] + n * i + i2] = mask[i, i2]
+                for j in range(3):
+                    o[offs[12] + 3 * (n * i + i2) + j] = rel[i, i2, j]
+        for j in range(3):
+            o[offs[11] + j] = pos[0, j]
+        if n == 1:
+            dx = pos[0, 0] - sp[0, 0]
+            dy = pos[0, 1] - sp[0, 1]
+            dz = pos[0, 2] - sp[0, 2]
+            reward[c] = -np.sqrt(dx * dx + dy * dy + dz * dz)
+            min_sep[c] = np.inf
+        else:
+            err, close = formation_reward(pos, sp, dist, CLOSE_PASS_M)
+            reward[c] = -err - 10.0 * close - 100.0 * new_contacts[c]
+            best = np.inf
+            for i in range(n):
+                for i2 in range(i + 1, n):
+                    best = min(best, dist[i, i2])
+            min_sep[c] = best
+
+
+class _Block:
+    """Copies c0 .. c0 + b − 1 in one model: their Sim and rows."""
+
+    def __init__(self, sim: Sim, c0: int, b: int, n: int) -> None:
+        self.sim, self.c0, self.b = sim, c0, b
+        self.copies = slice(c0, c0 + b)            # in (m, ...) arrays
+        self.rows = slice(c0 * n, (c0 + b) * n)    # in (m·n, ...) arrays
+        self.n_log = 0                             # contact_log entries already counted
+
+
+def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarray) -> None:
+    """Gymnasium's vector info layout: info[key] (m,), info["_key"] (m,) bool."""
+    info[key] = values
+    info["_" + key] = mask
+
+
+def _prune(info: dict[str, Any]) -> dict[str, Any]:
+    """Without the keys no copy has (as Gymnasium's vector envs leave them out)."""
+    return {key: v for key, v in info.items()
+            if (key.removeprefix("_")) not in info or info["_" + key.lstrip("_")].any()}
+
+
+class SwarmVectorEnv(VectorEnv):
+    """``num_envs`` independent copies of a scenario's swarm as one Gymnasium ``VectorEnv`` (module docstring).
+
+    ``scenario``: a name, path or :class:`Scenario`. ``flatten``: one float64 Box observation
+    per copy instead of the Dict. ``block``: copies per MuJoCo model (default: ``BLOCK_DRONES``
+    drones' worth). ``autoreset_mode``: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP``.
+    """
+
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
+
+    def __init__(self, scenario: Scenario | str = "circle", num_envs: int = 8, *, flatten: bool = False,
+                 terminate_on_contact: bool = True, block: int | None = None,
+                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, render_mode: str | None = None) -> None:
+        if render_mode is not None:
+            raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
+        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise UserError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+        try:
+            mode = autoreset_mode if isinstance(autoreset_mode, AutoresetMode) else AutoresetMode(autoreset_mode)
+        except ValueError:
+            raise UserError(f"autoreset_mode must be next-step or same-step, got {autoreset_mode!r}") from None
+        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+            raise UserError(f"autoreset_mode must be next-step or same-step, got {mode.value!r}")
+        self.metadata = {**type(self).metadata, "autoreset_mode": mode}
+        self.autoreset_mode = mode
+        self.render_mode = None
+        self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        self.num_envs = m = int(num_envs)
+        self.n = n = sc.n_drones
+        self.flatten = bool(flatten)
+        self.terminate_on_contact = bool(terminate_on_contact)
+        self.T = T = sc.control_period
+        self.n_steps = round(sc.duration / T)
+        # the leader's reference and D at every control instant (SwarmEnv's)
+        self.times = np.arange(self.n_steps + 1) * T                           # (K+1,)
+        ref = sc.make_trajectory()(self.times)
+        self._ref_pos = np.ascontiguousarray(ref.pos, dtype=np.float64)        # (K+1, 3)
+        self._ref_vel = np.ascontiguousarray(ref.vel, dtype=np.float64)
+        self._ref_acc = np.ascontiguousarray(ref.acc, dtype=np.float64)
+        self._ref_yaw = np.ascontiguousarray(ref.yaw, dtype=np.float64)        # (K+1,)
+        self._D = np.ascontiguousarray(DiameterSchedule(sc.diameter)(self.times), dtype=np.float64)
+        self._unit_offsets = np.ascontiguousarray(polygon_offsets(n - 1, 1.0), dtype=np.float64).reshape(n - 1, 3)
+        self._random_starts = sc.n_followers > 0 and sc.follower_starts is None
+        self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]    # (n,)
+        self._relative_wind = bool(sc.wind.enabled and getattr(sc.wind, "relative_airspeed", False))
+        self._wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
+
+        # spaces: SwarmGymEnv's, per copy
+        shape_only = types.SimpleNamespace(n=n)                     # SwarmEnv's spec needs only n
+        shape_only.observation_spec = lambda: SwarmEnv.observation_spec(shape_only)  # type: ignore[arg-type]
+        self.single_dict_observation_space = observation_space(shape_only)  # type: ignore[arg-type]
+        self.single_observation_space = (spaces.flatten_space(self.single_dict_observation_space) if self.flatten
+                                         else self.single_dict_observation_space)
+        self.observation_space = batch_space(self.single_observation_space, m)
+
+        # the flat layout (the Dict's key order, as spaces.flatten writes it)
+        self._slots: dict[str, tuple[int, int, tuple[int, ...]]] = {}   # key: offset, size, shape
+        off = 0
+        for key, space in self.single_dict_observation_space.spaces.items():
+            size = int(np.prod(space.shape, dtype=np.int64))
+            self._slots[key] = (off, size, space.shape)
+            off += size
+        self._dim = off
+        self._offs = np.array([self._slots[key][0] for key in OBS_KEYS], dtype=np.int64)
+
+        # the models: blocks of copies
+        per = block if block is not None else max(1, BLOCK_DRONES // n)
+        if not isinstance(per, (int, np.integer)) or per < 1:
+            raise UserError(f"block must be an integer >= 1, got {block!r}")
+        per = int(min(per, m))
+        worlds: dict[int, World] = {}
+        self._blocks: list[_Block] = []
+        start = np.tile(sc.initial_positions(), (per, 1))
+        for c0 in range(0, m, per):
+            b = min(per, m - c0)
+            if b not in worlds:
+                worlds[b] = build_world(b * n, positions=start[: b * n],
+                                        names=[f"c{c}_{name}" for c in range(b) for name in sc.names],
+                                        yaws=np.tile(self._yaws, b), timestep=sc.timestep, integrator=sc.integrator,
+                                        contact_groups=b)
+            self._blocks.append(_Block(Sim(worlds[b], T, n_copies=b), c0, b, n))
+        self.params = self._blocks[0].sim.params
+        f = self.params.f_max
+        low = np.tile([0.0, -f, -f, -2 * f], n)
+        high = np.tile([4 * f, f, f, 2 * f], n)
+        self.single_action_space = spaces.Box(low=low, high=high, shape=(4 * n,), dtype=np.float64)
+        self.action_space = batch_space(self.single_action_space, m)
+
+        # per-copy state
+        N = m * n
+        self.k = np.zeros(m, dtype=np.int64)                   # control periods flown this episode
+        self._starts = np.tile(sc.initial_positions(), (m, 1))  # (N, 3)
+        self._yaw_all = np.tile(self._yaws, m)                  # (N,)
+        self._prev_leader = np.zeros((m, 3))
+        self._leader_vel = np.zeros((m, 3))
+        self._contacts = np.zeros(m, dtype=np.int64)
+        self._new_contacts = np.zeros(m, dtype=np.int64)
+        self._wind = np.zeros((m, self.n_steps + 1, 3))        # (m, K+1, 3) wind force series (uniform wind)
+        self._wind_series: list[Any] = [None] * m              # per copy (relative airspeed only)
+        self._wind_obs = np.zeros((m, n, 3))
+        self._wind_now = np.zeros((N, 3))
+        self.wind_seed = np.zeros(m, dtype=np.int64)
+        self._rngs: list[np.random.Generator | None] = [None] * m
+        self._obs = np.zeros((m, self._dim))
+        self._reward = np.zeros(m)
+        self._min_sep = np.zeros(m)
+        self._autoreset = np.zeros(m, dtype=bool)
+        self._started = False
+        self._all = np.arange(m, dtype=np.int64)
+
+    # ------------------------------------------------------------------ episodes
+    def _copy_seed(self, c: int) -> int:
+        rng = self._rngs[c]
+        if rng is None:
+            rng = self._rngs[c] = np.random.default_rng()
+        return seed_from(rng)
+
+    def _begin(self, mask: np.ndarray, seeds: Sequence[int] | None) -> None:
+        """New episodes for the copies of mask (m,): seeds (per copy, or drawn), starts, wind."""
+        n, sc = self.n, self.scenario
+        for c in np.flatnonzero(mask):
+            seed = int(seeds[c]) if seeds is not None else self._copy_seed(int(c))
+            self.wind_seed[c] = seed
+            if self._random_starts:
+                rs = replace(sc.random_start, seed=seed)
+                self._starts[c * n:(c + 1) * n] = np.vstack([sc.leader_start, random_follower_starts(
+                    sc.leader_start, sc.n_followers, rs, where=sc.path)])
+            series = WindField(sc.wind, dt=self.T, seed=seed).sample(self.times)
+            self._wind_series[c] = series
+            if not self._relative_wind:
+                self._wind[c] = series.force
+        self.k[mask] = 0
+        self._contacts[mask] = 0
+        self._prev_leader[mask] = self._starts[::n][mask]
+        self._leader_vel[mask] = 0.0
+
+    def _put_back(self, mask: np.ndarray) -> None:
+        """The copies of mask back at their starts in their models (other copies untouched)."""
+        for blk in self._blocks:
+            sub = mask[blk.copies]
+            if sub.any():
+                blk.sim.reset_copies(sub, self._starts[blk.rows], self._yaw_all[blk.rows])
+
+    def _wind_forces(self, which: str) -> None:
+        """The wind force of each copy at its sample k: into _wind_now (N, 3) (the physics) or
+        _wind_obs (m, n, 3) (the observation's feedforward)."""
+        n, m = self.n, self.num_envs
+        if not self._relative_wind:
+            f = self._wind[self._all, np.minimum(self.k, self.n_steps)]      # (m, 3)
+            if which == "now":
+                self._wind_now.reshape(m, n, 3)[:] = f[:, None, :]
+            elif self._wind_known:
+                self._wind_obs[:] = f[:, None, :]
+            return
+        for blk in self._blocks:
+            vel = blk.sim.vel
+            for c in range(blk.c0, blk.c0 + blk.b):
+                k = min(int(self.k[c]), self.n_steps)
+                r = (c - blk.c0) * n
+                force = self._wind_series[c].drone_forces(k, vel[r:r + n])
+                if which == "now":
+                    self._wind_now[c * n:(c + 1) * n] = force
+                elif self._wind_known:
+                    self._wind_obs[c] = force
+
+    def _observe(self, copies: np.ndarray) -> None:
+        """Observation, reward (before divergence) and minimum separation of the given copies."""
+        self._wind_forces("obs")
+        for blk in self._blocks:
+            cs = copies[(copies >= blk.c0) & (copies < blk.c0 + blk.b)]
+            if len(cs):
+                observe_copies_kernel(blk.sim.qpos, blk.sim.qvel, self.n, self.scenario.sensing_range, cs, blk.c0,
+                                      self.k, self.T, self._ref_pos, self._ref_vel, self._ref_acc, self._ref_yaw,
+                                      self._D, self._unit_offsets, self._prev_leader, self._leader_vel,
+                                      self._wind_obs, self._offs, self._obs, self._new_contacts, self._reward,
+                                      self._min_sep)
+
+    def _observation(self, flat: np.ndarray):
+        """The batched observation of a fresh copy of the flat buffer (m, dim)."""
+        if self.flatten:
+            return flat
+        m = flat.shape[0]
+        return {key: flat[:, off:off + size].reshape((m, *shape)) for key, (off, size, shape) in self._slots.items()}
+
+    # ------------------------------------------------------------------ VectorEnv API
+    def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
+        """Reset every copy (``seed``: an int s gives copy i the seed s + i; a list, one per copy)."""
+        m = self.num_envs
+        seeds: list[int] | None = None
+        if seed is not None:
+            if isinstance(seed, (int, np.integer)):
+                super().reset(seed=int(seed))
+                seeds = [int(seed) + i for i in range(m)]
+            else:
+                seeds = [int(s) for s in seed]
+                if len(seeds) != m:
+                    raise UserError(f"reset needs one seed per copy ({m}), got {len(seeds)}")
+            for c in range(m):
+                self._rngs[c] = seeding.np_random(seeds[c])[0]
+        everyone = np.ones(m, dtype=bool)
+        self._begin(everyone, seeds)
+        for blk in self._blocks:
+            blk.sim.reset(self._starts[blk.rows], self._yaw_all[blk.rows])
+            blk.n_log = 0
+        self._new_contacts[:] = 0
+        self._observe(self._all)
+        self._autoreset[:] = False
+        self._started = True
+        info: dict[str, Any] = {}
+        _info_add(info, "time", np.zeros(m), everyone.copy())
+        _info_add(info, "wind_seed", self.wind_seed.copy(), everyone.copy())
+        return self._observation(self._obs.copy()), info
+
+    def step(self, actions):
+        if not self._started:
+            raise gymnasium.error.ResetNeeded("call reset() before step()")
+        m, n = self.num_envs, self.n
+        a = np.asarray(actions, dtype=np.float64)
+        if a.shape != (m, 4 * n):
+            raise UserError(f"actions must have shape ({m}, {4 * n}), got {a.shape}")
+        if not all_finite(a):
+            raise UserError("action contains NaN or inf")
+        U = a.reshape(m * n, 4)
+        resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(m, bool)
+        if resetting.any():
+            self._begin(resetting, None)
+            self._put_back(resetting)
+            U = U.copy()
+            U[np.repeat(resetting, n)] = 0.0
+        # the wind force of the coming period, held over it; then the step pipeline of every block
+        self._wind_forces("now")
+        health = np.zeros(m, dtype=np.int8)
+        self._new_contacts[:] = 0
+        for blk in self._blocks:
+            sim = blk.sim
+            sim.step(U[blk.rows], self._wind_now[blk.rows])
+            health[blk.copies] = sim.health()
+            log = sim.contact_log
+            if len(log) > blk.n_log:
+                for _, i, _ in log[blk.n_log:]:
+                    self._new_contacts[blk.c0 + i // n] += 1
+                blk.n_log = len(log)
+            if (health[blk.copies] == MUJOCO_WARNING).any():
+                sim.data.warning.number[:] = 0     # reported now; the block's copies all terminate
+        self.k += 1
+        if resetting.any():
+            self._put_back(resetting)
+            self.k[resetting] = 0
+            self._new_contacts[resetting] = 0
+            health[resetting] = HEALTHY
+        self._contacts += self._new_contacts
+        self._observe(self._all)
+        rewards = self._reward.copy()
+        diverged = health != HEALTHY
+        contact = self._new_contacts > 0
+        terminated = diverged | (contact if self.terminate_on_contact else False)
+        truncated = ~terminated & (self.k >= self.n_steps)
+        rewards[diverged] = -1000.0
+        rewards[resetting] = 0.0
+        terminated[resetting] = False
+        truncated[resetting] = False
+        info = self._step_info(~resetting, terminated, diverged, health)
+        if resetting.any():
+            info["_time"][:] = True                # a reset copy's info is its reset info: time 0, its seed
+            _info_add(info, "wind_seed", self.wind_seed.copy(), resetting)
+        done = terminated | truncated
+        obs_flat = self._obs.copy()
+        if self.autoreset_mode == AutoresetMode.NEXT_STEP:
+            self._autoreset = done
+        elif done.any():
+            final_obs = np.full(m, None, dtype=object)
+            final = self._observation(obs_flat.copy())
+            for c in np.flatnonzero(done):
+                final_obs[c] = final[c] if self.flatten else {key: v[c] for key, v in final.items()}
+            final_info = _prune({key: (v & done if key.startswith("_") else v) for key, v in info.items()})
+            self._begin(done, None)
+            self._put_back(done)
+            self._new_contacts[done] = 0
+            self._observe(np.flatnonzero(done).astype(np.int64))
+            obs_flat = self._obs.copy()
+            # the ended copies' info is their reset info (time 0, their seed); what ended is in final_info
+            for key in ("contacts", "new_contacts", "min_separation"):
+                info["_" + key] = info["_" + key] & ~done
+            info.pop("termination", None), info.pop("_termination", None)
+            info.pop("error", None), info.pop("_error", None)
+            info["time"] = np.where(done, 0.0, info["time"])
+            _info_add(info, "final_obs", final_obs, done.copy())
+            _info_add(info, "final_info", final_info, done.copy())
+            _info_add(info, "wind_seed", self.wind_seed.copy(), done | resetting)
+        return self._observation(obs_flat), rewards, terminated, truncated, _prune(info)
+
+    def _step_info(self, stepped: np.ndarray, terminated: np.ndarray, diverged: np.ndarray,
+                   health: np.ndarray) -> dict[str, Any]:
+        info: dict[str, Any] = {}
+        _info_add(info, "time", self.k * self.T, stepped.copy())
+        _info_add(info, "contacts", self._contacts.copy(), stepped.copy())
+        _info_add(info, "new_contacts", self._new_contacts.copy(), stepped.copy())
+        _info_add(info, "min_separation", self._min_sep.copy(), stepped.copy())
+        if terminated.any():
+            why = np.full(self.num_envs, None, dtype=object)
+            error = np.full(self.num_envs, None, dtype=object)
+            for c in np.flatnonzero(terminated):
+                why[c] = "diverged" if diverged[c] else "contact"
+                if diverged[c]:
+                    error[c] = HEALTH_NAMES[int(health[c])]
+            _info_add(info, "termination", why, terminated.copy())
+            if diverged.any():
+                _info_add(info, "error", error, diverged.copy())
+        return info
+
+    def close(self, **kwargs: Any) -> None:
+        self._started = False
+        self.closed = True
