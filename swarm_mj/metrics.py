@@ -119,3 +119,79 @@ def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_ti
         settling.append(s)
         settled_err.append(float(es[first:].max()))
     return settling, max(settled_err)
+
+
+# ---------------------------------------------------------------------------- downwash dip
+#: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"): at a depth s
+#: below a drone along its thrust axis, the jet reaches ``JET_R0_M + JET_SPREAD·s`` from the
+#: axis; a drone whose rotor span (``DRONE_RADIUS_M`` from its centre) reaches into that
+#: radius, at a depth between 0 and ``JET_REACH_M``, is in the jet.
+JET_R0_M = 0.34          # L + rotor radius (0.25 + 0.09 m): the rotor wakes' outer edge at the rotor plane
+JET_SPREAD = 0.2         # edge of a round turbulent jet: twice its velocity half-width, which grows ≈ 0.1·s
+JET_REACH_M = 3.0        # depth below which the jet is no longer counted
+DRONE_RADIUS_M = 0.34    # rotor span of the drone below (L + rotor radius)
+
+
+def _body_z(quat: np.ndarray) -> np.ndarray:
+    """World-frame body z axis (..., 3) of unit quaternions (..., 4) in MuJoCo's (w, x, y, z) order."""
+    w, x, y, z = (quat[..., c] for c in range(4))
+    return np.stack([2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
+
+
+def in_jet(pos: np.ndarray, quat: np.ndarray, *, r0: float = JET_R0_M, spread: float = JET_SPREAD,
+           reach: float = JET_REACH_M, radius: float = DRONE_RADIUS_M) -> np.ndarray:
+    """Which drone is in which drone's jet, (k, n, n) bool: ``[t, i, j]`` = drone j is in drone i's jet.
+
+    pos (k, n, 3), quat (k, n, 4) (w, x, y, z). The jet of drone i leaves along −(body z of i)
+    (it follows the drone's thrust direction); drone j, at depth s = (p_j − p_i)·(−z_i) along
+    that axis and radial offset r from it, is in the jet when 0 < s ≤ ``reach`` and
+    r < ``r0`` + ``spread``·s + ``radius`` (its rotor span reaches into the jet's edge).
+    """
+    pos = np.asarray(pos, dtype=float)
+    axis = -_body_z(np.asarray(quat, dtype=float))                    # (k, n, 3) jet direction of each drone
+    rel = pos[:, None, :, :] - pos[:, :, None, :]                     # (k, n, n, 3) p_j − p_i
+    s = np.einsum("tijc,tic->tij", rel, axis)                         # (k, n, n) depth of j in i's jet
+    r2 = np.einsum("tijc,tijc->tij", rel, rel) - s * s                 # (k, n, n) squared radial offset
+    edge = r0 + spread * s + radius
+    out = (s > 0.0) & (s <= reach) & (r2 < edge * edge)
+    idx = np.arange(pos.shape[1])
+    out[:, idx, idx] = False
+    return out
+
+
+def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.ndarray, *,
+                 airborne: float = 0.1, **jet: float) -> dict:
+    """The worst altitude dip of a drone in another drone's jet (docs/interpretations.md).
+
+    t (k,), pos (k, n, 3) positions, pos_d (k, n, 3) commanded positions (after the
+    anti-collision rule), quat (k, n, 4) attitudes (w, x, y, z). At every sample where drone
+    j is in the jet of an airborne drone i (:func:`in_jet`; ``jet`` passes its geometry) and
+    j has taken off (its altitude has once exceeded ``airborne`` m), its dip is how far it
+    is below its commanded altitude, max(0, z_d − z). Returns ``worst_m`` (the largest dip,
+    0 if no drone was ever in a jet), ``drone`` and ``above`` (the indices, −1 if none),
+    ``t_s`` (when), ``time_in_jet_s`` (samples with any drone in a jet × the sample period)
+    and ``per_drone_m`` (n,) the worst dip of each drone.
+    """
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(pos, dtype=float)
+    k, n = pos.shape[:2]
+    empty = {"worst_m": 0.0, "drone": -1, "above": -1, "t_s": None, "time_in_jet_s": 0.0,
+             "per_drone_m": [0.0] * n}
+    if n < 2 or k == 0:
+        return empty
+    z = pos[:, :, 2]                                                   # (k, n)
+    up = np.maximum.accumulate(z > airborne, axis=0)                  # (k, n) taken off by then
+    jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]   # (k, i, j)
+    dip = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)             # (k, n)
+    below = jet.any(axis=1)                                            # (k, n) j in some jet
+    dips = np.where(below, dip, 0.0)                                   # (k, n)
+    dt = float(np.median(np.diff(t))) if k > 1 else 0.0
+    out = dict(empty)
+    out["time_in_jet_s"] = float(below.any(axis=1).sum() * dt)
+    out["per_drone_m"] = [float(v) for v in dips.max(axis=0)]
+    if not below.any():
+        return out
+    kk, j = np.unravel_index(int(np.argmax(dips)), dips.shape)
+    i = int(np.argmax(jet[kk, :, j]))
+    out.update(worst_m=float(dips[kk, j]), drone=int(j), above=i if jet[kk, i, j] else -1, t_s=float(t[kk]))
+    return out

@@ -7,7 +7,9 @@ are flown with every ``--rule``, in parallel over ``--workers`` processes, and f
 this prints: starts flown, starts with any drone–drone contact (counted by MuJoCo), total
 contacts, runs that crashed (a drone knocked into the floor: the run stops there), the
 smallest 3D centre distance seen while every drone was airborne, and the median and worst
-formation settling time (every leader distance within 5 cm of D; inf: never settled).
+formation settling time (every leader distance within 5 cm of D; inf: never settled), and the
+worst altitude dip of a drone in another drone's jet (``downwash_dip_worst_m``, see
+``metrics.downwash_dip``).
 
 Each drone sees the others within ``--sensing-range`` (default 4 m; the layered rule caps
 its speeds so that it can stop within it, see ``formation.anticollision.LayeredRule``).
@@ -72,7 +74,8 @@ def fly_case(case: StressCase) -> dict:
             "min_separation_m": float(s["min_separation_m"]),
             "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
             "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
-            "stopped": s.get("stopped")}
+            "stopped": s.get("stopped"), "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
+            "time_in_jet_s": float(s.get("downwash_dip", {}).get("time_in_jet_s", 0.0))}
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -84,6 +87,9 @@ def summarize_rule(rows: list[dict]) -> dict:
             "settling_median_s": float(np.median(settle)) if len(settle) else float("nan"),
             "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
             "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
+            "downwash_dip_worst_m": max((r["downwash_dip_m"] for r in rows), default=0.0),
+            "downwash_dip_worst_seed": max(rows, key=lambda r: r["downwash_dip_m"])["seed"] if rows else None,
+            "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
             "stopped": [r["seed"] for r in rows if r["stopped"]]}
 
 
@@ -118,12 +124,12 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
 def format_table(table: dict, followers: int) -> str:
     """The per-rule table as text."""
     head = (f"{'rule':<8} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'min sep (m)':>11} "
-            f"{'settle med (s)':>14} {'settle worst (s)':>16}   ({followers} followers)")
+            f"{'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}   ({followers} followers)")
     lines = [head]
     for rule, r in table.items():
         lines.append(f"{rule:<8} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
                      f"{len(r['stopped']):>7} {r['min_separation_airborne_m']:>11.3f} "
-                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f}")
+                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} {r['downwash_dip_worst_m']:>8.3f}")
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
             lines.append(f"         seeds with contact: {', '.join(map(str, seeds[:20]))}"
