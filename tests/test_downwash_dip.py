@@ -10,7 +10,14 @@ import math
 
 import numpy as np
 
-from swarm_mj.metrics import DRONE_RADIUS_M, JET_R0_M, JET_REACH_M, JET_SPREAD, downwash_dip, in_jet
+from swarm_mj.metrics import (
+    DRONE_RADIUS_M,
+    JET_R0_M,
+    JET_REACH_M,
+    JET_SPREAD,
+    downwash_dip,
+    in_jet,
+)
 
 UPRIGHT = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -67,7 +74,7 @@ def test_the_jet_follows_the_upper_drones_tilt():
     r = math.sqrt(depth ** 2 - s ** 2)
     assert r > 0.7                                                      # a real offset, so the case matters
     edge = JET_R0_M + JET_SPREAD * s + DRONE_RADIUS_M
-    t, pos, pos_d, quat = _log([[0, 0, 3.0]] * 2, [on_axis, straight_below], [on_axis[2] + 0.1] * 2, quat_upper=q)
+    _, pos, _, quat = _log([[0, 0, 3.0]] * 2, [on_axis, straight_below], [on_axis[2] + 0.1] * 2, quat_upper=q)
     jet = in_jet(pos, quat)
     assert jet[0, 0, 1]
     assert bool(jet[1, 0, 1]) == (r < edge)
