@@ -122,14 +122,19 @@ def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_ti
 
 
 # ---------------------------------------------------------------------------- downwash dip
-#: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"): at a depth s
-#: below a drone along its thrust axis, the jet reaches ``JET_R0_M + JET_SPREAD·s`` from the
-#: axis; a drone whose rotor span (``DRONE_RADIUS_M`` from its centre) reaches into that
-#: radius, at a depth between 0 and ``JET_REACH_M``, is in the jet.
-JET_R0_M = 0.34          # L + rotor radius (0.25 + 0.09 m): the rotor wakes' outer edge at the rotor plane
-JET_SPREAD = 0.2         # edge of a round turbulent jet: twice its velocity half-width, which grows ≈ 0.1·s
-JET_REACH_M = 3.0        # depth below which the jet is no longer counted
-DRONE_RADIUS_M = 0.34    # rotor span of the drone below (L + rotor radius)
+#: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"). The jet below a
+#: drone is the turbulent round jet of Bauersfeld et al. (RA-L 2024, arXiv:2403.13321, their
+#: eqs. 6 and 9, the model swarm_mj.aero.downwash applies): half-width r_½(s) = l·S·(s/l − s0*)
+#: at a depth s along the drone's thrust axis, l = 2L = 0.5 m the motor distance, S = 0.07668,
+#: s0* = −5.817. Its edge is taken at 2·r_½ (there the jet speed is 1/(1 + 4(√2 − 1))² = 14 % of
+#: the centreline's and its push on a rotor disc 2 %): ``JET_R0_M + JET_SPREAD·s``. A drone whose
+#: rotor span (``DRONE_RADIUS_M`` from its centre) reaches inside that edge, at a depth between 0
+#: and ``JET_REACH_M``, is in the jet.
+_JET_L, _JET_S, _JET_S0 = 0.5, 0.07668, -5.817
+JET_R0_M = 2.0 * _JET_L * _JET_S * (-_JET_S0)      # 0.446 m: 2·r_½ at the rotor plane
+JET_SPREAD = 2.0 * _JET_S                           # 0.153 m per m of depth
+JET_REACH_M = 6.0        # the centreline push on a hovering drone is still a tenth of its weight there
+DRONE_RADIUS_M = 0.34    # rotor span of the drone below: L + rotor radius (0.25 + 0.09 m)
 
 
 def _body_z(quat: np.ndarray) -> np.ndarray:
@@ -189,7 +194,7 @@ def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.nda
     out = dict(empty)
     out["time_in_jet_s"] = float(below.any(axis=1).sum() * dt)
     out["per_drone_m"] = [float(v) for v in dips.max(axis=0)]
-    if not below.any():
+    if not (dips > 0.0).any():
         return out
     kk, j = np.unravel_index(int(np.argmax(dips)), dips.shape)
     i = int(np.argmax(jet[kk, :, j]))

@@ -263,7 +263,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
     diameter = form.get("diameter", 1.0)
     DiameterSchedule(diameter, where=f"{w}formation.diameter")
-    rule = form.get("anti_collision", "layers")
+    rule = form.get("anti_collision", "clearance")
     if rule not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
                         where=f"{w}formation.anti_collision")

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-RULES = ("layers", "paper", "off")
+RULES = ("clearance", "layers", "paper", "off")
 
 
 @dataclass(frozen=True)
@@ -140,7 +140,7 @@ def format_table(table: dict, followers: int) -> str:
 def add_parser(sub) -> None:
     p = sub.add_parser("stress", help="fly many seeded random starts and count contacts per rule",
                        description=__doc__.split("\n\n")[1].replace("\n", " "))
-    p.add_argument("--rule", action="append", choices=RULES, help="rule to fly (repeatable; default: layers, paper)")
+    p.add_argument("--rule", action="append", choices=RULES, help="rule to fly (repeatable; default: clearance, paper)")
     p.add_argument("--starts", type=int, default=100, help="number of seeded starts (default 100)")
     p.add_argument("--followers", type=int, default=5, help="followers per start (default 5)")
     p.add_argument("--radius", type=float, default=3.0, help="starts within this distance of the leader (m, default 3)")
@@ -156,7 +156,7 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
+    rules = list(dict.fromkeys(args.rule or ["clearance", "paper"]))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
                          args.seed0, args.workers, args.sensing_range)
     print(format_table(table, args.followers))
