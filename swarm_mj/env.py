@@ -46,6 +46,8 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
+from .aero.ground import rest_positions
+from .aero.presets import install as install_aero
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
@@ -74,10 +76,15 @@ class SwarmEnv(dm_env.Environment):
         self.names = sc.names
         self.T = sc.control_period
         self.n_steps = int(round(sc.duration / self.T))
-        self.world = build_world(n, positions=sc.initial_positions(), names=sc.names,
+        aero = sc.aero
+        starts = sc.initial_positions() if not aero.ground else rest_positions(sc.initial_positions())
+        self.world = build_world(n, positions=starts, names=sc.names,
                                  yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
-                                 timestep=sc.timestep, integrator=sc.integrator)
+                                 timestep=sc.timestep, integrator=sc.integrator,
+                                 ground=aero.ground, motor_tau=aero.motor_tau)
         self.sim = Sim(self.world, self.T)
+        if not aero.is_paper:
+            install_aero(self.sim, aero)      # downwash, ground effect, ground contacts (docs/aero.md)
         self.params = self.world.params
         # Leader reference, precomputed at every control instant (analytic, SPEC §3).
         self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)

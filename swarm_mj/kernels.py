@@ -200,6 +200,17 @@ def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.
             out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
 
 
+@jit
+def unmix_kernel(U: np.ndarray, unmix_t: np.ndarray, F_out: np.ndarray) -> None:
+    """F_out (n, 4) = U (n, 4) · UNMIXᵀ: rotor thrusts F1..F4 of the wrench U1..U4 (eqs. 26–29)."""
+    for i in range(U.shape[0]):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = f
+
+
 def warm_up() -> float:
     """Compile (or load from the on-disk cache) every per-step kernel; returns the seconds spent.
 
@@ -241,6 +252,14 @@ def warm_up() -> float:
     formed_step_kernel(0.01, z3, 1.0, z1, np.zeros(3), z2, z2.copy(), z2.copy(), b, z1.copy(), z1.copy(),
                        z1.copy(), 6.0, 120.0, 15.0, 4.0, 0.5, 9.81, 4.0, 8.0, 1.5, 5.0, z3.copy(), z3.copy(),
                        z3.copy())
+    unmix_kernel(U, _UNMIX_T, np.zeros((n, 4)))
+    from .aero.downwash import downwash_kernel
+    from .aero.ground_effect import ground_effect_kernel
+
+    quat = np.zeros((n, 4))
+    quat[:, 0] = 1.0
+    downwash_kernel(pos, quat, np.ones((n, 4)), n, 0.25, 1.225, 0.09, 0.01, 0.09, np.zeros((n, 3)), np.zeros((n, 3)))
+    ground_effect_kernel(pos, quat, np.ones((n, 4)), 0.25, 0.02, 0.09, 0.045, np.zeros((n, 3)), np.zeros((n, 3)))
     return time.perf_counter() - t0
 
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .aero.presets import with_aero
 from .env import SwarmEnv
 from .errors import SimulationDiverged
 from .kernels import warm_up
@@ -53,18 +54,23 @@ class RunLog:
     wind_speed: np.ndarray   # (k, 3)
     wind_force: np.ndarray   # (k, n, 3) applied wind force over the following period
     D: np.ndarray            # (k,)
+    downwash: np.ndarray | None = None       # (k, n, 3) downwash force on each drone (docs/aero.md), N
+    ground_effect: np.ndarray | None = None  # (k, n, 3) ground-effect force on each drone, N
 
     @classmethod
     def allocate(cls, names: list[str], k: int) -> "RunLog":
         n = len(names)
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
         return cls(names, z(k), z(k, n, 3), z(k, n, 3), z(k, n, 4), z(k, n, 3), z(k, n, 3), z(k, n, 3),
-                   z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k))
+                   z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k), z(k, n, 3), z(k, n, 3))
 
     def truncated(self, k: int) -> "RunLog":
-        return RunLog(self.names, *(getattr(self, f)[:k] for f in
-                                    ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor",
-                                     "wind_speed", "wind_force", "D")))
+        log = RunLog(self.names, *(getattr(self, f)[:k] for f in
+                                   ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor",
+                                    "wind_speed", "wind_force", "D")))
+        log.downwash = None if self.downwash is None else self.downwash[:k]
+        log.ground_effect = None if self.ground_effect is None else self.ground_effect[:k]
+        return log
 
 
 @dataclass
@@ -105,12 +111,15 @@ class Progress:
 
 
 def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_collision: str | None = None,
-        seed: int | None = None, progress: bool | None = None, duration: float | None = None) -> RunResult:
+        seed: int | None = None, progress: bool | None = None, duration: float | None = None,
+        aero: str | None = None) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
+    aero: a physics preset (``"paper"``, ``"realistic"``; docs/aero.md) replacing the scenario's.
     Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = with_aero(sc, aero)
     if duration is not None:
         sc = sc.with_overrides(duration=float(duration))
     if gains is not None:
@@ -133,6 +142,10 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     sim = env.sim
     ctl = policy.controller
     wind_speed = env.wind.speed
+    stages = {st.name: st for st in sim.force_stages}
+    dw, ge = stages.get("downwash"), stages.get("ground_effect")
+    log.downwash[:] = 0.0
+    log.ground_effect[:] = 0.0
     try:
         while True:
             U = policy(obs)
@@ -152,6 +165,10 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
             log.U[k] = sim.ctrl
             log.rotor[k] = sim.rotor_thrust
             log.wind_force[k] = env.last_wind_force
+            if dw is not None:
+                log.downwash[k] = dw.force        # over the last physics step of the period
+            if ge is not None:
+                log.ground_effect[k] = ge.force
             obs = ts.observation
             k += 1
             if k % 50 == 0:
@@ -167,6 +184,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)
         log.U[k], log.rotor[k] = log.U[k - 1], log.rotor[k - 1]
+        log.downwash[k], log.ground_effect[k] = log.downwash[k - 1], log.ground_effect[k - 1]
         log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
     log = log.truncated(max(n_samples, 1))
     summary = summarize(sc, log, env, policy, wall)
@@ -206,6 +224,13 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["drones"][name] = d
     out["contacts"] = int(env.sim.contact_events)
     out["contact_steps"] = int(env.sim.contact_steps)
+    # Ground contacts and crashes (docs/aero.md); 0 when the preset has no solid ground.
+    ground = next((m for m in getattr(env.sim, "monitors", []) if getattr(m, "name", "") == "ground"), None)
+    out["aero"] = sc.aero.to_dict()
+    out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
+    out["crashes"] = int(ground.crashes) if ground is not None else 0
+    if log.downwash is not None and len(t):
+        out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos)
         out["min_separation_m"] = sep

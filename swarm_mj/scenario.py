@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from .aero.presets import PAPER, AeroConfig, parse_aero
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES
@@ -25,7 +26,7 @@ from .trajectories import TRAJECTORIES, make_trajectory
 from .wind import WindConfig
 
 _TOP_KEYS = {"name", "description", "duration", "control_period", "timestep", "integrator", "seed",
-             "steady_after", "leader", "followers", "formation", "controller", "wind"}
+             "steady_after", "leader", "followers", "formation", "controller", "wind", "aero"}
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
@@ -72,6 +73,7 @@ class Scenario:
     wind: WindConfig
     path: str = ""
     raw: dict = field(default_factory=dict, repr=False, compare=False)
+    aero: AeroConfig = PAPER          # physics preset (docs/aero.md); the paper's model by default
 
     @property
     def n_drones(self) -> int:
@@ -297,6 +299,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         raise UserError("must be a table", where=f"{w}wind")
     wind = WindConfig.from_dict(wind_table, where=path)
 
+    aero = parse_aero(data.get("aero"), where=f"{w}aero")
+    _check_above_ground(leader_start, starts, traj, tparams, duration, T, w)
+
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
     return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
                     control_period=T, timestep=dt, integrator=integrator, seed=seed, steady_after=steady_after,
@@ -304,7 +309,24 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
                     leader_yaw_deg=yaw_deg, n_followers=n_f, follower_starts=starts, random_start=rstart,
                     diameter=diameter, anti_collision=rule, anti_collision_params=ac_params,
                     sensing_range=sensing, gains=gains, gains_source=source, wind_feedforward=ff,
-                    attitude_map=amap, wind=wind, path=path, raw=data)
+                    attitude_map=amap, wind=wind, path=path, raw=data, aero=aero)
+
+
+def _check_above_ground(leader_start: np.ndarray, starts: np.ndarray | None, traj: str, tparams: dict,
+                        duration: float, T: float, w: str) -> None:
+    """The floor is the plane z = 0 (docs/aero.md): a start or a leader reference below it is bad input."""
+    if leader_start[2] < 0:
+        raise UserError(f"z = {leader_start[2]:g} m is below the ground (z = 0)", where=f"{w}leader.start")
+    if starts is not None and (starts[:, 2] < 0).any():
+        k = int(np.argmax(starts[:, 2] < 0))
+        raise UserError(f"follower {k + 1} starts at z = {starts[k, 2]:g} m, below the ground (z = 0)",
+                        where=f"{w}followers.start")
+    ref = make_trajectory(traj, tparams)(np.arange(round(duration / T) + 1) * T)
+    zmin = float(ref.pos[:, 2].min())
+    if zmin < 0:
+        k = int(np.argmin(ref.pos[:, 2]))
+        raise UserError(f"the leader's reference goes below the ground (z = {zmin:g} m at t = {k * T:g} s)",
+                        where=f"{w}leader.params")
 
 
 def _missing(where: str):

@@ -21,7 +21,7 @@ import mujoco
 import numpy as np
 
 from .errors import SimulationDiverged, UserError
-from .kernels import drag_kernel, saturate_kernel, state_ok
+from .kernels import drag_kernel, saturate_kernel, state_ok, unmix_kernel
 from .mixing import _MIX_T, _UNMIX_T
 from .world import World
 
@@ -75,6 +75,19 @@ class Sim:
         self._geom_drone = world.geom_drone
         self.rotor_thrust = np.zeros((self.n, 4))        # (n, 4) F1..F4 of the last step
         self.ext_force = np.zeros((self.n, 3))           # (n, 3) last external force
+        # Aerodynamic force stages and post-step monitors (swarm_mj.aero; empty under the paper's model):
+        # each physics step, every stage ADDS its world force/torque (n, 3) at the CoM into zeroed buffers,
+        # which are added to xfrc_applied after the drag; monitors run after each mj_step.
+        self.force_stages: list = []
+        self.monitors: list = []
+        self._xfrc_torque = d.xfrc_applied[_index(world.body_ids), 3:6]
+        self._stage_force = np.zeros((self.n, 3))       # (n, 3)
+        self._stage_torque = np.zeros((self.n, 3))      # (n, 3)
+        # First-order rotor lag (actuators with dyntype="filter"): rotor_thrust reports the produced thrust
+        # (from the actuator states), rotor_command what was commanded (after saturation).
+        self.motor_lag = m.na == 4 * self.n and m.na > 0
+        self._act = d.act.reshape(self.n, 4) if self.motor_lag else None
+        self.rotor_command = np.zeros((self.n, 4))      # (n, 4)
         self.reset()
 
     # ------------------------------------------------------------------ state
@@ -100,7 +113,12 @@ class Sim:
         self.contact_steps = 0           # physics steps with any drone–drone contact
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
+        self.rotor_command[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
+        for stage in self.force_stages:
+            stage.reset(self)
+        for mon in self.monitors:
+            mon.reset(self)
 
     # ------------------------------------------------------------------ step
     def step(self, U: np.ndarray, ext_force: np.ndarray | None = None) -> None:
@@ -117,11 +135,28 @@ class Sim:
             self.ext_force[:] = ext_force
         m, d = self.model, self.data
         xf, vel, ext, k = self._xfrc_force, self.vel, self.ext_force, self._neg_drag
+        stages, monitors, lag = self.force_stages, self.monitors, self.motor_lag
+        if lag:
+            self.rotor_command[:] = self.rotor_thrust
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)      # xf = −K·v + F_ext (world frame, at the CoM)
+            if lag:
+                unmix_kernel(self._act, _UNMIX_T, self.rotor_thrust)     # produced rotor thrusts
+            if stages:
+                f, tq = self._stage_force, self._stage_torque
+                f[:] = 0.0
+                tq[:] = 0.0
+                for stage in stages:
+                    stage.apply(self, f, tq)
+                xf += f
+                self._xfrc_torque[:] = tq
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
+            for mon in monitors:
+                mon.after_step(self)
+        if lag:
+            unmix_kernel(self._act, _UNMIX_T, self.rotor_thrust)
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` on NaN, a drone below the floor or far away."""

@@ -65,7 +65,8 @@ class World:
         return len(self.names)
 
 
-def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Path) -> mjcf.RootElement:
+def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Path, *, ground: bool = False,
+                motor_tau: float = 0.0) -> mjcf.RootElement:
     if not asset.exists():
         raise UserError(f"quadrotor asset not found: {asset}")
     try:
@@ -93,6 +94,24 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
     plane = drone.find("geom", "rotor_plane")
     if plane is not None:
         plane.size = [L, plane.size[1]]
+    if motor_tau > 0:
+        # First-order rotor dynamics (docs/aero.md): MuJoCo integrates act' = (ctrl − act)/τ and applies
+        # gear·act. The mixing is linear, so filtering U1..U4 is filtering each rotor's thrust.
+        for act, gear in gears.items():
+            old = drone.find("actuator", act)
+            site = old.site
+            old.remove()
+            drone.actuator.add("general", name=act, site=site, gear=gear, dyntype="filter",
+                               dynprm=[float(motor_tau)], gainprm=[1.0], biastype="none")
+    if ground:
+        # Landing legs (docs/aero.md): they touch only the floor (contype 2 / conaffinity 0; the
+        # floor has conaffinity 3), so drone-drone contacts stay the paper's.
+        from .aero.ground import LEG_BOTTOM, LEG_RADIUS, LEG_TOP, LEG_XY
+
+        body = drone.find("body", "body")
+        for k, (x, y) in enumerate(LEG_XY, start=1):
+            body.add("geom", name=f"leg{k}", type="capsule", fromto=[x, y, LEG_TOP, x, y, LEG_BOTTOM],
+                     size=[LEG_RADIUS], contype=2, conaffinity=0, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
     for geom in drone.find_all("geom"):
         if geom.name in ("hub",):
             geom.rgba = list(rgba)
@@ -116,6 +135,8 @@ def build_world(
     asset: str | Path | None = None,
     floor: bool = True,
     torque_motors: str = "joint",
+    ground: bool = False,
+    motor_tau: float = 0.0,
 ) -> World:
     """Compose ``n_drones`` quadrotors into one MuJoCo model.
 
@@ -129,6 +150,10 @@ def build_world(
     motors grows with the square of the number of drones). U1, a force along body z, stays on
     the site: a free joint's translational dofs are in the world frame. ``"site"``: all four on
     the site, as in the asset.
+    ground: a solid floor (it collides with every drone geom) and landing legs on each drone
+    (``swarm_mj.aero.ground``); False (the paper) leaves the floor drawn but never touched.
+    motor_tau: rotor time constant (s); > 0 makes U1..U4 first-order filtered actuators
+    (``dyntype="filter"``), 0 (the paper) ideal motors.
     """
     if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
         raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
@@ -148,6 +173,8 @@ def build_world(
     if yaws.shape != (n_drones,) or not np.isfinite(yaws).all():
         raise UserError(f"yaws must be a finite ({n_drones},) array, got {yaws.tolist()!r}")
     asset_path = Path(asset) if asset is not None else QUADROTOR_XML
+    if not (np.isfinite(motor_tau) and motor_tau >= 0):
+        raise UserError(f"motor_tau must be a time constant >= 0 s, got {motor_tau!r}")
     if torque_motors not in ("joint", "site"):
         raise UserError(f"torque_motors must be 'joint' or 'site', got {torque_motors!r}")
 
@@ -169,7 +196,12 @@ def build_world(
     arena.asset.add("material", name="grid", texture="grid", texrepeat=[1, 1], texuniform=True, reflectance=0.05)
     arena.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=[0.55, 0.7, 0.9],
                     rgb2=[0.95, 0.97, 1.0], width=256, height=256)
-    if floor:
+    if ground:
+        # A solid floor (aero presets with ground = true, docs/aero.md): it touches every drone geom
+        # (contype 1) and the landing legs (contype 2).
+        arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
+                            contype=2, conaffinity=3, group=0)
+    elif floor:
         # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
         # and a drone below the floor is reported as a divergence by the simulator.
         arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
@@ -180,7 +212,7 @@ def build_world(
     frames = []
     for k, name in enumerate(names):
         rgba = LEADER_RGBA if k == 0 else FOLLOWER_RGBA
-        drone = _drone_mjcf(name, params, rgba, asset_path)
+        drone = _drone_mjcf(name, params, rgba, asset_path, ground=ground, motor_tau=motor_tau)
         frame = arena.worldbody.attach(drone)
         frame.pos = positions[k]
         c, s = np.cos(yaws[k] / 2), np.sin(yaws[k] / 2)

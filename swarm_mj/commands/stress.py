@@ -45,6 +45,7 @@ class StressCase:
     sensing_range: float = 4.0
     trajectory: str = "circle"
     diameter: float = 1.0
+    aero: str = "paper"           # physics preset (docs/aero.md)
 
 
 def stress_scenario(case: StressCase):
@@ -58,7 +59,8 @@ def stress_scenario(case: StressCase):
                           "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
                                            "seed": case.seed}},
             "formation": {"diameter": case.diameter, "anti_collision": case.rule,
-                          "sensing_range": case.sensing_range}}
+                          "sensing_range": case.sensing_range},
+            "aero": {"model": case.aero}}
     return parse_scenario(data, "<stress>")
 
 
@@ -74,8 +76,13 @@ def fly_case(case: StressCase) -> dict:
             "min_separation_m": float(s["min_separation_m"]),
             "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
             "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
+<<<<<<< HEAD
             "stopped": s.get("stopped"), "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
             "time_in_jet_s": float(s.get("downwash_dip", {}).get("time_in_jet_s", 0.0))}
+=======
+            "stopped": s.get("stopped"), "crashes": int(s.get("crashes", 0)),
+            "ground_contacts": int(s.get("ground_contacts", 0))}
+>>>>>>> aero
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -95,7 +102,7 @@ def summarize_rule(rows: list[dict]) -> dict:
 
 def stress(rules: list[str], starts: int, followers: int, radius: float, min_spacing: float,
            duration: float, seed0: int = 0, workers: int | None = None,
-           sensing_range: float = 4.0) -> tuple[dict, list[dict]]:
+           sensing_range: float = 4.0, aero: str = "paper") -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows)."""
     from ..errors import UserError
     from ..scenario import RandomStart, check_random_start_feasible
@@ -109,7 +116,7 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
     if workers is not None and workers < 1:
         raise UserError("--workers must be at least 1")
     check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
-    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range)
+    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
              for rule in rules for k in range(starts)]
     workers = max(1, min(workers or os.cpu_count() or 1, len(cases)))
     if workers == 1:
@@ -151,6 +158,8 @@ def add_parser(sub) -> None:
                    help="how far each drone sees the others (m, default 4; the layered rule's speeds "
                         "are capped so that it can stop within it)")
     p.add_argument("--workers", type=int, default=None, help="processes (default: os.cpu_count())")
+    p.add_argument("--aero", choices=["paper", "realistic"],
+                   help="physics preset (default: paper; docs/aero.md)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.set_defaults(func=main)
 
@@ -158,7 +167,7 @@ def add_parser(sub) -> None:
 def main(args: argparse.Namespace) -> int:
     rules = list(dict.fromkeys(args.rule or ["clearance", "paper"]))
     table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
-                         args.seed0, args.workers, args.sensing_range)
+                         args.seed0, args.workers, args.sensing_range, aero=args.aero or "paper")
     print(format_table(table, args.followers))
     if args.json:
         from .run import write_json_atomic

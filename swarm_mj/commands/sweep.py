@@ -28,6 +28,8 @@ def add_parser(sub) -> None:
     p.add_argument("--json", metavar="PATH", help="write every run and the statistics as JSON")
     p.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration (s)")
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
+    p.add_argument("--aero", choices=["paper", "realistic"],
+                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=main)
 
@@ -49,6 +51,9 @@ def main(args: argparse.Namespace) -> int:
     if args.gains:
         from ..control.backstepping import load_gains
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
+    if args.aero:
+        from ..aero import with_aero
+        sc = with_aero(sc, args.aero)
     res = sweep(sc, args.seeds, param, values, workers=args.workers, ray_address=args.ray,
                 duration=args.duration, progress=None if args.quiet else progress_to_stderr)
     if args.json:

@@ -32,6 +32,8 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=["clearance", "layers", "paper", "off"], help="override the rule")
+    p.add_argument("--aero", choices=["paper", "realistic"],
+                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=main)
 
@@ -55,7 +57,7 @@ def main(args: argparse.Namespace) -> int:
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
-    result = run(sc, anti_collision=args.anti_collision, seed=args.seed,
+    result = run(sc, anti_collision=args.anti_collision, seed=args.seed, aero=args.aero,
                  progress=None if not args.quiet else False, duration=args.duration)
     if isinstance(result.error, KeyboardInterrupt):
         print("swarm-mj: interrupted", file=sys.stderr)

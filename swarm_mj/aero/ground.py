@@ -1,0 +1,119 @@
+"""The solid ground: landing legs, the rest height, and ground contacts and crashes (docs/aero.md).
+
+With ``ground`` on, :func:`swarm_mj.world.build_world` makes the floor (the plane z = 0)
+collide with every geom of every drone and gives each drone four landing legs that touch
+only the floor (never another drone: drone–drone contact geometry is the paper's). A start
+at z = 0 means "resting on the legs": the centre of mass is placed at :data:`REST_HEIGHT`.
+
+Counting (:class:`GroundContacts`, run after every physics step):
+
+* a drone has *taken off* once it is out of contact with the floor and its centre of mass
+  is more than :data:`TAKEOFF_CLEARANCE` above the rest height;
+* a *ground contact* is the first physics step of a contact with the floor after take-off
+  (a touchdown); a drone must take off again before its next one counts;
+* a *crash* is a ground contact whose touchdown speed (|v| of the centre of mass) is above
+  ``crash_speed`` (1 m/s), or during which the body tilts more than ``crash_tilt_deg``
+  (30°) from upright; at most one crash per contact.
+"""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+
+#: Landing legs: capsules from (x, y, LEG_TOP) to (x, y, LEG_BOTTOM) in the body frame, under
+#: the four arms, radius LEG_RADIUS (m).
+LEG_XY = ((0.12, 0.0), (0.0, 0.12), (-0.12, 0.0), (0.0, -0.12))
+LEG_TOP = -0.01
+LEG_BOTTOM = -0.06
+LEG_RADIUS = 0.006
+#: Height of the centre of mass of a level drone resting on its legs (m).
+REST_HEIGHT = -LEG_BOTTOM + LEG_RADIUS
+#: Clearance above the rest height that counts as having taken off (m).
+TAKEOFF_CLEARANCE = 0.05
+
+
+def rest_positions(positions: np.ndarray) -> np.ndarray:
+    """Start positions (n, 3) with every z below the rest height raised to it (z = 0: on the ground)."""
+    p = np.array(positions, dtype=float)
+    p[:, 2] = np.maximum(p[:, 2], REST_HEIGHT)
+    return p
+
+
+class GroundContacts:
+    """Monitor: counts touchdowns and crashes (module docstring). ``log`` holds one
+    ``(t, drone, speed m/s, tilt deg, crash)`` per ground contact, and one more (crash True)
+    when a drone tips over during a contact that began as a soft touchdown."""
+
+    name = "ground"
+
+    def __init__(self, crash_speed: float = 1.0, crash_tilt_deg: float = 30.0) -> None:
+        self.crash_speed = float(crash_speed)
+        self.crash_tilt_deg = float(crash_tilt_deg)
+        self._cos_tilt = math.cos(math.radians(self.crash_tilt_deg))
+
+    def reset(self, sim) -> None:
+        m = sim.model
+        self.floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+        self.geom_drone = sim.world.geom_drone
+        N = sim.pos.shape[0]
+        self.ground_contacts = 0
+        self.crashes = 0
+        self.log: list[tuple[float, int, float, float, bool]] = []
+        self.in_contact = self._contacts(sim)               # (N,) touching the floor now
+        self.airborne = np.zeros(N, dtype=bool)             # (N,) taken off since the last contact
+        self.episode = np.zeros(N, dtype=bool)              # (N,) in a counted contact
+        self.episode_crashed = np.zeros(N, dtype=bool)
+        self._all_airborne = False
+        self._any_contact = bool(self.in_contact.any())
+        self._takeoff_z = REST_HEIGHT + TAKEOFF_CLEARANCE
+
+    def _contacts(self, sim) -> np.ndarray:
+        d = sim.data
+        out = np.zeros(sim.pos.shape[0], dtype=bool)
+        nc = d.ncon
+        if nc and self.floor >= 0:
+            g = d.contact.geom[:nc]                          # (ncon, 2)
+            other = np.concatenate([g[g[:, 0] == self.floor, 1], g[g[:, 1] == self.floor, 0]])
+            ids = self.geom_drone[other]
+            out[ids[ids >= 0]] = True
+        return out
+
+    def _tilt_cos(self, sim, i: int) -> float:
+        q = sim.quat[i]
+        return float(1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]) / max(float(q @ q), 1e-300))
+
+    def after_step(self, sim) -> None:
+        if not self._all_airborne:
+            newly = ~self.airborne & ~self.in_contact & (sim.pos[:, 2] > self._takeoff_z)
+            if newly.any():
+                self.airborne |= newly
+                self._all_airborne = bool(self.airborne.all())
+        if sim.data.ncon == 0 and not self._any_contact:
+            return
+        contact = self._contacts(sim)
+        for i in np.flatnonzero(contact & ~self.in_contact & self.airborne).tolist():
+            speed = float(np.linalg.norm(sim.vel[i]))
+            tilt = math.degrees(math.acos(min(1.0, max(-1.0, self._tilt_cos(sim, i)))))
+            crash = speed > self.crash_speed or tilt > self.crash_tilt_deg
+            self.ground_contacts += 1
+            self.crashes += int(crash)
+            self.log.append((sim.time, i, speed, tilt, crash))
+            self.airborne[i] = False
+            self._all_airborne = False
+            self.episode[i] = True
+            self.episode_crashed[i] = crash
+        for i in np.flatnonzero(contact & self.episode & ~self.episode_crashed).tolist():
+            if self._tilt_cos(sim, i) < self._cos_tilt:          # tipped over while on the ground
+                self.crashes += 1
+                self.episode_crashed[i] = True
+                self.log.append((sim.time, i, float(np.linalg.norm(sim.vel[i])),
+                                 math.degrees(math.acos(max(-1.0, self._tilt_cos(sim, i)))), True))
+        ended = ~contact & self.episode
+        if ended.any():
+            self.episode &= ~ended
+            self.episode_crashed &= ~ended
+        self.in_contact = contact
+        self._any_contact = bool(contact.any())

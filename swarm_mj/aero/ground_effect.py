@@ -1,0 +1,94 @@
+"""Ground effect: Cheeseman–Bennett thrust gain of each rotor near the floor (docs/aero.md).
+
+Cheeseman & Bennett, "The effect of the ground on a helicopter rotor in forward flight",
+ARC R&M 3021 (1955), hover case (method of images):
+
+    T_IGE / T_OGE = 1 / (1 − (R / (4 z))²)
+
+with R the rotor radius and z the height of the rotor's centre above the floor (z = 0).
+The formula diverges at z = R/4; like peer simulators we clip the height, here at
+z ≥ R/2 (:data:`Z_CLIP_FRACTION`·R), which caps the gain at 4/3 (the largest gain measured
+for small propellers close to the ground is of that order). Each rotor k of each drone
+adds ΔF_k = (T_IGE/T_OGE − 1)·F_k along the drone's body z axis at the rotor's centre
+(force and torque at the centre of mass, world frame), F_k the produced rotor thrust.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from ._frames import body_axes, rotor_offset
+from .presets import ROTOR_PLANE_Z, ROTOR_RADIUS
+
+#: Heights below Z_CLIP_FRACTION · R are clipped to it (gain cap 1 / (1 − 1/4) = 4/3).
+Z_CLIP_FRACTION = 0.5
+
+
+def ground_effect_factor(z, rotor_radius: float = ROTOR_RADIUS, clip_fraction: float = Z_CLIP_FRACTION):
+    """T_IGE / T_OGE at rotor height z (m) above the floor: Cheeseman–Bennett with the height clipped."""
+    zc = np.maximum(np.asarray(z, float), clip_fraction * rotor_radius)
+    return 1.0 / (1.0 - (rotor_radius / (4.0 * zc)) ** 2)
+
+
+@jit
+def ground_effect_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, arm: float, rotor_z: float,
+                         rotor_r: float, z_clip: float, force: np.ndarray, torque: np.ndarray) -> None:
+    """Set force, torque (N, 3) to the ground-effect gain of every rotor of every drone.
+
+    pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) produced rotor thrusts F1..F4.
+    """
+    N = pos.shape[0]
+    axes = np.empty((3, 3))
+    off = np.empty(3)
+    for j in range(N):
+        body_axes(quat, j, axes)
+        fx = fy = fz = tx = ty = tz = 0.0
+        for k in range(4):
+            rotor_offset(axes, k, arm, rotor_z, off)
+            z = pos[j, 2] + off[2]
+            z = max(z, z_clip)
+            ratio = rotor_r / (4.0 * z)
+            dF = (1.0 / (1.0 - ratio * ratio) - 1.0) * rotor_thrust[j, k]
+            ax, ay, az = dF * axes[2, 0], dF * axes[2, 1], dF * axes[2, 2]
+            fx += ax
+            fy += ay
+            fz += az
+            tx += off[1] * az - off[2] * ay
+            ty += off[2] * ax - off[0] * az
+            tz += off[0] * ay - off[1] * ax
+        force[j, 0] = fx
+        force[j, 1] = fy
+        force[j, 2] = fz
+        torque[j, 0] = tx
+        torque[j, 1] = ty
+        torque[j, 2] = tz
+
+
+class GroundEffectStage:
+    """Force stage: Cheeseman–Bennett ground effect on every rotor (module docstring).
+
+    After each :meth:`apply`, ``force`` and ``torque`` (N, 3) hold what this stage added.
+    """
+
+    name = "ground_effect"
+
+    def __init__(self, rotor_radius: float = ROTOR_RADIUS, rotor_z: float = ROTOR_PLANE_Z,
+                 clip_fraction: float = Z_CLIP_FRACTION) -> None:
+        self.rotor_radius = float(rotor_radius)
+        self.rotor_z = float(rotor_z)
+        self.z_clip = float(clip_fraction) * self.rotor_radius
+        self.force = np.zeros((0, 3))
+        self.torque = np.zeros((0, 3))
+
+    def reset(self, sim) -> None:
+        N = sim.pos.shape[0]
+        self.arm = float(sim.params.L)
+        self.force = np.zeros((N, 3))
+        self.torque = np.zeros((N, 3))
+
+    def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
+        ground_effect_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.arm, self.rotor_z, self.rotor_radius,
+                             self.z_clip, self.force, self.torque)
+        force += self.force
+        torque += self.torque
