@@ -6,7 +6,8 @@ leader, at least ``--min-spacing`` apart (``scenario.random_follower_starts``, s
 are flown with every ``--rule``, in parallel over ``--workers`` processes, and for each rule
 this prints: starts flown, starts with any drone–drone contact (counted by MuJoCo), total
 contacts, runs that crashed (a drone knocked into the floor: the run stops there), the
-smallest 3D centre distance seen while every drone was airborne, and the median and worst
+crashes into the ground (``--aero realistic``: a touchdown too fast or too tilted, docs/aero.md),
+the smallest 3D centre distance seen while every drone was airborne, and the median and worst
 formation settling time (every leader distance within 5 cm of D; inf: never settled), and the
 worst altitude dip of a drone in another drone's jet (``downwash_dip_worst_m``, see
 ``metrics.downwash_dip``).
@@ -76,13 +77,10 @@ def fly_case(case: StressCase) -> dict:
             "min_separation_m": float(s["min_separation_m"]),
             "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
             "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
-<<<<<<< HEAD
-            "stopped": s.get("stopped"), "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
-            "time_in_jet_s": float(s.get("downwash_dip", {}).get("time_in_jet_s", 0.0))}
-=======
             "stopped": s.get("stopped"), "crashes": int(s.get("crashes", 0)),
-            "ground_contacts": int(s.get("ground_contacts", 0))}
->>>>>>> aero
+            "ground_contacts": int(s.get("ground_contacts", 0)),
+            "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
+            "time_in_jet_s": float(s.get("downwash_dip", {}).get("time_in_jet_s", 0.0))}
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -97,6 +95,8 @@ def summarize_rule(rows: list[dict]) -> dict:
             "downwash_dip_worst_m": max((r["downwash_dip_m"] for r in rows), default=0.0),
             "downwash_dip_worst_seed": max(rows, key=lambda r: r["downwash_dip_m"])["seed"] if rows else None,
             "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
+            "crashes": sum(r.get("crashes", 0) for r in rows),
+            "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
             "stopped": [r["seed"] for r in rows if r["stopped"]]}
 
 
@@ -130,13 +130,15 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
 
 def format_table(table: dict, followers: int) -> str:
     """The per-rule table as text."""
-    head = (f"{'rule':<8} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'min sep (m)':>11} "
-            f"{'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}   ({followers} followers)")
+    head = (f"{'rule':<9} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
+            f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}"
+            f"   ({followers} followers)")
     lines = [head]
     for rule, r in table.items():
-        lines.append(f"{rule:<8} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
-                     f"{len(r['stopped']):>7} {r['min_separation_airborne_m']:>11.3f} "
-                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} {r['downwash_dip_worst_m']:>8.3f}")
+        lines.append(f"{rule:<9} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
+                     f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
+                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
+                     f"{r['downwash_dip_worst_m']:>8.3f}")
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
             lines.append(f"         seeds with contact: {', '.join(map(str, seeds[:20]))}"
