@@ -14,6 +14,34 @@ from .params import DEFAULT_PARAMS, QuadParams
 from .scenario import Scenario
 
 
+class DownwashFeedforward:
+    """The downwash force (n, 3) each drone is predicted to feel from the jets of the others
+    (docs/aero.md's turbulent-jet model, Bauersfeld et al. 2024, who compensate it the same way:
+    their §VI), from the drones' positions, attitudes and thrust commands. The controller adds it
+    to the external force it already compensates (the wind feedforward of eqs. 23–24)."""
+
+    def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
+        from .aero.downwash import DownwashStage
+
+        self.n = n
+        self.params = params
+        self._stage = DownwashStage()
+        self.force = np.zeros((n, 3))           # (n, 3) the last prediction
+        self._torque = np.zeros((n, 3))
+        self._rotor = np.zeros((n, 4))
+
+    def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
+        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
+        from .aero.downwash import downwash_kernel
+
+        st = self._stage
+        self._rotor[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
+        downwash_kernel(np.ascontiguousarray(pos, dtype=np.float64), np.ascontiguousarray(quat, dtype=np.float64),
+                        self._rotor, self.n, self.params.L, st.rho, st.rotor_radius, st.half_cda, st.rotor_radius,
+                        self.force, self._torque)
+        return self.force
+
+
 class BacksteppingPolicy:
     """Backstepping (eqs. 17–24) on formation setpoints adjusted by the anti-collision rule."""
 
@@ -27,11 +55,16 @@ class BacksteppingPolicy:
         self.rule = make_rule(anti_collision or sc.anti_collision, self.n,
                               **{"sensing_range": sc.sensing_range, **sc.anti_collision_params})
         self.pos_d = np.zeros((self.n, 3))    # (n, 3) last commanded position (after anti-collision)
+        # the rule may ask the controller to compensate the downwash, when the physics has one
+        self.downwash_ff = (DownwashFeedforward(self.n, params) if self.n > 1 and self.rule.downwash_feedforward
+                            and sc.aero.downwash and sc.wind_feedforward else None)
         self._started = False
+        self._ff_started = False
 
     def reset(self) -> None:
         self.controller.reset()
         self._started = False
+        self._ff_started = False
 
     @property
     def events(self) -> list[dict]:
@@ -48,6 +81,12 @@ class BacksteppingPolicy:
             pos_d, vel_d, acc_d = self.rule.references(float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d,
                                                        float(obs["leader_pos"][2]))
         self.pos_d = pos_d
+        ext = obs["wind_force"]
+        if self.downwash_ff is not None:
+            U = self.controller.U if self._ff_started else None
+            thrust = U[:, 0] if U is not None else np.full(self.n, self.controller.params.m * self.controller.params.g)
+            ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
+            self._ff_started = True
         return self.controller.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
-                                       obs["setpoint_yaw"], wind_force=obs["wind_force"],
+                                       obs["setpoint_yaw"], wind_force=ext,
                                        omega_body=obs["body_rates"])

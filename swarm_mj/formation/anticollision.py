@@ -37,6 +37,10 @@ from ..kernels import (advance_altitude_kernel, advance_paths_kernel, formed_ste
 class _Rule:
     """What every rule shares: :meth:`references` from the rule's own ``update``."""
 
+    #: whether the controller is to compensate the downwash of the other drones (when the physics has
+    #: one; see :class:`~swarm_mj.policy.DownwashFeedforward`)
+    downwash_feedforward = False
+
     def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
                    acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
@@ -465,94 +469,112 @@ class LayeredRule(PaperRule):
 
 
 
-TRANSIT = CROSS     # the clearance rule's one phase between the ground and the slot
-
-
-def jet_clearance(dz: np.ndarray, safety: float, margin: float) -> np.ndarray:
-    """Horizontal distance (m) two drones keep at a vertical separation |dz| (m): the paper's D̄ when
-    level, and beyond the edge of the upper drone's jet (metrics.in_jet: r0 + spread·|dz|, plus the
-    lower drone's rotor span) by ``margin`` when not, so that neither sits in the other's jet."""
+def jet_clearance(dz: np.ndarray, margin: float = 0.0) -> np.ndarray:
+    """Horizontal centre distance (m) at which a drone |dz| m below another (either way round) is
+    clear of the upper one's jet: the jet's edge at that depth plus the lower drone's rotor span
+    (:func:`swarm_mj.metrics.in_jet`, the turbulent jet of Bauersfeld et al.), plus ``margin``."""
     from ..metrics import DRONE_RADIUS_M, JET_R0_M, JET_REACH_M, JET_SPREAD
 
-    dz = np.abs(dz)
-    edge = JET_R0_M + JET_SPREAD * np.minimum(dz, JET_REACH_M) + DRONE_RADIUS_M + margin
-    return np.maximum(safety, edge)
+    return JET_R0_M + JET_SPREAD * np.minimum(np.abs(dz), JET_REACH_M) + DRONE_RADIUS_M + margin
+
+
+LEVEL_M = 0.15   # below this vertical separation two drones are level: the jet starts one rotor radius down
 
 
 class ClearanceRule(LayeredRule):
-    """The default (``anti_collision = "clearance"``): downwash-aware anti-collision. The drones
-    form up level with the leader and keep out of each other's jets horizontally.
+    """The default (``anti_collision = "clearance"``): downwash-aware anti-collision — the swarm
+    forms up level, and the followers keep apart horizontally.
 
-    **Why** (issue 15, measured with ``swarm-mj stress --aero realistic``): the layered rule
-    (``layers``) keeps drones apart by stacking them — a follower crossing on its layer passes
-    straight over the drones below — and under the turbulent-jet downwash of Bauersfeld et al.
-    (``--aero realistic``) the drone below loses altitude (the report's downwash dip). Altitude
-    separation is what puts a drone in another's jet; horizontal separation is what keeps it out.
+    **Why** (issue 15; measured with ``swarm-mj stress --aero realistic``, docs/interpretations.md):
+    the layered rule (``layers``) keeps drones apart by stacking them — a follower crossing on its
+    layer passes straight over the drones below, and the leader flies under followers on their
+    layers — and under the turbulent-jet downwash of Bauersfeld et al. (RA-L 2024,
+    ``--aero realistic``) the drone below drops (a worst dip of 2.6 m over 20 starts), into the
+    ground (crashes) or into another drone. The jet's push is still a tenth of a drone's weight
+    6 m down: no altitude separation is enough. Two level drones do not feel each other's jets,
+    and drones kept apart horizontally by the jet's width do not either.
 
-    **What is the paper's** (Fig. 5, §4): each follower flies to its (x, y) slot, built from the
-    leader's position; the safety distance D̄ = 0.8 m, now kept horizontally between level
-    drones; the priority of Fig. 5 (the higher index gives way, every follower gives way to the
-    leader, which gives way to nobody); decentralised information (the leader's position and
-    the drones within ``sensing_range``); once formed, the printed reactive rule (an altitude
-    hop of ``hop``) — but only as a last resort, see 4.
+    **What is the paper's** (Fig. 5, §4, decentralised): each follower flies to its (x, y) slot,
+    built from the leader's position, at the leader's altitude; the safety distance D̄ = 0.8 m,
+    here the horizontal distance level drones keep while they form up; the priority of Fig. 5
+    (the higher index gives way, every follower gives way to the leader, which gives way to
+    nobody); once formed, the printed reactive rule (:class:`PaperRule`: a ``hop`` of 0.4 m inside
+    D̄) among formed drones and the leader — in a formation the slots keep neighbours at least D̄
+    apart, or closer slots put the hopping drone's jet on the other's rotor tips only.
 
-    **What is ours**, per follower, each decision from the leader's position and the drones
-    within ``sensing_range`` (3D), velocities estimated from successive positions:
+    **What is ours**, per follower, every decision from its own state, the leader's position (its
+    slot and the formation altitude) and the drones within ``sensing_range`` (3D; velocities and
+    accelerations estimated from successive positions; the other followers' slots follow from the
+    leader's position and their indices):
 
-    1. *take off* in place and fly at the formation altitude (the leader's), all followers on
-       the same limited altitude path, so that the swarm stays level and no drone is ever
-       below another: no layers.
+    1. *take off* — all followers climb in place on the same limited altitude path
+       (:meth:`LayeredRule._advance_altitude`) to the formation altitude, so the swarm stays level:
+       no layers. One still below ``takeoff_height`` stays on the ground while a drone is, or is
+       predicted over ``horizon`` s to be, above it within the clearance (the leader setting off
+       overhead), unless that drone is formed and hovering (it would wait for ever).
     2. *transit* — above ``takeoff_height`` it flies to its slot along the layered rule's limited
-       horizontal path, whose velocity is picked each step among candidates (the preferred one
-       towards the slot, the same turned by up to ±90°, slower, every direction, zero) as the one
-       nearest the preferred velocity whose straight-line prediction over ``vo_horizon`` s keeps
-       every drone it gives way to (the leader, lower indices, formed drones) outside the
-       horizontal clearance :func:`jet_clearance` — D̄ when level, the jet's edge plus
-       ``jet_margin`` when not (a velocity-obstacle choice; it detours, waits, or gets out of
-       the way of a drone with the right of way). Towards a formed drone or the leader the
-       clearance is capped just short of the distance between the slots, so that neighbouring
-       slots closer than D̄ (eight followers at D = 1 m: 0.77 m) stay reachable.
-    3. *formed* — within ``arrive`` of its slot and near the formation altitude.
-    4. among formed drones the paper's reactive rule with the hop, but triggered only inside
-       ``formed_safety`` (0.6 m, 0.1 m beyond the 0.5 m at which two level drones touch), not
-       D̄: a hop puts one drone in the other's jet, so a formed drone keeps level with a
-       neighbour that is closer than D̄ but cannot touch it (``anti_collision``'s D = 0.75 m).
+       horizontal path (speed, acceleration, tilt and jerk limits), whose velocity is chosen every
+       step by sampling (reciprocal velocity obstacles, van den Berg et al. 2008): among candidates
+       — the preferred velocity towards the slot, the same turned by up to ±90° or slowed, 16
+       directions at two speeds, zero — the one that minimises the distance to the preferred
+       velocity plus, for every drone it sees, ``avoid_weight`` / (time until the two come within
+       the clearance), predicted along straight lines (the others' velocities looked ``reaction``
+       s ahead along their accelerations: the leader sets off at full tilt). The clearance is D̄
+       between level drones, and :func:`jet_clearance` + ``jet_margin`` (the jet's edge at that
+       depth) between drones that are not; ten times as firmly, ``pass_distance`` (0.1 m beyond
+       the 0.5 m at which level drones touch) or the jet's edge. It counts drones it gives way to
+       fully and the others at ``courtesy`` (a faster drone with the right of way would otherwise
+       run into one that cannot get out of its way in time). Towards a formed drone or the leader
+       the clearance is capped just short of the distance between the slots (eight followers at
+       D = 1 m are 0.77 m apart).
+    3. *formed* — within ``arrive`` of its slot and within ``level_tolerance`` of the formation
+       altitude, it joins the formation (the paper's rule above).
     """
 
     name = "clearance"
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 arrive: float = 0.2, formed_safety: float = 0.6, jet_margin: float = 0.1,
-                 vo_horizon: float = 1.5, takeoff_height: float = 0.3, level_tolerance: float = 0.3,
-                 reaction: float = 0.3, courtesy: float = 0.5, **kw: float) -> None:
+                 arrive: float = 0.2, pass_distance: float = 0.6, jet_margin: float = 0.1,
+                 vo_horizon: float = 2.0, takeoff_height: float = 0.3, level_tolerance: float = 0.3,
+                 reaction: float = 0.3, courtesy: float = 0.5, avoid_weight: float = 1.0, **kw: float) -> None:
         super().__init__(n, safety_distance, hop, hysteresis, arrive=arrive, **kw)
-        self.transit_safety = float(safety_distance)
-        self.safety = float(formed_safety)          # the reactive rule among formed drones (4.)
+        self.pass_distance = float(pass_distance)
         self.jet_margin = float(jet_margin)
         self.vo_horizon = float(vo_horizon)
         self.takeoff_height = float(takeoff_height)
         self.level_tol = float(level_tolerance)
         self.reaction = float(reaction)
         self.courtesy = float(courtesy)
-        ang = np.radians([0.0, 30.0, -30.0, 60.0, -60.0, 90.0, -90.0])
-        self._turns = np.stack([np.cos(ang), np.sin(ang)], axis=1)                       # (7, 2)
+        self.avoid_weight = float(avoid_weight)
+        ang = np.radians([0.0, 15.0, -15.0, 30.0, -30.0, 45.0, -45.0, 60.0, -60.0, 90.0, -90.0])
+        self._turns = np.stack([np.cos(ang), np.sin(ang)], axis=1)                       # (11, 2)
         th = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
         dirs = np.stack([np.cos(th), np.sin(th)], axis=1)                                # (16, 2)
-        self._fixed = np.concatenate([dirs * self.v_max, dirs * 0.5 * self.v_max, dirs * 0.2 * self.v_max,
-                                      np.zeros((1, 2))])                                   # (49, 2)
+        self._fixed = np.concatenate([dirs * self.v_max, dirs * 0.4 * self.v_max, np.zeros((1, 2))])   # (33, 2)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
-        self.phase[1:] = TRANSIT
-        self.layer_index[:] = 0.0
-        self.v_sel = np.zeros((self.n, 2))           # (n, 2) velocity picked last step
+        self.layer_index[:] = 0.0                    # no layers: everyone at the formation altitude
+        self.v_sel = np.zeros((self.n, 2))           # (n, 2) velocity chosen last step
         self.acc = np.zeros((self.n, 2))             # (n, 2) horizontal accelerations, estimated and filtered
-        self._prev_vel = np.zeros((self.n, 2))
+        self._prev_vel = np.zeros((self.n, 2))       # (n, 2)
+        self.v_pred = np.zeros((self.n, 2))          # (n, 2) predicted horizontal velocities
         self.detour = np.zeros(self.n, dtype=bool)   # (n,) flying another velocity than the preferred one
+        self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground
+
+    def clearances(self, dz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(soft, hard) horizontal clearances (m) at vertical separations dz (any shape): D̄ and
+        ``pass_distance`` when level, the jet's edge + ``jet_margin`` and the jet's edge when not
+        (blended linearly over the first ``LEVEL_M``)."""
+        x = np.clip(np.abs(dz) / LEVEL_M, 0.0, 1.0)
+        edge = jet_clearance(dz)
+        soft = self.safety + x * np.maximum(edge + self.jet_margin - self.safety, 0.0)
+        hard = self.pass_distance + x * np.maximum(edge - self.pass_distance, 0.0)
+        return soft, hard
 
     def _preferred(self, goal: np.ndarray, goal_vel: np.ndarray) -> np.ndarray:
-        """(n, 2) the velocity the limited path would take towards goal (n, 2) moving at goal_vel
-        (n, 2): the braking profile of :func:`~swarm_mj.kernels.advance_paths_kernel`."""
+        """(n, 2) the velocity the limited path takes towards goal (n, 2) moving at goal_vel (n, 2)
+        (the braking profile of :func:`~swarm_mj.kernels.advance_paths_kernel`)."""
         lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
         e = goal - self.path_p
         dist = _rownorm(e)
@@ -560,121 +582,134 @@ class ClearanceRule(LayeredRule):
         speed = np.minimum(np.minimum(self.v_max, np.sqrt(1.6 * self.a_max * e_eff)), 3.0 * dist)
         return _clip_norm(goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None], self.v_max)
 
-    def _pick(self, movers: np.ndarray, positions: np.ndarray, v_pref: np.ndarray, avoid: np.ndarray,
-              radius: np.ndarray) -> np.ndarray:
-        """(m, 2) the velocity of each drone in ``movers`` (m,) nearest its preferred one whose
-        prediction keeps the drones it avoids (``avoid`` (m, n)) outside ``radius`` (m, n)."""
+    @staticmethod
+    def _time_to_enter(d: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
+        """Time (s) until |d + w·t| first drops below r: d (m, 1, n, 2), w (m, c, n, 2), r (m, 1, n);
+        0 if already inside and closing, +inf if never (or inside and not closing)."""
+        a = np.einsum("mcnk,mcnk->mcn", w, w)
+        b = np.einsum("mcnk,mcnk->mcn", np.broadcast_to(d, w.shape), w)
+        c = np.einsum("mcnk,mcnk->mcn", d, d) - r * r
+        disc = b * b - a * c
+        t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-12)
+        out = np.where((b < 0.0) & (disc > 0.0) & (t >= 0.0), t, np.inf)
+        return np.where(c <= 0.0, np.where(b < 0.0, 0.0, np.inf), out)
+
+    def _choose(self, movers: np.ndarray, positions: np.ndarray, v_pref: np.ndarray, weight: np.ndarray,
+                soft: np.ndarray, hard: np.ndarray) -> np.ndarray:
+        """(m, 2) the velocity chosen for each of ``movers`` (m,): see the class docstring, 2."""
         vp = v_pref[movers]                                                          # (m, 2)
         c, s_ = self._turns[:, 0], self._turns[:, 1]
         turned = np.stack([vp[:, None, 0] * c - vp[:, None, 1] * s_, vp[:, None, 0] * s_ + vp[:, None, 1] * c],
-                          axis=2)                                                     # (m, 7, 2)
-        cand = np.concatenate([turned, 0.5 * vp[:, None, :], self.v_sel[movers][:, None, :],
+                          axis=2)                                                     # (m, 11, 2)
+        cand = np.concatenate([turned, 0.6 * turned, 0.3 * vp[:, None, :], self.v_sel[movers][:, None, :],
                                np.broadcast_to(self._fixed, (len(movers), *self._fixed.shape))], axis=1)
-        d = positions[None, :, :2] - positions[movers][:, None, :2]                 # (m, n, 2) p_j − p_i
-        w = self._v_pred[None, None, :, :] - cand[:, :, None, :]                    # (m, c, n, 2)
-        ww = np.einsum("mcnk,mcnk->mcn", w, w)
-        tc = np.clip(-np.einsum("mnk,mcnk->mcn", d, w) / np.maximum(ww, 1e-9), 0.2, self.vo_horizon)
-        gap = d[:, None, :, :] + tc[..., None] * w
-        dmin = np.sqrt(np.einsum("mcnk,mcnk->mcn", gap, gap))                        # (m, c, n)
-        now = _rownorm(d.reshape(-1, 2)).reshape(d.shape[:2])                        # (m, n)
-        dmin = np.minimum(dmin, np.where(now[:, None, :] < radius[:, None, :], np.inf, now[:, None, :]))
-        short = avoid[:, None, :] * np.maximum(radius[:, None, :] - dmin, 0.0)
-        pen = (short * (1.0 / (tc + 0.3))).sum(axis=2)                              # (m, c)
-        cost = np.einsum("mck,mck->mc", cand - vp[:, None, :], cand - vp[:, None, :]) \
-            + 0.2 * np.einsum("mck,mck->mc", cand - self.v_sel[movers][:, None, :],
-                              cand - self.v_sel[movers][:, None, :]) + 200.0 * pen
-        best = np.argmin(cost, axis=1)
-        return cand[np.arange(len(movers)), best]
+        d = (positions[None, :, :2] - positions[movers][:, None, :2])[:, None]       # (m, 1, n, 2) p_j − p_i
+        w = self.v_pred[None, None, :, :] - cand[:, :, None, :]                     # (m, c, n, 2)
+        t_soft = self._time_to_enter(d, w, soft[:, None, :])
+        t_hard = self._time_to_enter(d, w, hard[:, None, :])
+        pen = np.where(t_soft < self.vo_horizon, 1.0 / np.maximum(t_soft, 0.05), 0.0) \
+            + 10.0 * np.where(t_hard < self.vo_horizon, 1.0 / np.maximum(t_hard, 0.05), 0.0)
+        cost = _rownorm((cand - vp[:, None, :]).reshape(-1, 2)).reshape(cand.shape[:2]) \
+            + 0.2 * _rownorm((cand - self.v_sel[movers][:, None, :]).reshape(-1, 2)).reshape(cand.shape[:2]) \
+            + self.avoid_weight * np.einsum("mcn,mn->mc", pen, weight)
+        return cand[np.arange(len(movers)), np.argmin(cost, axis=1)]
 
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Take off and transit level (ours), formed drones: Fig. 5 inside ``formed_safety``."""
+        """Take off and transit level, keeping clear (ours); formed drones: Fig. 5."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
             np.subtract(positions, self._prev_pos, out=self.vel)
             self.vel /= dt
+            a_raw = (self.vel[:, :2] - self._prev_vel) / dt                          # filtered over 0.05 s
+            self.acc += min(1.0, dt / 0.05) * (a_raw - self.acc)
+            self._prev_vel[:] = self.vel[:, :2]
+        self.v_pred = _clip_norm(self.vel[:, :2] + self.reaction * self.acc, 6.0)
         self._prev_t = float(t)
         self._prev_pos[:] = positions
         if self._all_formed:
             return self._update_formed(t, positions, pos_d, formation_alt, dt)
         n = self.n
-        if dt > 0.0:   # horizontal accelerations (first-order filter, 0.05 s) for the prediction
-            a_raw = (self.vel[:, :2] - self._prev_vel) / dt
-            self.acc += min(1.0, dt / 0.05) * (a_raw - self.acc)
-            self._prev_vel[:] = self.vel[:, :2]
-        # the velocity each drone is predicted to keep: the estimate a reaction time ahead
-        self._v_pred = _clip_norm(self.vel[:, :2] + self.reaction * self.acc, 6.0)          # (n, 2)
         z = positions[:, 2]
+        dz = z[None, :] - z[:, None]                                                # (n, n) z_j − z_i
+        soft, hard = self.clearances(dz)                                            # (n, n)
         pos_d = pos_d.copy()
         steer = self._followers.copy()
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
         lead_v = self.vel[0]
-        goal = pos_d[:, :2].copy()                                                  # (n, 2) slots
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()
-        transit = self.phase == TRANSIT                                             # (n,)
-        grounded = transit & (z < self.takeoff_height)
-        goal[grounded] = self.start_xy[grounded]
-        goal_vel[grounded] = 0.0
-        v_pref = self._preferred(goal, goal_vel)                                    # (n, 2)
-        v_pref[grounded] = 0.0
-        # take-off: a follower below takeoff_height stays on the ground while a drone it gives way to
-        # is, or is predicted within vo_horizon to be, inside the clearance over its start
         idx = np.arange(n)
+        rel = positions[None, :, :] - positions[:, None, :]
+        seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2          # (n, n)
+        seen[:, 0] = True
+        np.fill_diagonal(seen, False)
         formed = self.phase == FORMED
-        hold_ground = np.zeros(n, dtype=bool)
-        for i in np.flatnonzero(grounded):
-            others = (idx < i) | formed
-            others[i] = False
-            d = positions[others, :2] - positions[i, :2]                              # (k, 2)
-            w = self._v_pred[others]
-            tc = np.clip(-np.einsum("kc,kc->k", d, w) / np.maximum(np.einsum("kc,kc->k", w, w), 1e-9),
-                         0.0, self.vo_horizon)
-            dmin = _rownorm(d + tc[:, None] * w)
-            rad = jet_clearance(positions[others, 2] - z[i], self.transit_safety, self.jet_margin)
-            near = dmin < rad
-            if near.any():
-                hold_ground[i] = True
-        movers = np.flatnonzero(transit & ~grounded)
+        slow = _rownorm(self.vel[:, :2]) < 0.5
+        slots = pos_d[:, :2]
+        slot_gap = _rownorm((slots[None, :, :] - slots[:, None, :]).reshape(-1, 2)).reshape(n, n)
+        settled = formed[None, :] | (idx[None, :] == 0)
+        soft = np.where(settled, np.minimum(soft, slot_gap - 0.05), soft)
+        hard = np.where(settled, np.minimum(hard, slot_gap - 0.1), hard)
+
+        # 1. take off, unless a drone is (or will be) overhead within the clearance
+        ground = (self.phase == CLIMB) & (z < self.takeoff_height)
+        if ground.any():
+            d = positions[None, :, :2] - positions[:, None, :2]
+            dv = self.v_pred[None, :, :]
+            tc = np.clip(-np.einsum("ijk,ijk->ij", d, np.broadcast_to(dv, d.shape))
+                         / np.maximum(np.einsum("jk,jk->j", self.v_pred, self.v_pred), 1e-9)[None, :],
+                         0.0, self.horizon)
+            m = d + tc[:, :, None] * dv
+            soon = np.sqrt(np.einsum("ijk,ijk->ij", m, m))                           # (n, n) j's pass over i's start
+            over = seen & (soon < soft) & (dz > 0.05) & ~(formed & slow)[None, :]
+            hold = ground & over.any(axis=1)
+        else:
+            hold = np.zeros(n, dtype=bool)
+        for i in np.flatnonzero(hold & ~self.holding):
+            self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(over[i])), "action": "hold"})
+        self.holding = hold
+        up = (self.phase == CLIMB) & (z >= self.takeoff_height)
+        self.phase[up] = CROSS
+
+        # 2. transit: the velocity of the limited path, chosen clear of the others
+        goal = slots.copy()
+        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()
+        climbing = self.phase == CLIMB
+        goal[climbing] = self.start_xy[climbing]
+        goal_vel[climbing] = 0.0
+        v_pref = self._preferred(goal, goal_vel)
         v_cmd = v_pref.copy()
+        v_cmd[climbing] = 0.0
+        movers = np.flatnonzero(self.phase == CROSS)
         if len(movers):
-            rel = positions[None, :, :] - positions[movers][:, None, :]             # (m, n, 3)
-            seen = np.einsum("mnk,mnk->mn", rel, rel) < self.sensing_range ** 2
-            seen[:, 0] = True
-            # every drone it sees, those it gives way to (the leader, lower indices, formed drones)
-            # with full weight, the others with ``courtesy`` (a faster drone with the right of way
-            # would otherwise run into one that cannot get out of its way in time)
             gives_way = (idx[None, :] < movers[:, None]) | formed[None, :]
-            avoid = np.where(seen & (idx[None, :] != movers[:, None]), np.where(gives_way, 1.0, self.courtesy), 0.0)
-            radius = jet_clearance(rel[:, :, 2], self.transit_safety, self.jet_margin)  # (m, n)
-            slot_gap = _rownorm((goal[None, :, :] - pos_d[movers][:, None, :2]).reshape(-1, 2)).reshape(radius.shape)
-            settled = formed[None, :] | (idx[None, :] == 0)
-            radius = np.where(settled, np.minimum(radius, slot_gap - 0.05), radius)
-            v_cmd[movers] = self._pick(movers, positions, v_pref, avoid, radius)
-            off = np.linalg.norm(v_cmd[movers] - v_pref[movers], axis=1) > 0.05
+            weight = np.where(seen[movers], np.where(gives_way, 1.0, self.courtesy), 0.0)
+            v_cmd[movers] = self._choose(movers, positions, v_pref, weight, soft[movers], hard[movers])
+            off = _rownorm(v_cmd[movers] - v_pref[movers]) > 0.05
             for i, o in zip(movers, off):
                 if o and not self.detour[i]:
                     self.events.append({"t": t, "drone": int(i), "other": -1, "action": "detour"})
                 self.detour[i] = o
         self.v_sel[:] = v_cmd
-        # formed: within arrive of the slot, near the formation altitude
-        there = transit & ~grounded & (_rownorm(positions[:, :2] - goal) < self.arrive) \
+
+        # 3. formed: at the slot, level with the formation
+        there = (self.phase == CROSS) & (_rownorm(positions[:, :2] - goal) < self.arrive) \
             & (_rownorm(self.path_p - goal) < self.arrive) & (np.abs(z - formation_alt) < self.level_tol)
         for i in np.flatnonzero(there):
             self.phase[i] = FORMED
             self.detour[i] = False
             self.events.append({"t": t, "drone": int(i), "other": -1, "action": "formed"})
         formed = self.phase == FORMED
-        h = _horizontal_distances(positions)
-        self._react(t, positions, h, formed)
-        # paths: transit drones track the picked velocity, formed ones their slot
-        path_goal = np.where(formed[:, None], goal, self.path_p)
-        path_vel = np.where(formed[:, None], goal_vel, v_cmd)
-        self.blocked[:] = False
-        self._advance_paths(dt, path_goal, path_vel)
+        self._react(t, positions, _horizontal_distances(positions), formed)
+        formed[0] = False
+
+        # paths: drones in transit fly the chosen velocity, the others their start or slot
+        fly = self.phase == CROSS
+        self._advance_paths(dt, np.where(fly[:, None], self.path_p, goal), np.where(fly[:, None], v_cmd, goal_vel))
         z_target = formation_alt + np.where(formed, self.offset, 0.0)
-        z_target[hold_ground] = np.minimum(z_target[hold_ground], 0.0)
-        self._advance_altitude(dt, z_target, np.full(n, float(lead_v[2])))
+        z_target[hold] = 0.0
+        z_vel = np.where(hold, 0.0, float(lead_v[2]))
+        self._advance_altitude(dt, z_target, z_vel)
         pos_d[1:, :2] = self.path_p[1:]
         self.vel_d[1:, :2] = self.path_v[1:]
         self.acc_d[1:, :2] = self.path_a[1:]
@@ -683,8 +718,6 @@ class ClearanceRule(LayeredRule):
         self.acc_d[1:, 2] = self.za[1:]
         self._all_formed = bool((self.phase == FORMED).all())
         return pos_d, steer
-
-
 
 
 def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, pos_d: np.ndarray,
@@ -708,7 +741,12 @@ def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, po
 LayeredRule._update_formed = _update_formed_impl
 
 
-ANTI_COLLISION_RULES = {"clearance": ClearanceRule, "layers": LayeredRule, "paper": PaperRule, "off": NoRule}
+class LayersFF(LayeredRule):
+    name = "layersff"
+    downwash_feedforward = True
+
+
+ANTI_COLLISION_RULES = {"layersff": LayersFF, "clearance": ClearanceRule, "layers": LayeredRule, "paper": PaperRule, "off": NoRule}
 AntiCollision = ClearanceRule | LayeredRule | PaperRule | NoRule
 
 
