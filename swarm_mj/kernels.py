@@ -258,7 +258,8 @@ def warm_up() -> float:
 
     quat = np.zeros((n, 4))
     quat[:, 0] = 1.0
-    downwash_kernel(pos, quat, np.ones((n, 4)), n, 0.25, 1.225, 0.09, 0.01, 0.09, np.zeros((n, 3)), np.zeros((n, 3)))
+    downwash_kernel(pos, quat, np.ones((n, 4)), n, 0.25, 1.225, 0.09, 0.01, 0.01, 0.09, np.zeros((n, 3)),
+                    np.zeros((n, 3)))
     ground_effect_kernel(pos, quat, np.ones((n, 4)), 0.25, 0.02, 0.09, 0.045, np.zeros((n, 3)), np.zeros((n, 3)))
     return time.perf_counter() - t0
 

@@ -11,7 +11,11 @@ Entities, on the ``sim_time`` timeline:
 * ``plots/error/<name>``: position errors (x, y, z); ``plots/U/<name>``: U1..U4;
   ``plots/rotors/<name>``: F1..F4; ``plots/distance/leader/<follower>`` and
   ``plots/distance/followers/<fi>_<fj>`` (paper Fig. 14); ``plots/wind/speed`` and
-  ``plots/wind/force`` (x, y); ``plots/anti_collision`` events as text.
+  ``plots/wind/force`` (x, y); ``plots/anti_collision`` events as text;
+* with an aero preset that adds them (docs/aero.md): ``plots/aero/downwash/<name>`` and
+  ``plots/aero/ground_effect/<name>`` (force x, y, z in N) and each drone's jet drawn under it
+  (``world/drones/<name>/jet``: a frustum along the body's −z axis whose size follows the
+  thrust, 1 m deep and as wide as the jet's half-width at hover thrust).
 
 The file is written to ``<path>.partial`` and renamed when complete, so an existing
 recording is never left half-written.
@@ -32,8 +36,8 @@ LEADER_COLOR = [220, 40, 40]
 FOLLOWER_COLOR = [40, 110, 220]
 
 
-def blueprint(names: list[str]) -> rrb.Blueprint:
-    """3D view beside the plots, so the file opens ready to read."""
+def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
+    """3D view beside the plots, so the file opens ready to read (``aero``: a tab of aerodynamic forces)."""
     trail = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
                                  end=rrb.TimeRangeBoundary.cursor_relative())
     return rrb.Blueprint(
@@ -47,6 +51,7 @@ def blueprint(names: list[str]) -> rrb.Blueprint:
                     rrb.TimeSeriesView(origin="/plots/rotors", name="rotor thrusts (N)"),
                     rrb.TimeSeriesView(origin="/plots/wind", name="wind"),
                     rrb.TextLogView(origin="/plots/anti_collision", name="anti-collision"),
+                    *([rrb.TimeSeriesView(origin="/plots/aero", name="downwash / ground effect (N)")] if aero else []),
                 ),
             ),
             column_shares=[3, 2],
@@ -85,7 +90,7 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
     rec = rr.RecordingStream("swarm-mj", recording_id=f"{result.scenario.name}-{os.getpid()}")
     try:
         with rec:
-            rr.save(tmp, default_blueprint=blueprint(names))
+            rr.save(tmp, default_blueprint=blueprint(names, aero=_has_aero(result)))
             if spawn:
                 rr.spawn(connect=True)
             _log_run(result, names, L, safety_distance)
@@ -145,6 +150,8 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
                      [f"{names[a]}-{names[b]}"])
     _scalars("/plots/wind/speed", times, log.wind_speed[:, :2], ["Vx (m/s)", "Vy (m/s)"])
     _scalars("/plots/wind/force", times, log.wind_force[:, 0, :2], ["Fx (N)", "Fy (N)"])
+    if _has_aero(result):
+        _log_aero(result, names, times)
     for ev in result.events:
         rr.set_time("sim_time", duration=ev["t"])
         other = names[ev["other"]] if ev["other"] >= 0 else ""
@@ -153,3 +160,42 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
         rr.set_time("sim_time", duration=tc)
         rr.log("/plots/anti_collision", rr.TextLog(f"CONTACT {names[a]} - {names[b]}",
                                                      level=rr.TextLogLevel.ERROR))
+
+
+def _has_aero(result) -> bool:
+    """True when the run's physics preset added downwash or ground effect (docs/aero.md)."""
+    aero = result.summary.get("aero") if isinstance(getattr(result, "summary", None), dict) else None
+    return bool(aero and (aero.get("downwash") or aero.get("ground_effect"))
+                and getattr(result.log, "downwash", None) is not None)
+
+
+def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
+    """The drawn jet in the body frame (hover thrust): rings at depth 0 and ``depth`` (m) of the jet's
+    half-width (swarm_mj.aero.downwash), joined by four lines."""
+    from .aero.downwash import half_width
+    from .params import DEFAULT_PARAMS
+
+    l = 2 * DEFAULT_PARAMS.L                 # motor distance of Table 1's drone (m)
+    r0, r1 = float(half_width(0.0, l)), float(half_width(depth, l))
+    top, bot = _circle(r0, m), _circle(r1, m)
+    bot[:, 2] = -depth
+    lines = [np.array([[r0 * np.cos(a), r0 * np.sin(a), 0.0], [r1 * np.cos(a), r1 * np.sin(a), -depth]])
+             for a in np.arange(4) * np.pi / 2 + np.pi / 4]
+    return [top, bot, *lines]
+
+
+def _log_aero(result, names: list[str], times) -> None:
+    log = result.log
+    from .params import DEFAULT_PARAMS
+
+    m_g = DEFAULT_PARAMS.hover_thrust
+    jet = _jet_frustum()
+    for i, name in enumerate(names):
+        _scalars(f"/plots/aero/downwash/{name}", times, log.downwash[:, i], ["Fx", "Fy", "Fz"])
+        _scalars(f"/plots/aero/ground_effect/{name}", times, log.ground_effect[:, i], ["Fx", "Fy", "Fz"])
+        if result.summary["aero"].get("downwash"):
+            base = f"/world/drones/{name}/jet"
+            rr.log(base, rr.LineStrips3D(jet, colors=[[120, 190, 255, 110]], radii=0.004), static=True)
+            scale = np.nan_to_num(log.rotor[:, i].sum(axis=1) / m_g, nan=0.0).clip(0.0, 3.0)
+            rr.send_columns(base, indexes=[times],
+                            columns=rr.Transform3D.columns(scale=np.repeat(scale[:, None], 3, axis=1)))

@@ -17,13 +17,16 @@ thrust direction and magnitude), r the distance from that axis. The jet is switc
 the first rotor radius below the source (a smoothstep of s/R on U), so that two drones at
 the same height feel nothing and no force jumps.
 
-Force (ours; the paper gives the flow, not its effect): each rotor disc k of a lower drone,
-at the point p_k, is a flat disc of area π·R² and drag coefficient C_D = 1.17 in the jet:
+Force (ours; the paper gives the flow, not its effect): the lower drone meets the jet with
+five flat plates normal to it, drag coefficient C_D = 1.17 (Hoerner's flat disc): its four
+rotor discs (area π·R² each, at the rotor centres p_k) and its hub (area
+:data:`BODY_AREA`, at the centre of mass p):
 
-    F_k = ½ ρ C_D π R² · U(s_k, r_k)² · d        d = the upper drone's −z axis (jet direction)
+    F_k = ½ ρ C_D A_k · U(s_k, r_k)² · d        d = the upper drone's −z axis (jet direction)
 
-added over every upper drone, applied at the rotor centre (so a drone half in a jet is also
-tilted): force Σ F_k and torque Σ (p_k − p) × F_k at the centre of mass, world frame.
+added over every upper drone, applied where the plate is (so a drone half in a jet is also
+tilted): force Σ F_k and torque Σ (p_k − p) × F_k at the centre of mass, world frame. The
+lower drone's own motion through the air is the paper's linear drag, left as it is.
 """
 
 from __future__ import annotations
@@ -42,6 +45,9 @@ SPREAD = 0.07668
 S0 = -5.817
 PROFILE_A = math.sqrt(2.0) - 1.0
 N_ROTORS = 4
+#: Area (m²) of the hub the jet meets at the centre of a lower drone: the 0.12 m × 0.12 m hub box of
+#: assets/quadrotor.xml.
+BODY_AREA = 0.12 * 0.12
 
 
 def hover_induced_velocity(thrust, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS,
@@ -71,19 +77,22 @@ def jet_speed(s, r, u_h, l, ramp: float = ROTOR_RADIUS):
     return np.where(s > 0.0, u * x * x * (3.0 - 2.0 * x), 0.0)
 
 
-def disc_force(u, rho: float = AIR_DENSITY, cd: float = DISC_DRAG_COEFFICIENT, rotor_radius: float = ROTOR_RADIUS):
-    """Magnitude (N) of the jet's push on one rotor disc in a flow of speed u (m/s): ½ ρ C_D π R² u²."""
-    return 0.5 * rho * cd * np.pi * rotor_radius**2 * np.asarray(u, float) ** 2
+def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSITY,
+                cd: float = DISC_DRAG_COEFFICIENT):
+    """Magnitude (N) of the jet's push on a plate of ``area`` (default: one rotor disc) in a flow of
+    speed u (m/s): ½ ρ C_D A u²."""
+    return 0.5 * rho * cd * area * np.asarray(u, float) ** 2
 
 
 @jit
 def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, n_per_copy: int, arm: float,
-                    rho: float, rotor_r: float, half_cda: float, ramp: float, force: np.ndarray,
-                    torque: np.ndarray) -> None:
+                    rho: float, rotor_r: float, half_cda: float, half_cda_body: float, ramp: float,
+                    force: np.ndarray, torque: np.ndarray) -> None:
     """Set force, torque (N, 3) to the downwash of every drone on every other drone of its copy.
 
     pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) the produced rotor thrusts; drones
-    i and j interact only when i // n_per_copy == j // n_per_copy. The motor distance l = 2·arm.
+    i and j interact only when i // n_per_copy == j // n_per_copy. The motor distance l = 2·arm;
+    half_cda = ½ ρ C_D π R² of a rotor disc, half_cda_body = ½ ρ C_D A of the hub.
     """
     N = pos.shape[0]
     l = 2.0 * arm
@@ -105,8 +114,11 @@ def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray,
         for j in range(c0, min(c0 + n_per_copy, N)):
             if j == i:
                 continue
-            for k in range(N_ROTORS):
-                rotor_offset(axes[j], k, arm, 0.0, off)
+            for k in range(N_ROTORS + 1):          # the four rotor discs, then the hub
+                if k < N_ROTORS:
+                    rotor_offset(axes[j], k, arm, 0.0, off)
+                else:
+                    off[0] = off[1] = off[2] = 0.0
                 rx = pos[j, 0] + off[0] - pos[i, 0]
                 ry = pos[j, 1] + off[1] - pos[i, 1]
                 rz = pos[j, 2] + off[2] - pos[i, 2]
@@ -122,7 +134,7 @@ def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray,
                 x = s / ramp
                 if x < 1.0:
                     u *= x * x * (3.0 - 2.0 * x)
-                f = half_cda * u * u
+                f = (half_cda if k < N_ROTORS else half_cda_body) * u * u
                 fx, fy, fz = f * dx, f * dy, f * dz
                 force[j, 0] += fx
                 force[j, 1] += fy
@@ -141,10 +153,11 @@ class DownwashStage:
     name = "downwash"
 
     def __init__(self, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS,
-                 drag_coefficient: float = DISC_DRAG_COEFFICIENT) -> None:
+                 drag_coefficient: float = DISC_DRAG_COEFFICIENT, body_area: float = BODY_AREA) -> None:
         self.rho = float(rho)
         self.rotor_radius = float(rotor_radius)
         self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2
+        self.half_cda_body = 0.5 * self.rho * float(drag_coefficient) * float(body_area)
         self.force = np.zeros((0, 3))
         self.torque = np.zeros((0, 3))
 
@@ -157,6 +170,7 @@ class DownwashStage:
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
         downwash_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.n_per_copy, self.arm, self.rho,
-                        self.rotor_radius, self.half_cda, self.rotor_radius, self.force, self.torque)
+                        self.rotor_radius, self.half_cda, self.half_cda_body, self.rotor_radius, self.force,
+                        self.torque)
         force += self.force
         torque += self.torque

@@ -11,7 +11,8 @@ Counting (:class:`GroundContacts`, run after every physics step):
   is more than :data:`TAKEOFF_CLEARANCE` above the rest height;
 * a *ground contact* is the first physics step of a contact with the floor after take-off
   (a touchdown); a drone must take off again before its next one counts;
-* a *crash* is a ground contact whose touchdown speed (|v| of the centre of mass) is above
+* a *crash* is a ground contact whose touchdown speed (|v| of the centre of mass at the start of
+  the physics step in which the contact begins) is above
   ``crash_speed`` (1 m/s), or during which the body tilts more than ``crash_tilt_deg``
   (30°) from upright; at most one crash per contact.
 """
@@ -69,6 +70,8 @@ class GroundContacts:
         self._all_airborne = False
         self._any_contact = bool(self.in_contact.any())
         self._takeoff_z = REST_HEIGHT + TAKEOFF_CLEARANCE
+        self._vel_before = sim.vel.copy()                   # (N, 3) velocity at the start of the last step
+        self._vel_now = sim.vel.copy()
 
     def _contacts(self, sim) -> np.ndarray:
         d = sim.data
@@ -86,6 +89,10 @@ class GroundContacts:
         return float(1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]) / max(float(q @ q), 1e-300))
 
     def after_step(self, sim) -> None:
+        # the touchdown speed is the speed before the step in which the contact began (the contact
+        # impulse of that step has already slowed the drone down)
+        self._vel_before, self._vel_now = self._vel_now, self._vel_before
+        self._vel_now[:] = sim.vel
         if not self._all_airborne:
             newly = ~self.airborne & ~self.in_contact & (sim.pos[:, 2] > self._takeoff_z)
             if newly.any():
@@ -95,7 +102,7 @@ class GroundContacts:
             return
         contact = self._contacts(sim)
         for i in np.flatnonzero(contact & ~self.in_contact & self.airborne).tolist():
-            speed = float(np.linalg.norm(sim.vel[i]))
+            speed = float(np.linalg.norm(self._vel_before[i]))
             tilt = math.degrees(math.acos(min(1.0, max(-1.0, self._tilt_cos(sim, i)))))
             crash = speed > self.crash_speed or tilt > self.crash_tilt_deg
             self.ground_contacts += 1
