@@ -15,30 +15,36 @@ from .scenario import Scenario
 
 
 class DownwashFeedforward:
-    """The downwash force (n, 3) each drone is predicted to feel from the jets of the others
-    (docs/aero.md's turbulent-jet model, Bauersfeld et al. 2024, who compensate it the same way:
-    their §VI), from the drones' positions, attitudes and thrust commands. The controller adds it
-    to the external force it already compensates (the wind feedforward of eqs. 23–24)."""
+    """The downwash force (n, 3) each drone is predicted to feel from the jets of the others: the
+    simulator's own turbulent-jet model (:class:`swarm_mj.aero.downwash.DownwashStage`, docs/aero.md;
+    Bauersfeld et al. 2024 compensate a drone's downwash the same way, from the model), evaluated
+    at the drones' positions and attitudes with each drone's last thrust command U1 shared over
+    its four rotors. The controller adds it to the external force it already compensates (the
+    wind feedforward of eqs. 23–24). Only the force: the torque of a jet on part of the rotors is
+    left to the attitude loop."""
 
     def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
+        from types import SimpleNamespace
+
         from .aero.downwash import DownwashStage
 
         self.n = n
-        self.params = params
         self._stage = DownwashStage()
-        self.force = np.zeros((n, 3))           # (n, 3) the last prediction
+        self._view = SimpleNamespace(pos=np.zeros((n, 3)), quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+                                     rotor_thrust=np.zeros((n, 4)), n=n, params=params, time=0.0)
+        self._stage.reset(self._view)
+        self.force = np.zeros((n, 3))           # (n, 3) the last prediction (N)
         self._torque = np.zeros((n, 3))
-        self._rotor = np.zeros((n, 4))
 
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
         """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
-        from .aero.downwash import downwash_kernel
-
-        st = self._stage
-        self._rotor[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
-        downwash_kernel(np.ascontiguousarray(pos, dtype=np.float64), np.ascontiguousarray(quat, dtype=np.float64),
-                        self._rotor, self.n, self.params.L, st.rho, st.rotor_radius, st.half_cda, st.rotor_radius,
-                        self.force, self._torque)
+        v = self._view
+        v.pos[:] = pos
+        v.quat[:] = quat
+        v.rotor_thrust[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
+        self.force[:] = 0.0
+        self._torque[:] = 0.0
+        self._stage.apply(v, self.force, self._torque)
         return self.force
 
 
