@@ -169,31 +169,43 @@ def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.nda
     """The worst altitude dip of a drone in another drone's jet (docs/interpretations.md).
 
     t (k,), pos (k, n, 3) positions, pos_d (k, n, 3) commanded positions (after the
-    anti-collision rule), quat (k, n, 4) attitudes (w, x, y, z). At every sample where drone
-    j is in the jet of an airborne drone i (:func:`in_jet`; ``jet`` passes its geometry) and
-    j has taken off (its altitude has once exceeded ``airborne`` m), its dip is how far it
-    is below its commanded altitude, max(0, z_d − z). Returns ``worst_m`` (the largest dip,
-    0 if no drone was ever in a jet), ``drone`` and ``above`` (the indices, −1 if none),
-    ``t_s`` (when), ``time_in_jet_s`` (samples with any drone in a jet × the sample period)
-    and ``per_drone_m`` (n,) the worst dip of each drone.
+    anti-collision rule), quat (k, n, 4) attitudes (w, x, y, z). Drone j is *in a jet* at a
+    sample where it is in the jet of an airborne drone i (:func:`in_jet`; ``jet`` passes its
+    geometry) and j has taken off (its altitude has once exceeded ``airborne`` m). Its altitude
+    error below the reference is e = max(0, z_d − z). Over each stretch of consecutive samples
+    in a jet, its *dip* is how much e has grown since the stretch began, e(t) − e(start): the
+    sinking the jet caused, not the lag the drone already had (a drone entering a jet while it
+    still climbs towards its reference, such as the leader after its take-off step, is already
+    below it, jet or not). Returns ``worst_m`` (the largest dip, 0 if none), ``drone`` and
+    ``above`` (the indices, −1 if none), ``t_s`` (when), ``time_in_jet_s`` (samples with any
+    drone in a jet × the sample period), ``per_drone_m`` (n,) the worst dip of each drone, and
+    ``below_ref_worst_m``, the largest e itself at a sample in a jet (lag included).
     """
     t = np.asarray(t, dtype=float)
     pos = np.asarray(pos, dtype=float)
     k, n = pos.shape[:2]
     empty = {"worst_m": 0.0, "drone": -1, "above": -1, "t_s": None, "time_in_jet_s": 0.0,
-             "per_drone_m": [0.0] * n}
+             "per_drone_m": [0.0] * n, "below_ref_worst_m": 0.0}
     if n < 2 or k == 0:
         return empty
     z = pos[:, :, 2]                                                   # (k, n)
     up = np.maximum.accumulate(z > airborne, axis=0)                  # (k, n) taken off by then
     jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]   # (k, i, j)
-    dip = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)             # (k, n)
     below = jet.any(axis=1)                                            # (k, n) j in some jet
-    dips = np.where(below, dip, 0.0)                                   # (k, n)
+    e = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)   # (k, n)
+    start = below & ~np.vstack([np.zeros((1, n), dtype=bool), below[:-1]])         # (k, n) a stretch begins
+    stretch = np.cumsum(start, axis=0)                                 # (k, n) stretch number (per drone)
+    base = np.zeros((k, n))
+    for j in range(n):
+        first = np.flatnonzero(start[:, j])                            # sample where each stretch begins
+        if len(first):
+            base[:, j] = np.concatenate([[0.0], e[first, j]])[stretch[:, j]]
+    dips = np.where(below, np.maximum(e - base, 0.0), 0.0)             # (k, n)
     dt = float(np.median(np.diff(t))) if k > 1 else 0.0
     out = dict(empty)
     out["time_in_jet_s"] = float(below.any(axis=1).sum() * dt)
     out["per_drone_m"] = [float(v) for v in dips.max(axis=0)]
+    out["below_ref_worst_m"] = float(np.where(below, e, 0.0).max())
     if not (dips > 0.0).any():
         return out
     kk, j = np.unravel_index(int(np.argmax(dips)), dips.shape)

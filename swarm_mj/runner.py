@@ -250,7 +250,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["downwash_dip_worst_m"] = dip["worst_m"]
         named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
         out["downwash_dip"] = {"worst_m": dip["worst_m"], **named, "at_s": dip["t_s"],
-                               "time_in_jet_s": dip["time_in_jet_s"]}
+                               "time_in_jet_s": dip["time_in_jet_s"], "below_ref_worst_m": dip["below_ref_worst_m"]}
         ev = policy.events
         out["anti_collision"] = {"rule": policy.rule.name, "events": len(ev),
                                  "yields": sum(1 for e in ev if e["action"] in ("up", "down"))}

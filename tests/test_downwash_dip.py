@@ -33,33 +33,46 @@ def _log(upper: list, lower: list, lower_ref_z: list, quat_upper=UPRIGHT):
     return np.arange(k) * 0.01, pos, pos_d, quat
 
 
-def test_dip_counts_only_samples_inside_the_jet():
-    edge_at_1m = JET_R0_M + JET_SPREAD * 1.0 + DRONE_RADIUS_M          # jet edge + rotor span, 1 m down
-    upper = [[0, 0, 2.0]] * 4
-    lower = [[0.1, 0, 0.93],                      # in the jet: 7 cm low
-             [edge_at_1m + 0.05, 0, 0.80],        # just outside the edge: 20 cm low, not counted
-             [edge_at_1m - 0.05, 0, 0.95],        # just inside: 5 cm low
-             [0.0, 0, 2.5]]                       # above the upper drone: 0 (and the upper one is
-    ref = [1.0, 1.0, 1.0, 2.6]                    # not below the lower one's jet either: no dip)
-    t, pos, pos_d, quat = _log(upper, lower, ref)
+def test_dip_is_the_sinking_since_entering_the_jet_not_the_lag_it_had():
+    # drone 1 sits 1 m under drone 0 (in its jet) except at samples 0 and 5, where it is 2 m to
+    # the side; e = reference − altitude
+    e = [0.30, 0.12, 0.10, 0.15, 0.19, 0.40, 0.00, 0.05]
+    inside = [False, True, True, True, True, False, True, True]
+    lower = [[0.1 if k else 2.0, 0.0, 1.0] for k in inside]
+    t, pos, pos_d, quat = _log([[0, 0, 2.0]] * 8, lower, [1.0 + x for x in e])
     d = downwash_dip(t, pos, pos_d, quat)
+    # stretch 1 (samples 1-4) entered 0.12 m low: it sank 0.19 − 0.12 = 0.07 m more; stretch 2
+    # (samples 6-7) entered on its reference and sank 0.05 m; the 0.30 and 0.40 m outside count for nothing
     assert math.isclose(d["worst_m"], 0.07, abs_tol=1e-12)
-    assert (d["drone"], d["above"], d["t_s"]) == (1, 0, 0.0)
-    assert math.isclose(d["time_in_jet_s"], 3 * 0.01)                 # samples 0, 2 and 3 (drone 0 under 1 at 3)
-    assert math.isclose(d["per_drone_m"][1], 0.07) and d["per_drone_m"][0] == 0.0
+    assert (d["drone"], d["above"]) == (1, 0) and math.isclose(d["t_s"], 0.04)
+    assert math.isclose(d["below_ref_worst_m"], 0.19, abs_tol=1e-12)
+    assert math.isclose(d["time_in_jet_s"], 6 * 0.01)
+    assert d["per_drone_m"][0] == 0.0
+
+
+def test_only_drones_inside_the_jets_edge_count():
+    edge_at_1m = JET_R0_M + JET_SPREAD * 1.0 + DRONE_RADIUS_M          # jet edge + rotor span, 1 m down
+    for offset, counted in ((edge_at_1m - 0.05, True), (edge_at_1m + 0.05, False)):
+        # on its reference when the stretch begins, 8 cm low a sample later
+        t, pos, pos_d, quat = _log([[0, 0, 2.0]] * 2, [[offset, 0, 1.0], [offset, 0, 0.92]], [1.0, 1.0])
+        d = downwash_dip(t, pos, pos_d, quat)
+        assert math.isclose(d["worst_m"], 0.08 if counted else 0.0, abs_tol=1e-12)
+    # the drone above is not in the jet of the one below (the jet points down)
+    t, pos, pos_d, quat = _log([[0, 0, 1.0]] * 2, [[0, 0, 2.0], [0, 0, 1.9]], [2.0, 2.0])
+    assert downwash_dip(t, pos, pos_d, quat)["worst_m"] == 0.0
 
 
 def test_jet_reach_and_take_off():
     top = JET_REACH_M + 0.1
-    t, pos, pos_d, quat = _log([[0, 0, top], [0, 0, top], [0, 0, top + 1.4]],
-                               [[0, 0, 0.05], [0, 0, 0.15], [0, 0, 1.0]], [0.5, 0.5, 1.2])
+    t, pos, pos_d, quat = _log([[0, 0, top], [0, 0, top], [0, 0, top], [0, 0, top + 1.4]],
+                               [[0, 0, 0.05], [0, 0, 0.15], [0, 0, 0.12], [0, 0, 1.0]], [0.5, 0.5, 0.5, 1.5])
     jet = in_jet(pos, quat)
-    assert not jet[:, 0, 0].any() and not jet[2, 0, 1]                 # depth reach + 0.5 m: out of reach
-    assert jet[1, 0, 1]                                                 # depth reach − 0.05 m: in reach
+    assert not jet[:, 0, 0].any() and not jet[3, 0, 1]                 # depth reach + 0.5 m: out of reach
+    assert jet[1, 0, 1] and jet[2, 0, 1]                                # depth reach − 0.05 m: in reach
     d = downwash_dip(t, pos, pos_d, quat)
-    # sample 0: still on the ground (never above 0.1 m yet), not counted although 0.45 m low;
-    # sample 1: airborne, in the jet, 0.35 m low; sample 2: out of reach
-    assert math.isclose(d["worst_m"], 0.35, abs_tol=1e-12) and d["t_s"] == 0.01
+    # sample 0: on the ground (never above 0.1 m yet): not counted; samples 1-2: airborne, in the
+    # jet, 0.35 then 0.38 m low: it sank 0.03 m; sample 3 (0.5 m low): out of reach
+    assert math.isclose(d["worst_m"], 0.03, abs_tol=1e-12) and d["t_s"] == 0.02
 
 
 def test_the_jet_follows_the_upper_drones_tilt():
