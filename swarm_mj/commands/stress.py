@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-RULES = ("clearance", "layers", "layersff", "paper", "off")
+RULES = ("clearance", "layers", "paper", "off")
 
 
 @dataclass(frozen=True)

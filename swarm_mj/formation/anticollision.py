@@ -478,238 +478,213 @@ def jet_clearance(dz: np.ndarray, margin: float = 0.0) -> np.ndarray:
     return JET_R0_M + JET_SPREAD * np.minimum(np.abs(dz), JET_REACH_M) + DRONE_RADIUS_M + margin
 
 
-LEVEL_M = 0.15   # below this vertical separation two drones are level: the jet starts one rotor radius down
-
-
 class ClearanceRule(LayeredRule):
-    """The default (``anti_collision = "clearance"``): downwash-aware anti-collision — the swarm
-    forms up level, and the followers keep apart horizontally.
+    """The default (``anti_collision = "clearance"``): the layered rule made downwash-aware.
 
-    **Why** (issue 15; measured with ``swarm-mj stress --aero realistic``, docs/interpretations.md):
-    the layered rule (``layers``) keeps drones apart by stacking them — a follower crossing on its
-    layer passes straight over the drones below, and the leader flies under followers on their
-    layers — and under the turbulent-jet downwash of Bauersfeld et al. (RA-L 2024,
-    ``--aero realistic``) the drone below drops (a worst dip of 2.6 m over 20 starts), into the
-    ground (crashes) or into another drone. The jet's push is still a tenth of a drone's weight
-    6 m down: no altitude separation is enough. Two level drones do not feel each other's jets,
-    and drones kept apart horizontally by the jet's width do not either.
+    **Why** (issue 15; ``swarm-mj stress --aero realistic``, docs/interpretations.md): the layered
+    rule (``layers``) keeps drones apart by stacking them — a follower crossing on its layer passes
+    straight over the drones below, followers on their layers are above the leader's path — and
+    under the turbulent-jet downwash of Bauersfeld et al. (RA-L 2024; ``--aero realistic``) the
+    drone below sinks: over 10 starts a worst downwash dip of metres, drones pushed into the
+    ground (crashes) and into each other (contacts). The jet's push is still a tenth of a drone's
+    weight 6 m down, so no altitude separation is enough.
 
-    **What is the paper's** (Fig. 5, §4, decentralised): each follower flies to its (x, y) slot,
-    built from the leader's position, at the leader's altitude; the safety distance D̄ = 0.8 m,
-    here the horizontal distance level drones keep while they form up; the priority of Fig. 5
-    (the higher index gives way, every follower gives way to the leader, which gives way to
-    nobody); once formed, the printed reactive rule (:class:`PaperRule`: a ``hop`` of 0.4 m inside
-    D̄) among formed drones and the leader — in a formation the slots keep neighbours at least D̄
-    apart, or closer slots put the hopping drone's jet on the other's rotor tips only.
+    **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
+    follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
+    follower always yields to the leader; once formed, the printed reactive rule).
 
-    **What is ours**, per follower, every decision from its own state, the leader's position (its
-    slot and the formation altitude) and the drones within ``sensing_range`` (3D; velocities and
-    accelerations estimated from successive positions; the other followers' slots follow from the
-    leader's position and their indices):
+    **What is the layered rule's** (ours, :class:`LayeredRule`): climb in place to a layer of its
+    own, cross on it along a limited path, drop over the slot; the layers are what keeps two
+    drones from touching.
 
-    1. *take off* — all followers climb in place on the same limited altitude path
-       (:meth:`LayeredRule._advance_altitude`) to the formation altitude, so the swarm stays level:
-       no layers. One still below ``takeoff_height`` stays on the ground while a drone is, or is
-       predicted over ``horizon`` s to be, above it within the clearance (the leader setting off
-       overhead), unless that drone is formed and hovering (it would wait for ever).
-    2. *transit* — above ``takeoff_height`` it flies to its slot along the layered rule's limited
-       horizontal path (speed, acceleration, tilt and jerk limits), whose velocity is chosen every
-       step by sampling (reciprocal velocity obstacles, van den Berg et al. 2008): among candidates
-       — the preferred velocity towards the slot, the same turned by up to ±90° or slowed, 16
-       directions at two speeds, zero — the one that minimises the distance to the preferred
-       velocity plus, for every drone it sees, ``avoid_weight`` / (time until the two come within
-       the clearance), predicted along straight lines (the others' velocities looked ``reaction``
-       s ahead along their accelerations: the leader sets off at full tilt). The clearance is D̄
-       between level drones, and :func:`jet_clearance` + ``jet_margin`` (the jet's edge at that
-       depth) between drones that are not; ten times as firmly, ``pass_distance`` (0.1 m beyond
-       the 0.5 m at which level drones touch) or the jet's edge. It counts drones it gives way to
-       fully and the others at ``courtesy`` (a faster drone with the right of way would otherwise
-       run into one that cannot get out of its way in time). Towards a formed drone or the leader
-       the clearance is capped just short of the distance between the slots (eight followers at
-       D = 1 m are 0.77 m apart).
-    3. *formed* — within ``arrive`` of its slot and within ``level_tolerance`` of the formation
-       altitude, it joins the formation (the paper's rule above).
+    **What is new here** (ours), each decision from the leader's position and the drones within
+    ``sensing_range``, with the jet clearance :func:`jet_clearance` (the jet's horizontal reach at
+    the two drones' vertical separation plus the rotor span of the one below, plus
+    ``jet_margin``):
+
+    1. *take off* — a follower still on the ground stays there while a drone it gives way to (the
+       leader, a lower index) is, or is predicted over ``horizon`` s to be, above its start within
+       the jet clearance (the leader sets off at full tilt over the followers).
+    2. *climb* — it does not climb under a drone within the jet clearance above it, and waits no
+       higher than it is (the layered rule waited ``hop`` under it, in its jet, lifting off the
+       ground to do so); it steps aside from one that hovers there.
+    3. *drop* — it descends from its layer only when no drone at all, formed or not, is (or will
+       be) within the jet clearance under it (towards a formed drone or the leader the clearance
+       is capped just short of the distance between their slots, so that slots closer than that
+       stay reachable).
+    4. *feedforward* — crossing on the layers still passes over lower drones (keeping every drone
+       out of every jet costs seconds of settling: drones must wait for each other or go round
+       the formed ones), so the controller compensates the downwash it predicts from the drones'
+       positions, attitudes and thrust commands (``downwash_feedforward``; the simulator's jet
+       model, as Bauersfeld et al. compensate it in their §VI), the way it compensates the wind
+       (eqs. 23–24). Only when the physics has downwash (``--aero realistic``); under the paper's
+       model the rule is the layered rule with 1.–3.
     """
 
     name = "clearance"
+    downwash_feedforward = True
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 arrive: float = 0.2, pass_distance: float = 0.6, jet_margin: float = 0.1,
-                 vo_horizon: float = 2.0, takeoff_height: float = 0.3, level_tolerance: float = 0.3,
-                 reaction: float = 0.3, courtesy: float = 0.5, avoid_weight: float = 1.0, **kw: float) -> None:
-        super().__init__(n, safety_distance, hop, hysteresis, arrive=arrive, **kw)
-        self.pass_distance = float(pass_distance)
+                 jet_margin: float = 0.1, **kw: float) -> None:
+        super().__init__(n, safety_distance, hop, hysteresis, **kw)
         self.jet_margin = float(jet_margin)
-        self.vo_horizon = float(vo_horizon)
-        self.takeoff_height = float(takeoff_height)
-        self.level_tol = float(level_tolerance)
-        self.reaction = float(reaction)
-        self.courtesy = float(courtesy)
-        self.avoid_weight = float(avoid_weight)
-        ang = np.radians([0.0, 15.0, -15.0, 30.0, -30.0, 45.0, -45.0, 60.0, -60.0, 90.0, -90.0])
-        self._turns = np.stack([np.cos(ang), np.sin(ang)], axis=1)                       # (11, 2)
-        th = np.linspace(0.0, 2.0 * np.pi, 16, endpoint=False)
-        dirs = np.stack([np.cos(th), np.sin(th)], axis=1)                                # (16, 2)
-        self._fixed = np.concatenate([dirs * self.v_max, dirs * 0.4 * self.v_max, np.zeros((1, 2))])   # (33, 2)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
-        self.layer_index[:] = 0.0                    # no layers: everyone at the formation altitude
-        self.v_sel = np.zeros((self.n, 2))           # (n, 2) velocity chosen last step
-        self.acc = np.zeros((self.n, 2))             # (n, 2) horizontal accelerations, estimated and filtered
-        self._prev_vel = np.zeros((self.n, 2))       # (n, 2)
-        self.v_pred = np.zeros((self.n, 2))          # (n, 2) predicted horizontal velocities
-        self.detour = np.zeros(self.n, dtype=bool)   # (n,) flying another velocity than the preferred one
-        self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground
-
-    def clearances(self, dz: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(soft, hard) horizontal clearances (m) at vertical separations dz (any shape): D̄ and
-        ``pass_distance`` when level, the jet's edge + ``jet_margin`` and the jet's edge when not
-        (blended linearly over the first ``LEVEL_M``)."""
-        x = np.clip(np.abs(dz) / LEVEL_M, 0.0, 1.0)
-        edge = jet_clearance(dz)
-        soft = self.safety + x * np.maximum(edge + self.jet_margin - self.safety, 0.0)
-        hard = self.pass_distance + x * np.maximum(edge - self.pass_distance, 0.0)
-        return soft, hard
-
-    def _preferred(self, goal: np.ndarray, goal_vel: np.ndarray) -> np.ndarray:
-        """(n, 2) the velocity the limited path takes towards goal (n, 2) moving at goal_vel (n, 2)
-        (the braking profile of :func:`~swarm_mj.kernels.advance_paths_kernel`)."""
-        lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
-        e = goal - self.path_p
-        dist = _rownorm(e)
-        e_eff = np.maximum(dist - _rownorm(self.path_v - goal_vel) * lag, 0.0)
-        speed = np.minimum(np.minimum(self.v_max, np.sqrt(1.6 * self.a_max * e_eff)), 3.0 * dist)
-        return _clip_norm(goal_vel + e * (speed / np.maximum(dist, 1e-9))[:, None], self.v_max)
-
-    @staticmethod
-    def _time_to_enter(d: np.ndarray, w: np.ndarray, r: np.ndarray) -> np.ndarray:
-        """Time (s) until |d + w·t| first drops below r: d (m, 1, n, 2), w (m, c, n, 2), r (m, 1, n);
-        0 if already inside and closing, +inf if never (or inside and not closing)."""
-        a = np.einsum("mcnk,mcnk->mcn", w, w)
-        b = np.einsum("mcnk,mcnk->mcn", np.broadcast_to(d, w.shape), w)
-        c = np.einsum("mcnk,mcnk->mcn", d, d) - r * r
-        disc = b * b - a * c
-        t = (-b - np.sqrt(np.maximum(disc, 0.0))) / np.maximum(a, 1e-12)
-        out = np.where((b < 0.0) & (disc > 0.0) & (t >= 0.0), t, np.inf)
-        return np.where(c <= 0.0, np.where(b < 0.0, 0.0, np.inf), out)
-
-    def _choose(self, movers: np.ndarray, positions: np.ndarray, v_pref: np.ndarray, weight: np.ndarray,
-                soft: np.ndarray, hard: np.ndarray) -> np.ndarray:
-        """(m, 2) the velocity chosen for each of ``movers`` (m,): see the class docstring, 2."""
-        vp = v_pref[movers]                                                          # (m, 2)
-        c, s_ = self._turns[:, 0], self._turns[:, 1]
-        turned = np.stack([vp[:, None, 0] * c - vp[:, None, 1] * s_, vp[:, None, 0] * s_ + vp[:, None, 1] * c],
-                          axis=2)                                                     # (m, 11, 2)
-        cand = np.concatenate([turned, 0.6 * turned, 0.3 * vp[:, None, :], self.v_sel[movers][:, None, :],
-                               np.broadcast_to(self._fixed, (len(movers), *self._fixed.shape))], axis=1)
-        d = (positions[None, :, :2] - positions[movers][:, None, :2])[:, None]       # (m, 1, n, 2) p_j − p_i
-        w = self.v_pred[None, None, :, :] - cand[:, :, None, :]                     # (m, c, n, 2)
-        t_soft = self._time_to_enter(d, w, soft[:, None, :])
-        t_hard = self._time_to_enter(d, w, hard[:, None, :])
-        pen = np.where(t_soft < self.vo_horizon, 1.0 / np.maximum(t_soft, 0.05), 0.0) \
-            + 10.0 * np.where(t_hard < self.vo_horizon, 1.0 / np.maximum(t_hard, 0.05), 0.0)
-        cost = _rownorm((cand - vp[:, None, :]).reshape(-1, 2)).reshape(cand.shape[:2]) \
-            + 0.2 * _rownorm((cand - self.v_sel[movers][:, None, :]).reshape(-1, 2)).reshape(cand.shape[:2]) \
-            + self.avoid_weight * np.einsum("mcn,mn->mc", pen, weight)
-        return cand[np.arange(len(movers)), np.argmin(cost, axis=1)]
+        self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground (1.)
 
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
-        """Take off and transit level, keeping clear (ours); formed drones: Fig. 5."""
+        """The layered rule's climb / cross / drop, kept out of the jets where that costs no time
+        (1.–3. of the class docstring), Fig. 5 once formed."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
             np.subtract(positions, self._prev_pos, out=self.vel)
             self.vel /= dt
-            a_raw = (self.vel[:, :2] - self._prev_vel) / dt                          # filtered over 0.05 s
-            self.acc += min(1.0, dt / 0.05) * (a_raw - self.acc)
-            self._prev_vel[:] = self.vel[:, :2]
-        self.v_pred = _clip_norm(self.vel[:, :2] + self.reaction * self.acc, 6.0)
         self._prev_t = float(t)
         self._prev_pos[:] = positions
         if self._all_formed:
             return self._update_formed(t, positions, pos_d, formation_alt, dt)
         n = self.n
+        h = _horizontal_distances(positions)
         z = positions[:, 2]
-        dz = z[None, :] - z[:, None]                                                # (n, n) z_j − z_i
-        soft, hard = self.clearances(dz)                                            # (n, n)
         pos_d = pos_d.copy()
-        steer = self._followers.copy()
+        steer = np.ones(n, dtype=bool)
+        steer[0] = False                                                    # the leader: its trajectory
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
-        lead_v = self.vel[0]
+        layer = formation_alt + self.hop * self.layer_index                # (n,)
+        z_target = layer.copy()                                             # (n,)
+        z_target_vel = np.full(n, float(self.vel[0, 2]))                   # (n,) layers move with the leader
+        lead_v = self.vel[0]                                                # (3,) the slots' velocity
         idx = np.arange(n)
-        rel = positions[None, :, :] - positions[:, None, :]
-        seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2          # (n, n)
-        seen[:, 0] = True
-        np.fill_diagonal(seen, False)
-        formed = self.phase == FORMED
-        slow = _rownorm(self.vel[:, :2]) < 0.5
-        slots = pos_d[:, :2]
-        slot_gap = _rownorm((slots[None, :, :] - slots[:, None, :]).reshape(-1, 2)).reshape(n, n)
-        settled = formed[None, :] | (idx[None, :] == 0)
-        soft = np.where(settled, np.minimum(soft, slot_gap - 0.05), soft)
-        hard = np.where(settled, np.minimum(hard, slot_gap - 0.1), hard)
+        # decentralised: drone i sees drone j only within the sensing range (the leader's
+        # position it always has: the slots are built from it)
+        in_transit = bool((self.phase != FORMED).any())
+        if in_transit:   # once every follower is formed, only the reactive rule and the paths run
+            rel = positions[None, :, :] - positions[:, None, :]
+            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
+            seen[:, 0] = True
+            np.fill_diagonal(seen, False)
+            soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
+            vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
+            dz = z[None, :] - z[:, None]                                                    # (n, n) z_j − z_i
+            jet = jet_clearance(dz, self.jet_margin)                                        # (n, n)
+            slot_gap = _rownorm((pos_d[None, :, :2] - pos_d[:, None, :2]).reshape(-1, 2)).reshape(n, n)
+            jet_c = np.where((self.phase == FORMED)[None, :] | (idx[None, :] == 0),
+                             np.minimum(jet, slot_gap - 0.05), jet)                          # (n, n)
 
-        # 1. take off, unless a drone is (or will be) overhead within the clearance
-        ground = (self.phase == CLIMB) & (z < self.takeoff_height)
-        if ground.any():
-            d = positions[None, :, :2] - positions[:, None, :2]
-            dv = self.v_pred[None, :, :]
-            tc = np.clip(-np.einsum("ijk,ijk->ij", d, np.broadcast_to(dv, d.shape))
-                         / np.maximum(np.einsum("jk,jk->j", self.v_pred, self.v_pred), 1e-9)[None, :],
-                         0.0, self.horizon)
-            m = d + tc[:, :, None] * dv
-            soon = np.sqrt(np.einsum("ijk,ijk->ij", m, m))                           # (n, n) j's pass over i's start
-            over = seen & (soon < soft) & (dz > 0.05) & ~(formed & slow)[None, :]
-            hold = ground & over.any(axis=1)
-        else:
-            hold = np.zeros(n, dtype=bool)
-        for i in np.flatnonzero(hold & ~self.holding):
-            self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(over[i])), "action": "hold"})
-        self.holding = hold
-        up = (self.phase == CLIMB) & (z >= self.takeoff_height)
-        self.phase[up] = CROSS
-
-        # 2. transit: the velocity of the limited path, chosen clear of the others
-        goal = slots.copy()
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()
+        # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
+        ready = climbing & (z >= layer - self.climb_tol)
+        for i in np.flatnonzero(ready):
+            self.phase[i] = CROSS
+            self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
+        climbing = self.phase == CLIMB
+        if climbing.any():
+            # drones it must not climb into: above it (up to its layer) and, horizontally,
+            # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
+            # hover (a drone climbing in place passes a hovering one that close unharmed);
+            # the leader, which yields to nobody, also when about level with it
+            hovering = _rownorm(self.vel[:, :2]) < 0.5               # (n,)
+            hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
+            radius = np.maximum(np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :], jet)
+            vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
+            vertical[:, 0] |= z[0] > z - self.clearance                          # the leader: level counts
+            above = (soon < radius) & vertical
+            above &= climbing[:, None]
+            zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
+            # below it: wait (brake as hard as it can) no higher than now — it does not chase a
+            # climbing drone from below — and hop under it, or on the ground. About level with
+            # it already: climb over it, unless it is straight above (footprints overlap).
+            z_wait = np.maximum(np.minimum(self.zp, zmin - self.hop), 0.0)     # ours: no higher than now
+            overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
+            vz = np.maximum(self.zv, 0.0)
+            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])                 # where it could stop
+            late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
+            over = np.isfinite(zmin) & late & ~overhead
+            wait = np.isfinite(zmin) & ~over
+            z_target[wait] = np.minimum(layer[wait], z_wait[wait])
+            z_target_vel[wait] = 0.0
+            z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
+            # waiting, airborne, under a drone that hovers there (the leader hovering, or a
+            # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
+            slow = _rownorm(self.vel[:, :2]) < 0.5                   # (n,), the leader too
+            stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
+            stuck &= ~((self.phase == FORMED) & ~slow)[None, :]
+            there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
+            aside = stuck.any(axis=1) & there & wait
+            for i in np.flatnonzero(aside):
+                j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
+                away = positions[i, :2] - positions[j, :2]
+                away /= max(float(np.linalg.norm(away)), 1e-9)
+                self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
+                self.asides[i] += 1
+                self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
+
+        # ours: a follower still on the ground stays there while a drone it gives way to is (or is
+        # predicted to be) above its start within the jet clearance (the leader setting off overhead)
+        if in_transit:
+            ground = (self.phase == CLIMB) & (z < HOVER_MIN_M)
+            overhead = seen & (soon < jet) & (dz > 0.05) & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
+            hold = ground & overhead.any(axis=1)
+            z_target[hold] = np.minimum(z_target[hold], 0.0)
+            z_target_vel[hold] = 0.0
+            for i in np.flatnonzero(hold & ~self.holding):
+                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(overhead[i])), "action": "wait"})
+            self.holding = hold
+
+        # 2. cross on the layer along a limited path, braking for drones it gives way to
+        climbing = self.phase == CLIMB
+        crossing = self.phase == CROSS
+        goal = pos_d[:, :2].copy()                                          # (n, 2) slots
+        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()               # (n, 2) their velocity
         goal[climbing] = self.start_xy[climbing]
         goal_vel[climbing] = 0.0
-        v_pref = self._preferred(goal, goal_vel)
-        v_cmd = v_pref.copy()
-        v_cmd[climbing] = 0.0
-        movers = np.flatnonzero(self.phase == CROSS)
-        if len(movers):
-            gives_way = (idx[None, :] < movers[:, None]) | formed[None, :]
-            weight = np.where(seen[movers], np.where(gives_way, 1.0, self.courtesy), 0.0)
-            v_cmd[movers] = self._choose(movers, positions, v_pref, weight, soft[movers], hard[movers])
-            off = _rownorm(v_cmd[movers] - v_pref[movers]) > 0.05
-            for i, o in zip(movers, off):
-                if o and not self.detour[i]:
-                    self.events.append({"t": t, "drone": int(i), "other": -1, "action": "detour"})
-                self.detour[i] = o
-        self.v_sel[:] = v_cmd
+        self.blocked &= crossing
+        if crossing.any():
+            speed = _rownorm(self.vel[:, :2])
+            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
+            d = positions[None, :, :2] - positions[:, None, :2]
+            dv = self.vel[None, :, :2] - self.vel[:, None, :2]
+            vv = np.einsum("ijk,ijk->ij", dv, dv)
+            tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
+            m = d + tc[:, :, None] * dv
+            near = (np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety) & seen
+            gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
+            conflict = near & vband & gives_way
+            blocked = crossing & conflict.any(axis=1)
+            for i in np.flatnonzero(blocked & ~self.blocked):
+                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
+            self.blocked = blocked
+            # 3. drop once over the slot, if no drone still in transit is (or will be) under it
+            there = crossing & (_rownorm(positions[:, :2] - goal) < self.arrive) \
+                & (_rownorm(self.path_p - goal) < self.arrive)
+            for i in np.flatnonzero(there):
+                under = (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance)
+                if not under.any():
+                    self.phase[i] = FORMED
+                    self.blocked[i] = False
+                    self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
 
-        # 3. formed: at the slot, level with the formation
-        there = (self.phase == CROSS) & (_rownorm(positions[:, :2] - goal) < self.arrive) \
-            & (_rownorm(self.path_p - goal) < self.arrive) & (np.abs(z - formation_alt) < self.level_tol)
-        for i in np.flatnonzero(there):
-            self.phase[i] = FORMED
-            self.detour[i] = False
-            self.events.append({"t": t, "drone": int(i), "other": -1, "action": "formed"})
+        # 4. formed: slot (x, y) with the leader's velocity; the paper's reactive rule among
+        #    formed drones and the leader sets the altitude offset
         formed = self.phase == FORMED
-        self._react(t, positions, _horizontal_distances(positions), formed)
+        self._react(t, positions, h, formed)
         formed[0] = False
+        z_target[formed] = formation_alt + self.offset[formed]
+        # a formed drone still descending never descends onto a drone in transit within D̄
+        # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
+        below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
+            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance) if in_transit else None
+        if below is not None and below.any():
+            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)           # (n,) highest such drone
+            z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
-        # paths: drones in transit fly the chosen velocity, the others their start or slot
-        fly = self.phase == CROSS
-        self._advance_paths(dt, np.where(fly[:, None], self.path_p, goal), np.where(fly[:, None], v_cmd, goal_vel))
-        z_target = formation_alt + np.where(formed, self.offset, 0.0)
-        z_target[hold] = 0.0
-        z_vel = np.where(hold, 0.0, float(lead_v[2]))
-        self._advance_altitude(dt, z_target, z_vel)
+        # every follower flies limited paths: horizontal (to its start while climbing, to its
+        # slot after) and vertical (see _advance_paths, _advance_altitude)
+        self._advance_paths(dt, goal, goal_vel)
+        self._advance_altitude(dt, z_target, z_target_vel)
         pos_d[1:, :2] = self.path_p[1:]
         self.vel_d[1:, :2] = self.path_v[1:]
         self.acc_d[1:, :2] = self.path_a[1:]
@@ -741,12 +716,7 @@ def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, po
 LayeredRule._update_formed = _update_formed_impl
 
 
-class LayersFF(LayeredRule):
-    name = "layersff"
-    downwash_feedforward = True
-
-
-ANTI_COLLISION_RULES = {"layersff": LayersFF, "clearance": ClearanceRule, "layers": LayeredRule, "paper": PaperRule, "off": NoRule}
+ANTI_COLLISION_RULES = {"clearance": ClearanceRule, "layers": LayeredRule, "paper": PaperRule, "off": NoRule}
 AntiCollision = ClearanceRule | LayeredRule | PaperRule | NoRule
 
 
