@@ -20,8 +20,9 @@ class DownwashFeedforward:
     Bauersfeld et al. 2024 compensate a drone's downwash the same way, from the model), evaluated
     at the drones' positions and attitudes with each drone's last thrust command U1 shared over
     its four rotors. The controller adds it to the external force it already compensates (the
-    wind feedforward of eqs. 23–24). Only the force: the torque of a jet on part of the rotors is
-    left to the attitude loop."""
+    wind feedforward of eqs. 23–24). Only the force: the jet's torque on a drone half in it is
+    left to the attitude loop (taking it off L·U2..L·U4 as predicted made 3 of 8 hard starts worse:
+    the prediction lags the drones' attitude by a control period and the rotors' by their lag)."""
 
     def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
         from types import SimpleNamespace
@@ -93,6 +94,7 @@ class BacksteppingPolicy:
             thrust = U[:, 0] if U is not None else np.full(self.n, self.controller.params.m * self.controller.params.g)
             ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
             self._ff_started = True
-        return self.controller.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
-                                       obs["setpoint_yaw"], wind_force=ext,
-                                       omega_body=obs["body_rates"])
+        U = self.controller.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
+                                    obs["setpoint_yaw"], wind_force=ext,
+                                    omega_body=obs["body_rates"])
+        return U

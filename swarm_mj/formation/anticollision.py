@@ -525,9 +525,12 @@ class ClearanceRule(LayeredRule):
     downwash_feedforward = True
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 jet_margin: float = 0.1, **kw: float) -> None:
-        super().__init__(n, safety_distance, hop, hysteresis, **kw)
+                 jet_margin: float = 0.1, jet_depth: float = 0.5, max_tilt_deg: float = 25.0,
+                 descent_accel: float = 3.0, **kw: float) -> None:
+        super().__init__(n, safety_distance, hop, hysteresis, max_tilt_deg=max_tilt_deg,
+                         descent_accel=descent_accel, **kw)
         self.jet_margin = float(jet_margin)
+        self.jet_depth = float(jet_depth)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
@@ -626,7 +629,10 @@ class ClearanceRule(LayeredRule):
         # predicted to be) above its start within the jet clearance (the leader setting off overhead)
         if in_transit:
             ground = (self.phase == CLIMB) & (z < HOVER_MIN_M)
-            overhead = seen & (soon < jet) & (dz > 0.05) & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
+            # (not for a formed drone hovering there: it would wait for ever; airborne, it steps aside)
+            staying = (self.phase == FORMED) & (_rownorm(self.vel[:, :2]) < 0.5)
+            overhead = seen & (soon < jet) & (dz > 0.05) & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0)) \
+                & ~staying[None, :]
             hold = ground & overhead.any(axis=1)
             z_target[hold] = np.minimum(z_target[hold], 0.0)
             z_target_vel[hold] = 0.0
@@ -650,9 +656,13 @@ class ClearanceRule(LayeredRule):
             vv = np.einsum("ijk,ijk->ij", dv, dv)
             tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
             m = d + tc[:, :, None] * dv
-            near = (np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety) & seen
+            gap = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
+            near = (gap < self.safety) & seen
             gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
-            conflict = near & vband & gives_way
+            # ours: also for a drone crossing on a layer up to jet_depth above or below, within the
+            # jet clearance (the near jet of a drone 0.4 m up tips the one below over)
+            near_jet = (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS)
+            conflict = ((near & vband) | near_jet) & gives_way
             blocked = crossing & conflict.any(axis=1)
             for i in np.flatnonzero(blocked & ~self.blocked):
                 self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
@@ -661,7 +671,8 @@ class ClearanceRule(LayeredRule):
             there = crossing & (_rownorm(positions[:, :2] - goal) < self.arrive) \
                 & (_rownorm(self.path_p - goal) < self.arrive)
             for i in np.flatnonzero(there):
-                under = (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance)
+                under = (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance) \
+                    & (z > HOVER_MIN_M)            # one on the ground is held by it (and waits for this one)
                 if not under.any():
                     self.phase[i] = FORMED
                     self.blocked[i] = False
