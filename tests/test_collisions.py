@@ -1,8 +1,9 @@
 """Collisions counted by MuJoCo (issue 11, SPEC §4): drone–drone contacts between different
 drones' geoms, from the swarm runner, never from our own distance checks.
 
-* the default rule ("layers") flies seeded random crossing starts and the paper's three
-  starts (eqs. 31–33) without a single contact, and forms up within 4 s (paper ≈ 3 s);
+* the layered rule ("layers") flies seeded random crossing starts, and the default
+  ("clearance", its downwash-aware successor, tests/test_clearance.py) the paper's three
+  starts (eqs. 31–33), without a single contact, and forms up within 4 s (paper ≈ 3 s);
 * the paper's rule as printed ("paper") touches on a known start, where "layers" does not;
 * ``anti_collision``: the default rule yields (the reactive part, paper Fig. 5), and with
   the rule off MuJoCo counts contacts (so these checks can fail);
@@ -89,7 +90,7 @@ def test_wind_from_the_start_no_contact(name):
 def test_anti_collision_scenario_yields_and_the_rule_off_collides():
     sc = load_scenario("anti_collision")
     layers = _fly(sc)
-    assert layers.summary["anti_collision"]["rule"] == "layers"
+    assert layers.summary["anti_collision"]["rule"] == "clearance"
     assert layers.summary["anti_collision"]["yields"] >= 1
     assert layers.summary["contacts"] == 0, layers.contact_log[:3]
     off = run(sc.with_overrides(duration=4.0), anti_collision="off", progress=False)

@@ -94,7 +94,7 @@ def test_defaults_of_a_minimal_scenario():
     np.testing.assert_allclose(TABLE4_GAINS, [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141,
                                               4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344])
     assert sc.wind_feedforward is True and not sc.wind.enabled
-    assert sc.anti_collision == "layers"
+    assert sc.anti_collision == "clearance"
     assert sc.anti_collision_params["safety_distance"] == 0.8 and sc.anti_collision_params["hop"] == 0.4
     assert sc.n_drones == 1 and sc.names == ["leader"]
     assert sc.steady_after == 10.0

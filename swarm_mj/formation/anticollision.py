@@ -526,7 +526,7 @@ class ClearanceRule(LayeredRule):
 
     def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
                  jet_margin: float = 0.1, jet_depth: float = 0.5, max_tilt_deg: float = 25.0,
-                 descent_accel: float = 3.0, **kw: float) -> None:
+                 descent_accel: float = 5.0, **kw: float) -> None:
         super().__init__(n, safety_distance, hop, hysteresis, max_tilt_deg=max_tilt_deg,
                          descent_accel=descent_accel, **kw)
         self.jet_margin = float(jet_margin)
@@ -535,6 +535,39 @@ class ClearanceRule(LayeredRule):
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
         self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground (1.)
+        self.side = np.zeros(self.n, dtype=np.int64)  # (n,) side it goes round a hovering drone (+1: left)
+
+    def _go_round(self, positions: np.ndarray, goal: np.ndarray, movers: np.ndarray, obstacle: np.ndarray,
+                  radius: np.ndarray) -> np.ndarray:
+        """Goals (n, 2): for each of ``movers`` (n,) whose straight line to ``goal`` (n, 2) passes
+        within ``radius`` (n, n) of a drone flagged ``obstacle`` (n, n), a point at least 1 m along
+        the way to the side point of the nearest such drone (``radius`` + 0.1 m out from it, square
+        to the line), on the side it is already off the line (kept until it is past)."""
+        out = goal.copy()
+        for i in np.flatnonzero(movers):
+            p = positions[i, :2]
+            e = goal[i] - p
+            L = float(np.hypot(*e))
+            if L < 0.3:
+                self.side[i] = 0
+                continue
+            u = e / L
+            d = positions[:, :2] - p                                                  # (n, 2)
+            along = d @ u
+            perp = d[:, 0] * u[1] - d[:, 1] * u[0]                                  # > 0: right of the line
+            rad = radius[i] + 0.1
+            block = obstacle[i] & (along > -0.1) & (along < L + 0.1) & (np.abs(perp) < rad)
+            if not block.any():
+                self.side[i] = 0
+                continue
+            j = int(np.argmin(np.where(block, along, np.inf)))
+            if self.side[i] == 0:
+                self.side[i] = 1 if perp[j] < 0.0 else -1                             # pass on the far side
+                self.events.append({"t": self._prev_t, "drone": int(i), "other": j, "action": "round"})
+            normal = np.array([-u[1], u[0]]) * self.side[i]                         # left (+1) or right (−1)
+            aim = positions[j, :2] + normal * rad[j] - p
+            out[i] = p + aim / max(float(np.hypot(*aim)), 1e-9) * max(float(np.hypot(*aim)), 1.0)
+        return out
 
     def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
                formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -591,7 +624,7 @@ class ClearanceRule(LayeredRule):
             # the leader, which yields to nobody, also when about level with it
             hovering = _rownorm(self.vel[:, :2]) < 0.5               # (n,)
             hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
-            radius = np.maximum(np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :], jet)
+            radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
             vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
             vertical[:, 0] |= z[0] > z - self.clearance                          # the leader: level counts
             above = (soon < radius) & vertical
@@ -661,7 +694,9 @@ class ClearanceRule(LayeredRule):
             gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
             # ours: also for a drone crossing on a layer up to jet_depth above or below, within the
             # jet clearance (the near jet of a drone 0.4 m up tips the one below over)
-            near_jet = (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS)
+            hover = _rownorm(self.vel[:, :2]) < 0.5                                         # (n,)
+            near_jet = (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS) \
+                & ~hover[None, :]
             conflict = ((near & vband) | near_jet) & gives_way
             blocked = crossing & conflict.any(axis=1)
             for i in np.flatnonzero(blocked & ~self.blocked):
@@ -677,6 +712,14 @@ class ClearanceRule(LayeredRule):
                     self.phase[i] = FORMED
                     self.blocked[i] = False
                     self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
+
+        # ours: crossing, it goes round a drone that hovers on the next layer (braking, or waiting to
+        # drop) within the jet clearance of its line to the slot
+        crossing = self.phase == CROSS
+        if crossing.any():
+            hover = _rownorm(self.vel[:, :2]) < 0.5
+            obstacle = seen & (hover & (self.phase == CROSS))[None, :] & (np.abs(dz) < self.jet_depth)
+            goal = self._go_round(positions, goal, crossing, obstacle, jet_c)
 
         # 4. formed: slot (x, y) with the leader's velocity; the paper's reactive rule among
         #    formed drones and the leader sets the altitude offset
