@@ -17,8 +17,15 @@ import pytest
 
 from swarm_mj.aero.presets import with_aero
 from swarm_mj.commands.stress import StressCase, stress_scenario
-from swarm_mj.formation.anticollision import (CLIMB, CROSS, FORMED, ClearanceRule, LayeredRule, jet_clearance,
-                                              make_rule)
+from swarm_mj.formation.anticollision import (
+    CLIMB,
+    CROSS,
+    FORMED,
+    ClearanceRule,
+    LayeredRule,
+    jet_clearance,
+    make_rule,
+)
 from swarm_mj.formation.slots import polygon_offsets
 from swarm_mj.metrics import DRONE_RADIUS_M, JET_R0_M, JET_SPREAD
 from swarm_mj.policy import BacksteppingPolicy
@@ -138,7 +145,8 @@ def test_no_drop_over_a_drone_within_the_jet_clearance_where_the_layered_rule_dr
     leader = np.array([0.0, 0.0, 2.0])
     slot1 = leader + polygon_offsets(2, 1.0)[0]
     pos0 = np.array([leader, slot1 + [0.0, 0.0, 0.4], slot1 + [0.9, 0.0, -0.1]])
-    assert 0.8 < 0.9 < jet_clearance(np.array(0.5), 0.1)
+    gap = 0.9
+    assert 0.8 < gap < jet_clearance(np.array(0.5), 0.1)
     for cls, drops in ((LayeredRule, True), (ClearanceRule, False)):
         rule = cls(3)
         pos = pos0.copy()

@@ -1,4 +1,5 @@
-"""Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; SPEC §4).
+"""Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; SPEC §4), kept out of each other's
+downwash by default (issue 15, :class:`ClearanceRule`).
 
 Every rule has the same small interface, vectorised over drones (index 0 is the leader):
 
@@ -14,7 +15,8 @@ and returns the controller's references (pos_d, vel_d, acc_d) (n, 3), the steere
 rows taken from the rule (what the policy calls; for the formed swarm the layered rule does
 it in one compiled kernel). Each rule appends its decisions to ``rule.events`` as dicts
 ``{t, drone, other, action}``: up, down, release (the paper's rule); cross, hold, aside,
-drop (the layered rule's transition).
+drop (the layered rule's transition); wait (on the ground) and round (going round a drone) of
+the default, the downwash-aware ``clearance`` (:class:`ClearanceRule`).
 
 Decentralised (SPEC §4): a drone's decision uses only its own state, the leader's position
 (through its slot and the formation altitude) and the positions of drones within its
@@ -503,22 +505,28 @@ class ClearanceRule(LayeredRule):
     ``jet_margin``):
 
     1. *take off* — a follower still on the ground stays there while a drone it gives way to (the
-       leader, a lower index) is, or is predicted over ``horizon`` s to be, above its start within
-       the jet clearance (the leader sets off at full tilt over the followers).
-    2. *climb* — it does not climb under a drone within the jet clearance above it, and waits no
-       higher than it is (the layered rule waited ``hop`` under it, in its jet, lifting off the
-       ground to do so); it steps aside from one that hovers there.
-    3. *drop* — it descends from its layer only when no drone at all, formed or not, is (or will
+       leader, a lower index; not a formed one that hovers there: it would wait for ever) is, or
+       is predicted over ``horizon`` s to be, above its start within the jet clearance (the leader
+       sets off at full tilt over the followers).
+    2. *climb* — waiting under a drone it must not climb into, it waits no higher than it is (the
+       layered rule waited ``hop`` under it, in its jet, lifting off the ground to do so).
+    3. *cross* — it also brakes for a drone crossing on a layer up to ``jet_depth`` above or below
+       (the next layer) that moves and is predicted within the jet clearance (the near jet of a
+       drone 0.4 m up tips the one below over: measured, a follower flew off), and its path goes
+       round one that hovers there (braking, or over its slot) by the side point ``jet clearance +
+       0.1`` m out from it; paths are gentler (tilt ≤ ``max_tilt_deg`` = 25°, the layered rule's
+       30° with the rotors' lag of ``--aero realistic`` flipped a drone now and then).
+    4. *drop* — it descends from its layer only when no airborne drone, formed or not, is (or will
        be) within the jet clearance under it (towards a formed drone or the leader the clearance
        is capped just short of the distance between their slots, so that slots closer than that
        stay reachable).
-    4. *feedforward* — crossing on the layers still passes over lower drones (keeping every drone
-       out of every jet costs seconds of settling: drones must wait for each other or go round
-       the formed ones), so the controller compensates the downwash it predicts from the drones'
-       positions, attitudes and thrust commands (``downwash_feedforward``; the simulator's jet
-       model, as Bauersfeld et al. compensate it in their §VI), the way it compensates the wind
-       (eqs. 23–24). Only when the physics has downwash (``--aero realistic``); under the paper's
-       model the rule is the layered rule with 1.–3.
+    5. *feedforward* — crossing on the layers still passes over lower drones further down
+       (keeping every drone out of every jet costs seconds of settling: drones wait for each other
+       or go round the formed ones), so the controller compensates the downwash force it predicts
+       from the drones' positions, attitudes and thrust commands
+       (:class:`~swarm_mj.policy.DownwashFeedforward`: the simulator's jet model, as Bauersfeld et
+       al. compensate it in their §VI), the way it compensates the wind (eqs. 23–24). Only when
+       the physics has downwash (``--aero realistic``).
     """
 
     name = "clearance"
