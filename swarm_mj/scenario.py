@@ -300,6 +300,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     wind = WindConfig.from_dict(wind_table, where=path)
 
     aero = parse_aero(data.get("aero"), where=f"{w}aero")
+    if 0 < aero.motor_tau < dt:
+        raise UserError(f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
+                        where=f"{w}aero.motor_tau")
     _check_above_ground(leader_start, starts, traj, tparams, duration, T, w)
 
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")

@@ -5,9 +5,10 @@ drone body (world frame, at the centre of mass):
 
     F = −(Kx·ẋ, Ky·ẏ, Kz·ż) + F_ext          (paper eq. 1 drag; wind F^w of eq. 37)
 
-The drag uses the velocity at the start of that physics step, i.e. it is refreshed
-every physics step (twice per 10-ms control period at the 5-ms default) and held
-over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
+plus, under an aerodynamic preset (docs/aero.md), the force and torque of each of
+``force_stages`` (downwash, ground effect). The drag uses the velocity at the start of that
+physics step, i.e. it is refreshed every physics step (twice per 10-ms control period at the
+5-ms default) and held over the RK4 stages of the step. ``ctrl`` holds U1..U4 (after per-rotor saturation)
 for the whole control period: a zero-order hold (SPEC §2).
 
 State arrays are views into MjData with the drone axis first:
@@ -21,7 +22,7 @@ import mujoco
 import numpy as np
 
 from .errors import SimulationDiverged, UserError
-from .kernels import drag_kernel, saturate_kernel, state_ok, unmix_kernel
+from .kernels import drag_kernel, flush_stage_forces, saturate_kernel, state_ok, unmix_kernel
 from .mixing import _MIX_T, _UNMIX_T
 from .world import World
 
@@ -114,6 +115,8 @@ class Sim:
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
         self.rotor_command[:] = 0.0
+        self._stage_force[:] = 0.0
+        self._stage_torque[:] = 0.0
         mujoco.mj_forward(self.model, self.data)
         for stage in self.force_stages:
             stage.reset(self)
@@ -143,13 +146,10 @@ class Sim:
             if lag:
                 unmix_kernel(self._act, _UNMIX_T, self.rotor_thrust)     # produced rotor thrusts
             if stages:
-                f, tq = self._stage_force, self._stage_torque
-                f[:] = 0.0
-                tq[:] = 0.0
+                f, tq = self._stage_force, self._stage_torque          # zero here (flushed each step)
                 for stage in stages:
                     stage.apply(self, f, tq)
-                xf += f
-                self._xfrc_torque[:] = tq
+                flush_stage_forces(xf, self._xfrc_torque, f, tq)        # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()

@@ -104,14 +104,21 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
             drone.actuator.add("general", name=act, site=site, gear=gear, dyntype="filter",
                                dynprm=[float(motor_tau)], gainprm=[1.0], biastype="none")
     if ground:
-        # Landing legs (docs/aero.md): they touch only the floor (contype 2 / conaffinity 0; the
-        # floor has conaffinity 3), so drone-drone contacts stay the paper's.
-        from .aero.ground import LEG_BOTTOM, LEG_RADIUS, LEG_TOP, LEG_XY
+        # Landing gear (docs/aero.md): a strut under the hub and a square skid plate at its foot. The
+        # skid touches only the floor: collision bit 4 (the floor has contype 4, the skid conaffinity 4
+        # and contype 0). The rotor disc (the drone's outline) also gets conaffinity bit 4, so that a
+        # tilted drone hits the floor with it; drone-drone pairs are unchanged (bit 1). Two geoms per
+        # drone only: every geom costs MuJoCo kinematics at each RK4 stage.
+        from .aero.ground import SKID_HALF, SKID_HALF_Z, SKID_Z, STRUT_RADIUS
 
         body = drone.find("body", "body")
-        for k, (x, y) in enumerate(LEG_XY, start=1):
-            body.add("geom", name=f"leg{k}", type="capsule", fromto=[x, y, LEG_TOP, x, y, LEG_BOTTOM],
-                     size=[LEG_RADIUS], contype=2, conaffinity=0, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+        body.add("geom", name="strut", type="capsule", fromto=[0, 0, -0.02, 0, 0, SKID_Z], size=[STRUT_RADIUS],
+                 contype=0, conaffinity=0, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+        body.add("geom", name="skid", type="box", size=[SKID_HALF, SKID_HALF, SKID_HALF_Z], pos=[0, 0, SKID_Z],
+                 euler=[0, 0, 45], contype=0, conaffinity=4, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+        disc = drone.find("geom", "rotor_plane")
+        if disc is not None:
+            disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
     for geom in drone.find_all("geom"):
         if geom.name in ("hub",):
             geom.rgba = list(rgba)
@@ -150,7 +157,7 @@ def build_world(
     motors grows with the square of the number of drones). U1, a force along body z, stays on
     the site: a free joint's translational dofs are in the world frame. ``"site"``: all four on
     the site, as in the asset.
-    ground: a solid floor (it collides with every drone geom) and landing legs on each drone
+    ground: a solid floor (it touches each drone's rotor disc) and a landing gear on each drone
     (``swarm_mj.aero.ground``); False (the paper) leaves the floor drawn but never touched.
     motor_tau: rotor time constant (s); > 0 makes U1..U4 first-order filtered actuators
     (``dyntype="filter"``), 0 (the paper) ideal motors.
@@ -197,10 +204,10 @@ def build_world(
     arena.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=[0.55, 0.7, 0.9],
                     rgb2=[0.95, 0.97, 1.0], width=256, height=256)
     if ground:
-        # A solid floor (aero presets with ground = true, docs/aero.md): it touches every drone geom
-        # (contype 1) and the landing legs (contype 2).
+        # A solid floor (aero presets with ground = true, docs/aero.md): it touches each drone's rotor
+        # disc and landing skid (collision bit 4, see _drone_mjcf).
         arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
-                            contype=2, conaffinity=3, group=0)
+                            contype=4, conaffinity=0, group=0)
     elif floor:
         # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
         # and a drone below the floor is reported as a divergence by the simulator.

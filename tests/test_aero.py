@@ -300,7 +300,7 @@ def test_motor_lag_step_response(tau):
     np.testing.assert_allclose(sim.rotor_command[0], F, rtol=1e-12)
 
 
-def test_paper_preset_has_no_lag_legs_or_solid_floor():
+def test_paper_preset_has_no_lag_landing_gear_or_solid_floor():
     w = build_world(2)
     assert w.model.na == 0
     floor = mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
@@ -308,14 +308,24 @@ def test_paper_preset_has_no_lag_legs_or_solid_floor():
     assert w.xml == build_world(2, ground=False, motor_tau=0.0).xml
     wr = build_world(2, ground=True, motor_tau=0.02)
     assert wr.model.na == 8
-    assert wr.model.ngeom == w.model.ngeom + 8             # four legs per drone
-    # the legs never touch another drone: drone-drone geometry is the paper's
-    legs = [mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, f"leader/leg{k}") for k in range(1, 5)]
-    drone_geoms = np.flatnonzero(wr.model.geom_contype == 1)
-    for g in legs:
-        for h in drone_geoms:
-            assert not (wr.model.geom_contype[g] & wr.model.geom_conaffinity[h]
-                        or wr.model.geom_contype[h] & wr.model.geom_conaffinity[g])
+    assert wr.model.ngeom == w.model.ngeom + 4             # a strut and a skid per drone
+    # drone-drone geometry is the paper's: the same pairs of geoms of two drones can collide, and the
+    # landing gear touches only the floor
+    def collide(m, g, h):
+        return bool(m.geom_contype[g] & m.geom_conaffinity[h] or m.geom_contype[h] & m.geom_conaffinity[g])
+
+    def pairs(m):
+        gd = np.full(m.ngeom, -1)
+        for k, name in enumerate(("leader", "follower1")):
+            gd[m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{name}/body")] = k
+        return {(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, h))
+                for g in np.flatnonzero(gd == 0) for h in np.flatnonzero(gd == 1) if collide(m, g, h)}
+
+    assert pairs(wr.model) == pairs(w.model) and len(pairs(w.model)) == 9
+    floor_r = mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    touching = {mujoco.mj_id2name(wr.model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(wr.model.ngeom)
+                if collide(wr.model, floor_r, g)}
+    assert touching == {f"{d}/{g}" for d in ("leader", "follower1") for g in ("rotor_plane", "skid")}
 
 
 # ------------------------------------------------------------------ the solid ground
@@ -329,7 +339,7 @@ def test_ground_holds_a_drone_at_rest_with_zero_thrust():
     for _ in range(300):                                   # 3 s
         sim.step(U)
         sim.check()
-    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3          # resting on its legs (contact compliance: mm)
+    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3          # resting on its skid (contact compliance: mm)
     assert np.abs(sim.vel).max() < 1e-3
     assert 1 - 2 * (sim.quat[0, 1] ** 2 + sim.quat[0, 2] ** 2) > np.cos(np.deg2rad(0.5))
     mon = sim.monitors[0]
@@ -381,6 +391,8 @@ def test_aero_table_and_overrides():
             parse_aero(bad)
     sc = load_scenario("circle")
     assert sc.aero.is_paper
+    with pytest.raises(UserError, match="aero.motor_tau"):          # shorter than the physics step
+        parse_scenario(dict(sc.raw, aero={"motor_tau": 0.001}), "<t>")
     data = dict(sc.raw, aero={"model": "realistic", "ground_effect": False})
     sc2 = parse_scenario(data, "<t>")
     sc3 = with_aero(sc2, "paper")                     # --aero keeps the scenario's own overrides
@@ -458,3 +470,43 @@ def test_recording_holds_aero_forces_and_jets(tmp_path):
                           df[f"/world/drones/{name}/jet:Transform3D:scale"]])
         np.testing.assert_allclose(scale[:, 0], np.clip(log.rotor[:, i].sum(axis=1) / (P.m * P.g), 0, 3),
                                    rtol=1e-6, atol=1e-6)
+
+
+def test_tilted_touchdown_is_a_crash_even_when_slow():
+    """A drone tilted 40° dropped 3 cm onto its rotor disc's edge: touchdown at ~0.7 m/s (below the
+    1 m/s bar) but tilted more than 30°, so a crash."""
+    cfg = parse_aero({"ground": True})
+    a = np.deg2rad(40.0)
+    sim = _sim([[0, 0, 0.2]], cfg=cfg, quats=np.array([[np.cos(a / 2), np.sin(a / 2), 0.0, 0.0]]))
+    lowest = 0.25 * np.sin(a) + 0.015 * np.cos(a) - 0.01 * np.cos(a)    # disc edge below the CoM
+    for _ in range(50):
+        sim.step(np.zeros((1, 4)))
+    mon = sim.monitors[0]
+    assert mon.ground_contacts == 1 and mon.crashes == 1
+    _t, _i, speed, tilt, crash = mon.log[0]
+    assert speed == pytest.approx(np.sqrt(2 * P.g * (0.2 - lowest)), rel=0.1) and speed < 1.0
+    assert tilt == pytest.approx(40.0, abs=1.0) and crash
+
+
+def test_compiled_kernels_equal_their_numpy_source():
+    """The Numba-compiled stages compute what their plain-Python source computes (SWARM_MJ_NO_JIT=1)."""
+    from swarm_mj.aero.downwash import downwash_kernel
+    from swarm_mj.aero.ground_effect import ground_effect_kernel
+
+    if not hasattr(downwash_kernel, "py_func"):
+        pytest.skip("numba not in use")
+    rng = np.random.default_rng(3)
+    N = 8
+    pos = rng.uniform(-1, 1, (N, 3)) + [0, 0, 1.0]
+    quat = rng.normal(size=(N, 4)) * [1, 0.2, 0.2, 1]
+    quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+    thrust = rng.uniform(0, 2, (N, 4))
+    for fn, args in ((downwash_kernel, (pos, quat, thrust, 4, 0.25, 1.225, 0.09, 0.018, 0.01, 0.09)),
+                     (ground_effect_kernel, (pos, quat, thrust, 0.25, 0.02, 0.09, 0.045))):
+        a = [np.zeros((N, 3)) for _ in range(4)]
+        b = [np.zeros((N, 3)) for _ in range(4)]
+        fn(*args, *a)
+        fn.py_func(*args, *b)
+        for x, y in zip(a, b):
+            np.testing.assert_allclose(x, y, rtol=1e-12, atol=1e-15)
+        assert np.abs(a[0]).max() > 0

@@ -25,8 +25,10 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, settle: float = 3.0) -> dict:
-    """One two-drone flight; returns the worst dip (m) of the lower drone near the upper one."""
+def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, settle: float = 3.0,
+        offset: float = 0.0) -> dict:
+    """One two-drone flight; returns the worst dip (m) of the lower drone near the upper one
+    (``hold``: holding ``offset`` m aside of the point right below it)."""
     from swarm_mj.aero import install, preset
     from swarm_mj.control.backstepping import TABLE4_GAINS, Backstepping
     from swarm_mj.kernels import observe_kernel
@@ -35,7 +37,7 @@ def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, s
 
     cfg = preset(aero)
     T = 0.01
-    x0 = 0.0 if hold else -2.0
+    x0 = offset if hold else -2.0
     upper = np.array([0.0, 0.0, alt])
     lower = np.array([x0, 0.0, alt - depth])
     world = build_world(2, positions=np.array([upper, lower]), ground=cfg.ground, motor_tau=cfg.motor_tau)
@@ -60,7 +62,7 @@ def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, s
             vel_d[1, 0] = speed if pos_d[1, 0] < 2.0 else 0.0
         U = ctl.compute(rpy, rpy_rate, pos, vel, pos_d, vel_d, z3, np.zeros(2), wind_force=z3, omega_body=omega)
         sim.step(U)
-        if t >= settle and (hold or abs(sim.pos[1, 0] - sim.pos[0, 0]) < 1.0):
+        if t >= settle and (hold or abs(sim.pos[1, 0] - sim.pos[0, 0]) < 1.0):     # near the upper one
             dip = pos_d[1, 2] - sim.pos[1, 2]
             worst = max(worst, dip)
             zs.append(dip)
@@ -81,6 +83,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=1.0, help="lower drone's crossing speed (m/s)")
     ap.add_argument("--alt", type=float, default=2.5, help="upper drone's altitude (m)")
     ap.add_argument("--aero", default="realistic", choices=["paper", "realistic"])
+    ap.add_argument("--offsets", nargs="*", type=float, default=[],
+                    help="also the holding dip this far aside (m, horizontally) at each depth")
     ap.add_argument("--json", metavar="PATH")
     a = ap.parse_args(argv)
     u_h = float(hover_induced_velocity(P.hover_thrust))
@@ -98,6 +102,10 @@ def main(argv: list[str] | None = None) -> int:
         rows.append(row)
         print(f"{d:>9.2f} {row['centreline_speed_mps']:>9.2f} {row['half_width_m']:>9.3f} "
               f"{row['crossing_dip_m']:>13.3f} {row['holding_dip_worst_m']:>12.3f}")
+        for off in a.offsets:
+            o = fly(d, a.speed, a.alt, a.aero, hold=True, offset=off)
+            row.setdefault("holding_dip_aside_m", {})[str(off)] = o["worst_dip_m"]
+            print(f"{'':>9} holding {off:g} m aside: dip {o['worst_dip_m']:.3f} m")
     if a.json:
         Path(a.json).write_text(json.dumps({"aero": a.aero, "u_h_mps": u_h, "rows": rows}, indent=2) + "\n")
     return 0

@@ -18,7 +18,10 @@ each row gives our time and the raw time for the same simulated work and their r
   ``mujoco.Renderer`` on the same model (if rendering is available);
 * scaling: ``runner.run`` of a circle with N = 6, 25, 100 drones (followers starting on
   their slots of an (N−1)-gon, adjacent slots ≥ 1.2 m apart), wall time per simulated
-  second, beside raw mj_step on the same model.
+  second, beside raw mj_step on the same model;
+* aero: ``runner.run`` of the six-drone circle under the ``realistic`` physics preset (ground,
+  downwash, ground effect, rotor lag; docs/aero.md) beside the same run under ``paper``, wall
+  time of the loop per simulated second (the "raw" column is the paper run; bar: 1.3×).
 
 If ``tools/bench_tune.py``, ``bench_video.py``, ``bench_env.py`` or ``bench_core.py``
 defines ``measure(quick: bool) -> list[dict]`` (rows with the keys below), its rows are
@@ -45,7 +48,7 @@ import numpy as np
 import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
 import mujoco
 
-SECTIONS = ("core", "runs", "env", "tuning", "video", "scaling")
+SECTIONS = ("core", "runs", "env", "tuning", "video", "scaling", "aero")
 ROWS: list[dict] = []
 
 
@@ -344,6 +347,29 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
             n_drones=n)
 
 
+def bench_aero(quick: bool, repeats: int) -> None:
+    """The realistic physics preset's cost over the paper's, per simulated second (circle, 6 drones)."""
+    from swarm_mj.runner import run
+    from swarm_mj.scenario import load_scenario
+
+    dur = 30.0 if quick else 60.0
+    sc = load_scenario("circle").with_overrides(duration=dur)
+    for aero in ("paper", "realistic"):
+        run(sc.with_overrides(duration=1.0), progress=False, aero=aero)        # warm-up (JIT cache)
+    loop: dict[str, list[float]] = {"paper": [], "realistic": []}
+    notes = {}
+    for _ in range(repeats):
+        for aero in ("paper", "realistic"):                                   # alternate: same machine load
+            res = run(sc, progress=False, aero=aero)
+            loop[aero].append(res.summary["wall_time_s"])
+            notes[aero] = res.summary
+    p, r = min(loop["paper"]) / dur, min(loop["realistic"]) / dur
+    s = notes["realistic"]
+    row("aero", f"realistic vs paper per simulated second, circle (6 drones, {dur:g} s)", r, p, value=r / p,
+        unit="× paper", note=f"paper {1000 * p:.1f} ms, realistic {1000 * r:.1f} ms per sim s (bar 1.3×); "
+                             f"realistic: crashes {s['crashes']}, contacts {s['contacts']}; best of {repeats}")
+
+
 def _load_tool(name: str):
     """tools/NAME.py as a module, or None when absent or broken."""
     p = Path(__file__).resolve().parent / f"{name}.py"
@@ -420,6 +446,8 @@ def main(argv: list[str] | None = None) -> int:
             bench_video(args.quick, 1)
         elif sec == "scaling":
             bench_scaling(args.quick, 1, tuple(args.sizes))
+        elif sec == "aero":
+            bench_aero(args.quick, repeats)
         print(f"  ({sec}: {time.perf_counter() - t:.0f} s)", flush=True)
     extra(args.quick)
     total = time.perf_counter() - t0

@@ -87,8 +87,9 @@ def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSI
 @jit
 def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, n_per_copy: int, arm: float,
                     rho: float, rotor_r: float, half_cda: float, half_cda_body: float, ramp: float,
-                    force: np.ndarray, torque: np.ndarray) -> None:
-    """Set force, torque (N, 3) to the downwash of every drone on every other drone of its copy.
+                    force: np.ndarray, torque: np.ndarray, add_force: np.ndarray, add_torque: np.ndarray) -> None:
+    """Set force, torque (N, 3) to the downwash of every drone on every other drone of its copy, and
+    add the same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
 
     pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) the produced rotor thrusts; drones
     i and j interact only when i // n_per_copy == j // n_per_copy. The motor distance l = 2·arm;
@@ -142,6 +143,10 @@ def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray,
                 torque[j, 0] += off[1] * fz - off[2] * fy
                 torque[j, 1] += off[2] * fx - off[0] * fz
                 torque[j, 2] += off[0] * fy - off[1] * fx
+    for j in range(N):
+        for c in range(3):
+            add_force[j, c] += force[j, c]
+            add_torque[j, c] += torque[j, c]
 
 
 class DownwashStage:
@@ -171,6 +176,4 @@ class DownwashStage:
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
         downwash_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.n_per_copy, self.arm, self.rho,
                         self.rotor_radius, self.half_cda, self.half_cda_body, self.rotor_radius, self.force,
-                        self.torque)
-        force += self.force
-        torque += self.torque
+                        self.torque, force, torque)

@@ -1,9 +1,10 @@
-"""The solid ground: landing legs, the rest height, and ground contacts and crashes (docs/aero.md).
+"""The solid ground: landing gear, the rest height, and ground contacts and crashes (docs/aero.md).
 
 With ``ground`` on, :func:`swarm_mj.world.build_world` makes the floor (the plane z = 0)
-collide with every geom of every drone and gives each drone four landing legs that touch
-only the floor (never another drone: drone–drone contact geometry is the paper's). A start
-at z = 0 means "resting on the legs": the centre of mass is placed at :data:`REST_HEIGHT`.
+collide with each drone's rotor disc and gives each drone a landing gear (a strut and a skid
+plate) whose skid touches only the floor (never another drone: drone–drone contact geometry
+is the paper's). A start
+at z = 0 means "resting on the skid": the centre of mass is placed at :data:`REST_HEIGHT`.
 
 Counting (:class:`GroundContacts`, run after every physics step):
 
@@ -24,14 +25,16 @@ import math
 import mujoco
 import numpy as np
 
-#: Landing legs: capsules from (x, y, LEG_TOP) to (x, y, LEG_BOTTOM) in the body frame, under
-#: the four arms, radius LEG_RADIUS (m).
-LEG_XY = ((0.12, 0.0), (0.0, 0.12), (-0.12, 0.0), (0.0, -0.12))
-LEG_TOP = -0.01
-LEG_BOTTOM = -0.06
-LEG_RADIUS = 0.006
-#: Height of the centre of mass of a level drone resting on its legs (m).
-REST_HEIGHT = -LEG_BOTTOM + LEG_RADIUS
+#: Landing gear: a strut (capsule, radius STRUT_RADIUS) under the hub down to a thin square skid
+#: plate turned 45° about z, corners 0.12 m from the centre under the arms, half-sizes
+#: (SKID_HALF, SKID_HALF, SKID_HALF_Z), centred at z = SKID_Z in the body frame; the skid's bottom
+#: face, 0.066 m below the centre of mass, is what rests on the floor (4 contact points).
+STRUT_RADIUS = 0.008
+SKID_HALF = 0.12 / 2**0.5
+SKID_HALF_Z = 0.003
+SKID_Z = -0.066 + SKID_HALF_Z
+#: Height of the centre of mass of a level drone resting on its skid (m).
+REST_HEIGHT = -(SKID_Z - SKID_HALF_Z)
 #: Clearance above the rest height that counts as having taken off (m).
 TAKEOFF_CLEARANCE = 0.05
 

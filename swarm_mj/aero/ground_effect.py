@@ -33,8 +33,10 @@ def ground_effect_factor(z, rotor_radius: float = ROTOR_RADIUS, clip_fraction: f
 
 @jit
 def ground_effect_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, arm: float, rotor_z: float,
-                         rotor_r: float, z_clip: float, force: np.ndarray, torque: np.ndarray) -> None:
-    """Set force, torque (N, 3) to the ground-effect gain of every rotor of every drone.
+                         rotor_r: float, z_clip: float, force: np.ndarray, torque: np.ndarray,
+                         add_force: np.ndarray, add_torque: np.ndarray) -> None:
+    """Set force, torque (N, 3) to the ground-effect gain of every rotor of every drone, and add the
+    same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
 
     pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) produced rotor thrusts F1..F4.
     """
@@ -63,6 +65,12 @@ def ground_effect_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.nda
         torque[j, 0] = tx
         torque[j, 1] = ty
         torque[j, 2] = tz
+        add_force[j, 0] += fx
+        add_force[j, 1] += fy
+        add_force[j, 2] += fz
+        add_torque[j, 0] += tx
+        add_torque[j, 1] += ty
+        add_torque[j, 2] += tz
 
 
 class GroundEffectStage:
@@ -89,6 +97,4 @@ class GroundEffectStage:
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
         ground_effect_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.arm, self.rotor_z, self.rotor_radius,
-                             self.z_clip, self.force, self.torque)
-        force += self.force
-        torque += self.torque
+                             self.z_clip, self.force, self.torque, force, torque)

@@ -7,7 +7,7 @@ replaces the model and keeps the scenario's own switch overrides.
 =================  =======  ===========  ================================================
 switch             paper    realistic    effect
 =================  =======  ===========  ================================================
-ground             false    true         solid floor at z = 0, landing legs, starts at rest
+ground             false    true         solid floor at z = 0, landing gear, starts at rest
 downwash           false    true         turbulent-jet downwash between drones
 ground_effect      false    true         Cheeseman–Bennett thrust gain near the floor
 motor_tau          0        0.015 s      first-order rotor lag (0: ideal rotors)
@@ -119,7 +119,7 @@ def install(sim, cfg: AeroConfig) -> None:
     from .ground import GroundContacts
     from .ground_effect import GroundEffectStage
 
-    stages = []
+    stages: list = []
     if cfg.downwash:
         stages.append(DownwashStage())
     if cfg.ground_effect:

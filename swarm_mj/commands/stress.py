@@ -97,6 +97,7 @@ def summarize_rule(rows: list[dict]) -> dict:
             "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
             "crashes": sum(r.get("crashes", 0) for r in rows),
             "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
+            "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows),
             "stopped": [r["seed"] for r in rows if r["stopped"]]}
 
 
