@@ -620,7 +620,9 @@ class ClearanceRule(LayeredRule):
 
         # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
-        ready = climbing & (z >= layer - self.climb_tol)
+        # ours: and only once its climb has slowed (|ż| < 1 m/s): braking a climb takes the thrust
+        # down to m·(g − 5 m/s²), and tilting then for the crossing, with the rotors' lag, flipped drones
+        ready = climbing & (z >= layer - self.climb_tol) & (np.abs(self.zv) < 1.0)
         for i in np.flatnonzero(ready):
             self.phase[i] = CROSS
             self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
