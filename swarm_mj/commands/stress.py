@@ -30,7 +30,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-RULES = ("clearance", "layers", "paper", "off")
+RULES = ("clearance", "compensated", "layers", "paper", "off")
 
 
 @dataclass(frozen=True)

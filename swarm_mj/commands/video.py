@@ -31,7 +31,7 @@ def add_parser(sub) -> None:
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
-    p.add_argument("--anti-collision", choices=["clearance", "layers", "paper", "off"], help="override the rule")
+    p.add_argument("--anti-collision", choices=["clearance", "compensated", "layers", "paper", "off"], help="override the rule")
     p.add_argument("--aero", choices=["paper", "realistic"],
                    help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")

@@ -780,8 +780,19 @@ def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, po
 LayeredRule._update_formed = _update_formed_impl
 
 
-ANTI_COLLISION_RULES = {"clearance": ClearanceRule, "layers": LayeredRule, "paper": PaperRule, "off": NoRule}
-AntiCollision = ClearanceRule | LayeredRule | PaperRule | NoRule
+class CompensatedRule(LayeredRule):
+    """``anti_collision = "compensated"``: today's layered rule (:class:`LayeredRule`, the paths
+    unchanged) with the downwash feedforward of :class:`ClearanceRule` (5.): under ``--aero
+    realistic`` the controller compensates the downwash force it predicts; under the paper's
+    physics it is the layered rule, bit for bit."""
+
+    name = "compensated"
+    downwash_feedforward = True
+
+
+ANTI_COLLISION_RULES = {"clearance": ClearanceRule, "compensated": CompensatedRule, "layers": LayeredRule,
+                        "paper": PaperRule, "off": NoRule}
+AntiCollision = ClearanceRule | CompensatedRule | LayeredRule | PaperRule | NoRule
 
 
 def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: float):
