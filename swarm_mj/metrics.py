@@ -119,3 +119,96 @@ def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_ti
         settling.append(s)
         settled_err.append(float(es[first:].max()))
     return settling, max(settled_err)
+
+
+# ---------------------------------------------------------------------------- downwash dip
+#: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"). The jet below a
+#: drone is the turbulent round jet of Bauersfeld et al. (RA-L 2024, arXiv:2403.13321, their
+#: eqs. 6 and 9, the model swarm_mj.aero.downwash applies): half-width r_½(s) = l·S·(s/l − s0*)
+#: at a depth s along the drone's thrust axis, l = 2L = 0.5 m the motor distance, S = 0.07668,
+#: s0* = −5.817. Its edge is taken at 2·r_½ (there the jet speed is 1/(1 + 4(√2 − 1))² = 14 % of
+#: the centreline's and its push on a rotor disc 2 %): ``JET_R0_M + JET_SPREAD·s``. A drone whose
+#: rotor span (``DRONE_RADIUS_M`` from its centre) reaches inside that edge, at a depth between 0
+#: and ``JET_REACH_M``, is in the jet.
+_JET_L, _JET_S, _JET_S0 = 0.5, 0.07668, -5.817
+JET_R0_M = 2.0 * _JET_L * _JET_S * (-_JET_S0)      # 0.446 m: 2·r_½ at the rotor plane
+JET_SPREAD = 2.0 * _JET_S                           # 0.153 m per m of depth
+JET_REACH_M = 6.0        # the centreline push on a hovering drone is still a tenth of its weight there
+DRONE_RADIUS_M = 0.34    # rotor span of the drone below: L + rotor radius (0.25 + 0.09 m)
+
+
+def _body_z(quat: np.ndarray) -> np.ndarray:
+    """World-frame body z axis (..., 3) of unit quaternions (..., 4) in MuJoCo's (w, x, y, z) order."""
+    w, x, y, z = (quat[..., c] for c in range(4))
+    return np.stack([2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
+
+
+def in_jet(pos: np.ndarray, quat: np.ndarray, *, r0: float = JET_R0_M, spread: float = JET_SPREAD,
+           reach: float = JET_REACH_M, radius: float = DRONE_RADIUS_M) -> np.ndarray:
+    """Which drone is in which drone's jet, (k, n, n) bool: ``[t, i, j]`` = drone j is in drone i's jet.
+
+    pos (k, n, 3), quat (k, n, 4) (w, x, y, z). The jet of drone i leaves along −(body z of i)
+    (it follows the drone's thrust direction); drone j, at depth s = (p_j − p_i)·(−z_i) along
+    that axis and radial offset r from it, is in the jet when 0 < s ≤ ``reach`` and
+    r < ``r0`` + ``spread``·s + ``radius`` (its rotor span reaches into the jet's edge).
+    """
+    pos = np.asarray(pos, dtype=float)
+    axis = -_body_z(np.asarray(quat, dtype=float))                    # (k, n, 3) jet direction of each drone
+    rel = pos[:, None, :, :] - pos[:, :, None, :]                     # (k, n, n, 3) p_j − p_i
+    s = np.einsum("tijc,tic->tij", rel, axis)                         # (k, n, n) depth of j in i's jet
+    r2 = np.einsum("tijc,tijc->tij", rel, rel) - s * s                 # (k, n, n) squared radial offset
+    edge = r0 + spread * s + radius
+    out = (s > 0.0) & (s <= reach) & (r2 < edge * edge)
+    idx = np.arange(pos.shape[1])
+    out[:, idx, idx] = False
+    return out
+
+
+def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.ndarray, *,
+                 airborne: float = 0.1, **jet: float) -> dict:
+    """The worst altitude dip of a drone in another drone's jet (docs/interpretations.md).
+
+    t (k,), pos (k, n, 3) positions, pos_d (k, n, 3) commanded positions (after the
+    anti-collision rule), quat (k, n, 4) attitudes (w, x, y, z). Drone j is *in a jet* at a
+    sample where it is in the jet of an airborne drone i (:func:`in_jet`; ``jet`` passes its
+    geometry) and j has taken off (its altitude has once exceeded ``airborne`` m). Its altitude
+    error below the reference is e = max(0, z_d − z). Over each stretch of consecutive samples
+    in a jet, its *dip* is how much e has grown since the stretch began, e(t) − e(start): the
+    sinking the jet caused, not the lag the drone already had (a drone entering a jet while it
+    still climbs towards its reference, such as the leader after its take-off step, is already
+    below it, jet or not). Returns ``worst_m`` (the largest dip, 0 if none), ``drone`` and
+    ``above`` (the indices, −1 if none), ``t_s`` (when), ``time_in_jet_s`` (samples with any
+    drone in a jet × the sample period), ``per_drone_m`` (n,) the worst dip of each drone, and
+    ``below_ref_worst_m``, the largest e itself at a sample in a jet (lag included).
+    """
+    t = np.asarray(t, dtype=float)
+    pos = np.asarray(pos, dtype=float)
+    k, n = pos.shape[:2]
+    empty = {"worst_m": 0.0, "drone": -1, "above": -1, "t_s": None, "time_in_jet_s": 0.0,
+             "per_drone_m": [0.0] * n, "below_ref_worst_m": 0.0}
+    if n < 2 or k == 0:
+        return empty
+    z = pos[:, :, 2]                                                   # (k, n)
+    up = np.maximum.accumulate(z > airborne, axis=0)                  # (k, n) taken off by then
+    jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]   # (k, i, j)
+    below = jet.any(axis=1)                                            # (k, n) j in some jet
+    e = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)   # (k, n)
+    start = below & ~np.vstack([np.zeros((1, n), dtype=bool), below[:-1]])         # (k, n) a stretch begins
+    stretch = np.cumsum(start, axis=0)                                 # (k, n) stretch number (per drone)
+    base = np.zeros((k, n))
+    for j in range(n):
+        first = np.flatnonzero(start[:, j])                            # sample where each stretch begins
+        if len(first):
+            base[:, j] = np.concatenate([[0.0], e[first, j]])[stretch[:, j]]
+    dips = np.where(below, np.maximum(e - base, 0.0), 0.0)             # (k, n)
+    dt = float(np.median(np.diff(t))) if k > 1 else 0.0
+    out = dict(empty)
+    out["time_in_jet_s"] = float(below.any(axis=1).sum() * dt)
+    out["per_drone_m"] = [float(v) for v in dips.max(axis=0)]
+    out["below_ref_worst_m"] = float(np.where(below, e, 0.0).max())
+    if not (dips > 0.0).any():
+        return out
+    kk, j = np.unravel_index(int(np.argmax(dips)), dips.shape)
+    i = int(np.argmax(jet[kk, :, j]))
+    out.update(worst_m=float(dips[kk, j]), drone=int(j), above=i if jet[kk, i, j] else -1, t_s=float(t[kk]))
+    return out

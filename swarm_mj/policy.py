@@ -19,6 +19,41 @@ from .params import DEFAULT_PARAMS, QuadParams
 from .scenario import Scenario
 
 
+class DownwashFeedforward:
+    """The downwash force (n, 3) each drone is predicted to feel from the jets of the others: the
+    simulator's own turbulent-jet model (:class:`swarm_mj.aero.downwash.DownwashStage`, docs/aero.md;
+    Bauersfeld et al. 2024 compensate a drone's downwash the same way, from the model), evaluated
+    at the drones' positions and attitudes with each drone's last thrust command U1 shared over
+    its four rotors. The controller adds it to the external force it already compensates (the
+    wind feedforward of eqs. 23–24). Only the force: the jet's torque on a drone half in it is
+    left to the attitude loop (taking it off L·U2..L·U4 as predicted made 3 of 8 hard starts worse:
+    the prediction lags the drones' attitude by a control period and the rotors' by their lag)."""
+
+    def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
+        from types import SimpleNamespace
+
+        from .aero.downwash import DownwashStage
+
+        self.n = n
+        self._stage = DownwashStage()
+        self._view = SimpleNamespace(pos=np.zeros((n, 3)), quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+                                     rotor_thrust=np.zeros((n, 4)), n=n, params=params, time=0.0)
+        self._stage.reset(self._view)
+        self.force = np.zeros((n, 3))           # (n, 3) the last prediction (N)
+        self._torque = np.zeros((n, 3))
+
+    def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
+        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
+        v = self._view
+        v.pos[:] = pos
+        v.quat[:] = quat
+        v.rotor_thrust[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
+        self.force[:] = 0.0
+        self._torque[:] = 0.0
+        self._stage.apply(v, self.force, self._torque)
+        return self.force
+
+
 class BacksteppingPolicy:
     """Backstepping (eqs. 17–24) on formation setpoints adjusted by the anti-collision rule."""
 
@@ -31,11 +66,16 @@ class BacksteppingPolicy:
                                        attitude_map=sc.attitude_map)
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **rule_params)
+        # the rule may ask the controller to compensate the downwash, when the physics has one
+        self.downwash_ff = (DownwashFeedforward(self.n, params) if self.n > 1 and self.rule.downwash_feedforward
+                            and sc.aero.downwash and sc.wind_feedforward else None)
+        self._ff_started = False
         self._started = False
 
     def reset(self) -> None:
         self.controller.reset()
         self._started = False
+        self._ff_started = False
 
     @property
     def events(self) -> list[dict]:
@@ -53,8 +93,13 @@ class BacksteppingPolicy:
             pos_d, vel_d, acc_d = self.rule.references(float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d,
                                                        float(obs["leader_pos"][2]))
         ctl = self.controller
+        ext = obs["wind_force"]
+        if self.downwash_ff is not None:       # the rule's downwash feedforward (docs/interpretations.md §4)
+            thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)
+            ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
+            self._ff_started = True
         U = ctl.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
-                        obs["setpoint_yaw"], wind_force=obs["wind_force"], omega_body=obs["body_rates"])
+                        obs["setpoint_yaw"], wind_force=ext, omega_body=obs["body_rates"])
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
 
     def __call__(self, obs: dict) -> np.ndarray:

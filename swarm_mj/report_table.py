@@ -80,6 +80,11 @@ def format_summary(summary: dict, scenario) -> str:
         lines.append(f"min 3D separation: {s['min_separation_m']:.3f} m ({' & '.join(s['min_separation_pair'])} "
                      f"at t = {s['min_separation_at_s']:.2f} s)")
         lines.append(f"drone-drone contacts (MuJoCo): {s['contacts']}")
+        dw = s.get("downwash_dip")
+        if dw is not None:
+            where = (f" ({dw['drone']} under {dw['above']} at t = {dw['at_s']:.2f} s)" if dw["drone"] else "")
+            lines.append(f"worst altitude dip in another drone's jet: {dw['worst_m'] * 100:.1f} cm{where}; "
+                         f"time with a drone in a jet {dw['time_in_jet_s']:.2f} s")
         a = s["anti_collision"]
         lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields")
     if s.get("stopped"):

@@ -25,7 +25,7 @@ from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
-from .metrics import formation_settling, leader_distances, min_separation, rmse, step_metrics
+from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .progress import Progress
@@ -262,12 +262,18 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["formation"] = {"settling_s": settling, "change_times_s": changes.tolist(),
                             "max_distance_error_m": max_err,
                             "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max())}
+        dip = downwash_dip(t, log.pos, log.pos_d, log.quat)
+        out["downwash_dip_worst_m"] = dip["worst_m"]
+        named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
+        out["downwash_dip"] = {"worst_m": dip["worst_m"], **named, "at_s": dip["t_s"],
+                               "time_in_jet_s": dip["time_in_jet_s"], "below_ref_worst_m": dip["below_ref_worst_m"]}
         ev = policy.events
         out["anti_collision"] = {"rule": policy.rule.name, "events": len(ev),
                                  "yields": sum(1 for e in ev if e["action"] in ("up", "down"))}
     else:  # the stable keys exist for one drone too
         out["min_separation_m"] = None
         out["formation"] = None
+        out["downwash_dip_worst_m"] = 0.0
         out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0}
     return out
 

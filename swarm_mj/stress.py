@@ -19,11 +19,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .errors import UserError
+from .formation.anticollision import ANTI_COLLISION_RULES
 from .parallel import map_ordered
 from .progress import Progress
 from .scenario import RandomStart, check_random_start_feasible
 
-RULES = ("layers", "paper", "off")
+RULES = tuple(ANTI_COLLISION_RULES)   # layers (default), paper, off, clearance, compensated
 
 
 @dataclass(frozen=True)
@@ -75,7 +76,9 @@ def fly_case(case: StressCase) -> dict:
             "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
             "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
             "stopped": s.get("stopped"), "crashes": int(s.get("crashes", 0)),
-            "ground_contacts": int(s.get("ground_contacts", 0))}
+            "ground_contacts": int(s.get("ground_contacts", 0)),
+            "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
+            "time_in_jet_s": float((s.get("downwash_dip") or {}).get("time_in_jet_s", 0.0))}
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -88,7 +91,11 @@ def summarize_rule(rows: list[dict]) -> dict:
             "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
             "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
             "stopped": [r["seed"] for r in rows if r["stopped"]],
+            "downwash_dip_worst_m": max((r["downwash_dip_m"] for r in rows), default=0.0),
+            "downwash_dip_worst_seed": max(rows, key=lambda r: r["downwash_dip_m"])["seed"] if rows else None,
+            "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
             "crashes": sum(r.get("crashes", 0) for r in rows),
+            "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
             "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows)}
 
 
@@ -119,17 +126,20 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
 
 
 def format_table(table: dict, followers: int) -> str:
-    """The per-rule table as text."""
-    head = (f"{'rule':<8} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'min sep (m)':>11} "
-            f"{'settle med (s)':>14} {'settle worst (s)':>16}   ({followers} followers)")
+    """The per-rule table as text (crashed: runs stopped as diverged; crashes: ground crashes,
+    docs/aero.md; dip: the worst downwash dip, docs/interpretations.md §4)."""
+    head = (f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
+            f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}"
+            f"   ({followers} followers)")
     lines = [head]
     for rule, r in table.items():
-        lines.append(f"{rule:<8} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
-                     f"{len(r['stopped']):>7} {r['min_separation_airborne_m']:>11.3f} "
-                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f}")
+        lines.append(f"{rule:<11} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
+                     f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
+                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
+                     f"{r['downwash_dip_worst_m']:>8.3f}")
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
-            lines.append(f"         seeds with contact: {', '.join(map(str, seeds[:20]))}"
+            lines.append(f"           seeds with contact: {', '.join(map(str, seeds[:20]))}"
                          f"{' ...' if len(seeds) > 20 else ''}")
     return "\n".join(lines)
 

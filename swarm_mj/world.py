@@ -9,11 +9,10 @@ namespace (``leader/``, ``follower1/``, ...), so names come out scoped
 
 from __future__ import annotations
 
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-
-import os
 
 import mujoco
 import numpy as np

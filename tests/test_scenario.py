@@ -173,3 +173,17 @@ def test_load_scenario_file_errors(tmp_path):
         load_scenario(str(tmp_path) + "/")
     with pytest.raises(UserError, match="circel"):
         load_scenario("circel")
+
+
+def test_cli_rule_and_aero_names_are_the_registries():
+    """The command line's choices (written out so that building the parser stays light) are the
+    rules of ANTI_COLLISION_RULES (the default first) and the presets of AERO_MODELS."""
+    from swarm_mj.aero.presets import AERO_MODELS
+    from swarm_mj.commands import AERO_NAMES, RULE_NAMES
+    from swarm_mj.formation.anticollision import ANTI_COLLISION_RULES
+    from swarm_mj.scenario import parse_scenario
+
+    assert tuple(ANTI_COLLISION_RULES) == RULE_NAMES
+    assert tuple(AERO_MODELS) == AERO_NAMES
+    sc = parse_scenario({"leader": {"trajectory": "circle"}, "followers": {"count": 2, "start": [[1, 0, 0], [0, 1, 0]]}})
+    assert sc.anti_collision == RULE_NAMES[0]

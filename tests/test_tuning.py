@@ -17,8 +17,7 @@ from swarm_mj.control.backstepping import TABLE4_GAINS, load_gains
 from swarm_mj.errors import UserError
 from swarm_mj.runner import run
 from swarm_mj.scenario import load_scenario
-from swarm_mj.tuning import (BatchEvaluator, StepBars, StepCostSettings, TuneOptions, step_check, step_ise,
-                             tune_gains)
+from swarm_mj.tuning import BatchEvaluator, StepBars, StepCostSettings, TuneOptions, step_check, step_ise, tune_gains
 from swarm_mj.tuning import cost as cost_mod
 from swarm_mj.tuning import evaluator as evaluator_mod
 

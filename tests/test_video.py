@@ -56,8 +56,9 @@ FOLLOWER = np.array(video.FOLLOWER_RGB) * 255
 
 @pytest.fixture(scope="module")
 def short_run():
-    """3 s of the circle: the drones take off and spread to their layers."""
-    r = run("circle", duration=3.0, progress=False)
+    """3 s of the circle: the drones take off and spread to their layers (the layered rule: the
+    checks below were laid out on its positions at 3 s, no drone hidden behind another)."""
+    r = run("circle", duration=3.0, progress=False, anti_collision="layers")
     assert r.error is None
     return r
 

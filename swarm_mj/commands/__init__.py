@@ -1,1 +1,8 @@
 """Subcommands of ``swarm-mj`` (one module each: ``add_parser(sub)`` and ``main(args)``)."""
+
+#: The anti-collision rules the command line offers, the default first (the keys of
+#: ``swarm_mj.formation.anticollision.ANTI_COLLISION_RULES``, which a test keeps equal; written
+#: here so that building the parser does not import the simulator).
+RULE_NAMES = ("layers", "paper", "off", "clearance", "compensated")
+#: The physics presets (``swarm_mj.aero.presets.AERO_MODELS``, kept equal by a test).
+AERO_NAMES = ("paper", "realistic")

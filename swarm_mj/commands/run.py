@@ -7,6 +7,8 @@ import os
 import sys
 from pathlib import Path
 
+from . import AERO_NAMES, RULE_NAMES
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("run", help="fly a scenario and write a Rerun recording (.rrd)",
@@ -21,8 +23,8 @@ def add_parser(sub) -> None:
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
-    p.add_argument("--anti-collision", choices=["layers", "paper", "off"], help="override the rule")
-    p.add_argument("--aero", choices=["paper", "realistic"],
+    p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
+    p.add_argument("--aero", choices=AERO_NAMES,
                    help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--video", metavar="MP4", help="also render an MP4 video (EGL)")
     p.add_argument("--snapshot", metavar="PNG", help="also render a still image")

@@ -6,8 +6,11 @@ leader, at least ``--min-spacing`` apart (``scenario.random_follower_starts``, s
 are flown with every ``--rule``, in parallel over ``--workers`` processes, and for each rule
 this prints: starts flown, starts with any drone–drone contact (counted by MuJoCo), total
 contacts, runs that crashed (a drone knocked into the floor: the run stops there), the
-smallest 3D centre distance seen while every drone was airborne, and the median and worst
-formation settling time (every leader distance within 5 cm of D; inf: never settled).
+crashes into the ground (``--aero realistic``: a touchdown too fast or too tilted, docs/aero.md),
+the smallest 3D centre distance seen while every drone was airborne, and the median and worst
+formation settling time (every leader distance within 5 cm of D; inf: never settled), and the
+worst altitude dip of a drone in another drone's jet (``downwash_dip_worst_m``, see
+``metrics.downwash_dip``).
 
 Each drone sees the others within ``--sensing-range`` (default 4 m; the layered rule caps
 its speeds so that it can stop within it, see ``formation.anticollision.LayeredRule``).
@@ -33,12 +36,13 @@ from ..stress import (  # noqa: F401
     stress_scenario,
     summarize_rule,
 )
+from . import AERO_NAMES, RULE_NAMES
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser("stress", help="fly many seeded random starts and count contacts per rule",
                        description=__doc__.split("\n\n")[1].replace("\n", " "))
-    p.add_argument("--rule", action="append", choices=RULES, help="rule to fly (repeatable; default: layers, paper)")
+    p.add_argument("--rule", action="append", choices=RULE_NAMES, help="rule to fly (repeatable; default: layers, paper)")
     p.add_argument("--starts", type=int, default=100, help="number of seeded starts (default 100)")
     p.add_argument("--followers", type=int, default=5, help="followers per start (default 5)")
     p.add_argument("--radius", type=float, default=3.0, help="starts within this distance of the leader (m, default 3)")
@@ -50,7 +54,7 @@ def add_parser(sub) -> None:
                         "are capped so that it can stop within it)")
     p.add_argument("--workers", type=int, default=None,
                    help="worker processes (default: the CPUs this process may use)")
-    p.add_argument("--aero", choices=["paper", "realistic"],
+    p.add_argument("--aero", choices=AERO_NAMES,
                    help="physics preset (default: paper; docs/aero.md)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument("--save-scenario", metavar="TOML",

@@ -8,6 +8,7 @@ import tomllib
 from typing import Any
 
 from ..errors import UserError
+from . import AERO_NAMES
 
 
 def add_parser(sub) -> None:
@@ -32,7 +33,7 @@ def add_parser(sub) -> None:
     p.add_argument("--json", metavar="PATH", help="write every run and the statistics as JSON")
     p.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration (s)")
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
-    p.add_argument("--aero", choices=["paper", "realistic"],
+    p.add_argument("--aero", choices=AERO_NAMES,
                    help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=main)

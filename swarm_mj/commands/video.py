@@ -20,6 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..video.style import DEFAULT_FPS, DEFAULT_SNAPSHOT_TIME, MAX_SIZE, VideoStyle
+from . import AERO_NAMES, RULE_NAMES
 
 # --------------------------------------------------------------------------- option checks (before simulating)
 
@@ -115,8 +116,8 @@ def add_parser(sub) -> None:
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
-    p.add_argument("--anti-collision", choices=["layers", "paper", "off"], help="override the rule")
-    p.add_argument("--aero", choices=["paper", "realistic"],
+    p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
+    p.add_argument("--aero", choices=AERO_NAMES,
                    help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=main)

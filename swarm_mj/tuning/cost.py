@@ -5,12 +5,27 @@
 
 from __future__ import annotations
 
-from .backends import (InProcessCost, PopulationCost, ProcessPoolCost, RAY_INSTALL_HINT, RayCost, default_workers,
-                       make_population_cost)
+from .backends import (
+                       RAY_INSTALL_HINT,
+                       InProcessCost,
+                       PopulationCost,
+                       ProcessPoolCost,
+                       RayCost,
+                       default_workers,
+                       make_population_cost,
+)
 from .constraints import StepBars
 from .driver import INITS, TuneCallback, TuneOptions, TuneOutcome, tune_gains
-from .evaluator import (DEFAULT_BLOCK, BatchEvaluator, StepCheck, StepCostSettings, evaluate_batch, step_check,
-                        step_ise, table4_ise)
+from .evaluator import (
+                       DEFAULT_BLOCK,
+                       BatchEvaluator,
+                       StepCheck,
+                       StepCostSettings,
+                       evaluate_batch,
+                       step_check,
+                       step_ise,
+                       table4_ise,
+)
 
 __all__ = ["StepCostSettings", "TuneOptions", "TuneOutcome", "TuneCallback", "INITS", "tune_gains", "BatchEvaluator",
            "DEFAULT_BLOCK", "PopulationCost", "InProcessCost", "ProcessPoolCost", "RayCost", "RAY_INSTALL_HINT",
