@@ -53,8 +53,8 @@ def test_layers_sinks_past_the_bar_on_a_known_start_where_clearance_does_not():
 
 
 @pytest.mark.slow
-def test_default_rule_on_a_swarm_scenario_under_realistic_physics():
-    sc = with_aero(load_scenario("scenario2").with_overrides(duration=8.0), "realistic")
+def test_clearance_on_a_swarm_scenario_under_realistic_physics():
+    sc = with_aero(load_scenario("scenario2").with_overrides(duration=8.0, anti_collision="clearance"), "realistic")
     assert sc.anti_collision == "clearance" and sc.aero.downwash
     res = run(sc, progress=False)
     s = res.summary
@@ -72,8 +72,8 @@ def test_the_feedforward_is_the_rules_and_only_under_downwash():
     assert ClearanceRule.downwash_feedforward and not LayeredRule.downwash_feedforward
     assert BacksteppingPolicy(sc).downwash_ff is None                                  # paper physics
     real = with_aero(sc, "realistic")
-    assert BacksteppingPolicy(real).downwash_ff is not None
-    assert BacksteppingPolicy(real, anti_collision="layers").downwash_ff is None       # today's rule: none
+    assert BacksteppingPolicy(real, anti_collision="clearance").downwash_ff is not None
+    assert BacksteppingPolicy(real).downwash_ff is None                                # the default (layers): none
 
 
 def test_feedforward_predicts_a_push_down_under_a_drone_and_none_beside_it():

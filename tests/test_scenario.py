@@ -181,9 +181,7 @@ def test_cli_rule_and_aero_names_are_the_registries():
     from swarm_mj.aero.presets import AERO_MODELS
     from swarm_mj.commands import AERO_NAMES, RULE_NAMES
     from swarm_mj.formation.anticollision import ANTI_COLLISION_RULES
-    from swarm_mj.scenario import parse_scenario
 
     assert tuple(ANTI_COLLISION_RULES) == RULE_NAMES
     assert tuple(AERO_MODELS) == AERO_NAMES
-    sc = parse_scenario({"leader": {"trajectory": "circle"}, "followers": {"count": 2, "start": [[1, 0, 0], [0, 1, 0]]}})
-    assert sc.anti_collision == RULE_NAMES[0]
+    assert RULE_NAMES[0] == "layers"       # the default of a scenario (test_defaults_of_a_minimal_scenario)
