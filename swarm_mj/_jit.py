@@ -56,6 +56,7 @@ try:  # pragma: no cover - exercised by the environment, not by a branch of ours
 
     AVAILABLE = True
 except ImportError:  # pragma: no cover
+
     def _compile(fn):
         return fn
 
@@ -68,6 +69,7 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None)
     ``@jit`` or ``@jit(samples=lambda: [(arg, ...), ...])``: the argument tuples :func:`warm_up`
     calls the kernel with (a kernel only called from another kernel needs none).
     """
+
     def register(f: Callable[..., Any]) -> Callable[..., Any]:
         compiled = _compile(f)
         REGISTRY[f"{f.__module__}.{f.__qualname__}"] = (compiled, samples)
@@ -114,8 +116,10 @@ def warm_up(announce: Callable[[str], None] | None = None) -> float:
     if announce is not None:
         missing = uncached()
         if missing:
-            announce(f"compiling the control kernels (first run only, ~{max(1, round(COMPILE_S_PER_KERNEL * len(missing)))}"
-                     f" s)…")
+            announce(
+                f"compiling the control kernels (first run only, ~{max(1, round(COMPILE_S_PER_KERNEL * len(missing)))}"
+                f" s)…"
+            )
     for kernel, samples in list(REGISTRY.values()):
         if samples is not None:
             for args in samples():

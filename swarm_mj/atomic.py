@@ -51,8 +51,10 @@ def json_safe(o: Any, inf_as_string: bool = False) -> Any:
     (arrays -> lists, tuples -> lists, Path and dates -> str): what ``json.dumps(...,
     allow_nan=False)`` accepts. The one sanitiser of every JSON file swarm-mj writes."""
     if isinstance(o, dict):
-        return {str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k:
-                json_safe(v, inf_as_string) for k, v in o.items()}
+        return {
+            str(k) if not isinstance(k, (str, int, float, bool)) and k is not None else k: json_safe(v, inf_as_string)
+            for k, v in o.items()
+        }
     if isinstance(o, (list, tuple)):
         return [json_safe(v, inf_as_string) for v in o]
     if isinstance(o, np.ndarray):
@@ -86,8 +88,9 @@ def _special(st: os.stat_result) -> bool:
     return stat.S_ISFIFO(st.st_mode) or stat.S_ISCHR(st.st_mode) or stat.S_ISBLK(st.st_mode)
 
 
-def check_output_path(path: str | Path, option: str, suffixes: Sequence[str] | None = None,
-                      allow_stdout: bool = False) -> Path:
+def check_output_path(
+    path: str | Path, option: str, suffixes: Sequence[str] | None = None, allow_stdout: bool = False
+) -> Path:
     """Refuse, before anything runs, an output path that cannot be written.
 
     ``option`` names the option in the message (e.g. ``--summary``). A symlink is checked at
@@ -131,7 +134,7 @@ def check_output_path(path: str | Path, option: str, suffixes: Sequence[str] | N
 
 
 def _target(path: str | Path) -> tuple[Path, os.stat_result | None]:
-    real = Path(os.path.realpath(Path(path)))        # a symlink is written through to its target
+    real = Path(os.path.realpath(Path(path)))  # a symlink is written through to its target
     try:
         return real, os.stat(real)
     except FileNotFoundError:
@@ -184,11 +187,11 @@ def write_bytes_atomic(path: str | Path, data: bytes) -> None:
             f.flush()
             os.fsync(f.fileno())
         if st is not None:
-            os.chmod(tmp, stat.S_IMODE(st.st_mode))   # keep the replaced file's permissions
+            os.chmod(tmp, stat.S_IMODE(st.st_mode))  # keep the replaced file's permissions
         else:
             umask = os.umask(0)
             os.umask(umask)
-            os.chmod(tmp, 0o666 & ~umask)             # as open() would have created it
+            os.chmod(tmp, 0o666 & ~umask)  # as open() would have created it
         os.replace(tmp, real)
     except BaseException as exc:
         try:
@@ -228,7 +231,7 @@ def replace_into(tmp: str | Path, path: str | Path) -> None:
     try:
         os.replace(tmp, real)
     except OSError as exc:
-        if exc.errno == errno.EXDEV:            # a symlink into another file system: copy there, then replace
+        if exc.errno == errno.EXDEV:  # a symlink into another file system: copy there, then replace
             try:
                 write_bytes_atomic(real, Path(tmp).read_bytes())
             finally:

@@ -21,7 +21,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="swarm-mj",
         description="MuJoCo quadrotor swarm: backstepping control, FPA gain tuning, pentagon formation, "
-                    "anti-collision and wind. Try: swarm-mj run circle")
+        "anti-collision and wind. Try: swarm-mj run circle",
+    )
     parser.add_argument("--version", action="version", version=f"swarm-mj {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
@@ -44,7 +45,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         from .video.gl import import_mujoco
 
-        import_mujoco()         # a MUJOCO_GL backend that cannot load: fly anyway, fail rendering in one line
+        import_mujoco()  # a MUJOCO_GL backend that cannot load: fly anyway, fail rendering in one line
         return int(args.func(args) or 0)
     except SwarmError as exc:
         print(f"swarm-mj: error: {exc}", file=sys.stderr)

@@ -78,11 +78,11 @@ class Command:
     pos_d, vel_d, acc_d (n, 3) and the commanded attitude att_d (n, 3) = (φ_d, θ_d, ψ_d).
     :meth:`SwarmEnv.step` applies ``U`` and records the rest in :class:`StepRecord`."""
 
-    U: np.ndarray          # (n, 4)
-    pos_d: np.ndarray      # (n, 3) commanded position (after anti-collision)
-    vel_d: np.ndarray      # (n, 3)
-    acc_d: np.ndarray      # (n, 3)
-    att_d: np.ndarray      # (n, 3) commanded (φ_d, θ_d, ψ_d)
+    U: np.ndarray  # (n, 4)
+    pos_d: np.ndarray  # (n, 3) commanded position (after anti-collision)
+    vel_d: np.ndarray  # (n, 3)
+    acc_d: np.ndarray  # (n, 3)
+    att_d: np.ndarray  # (n, 3) commanded (φ_d, θ_d, ψ_d)
 
 
 @dataclass(slots=True)
@@ -91,15 +91,15 @@ class StepRecord:
 
     The references and commanded attitude are None when the action was a plain U array."""
 
-    time: float                    # s, start of the period
-    U: np.ndarray                  # (n, 4) U1..U4 after the rotors' saturation, held over the period
-    rotor_thrust: np.ndarray       # (n, 4) F1..F4 produced
-    wind_force: np.ndarray         # (n, 3) world-frame wind force applied (N)
-    pos_d: np.ndarray | None       # (n, 3) references of the controller
-    vel_d: np.ndarray | None       # (n, 3)
-    acc_d: np.ndarray | None       # (n, 3)
-    att_d: np.ndarray | None       # (n, 3) commanded (φ_d, θ_d, ψ_d)
-    aero_forces: dict[str, np.ndarray] | None = None   # name -> (n, 3) force of each extra stage (N),
+    time: float  # s, start of the period
+    U: np.ndarray  # (n, 4) U1..U4 after the rotors' saturation, held over the period
+    rotor_thrust: np.ndarray  # (n, 4) F1..F4 produced
+    wind_force: np.ndarray  # (n, 3) world-frame wind force applied (N)
+    pos_d: np.ndarray | None  # (n, 3) references of the controller
+    vel_d: np.ndarray | None  # (n, 3)
+    acc_d: np.ndarray | None  # (n, 3)
+    att_d: np.ndarray | None  # (n, 3) commanded (φ_d, θ_d, ψ_d)
+    aero_forces: dict[str, np.ndarray] | None = None  # name -> (n, 3) force of each extra stage (N),
     #                                                    over the period's last physics step (docs/aero.md)
 
 
@@ -135,16 +135,22 @@ def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, cl
     return err / max(n - 1, 1), pairs
 
 
-
 class SwarmEnv(dm_env.Environment):
     """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``.
 
     ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator, applied after
     drag and wind (e.g. aerodynamic effects between drones)."""
 
-    def __init__(self, scenario: Scenario | str, *, action: str = "thrust", terminate_on_contact: bool = True,
-                 raise_on_divergence: bool = False, seed: int | None = None,
-                 force_stages: Sequence[ForceStage] = ()) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str,
+        *,
+        action: str = "thrust",
+        terminate_on_contact: bool = True,
+        raise_on_divergence: bool = False,
+        seed: int | None = None,
+        force_stages: Sequence[ForceStage] = (),
+    ) -> None:
         self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
         if action not in ("thrust", "setpoint"):
             raise UserError(f"action must be 'thrust' or 'setpoint', got {action!r}")
@@ -158,25 +164,36 @@ class SwarmEnv(dm_env.Environment):
         self.n_steps = int(round(sc.duration / self.T))
         aero = sc.aero
         starts = sc.initial_positions() if not aero.ground else rest_positions(sc.initial_positions())
-        self.world = build_world(n, positions=starts, names=sc.names,
-                                 yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
-                                 timestep=sc.timestep, integrator=sc.integrator,
-                                 ground=aero.ground, motor_tau=aero.motor_tau)
+        self.world = build_world(
+            n,
+            positions=starts,
+            names=sc.names,
+            yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
+            timestep=sc.timestep,
+            integrator=sc.integrator,
+            ground=aero.ground,
+            motor_tau=aero.motor_tau,
+        )
         self.sim = Sim(self.world, self.T, force_stages=force_stages)
         if not aero.is_paper:
-            install_aero(self.sim, aero)      # downwash, ground effect, ground contacts (docs/aero.md)
+            install_aero(self.sim, aero)  # downwash, ground effect, ground contacts (docs/aero.md)
         self.params = self.world.params
         # Leader reference, precomputed at every control instant (analytic, docs/interpretations.md §3).
-        self.times = np.arange(self.n_steps + 1) * self.T                       # (K+1,)
+        self.times = np.arange(self.n_steps + 1) * self.T  # (K+1,)
         self.reference = sc.make_trajectory()(self.times)
-        self.D = DiameterSchedule(sc.diameter)(self.times)                       # (K+1,)
-        self.unit_offsets = polygon_offsets(n - 1, 1.0)                         # (n-1, 3)
+        self.D = DiameterSchedule(sc.diameter)(self.times)  # (K+1,)
+        self.unit_offsets = polygon_offsets(n - 1, 1.0)  # (n-1, 3)
         self._unit_offsets = np.ascontiguousarray(self.unit_offsets, dtype=np.float64).reshape(n - 1, 3)
         self._setpoint_ctl: Backstepping | None = None
         if action == "setpoint":
-            self._setpoint_ctl = Backstepping(n, sc.gains, params=self.params, control_period=self.T,
-                                              wind_feedforward=sc.wind_feedforward,
-                                              attitude_map=sc.attitude_map)
+            self._setpoint_ctl = Backstepping(
+                n,
+                sc.gains,
+                params=self.params,
+                control_period=self.T,
+                wind_feedforward=sc.wind_feedforward,
+                attitude_map=sc.attitude_map,
+            )
         f = self.params.f_max
         self._u_low = np.tile([0.0, -f, -f, -2 * f], (n, 1))
         self._u_high = np.tile([4 * f, f, f, 2 * f], (n, 1))
@@ -197,7 +214,7 @@ class SwarmEnv(dm_env.Environment):
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
         self._done = False
-        self.last_termination: str | None = None   # "contact" or "diverged" once an episode terminates
+        self.last_termination: str | None = None  # "contact" or "diverged" once an episode terminates
         self.last_error: Exception | None = None
         self._obs = self._observe()
         return dm_env.restart(self._obs)
@@ -219,8 +236,18 @@ class SwarmEnv(dm_env.Environment):
             z = np.zeros((self.n, 3))
             ctl = self._setpoint_ctl
             assert ctl is not None
-            U = ctl.compute(o["rpy"], o["rpy_rate"], o["pos"], o["vel"], a, z, z, o["setpoint_yaw"],
-                            wind_force=o["wind_force"], omega_body=o["body_rates"])
+            U = ctl.compute(
+                o["rpy"],
+                o["rpy_rate"],
+                o["pos"],
+                o["vel"],
+                a,
+                z,
+                z,
+                o["setpoint_yaw"],
+                wind_force=o["wind_force"],
+                omega_body=o["body_rates"],
+            )
             refs = (a, z, z, ctl.att_d.copy())
         else:
             if a.shape != (self.n, 4):
@@ -229,13 +256,18 @@ class SwarmEnv(dm_env.Environment):
                 raise UserError("action contains NaN or inf")
             U = a
         # the wind force of the coming period, held over it (zero-order hold)
-        force = self.wind.drone_forces(self.k, self.sim.vel)                   # (n, 3)
+        force = self.wind.drone_forces(self.k, self.sim.vel)  # (n, 3)
         t = self.k * self.T
         self.sim.step(U, force)
         sim = self.sim
-        self.last_applied = StepRecord(t, sim.ctrl.copy(), sim.rotor_thrust.copy(), force,
-                                       *(refs if refs is not None else (None, None, None, None)),
-                                       aero_forces=sim.stage_forces())
+        self.last_applied = StepRecord(
+            t,
+            sim.ctrl.copy(),
+            sim.rotor_thrust.copy(),
+            force,
+            *(refs if refs is not None else (None, None, None, None)),
+            aero_forces=sim.stage_forces(),
+        )
         self.k += 1
         diverged = None
         try:
@@ -246,7 +278,7 @@ class SwarmEnv(dm_env.Environment):
             diverged = exc
         if diverged is None or np.isfinite(sim.qpos).all():
             self._obs = self._observe()
-        obs = self._obs          # after a non-finite divergence: the last finite observation
+        obs = self._obs  # after a non-finite divergence: the last finite observation
         new_contacts = sim.contact_events - self._contacts_seen
         self._contacts_seen = sim.contact_events
         reward = self._reward(obs, new_contacts)
@@ -264,12 +296,20 @@ class SwarmEnv(dm_env.Environment):
         n = self.n
         a = lambda shape, name: specs.Array(shape, np.float64, name)  # noqa: E731
         return {
-            "time": a((), "time"), "pos": a((n, 3), "pos"), "vel": a((n, 3), "vel"),
-            "quat": a((n, 4), "quat"), "rpy": a((n, 3), "rpy"), "rpy_rate": a((n, 3), "rpy_rate"),
-            "body_rates": a((n, 3), "body_rates"), "setpoint": a((n, 3), "setpoint"),
-            "setpoint_vel": a((n, 3), "setpoint_vel"), "setpoint_acc": a((n, 3), "setpoint_acc"),
-            "setpoint_yaw": a((n,), "setpoint_yaw"), "leader_pos": a((3,), "leader_pos"),
-            "neighbours": a((n, n, 3), "neighbours"), "neighbour_mask": a((n, n), "neighbour_mask"),
+            "time": a((), "time"),
+            "pos": a((n, 3), "pos"),
+            "vel": a((n, 3), "vel"),
+            "quat": a((n, 4), "quat"),
+            "rpy": a((n, 3), "rpy"),
+            "rpy_rate": a((n, 3), "rpy_rate"),
+            "body_rates": a((n, 3), "body_rates"),
+            "setpoint": a((n, 3), "setpoint"),
+            "setpoint_vel": a((n, 3), "setpoint_vel"),
+            "setpoint_acc": a((n, 3), "setpoint_acc"),
+            "setpoint_yaw": a((n,), "setpoint_yaw"),
+            "leader_pos": a((3,), "leader_pos"),
+            "neighbours": a((n, n, 3), "neighbours"),
+            "neighbour_mask": a((n, n), "neighbour_mask"),
             "wind_force": a((n, 3), "wind_force"),
         }
 
@@ -295,21 +335,45 @@ class SwarmEnv(dm_env.Environment):
     def _observe(self) -> dict:
         sim, k, n = self.sim, self.k, self.n
         pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(
-            sim.qpos, sim.qvel, self.scenario.sensing_range)
+            sim.qpos, sim.qvel, self.scenario.sensing_range
+        )
         ref = self.reference
         # Formation (paper §4): the followers' slots from the leader's CURRENT position and D only.
-        sp, sp_vel, sp_acc, yaw = setpoints_kernel(k, self.T, pos[0], self._prev_leader, self._leader_vel,
-                                                   ref.pos[k], ref.vel[k], ref.acc[k], float(ref.yaw[k]),
-                                                   float(self.D[k]), self._unit_offsets)
+        sp, sp_vel, sp_acc, yaw = setpoints_kernel(
+            k,
+            self.T,
+            pos[0],
+            self._prev_leader,
+            self._leader_vel,
+            ref.pos[k],
+            ref.vel[k],
+            ref.acc[k],
+            float(ref.yaw[k]),
+            float(self.D[k]),
+            self._unit_offsets,
+        )
         if self._wind_known:
             wf = self.wind.drone_forces(k, vel)
         else:
             wf = np.zeros((n, 3))
         self._dist = dist
-        return {"time": np.float64(k * self.T), "pos": pos, "vel": vel, "quat": quat, "rpy": rpy,
-                "rpy_rate": rpy_rate, "body_rates": omega, "setpoint": sp, "setpoint_vel": sp_vel,
-                "setpoint_acc": sp_acc, "setpoint_yaw": yaw, "leader_pos": pos[0].copy(),
-                "neighbours": rel, "neighbour_mask": mask, "wind_force": wf}
+        return {
+            "time": np.float64(k * self.T),
+            "pos": pos,
+            "vel": vel,
+            "quat": quat,
+            "rpy": rpy,
+            "rpy_rate": rpy_rate,
+            "body_rates": omega,
+            "setpoint": sp,
+            "setpoint_vel": sp_vel,
+            "setpoint_acc": sp_acc,
+            "setpoint_yaw": yaw,
+            "leader_pos": pos[0].copy(),
+            "neighbours": rel,
+            "neighbour_mask": mask,
+            "wind_force": wf,
+        }
 
     def _reward(self, obs: dict, new_contacts: int) -> float:
         if self.n == 1:

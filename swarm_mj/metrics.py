@@ -8,8 +8,9 @@ import numpy as np
 ISE_WEIGHTS = np.array([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])
 
 
-def step_metrics(t: np.ndarray, y: np.ndarray, target: float, y0: float | None = None,
-                 band: float = 0.02) -> dict[str, float]:
+def step_metrics(
+    t: np.ndarray, y: np.ndarray, target: float, y0: float | None = None, band: float = 0.02
+) -> dict[str, float]:
     """Overshoot (%), 2 % settling time (s) and steady-state error of a step response.
 
     t: (k,), y: (k,). Overshoot is the largest excursion past the target, as a percentage
@@ -23,31 +24,35 @@ def step_metrics(t: np.ndarray, y: np.ndarray, target: float, y0: float | None =
     return {key: float(v[0]) for key, v in m.items()}
 
 
-def step_metrics_batch(t: np.ndarray, y: np.ndarray, target: np.ndarray | float, y0: np.ndarray | float,
-                       band: float = 0.02) -> dict[str, np.ndarray]:
+def step_metrics_batch(
+    t: np.ndarray, y: np.ndarray, target: np.ndarray | float, y0: np.ndarray | float, band: float = 0.02
+) -> dict[str, np.ndarray]:
     """:func:`step_metrics` of m responses at once: t (k,), y (k, m), target and y0 (m,) or scalars.
 
     Returns ``overshoot_pct``, ``settling_s``, ``steady_state_error``, each (m,). A response
     whose step size is zero has no overshoot and settles at once.
     """
-    t = np.asarray(t, dtype=float)                                   # (k,)
-    y = np.asarray(y, dtype=float)                                   # (k, m)
+    t = np.asarray(t, dtype=float)  # (k,)
+    y = np.asarray(y, dtype=float)  # (k, m)
     m = y.shape[1]
     target = np.broadcast_to(np.asarray(target, dtype=float), (m,))  # (m,)
-    y0 = np.broadcast_to(np.asarray(y0, dtype=float), (m,))          # (m,)
-    size = np.abs(target - y0)                                       # (m,)
+    y0 = np.broadcast_to(np.asarray(y0, dtype=float), (m,))  # (m,)
+    size = np.abs(target - y0)  # (m,)
     sign = np.sign(target - y0)
-    dev = y - target                                                 # (k, m)
+    dev = y - target  # (k, m)
     over = np.maximum(0.0, np.max(sign * dev, axis=0))
-    outside = np.abs(dev) > band * size                              # (k, m)
-    last = len(t) - 1 - np.argmax(outside[::-1], axis=0)             # last sample outside
+    outside = np.abs(dev) > band * size  # (k, m)
+    last = len(t) - 1 - np.argmax(outside[::-1], axis=0)  # last sample outside
     settle = np.where(outside.any(axis=0), t[np.minimum(last + 1, len(t) - 1)], t[0]) - t[0]
     settle = np.where(outside[-1], np.inf, settle)
     zero = size == 0
     with np.errstate(divide="ignore", invalid="ignore"):
         over_pct = np.where(zero, 0.0, 100.0 * over / np.where(zero, 1.0, size))
-    return {"overshoot_pct": over_pct, "settling_s": np.where(zero, 0.0, settle),
-            "steady_state_error": np.abs(y[-1] - target)}
+    return {
+        "overshoot_pct": over_pct,
+        "settling_s": np.where(zero, 0.0, settle),
+        "steady_state_error": np.abs(y[-1] - target),
+    }
 
 
 def rmse(err: np.ndarray, axis: int = 0) -> np.ndarray:
@@ -70,7 +75,7 @@ def min_separation(pos: np.ndarray) -> tuple[float, float, tuple[int, int]]:
     if n < 2:
         return float("inf"), -1, (-1, -1)
     i, j = np.triu_indices(n, 1)
-    d = np.linalg.norm(pos[:, i, :] - pos[:, j, :], axis=-1)      # (k, pairs)
+    d = np.linalg.norm(pos[:, i, :] - pos[:, j, :], axis=-1)  # (k, pairs)
     flat = int(np.argmin(d))
     kk, pp = divmod(flat, d.shape[1])
     return float(d[kk, pp]), kk, (int(i[pp]), int(j[pp]))
@@ -89,8 +94,9 @@ def follower_distances(pos: np.ndarray) -> tuple[np.ndarray, list[tuple[int, int
     return np.linalg.norm(pos[:, i, :2] - pos[:, j, :2], axis=-1), list(zip(i.tolist(), j.tolist()))
 
 
-def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_times: np.ndarray,
-                       tol: float = 0.05) -> tuple[list[float], float]:
+def formation_settling(
+    t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_times: np.ndarray, tol: float = 0.05
+) -> tuple[list[float], float]:
     """Settling time after each change of D and the largest distance error once settled.
 
     dist: (k, n_f) leader–follower distances; D: (k,) desired. For the segment starting at
@@ -98,7 +104,7 @@ def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_ti
     stays within ``tol`` until the segment ends (inf if never). Returns (settling per change,
     max |dist − D| over the settled parts).
     """
-    err = np.abs(dist - D[:, None]).max(axis=1)                     # (k,)
+    err = np.abs(dist - D[:, None]).max(axis=1)  # (k,)
     bounds = list(change_times) + [np.inf]
     settling, settled_err = [], [0.0]
     for a, b in zip(bounds[:-1], bounds[1:]):
@@ -131,10 +137,10 @@ def formation_settling(t: np.ndarray, dist: np.ndarray, D: np.ndarray, change_ti
 #: rotor span (``DRONE_RADIUS_M`` from its centre) reaches inside that edge, at a depth between 0
 #: and ``JET_REACH_M``, is in the jet.
 _JET_L, _JET_S, _JET_S0 = 0.5, 0.07668, -5.817
-JET_R0_M = 2.0 * _JET_L * _JET_S * (-_JET_S0)      # 0.446 m: 2·r_½ at the rotor plane
-JET_SPREAD = 2.0 * _JET_S                           # 0.153 m per m of depth
-JET_REACH_M = 6.0        # the centreline push on a hovering drone is still a tenth of its weight there
-DRONE_RADIUS_M = 0.34    # rotor span of the drone below: L + rotor radius (0.25 + 0.09 m)
+JET_R0_M = 2.0 * _JET_L * _JET_S * (-_JET_S0)  # 0.446 m: 2·r_½ at the rotor plane
+JET_SPREAD = 2.0 * _JET_S  # 0.153 m per m of depth
+JET_REACH_M = 6.0  # the centreline push on a hovering drone is still a tenth of its weight there
+DRONE_RADIUS_M = 0.34  # rotor span of the drone below: L + rotor radius (0.25 + 0.09 m)
 
 
 def _body_z(quat: np.ndarray) -> np.ndarray:
@@ -143,8 +149,15 @@ def _body_z(quat: np.ndarray) -> np.ndarray:
     return np.stack([2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
 
 
-def in_jet(pos: np.ndarray, quat: np.ndarray, *, r0: float = JET_R0_M, spread: float = JET_SPREAD,
-           reach: float = JET_REACH_M, radius: float = DRONE_RADIUS_M) -> np.ndarray:
+def in_jet(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    *,
+    r0: float = JET_R0_M,
+    spread: float = JET_SPREAD,
+    reach: float = JET_REACH_M,
+    radius: float = DRONE_RADIUS_M,
+) -> np.ndarray:
     """Which drone is in which drone's jet, (k, n, n) bool: ``[t, i, j]`` = drone j is in drone i's jet.
 
     pos (k, n, 3), quat (k, n, 4) (w, x, y, z). The jet of drone i leaves along −(body z of i)
@@ -153,10 +166,10 @@ def in_jet(pos: np.ndarray, quat: np.ndarray, *, r0: float = JET_R0_M, spread: f
     r < ``r0`` + ``spread``·s + ``radius`` (its rotor span reaches into the jet's edge).
     """
     pos = np.asarray(pos, dtype=float)
-    axis = -_body_z(np.asarray(quat, dtype=float))                    # (k, n, 3) jet direction of each drone
-    rel = pos[:, None, :, :] - pos[:, :, None, :]                     # (k, n, n, 3) p_j − p_i
-    s = np.einsum("tijc,tic->tij", rel, axis)                         # (k, n, n) depth of j in i's jet
-    r2 = np.einsum("tijc,tijc->tij", rel, rel) - s * s                 # (k, n, n) squared radial offset
+    axis = -_body_z(np.asarray(quat, dtype=float))  # (k, n, 3) jet direction of each drone
+    rel = pos[:, None, :, :] - pos[:, :, None, :]  # (k, n, n, 3) p_j − p_i
+    s = np.einsum("tijc,tic->tij", rel, axis)  # (k, n, n) depth of j in i's jet
+    r2 = np.einsum("tijc,tijc->tij", rel, rel) - s * s  # (k, n, n) squared radial offset
     edge = r0 + spread * s + radius
     out = (s > 0.0) & (s <= reach) & (r2 < edge * edge)
     idx = np.arange(pos.shape[1])
@@ -164,8 +177,9 @@ def in_jet(pos: np.ndarray, quat: np.ndarray, *, r0: float = JET_R0_M, spread: f
     return out
 
 
-def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.ndarray, *,
-                 airborne: float = 0.1, **jet: float) -> dict:
+def downwash_dip(
+    t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.ndarray, *, airborne: float = 0.1, **jet: float
+) -> dict:
     """The worst altitude dip of a drone in another drone's jet (docs/interpretations.md).
 
     t (k,), pos (k, n, 3) positions, pos_d (k, n, 3) commanded positions (after the
@@ -184,23 +198,30 @@ def downwash_dip(t: np.ndarray, pos: np.ndarray, pos_d: np.ndarray, quat: np.nda
     t = np.asarray(t, dtype=float)
     pos = np.asarray(pos, dtype=float)
     k, n = pos.shape[:2]
-    empty = {"worst_m": 0.0, "drone": -1, "above": -1, "t_s": None, "time_in_jet_s": 0.0,
-             "per_drone_m": [0.0] * n, "below_ref_worst_m": 0.0}
+    empty = {
+        "worst_m": 0.0,
+        "drone": -1,
+        "above": -1,
+        "t_s": None,
+        "time_in_jet_s": 0.0,
+        "per_drone_m": [0.0] * n,
+        "below_ref_worst_m": 0.0,
+    }
     if n < 2 or k == 0:
         return empty
-    z = pos[:, :, 2]                                                   # (k, n)
-    up = np.maximum.accumulate(z > airborne, axis=0)                  # (k, n) taken off by then
-    jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]   # (k, i, j)
-    below = jet.any(axis=1)                                            # (k, n) j in some jet
-    e = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)   # (k, n)
-    start = below & ~np.vstack([np.zeros((1, n), dtype=bool), below[:-1]])         # (k, n) a stretch begins
-    stretch = np.cumsum(start, axis=0)                                 # (k, n) stretch number (per drone)
+    z = pos[:, :, 2]  # (k, n)
+    up = np.maximum.accumulate(z > airborne, axis=0)  # (k, n) taken off by then
+    jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]  # (k, i, j)
+    below = jet.any(axis=1)  # (k, n) j in some jet
+    e = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)  # (k, n)
+    start = below & ~np.vstack([np.zeros((1, n), dtype=bool), below[:-1]])  # (k, n) a stretch begins
+    stretch = np.cumsum(start, axis=0)  # (k, n) stretch number (per drone)
     base = np.zeros((k, n))
     for j in range(n):
-        first = np.flatnonzero(start[:, j])                            # sample where each stretch begins
+        first = np.flatnonzero(start[:, j])  # sample where each stretch begins
         if len(first):
             base[:, j] = np.concatenate([[0.0], e[first, j]])[stretch[:, j]]
-    dips = np.where(below, np.maximum(e - base, 0.0), 0.0)             # (k, n)
+    dips = np.where(below, np.maximum(e - base, 0.0), 0.0)  # (k, n)
     dt = float(np.median(np.diff(t))) if k > 1 else 0.0
     out = dict(empty)
     out["time_in_jet_s"] = float(below.any(axis=1).sum() * dt)

@@ -10,12 +10,14 @@ import numpy as np
 from ._jit import jit
 
 # U = F @ MIX.T   (rows: U1..U4, columns: F1..F4)
-MIX = np.array([
-    [1.0, 1.0, 1.0, 1.0],
-    [-1.0, 0.0, 1.0, 0.0],
-    [0.0, -1.0, 0.0, 1.0],
-    [1.0, -1.0, 1.0, -1.0],
-])
+MIX = np.array(
+    [
+        [1.0, 1.0, 1.0, 1.0],
+        [-1.0, 0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0, 1.0],
+        [1.0, -1.0, 1.0, -1.0],
+    ]
+)
 UNMIX = np.linalg.inv(MIX)
 #: (4, 4) UNMIX.T, C-contiguous: F = U @ UNMIX_T
 UNMIX_T = np.ascontiguousarray(UNMIX.T)
@@ -39,8 +41,15 @@ def _saturate_samples():
 
 
 @jit(samples=_saturate_samples)
-def saturate_kernel(U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float,
-                    U_out: np.ndarray, F_out: np.ndarray) -> None:
+def saturate_kernel(
+    U: np.ndarray,
+    unmix_t: np.ndarray,
+    mix_t: np.ndarray,
+    f_min: float,
+    f_max: float,
+    U_out: np.ndarray,
+    F_out: np.ndarray,
+) -> None:
     """Rotor mixing with per-rotor clipping (eqs. 26–29, docs/interpretations.md §1):
     F_out (n, 4) = clip(U (n, 4)·UNMIXᵀ, f_min, f_max), U_out (n, 4) = F_out·MIXᵀ."""
     n = U.shape[0]

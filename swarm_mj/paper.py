@@ -11,13 +11,22 @@ from dataclasses import dataclass
 import numpy as np
 
 #: Table 1: mass (kg), inertia (kg·m²), arm length (m), linear drag (N·s/m), gravity (m/s²).
-TABLE1_VEHICLE: dict[str, float] = {"m": 0.486, "Ix": 0.0038, "Iy": 0.0038, "Iz": 0.0071, "L": 0.25,
-                                    "Kx": 0.0056, "Ky": 0.0056, "Kz": 0.0064, "g": 9.81}
+TABLE1_VEHICLE: dict[str, float] = {
+    "m": 0.486,
+    "Ix": 0.0038,
+    "Iy": 0.0038,
+    "Iz": 0.0071,
+    "L": 0.25,
+    "Kx": 0.0056,
+    "Ky": 0.0056,
+    "Kz": 0.0064,
+    "g": 9.81,
+}
 
 #: Table 4: backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs).
-TABLE4_GAINS = np.array([4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141,
-                         4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344])
-
+TABLE4_GAINS = np.array(
+    [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141, 4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]
+)
 
 
 @dataclass(frozen=True)
@@ -36,8 +45,12 @@ class FPASettings:
 TABLE2_FPA = FPASettings()
 
 #: §5.1: the step response (overshoot %, settling s) per axis.
-PAPER_STEP = {"x": {"overshoot_pct": 0.0, "settling_s": 1.5}, "y": {"overshoot_pct": 0.0, "settling_s": 1.5},
-              "z": {"overshoot_pct": 0.0, "settling_s": 1.0}, "psi": {"overshoot_pct": 0.0, "settling_s": 1.0}}
+PAPER_STEP = {
+    "x": {"overshoot_pct": 0.0, "settling_s": 1.5},
+    "y": {"overshoot_pct": 0.0, "settling_s": 1.5},
+    "z": {"overshoot_pct": 0.0, "settling_s": 1.0},
+    "psi": {"overshoot_pct": 0.0, "settling_s": 1.0},
+}
 
 #: Table 5: RMSE (m, deg) of the leader, keyed by (trajectory, wind on).
 PAPER_TABLE5 = {
@@ -51,7 +64,6 @@ PAPER_TABLE5 = {
 PAPER_FORMATION_SETTLING_S = 3.0
 
 #: Paper Table 3: run, initial ISE, final ISE, improvement (%).
-PAPER_TABLE3 = [(1, 59.24, 52.92, 10.67), (2, 60.47, 51.84, 14.27), (3, 60.34, 45.15, 25.17),
-                (5, 68.35, 44.12, 35.45)]
+PAPER_TABLE3 = [(1, 59.24, 52.92, 10.67), (2, 60.47, 51.84, 14.27), (3, 60.34, 45.15, 25.17), (5, 68.35, 44.12, 35.45)]
 #: Paper Fig. 7(b): roll and pitch reach ±45° (the clip of the desired angles).
 PAPER_STEP_MAX_ANGLE_DEG = 45.0

@@ -71,8 +71,12 @@ def init_ray(ray, address: str, workers: int | None = None) -> bool:
         return False
     try:
         if address == "local":
-            ray.init(num_cpus=workers or default_workers(), include_dashboard=False,
-                     log_to_driver=False, configure_logging=False)
+            ray.init(
+                num_cpus=workers or default_workers(),
+                include_dashboard=False,
+                log_to_driver=False,
+                configure_logging=False,
+            )
         else:
             ray.init(address=address, log_to_driver=False, configure_logging=False)
     except Exception as exc:  # noqa: BLE001 - connection refused, bad address, ...
@@ -92,9 +96,15 @@ def machine_description() -> dict[str, Any]:
                 break
     except OSError:
         pass
-    return {"cpu": cpu, "cores": os.cpu_count(), "usable_cores": default_workers(),
-            "python": platform.python_version(), "mujoco": mujoco.__version__, "numpy": np.__version__,
-            "platform": platform.platform()}
+    return {
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "usable_cores": default_workers(),
+        "python": platform.python_version(),
+        "mujoco": mujoco.__version__,
+        "numpy": np.__version__,
+        "platform": platform.platform(),
+    }
 
 
 # --------------------------------------------------------------------------- the executor
@@ -119,9 +129,15 @@ def backend_name(workers: int, ray_address: str | None) -> str:
     return "ray" if ray_address else ("in-process" if workers == 1 else "processes")
 
 
-def map_ordered(fn: Callable[[T], R], items: Iterable[T], *, workers: int | None = None,
-                ray_address: str | None = None, progress: Progress | None = None,
-                on_result: Callable[[int, R], None] | None = None) -> list[R]:
+def map_ordered(
+    fn: Callable[[T], R],
+    items: Iterable[T],
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    progress: Progress | None = None,
+    on_result: Callable[[int, R], None] | None = None,
+) -> list[R]:
     """``[fn(x) for x in items]`` in worker processes (or on Ray), results in item order.
 
     ``workers``: local processes (default: the CPUs this process may use; 1 runs in this
@@ -176,18 +192,17 @@ def _map_processes(fn: Callable, items: list, workers: int, done: Callable[[int,
     finally:
         if ok:
             ex.shutdown(wait=True)
-        else:                                    # Ctrl-C or a failed item: stop now, not after the queue
+        else:  # Ctrl-C or a failed item: stop now, not after the queue
             procs = list((getattr(ex, "_processes", None) or {}).values())
             ex.shutdown(wait=False, cancel_futures=True)
-            for p in procs:                      # our own workers, by handle
+            for p in procs:  # our own workers, by handle
                 if p.is_alive():
                     p.terminate()
             for p in procs:
                 p.join(timeout=5)
 
 
-def _map_ray(fn: Callable, items: list, address: str, workers: int | None,
-             done: Callable[[int, Any], None]) -> None:
+def _map_ray(fn: Callable, items: list, address: str, workers: int | None, done: Callable[[int, Any], None]) -> None:
     ray = import_ray()
     started = init_ray(ray, address, workers)
     try:

@@ -36,10 +36,16 @@ class DownwashFeedforward:
 
         self.n = n
         self._stage = DownwashStage()
-        self._view = SimpleNamespace(pos=np.zeros((n, 3)), quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
-                                     rotor_thrust=np.zeros((n, 4)), n=n, params=params, time=0.0)
+        self._view = SimpleNamespace(
+            pos=np.zeros((n, 3)),
+            quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+            rotor_thrust=np.zeros((n, 4)),
+            n=n,
+            params=params,
+            time=0.0,
+        )
         self._stage.reset(self._view)
-        self.force = np.zeros((n, 3))           # (n, 3) the last prediction (N)
+        self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
         self._torque = np.zeros((n, 3))
 
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
@@ -57,18 +63,32 @@ class DownwashFeedforward:
 class BacksteppingPolicy:
     """Backstepping (eqs. 17–24) on formation setpoints adjusted by the anti-collision rule."""
 
-    def __init__(self, scenario: Scenario, params: QuadParams = DEFAULT_PARAMS, *,
-                 gains: np.ndarray | None = None, anti_collision: str | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        params: QuadParams = DEFAULT_PARAMS,
+        *,
+        gains: np.ndarray | None = None,
+        anti_collision: str | None = None,
+    ) -> None:
         sc = scenario
         self.n = sc.n_drones
-        self.controller = Backstepping(self.n, sc.gains if gains is None else gains, params=params,
-                                       control_period=sc.control_period, wind_feedforward=sc.wind_feedforward,
-                                       attitude_map=sc.attitude_map)
+        self.controller = Backstepping(
+            self.n,
+            sc.gains if gains is None else gains,
+            params=params,
+            control_period=sc.control_period,
+            wind_feedforward=sc.wind_feedforward,
+            attitude_map=sc.attitude_map,
+        )
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **rule_params)
         # the rule may ask the controller to compensate the downwash, when the physics has one
-        self.downwash_ff = (DownwashFeedforward(self.n, params) if self.n > 1 and self.rule.downwash_feedforward
-                            and sc.aero.downwash and sc.wind_feedforward else None)
+        self.downwash_ff = (
+            DownwashFeedforward(self.n, params)
+            if self.n > 1 and self.rule.downwash_feedforward and sc.aero.downwash and sc.wind_feedforward
+            else None
+        )
         self._ff_started = False
         self._started = False
 
@@ -90,16 +110,27 @@ class BacksteppingPolicy:
         if self.n > 1:
             # Anti-collision (docs/interpretations.md §4): the rule adjusts the setpoints (n, 3) and,
             # for the drones it steers, also hands the velocity/acceleration references (zero = hold x, y).
-            pos_d, vel_d, acc_d = self.rule.references(float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d,
-                                                       float(obs["leader_pos"][2]))
+            pos_d, vel_d, acc_d = self.rule.references(
+                float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
+            )
         ctl = self.controller
         ext = obs["wind_force"]
-        if self.downwash_ff is not None:       # the rule's downwash feedforward (docs/interpretations.md §4)
+        if self.downwash_ff is not None:  # the rule's downwash feedforward (docs/interpretations.md §4)
             thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)
             ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
             self._ff_started = True
-        U = ctl.compute(obs["rpy"], obs["rpy_rate"], obs["pos"], obs["vel"], pos_d, vel_d, acc_d,
-                        obs["setpoint_yaw"], wind_force=ext, omega_body=obs["body_rates"])
+        U = ctl.compute(
+            obs["rpy"],
+            obs["rpy_rate"],
+            obs["pos"],
+            obs["vel"],
+            pos_d,
+            vel_d,
+            acc_d,
+            obs["setpoint_yaw"],
+            wind_force=ext,
+            omega_body=obs["body_rates"],
+        )
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
 
     def __call__(self, obs: dict) -> np.ndarray:

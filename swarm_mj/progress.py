@@ -30,8 +30,17 @@ class Progress:
     ``lines``: whether ``log`` prints its lines (None follows ``enabled is not False``).
     """
 
-    def __init__(self, total: int, label: str, enabled: bool | None = None, *, unit: str | None = None,
-                 lines: bool | None = None, stream: TextIO | None = None, min_interval: float = 0.0) -> None:
+    def __init__(
+        self,
+        total: int,
+        label: str,
+        enabled: bool | None = None,
+        *,
+        unit: str | None = None,
+        lines: bool | None = None,
+        stream: TextIO | None = None,
+        min_interval: float = 0.0,
+    ) -> None:
         self.total, self.label, self.unit = int(total), label, unit
         self.stream = stream if stream is not None else sys.stderr
         self.enabled = self._isatty() if enabled is None else bool(enabled)
@@ -70,7 +79,7 @@ class Progress:
         return f"{text}  {self._note}" if self._note else text
 
     def _draw(self) -> None:
-        self.stream.write("\r" + self._line() + CLEAR_TO_EOL)       # a shorter line leaves nothing behind
+        self.stream.write("\r" + self._line() + CLEAR_TO_EOL)  # a shorter line leaves nothing behind
         self.stream.flush()
         self._drawn = True
 

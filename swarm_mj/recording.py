@@ -45,12 +45,16 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
     the current slots (``world/slot_markers``), the reference path and the safety circles; the
     position errors and the distances (paper Fig. 14) on the right, U1..U4, rotor thrusts, wind
     and anti-collision events in tabs below them (``aero``: a tab of aerodynamic forces)."""
-    trail = rrb.VisibleTimeRange("sim_time", start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
-                                 end=rrb.TimeRangeBoundary.cursor_relative())
+    trail = rrb.VisibleTimeRange(
+        "sim_time",
+        start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
+        end=rrb.TimeRangeBoundary.cursor_relative(),
+    )
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial3DView(origin="/world", name="swarm", contents=["+ /world/**", "- /world/slots"],
-                              time_ranges=[trail]),
+            rrb.Spatial3DView(
+                origin="/world", name="swarm", contents=["+ /world/**", "- /world/slots"], time_ranges=[trail]
+            ),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="/plots/error", name="position error (m)"),
                 rrb.TimeSeriesView(origin="/plots/distance", name="distances (m, Fig. 14)"),
@@ -69,11 +73,17 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
 
 
 def _drone_shape(L: float, color: list[int]) -> tuple[rr.LineStrips3D, rr.Ellipsoids3D]:
-    arms = rr.LineStrips3D([[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.15, 0, 0]]],
-                           colors=[color, color, [255, 140, 0]], radii=[0.012, 0.012, 0.015])
-    rotors = rr.Ellipsoids3D(centers=[[0, -L, 0.02], [L, 0, 0.02], [0, L, 0.02], [-L, 0, 0.02]],
-                             half_sizes=[[0.09, 0.09, 0.006]] * 4, colors=[color] * 4,
-                             fill_mode=rr.components.FillMode.Solid)
+    arms = rr.LineStrips3D(
+        [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.15, 0, 0]]],
+        colors=[color, color, [255, 140, 0]],
+        radii=[0.012, 0.012, 0.015],
+    )
+    rotors = rr.Ellipsoids3D(
+        centers=[[0, -L, 0.02], [L, 0, 0.02], [0, L, 0.02], [-L, 0, 0.02]],
+        half_sizes=[[0.09, 0.09, 0.006]] * 4,
+        colors=[color] * 4,
+        fill_mode=rr.components.FillMode.Solid,
+    )
     return arms, rotors
 
 
@@ -88,8 +98,9 @@ def _scalars(path: str, times, values: np.ndarray, names: list[str]) -> None:
     rr.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
 
 
-def write_recording(result, path: str | Path, *, spawn: bool = False, L: float = 0.25,
-                    safety_distance: float = 0.8) -> Path:
+def write_recording(
+    result, path: str | Path, *, spawn: bool = False, L: float = 0.25, safety_distance: float = 0.8
+) -> Path:
     """Write the run's recording to ``path`` (atomically) and return the path; ``spawn`` then opens
     it in the desktop viewer where a display exists (else a one-line note, see ``viewer.spawn_note``)."""
     path = Path(path)
@@ -110,11 +121,12 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, L: float =
         raise
     from .atomic import replace_into
 
-    replace_into(tmp, path)       # never replaces a FIFO or device; a symlink is written through
+    replace_into(tmp, path)  # never replaces a FIFO or device; a symlink is written through
     if spawn:  # the file first: a viewer that cannot start (no display) never costs the recording
         import sys
 
         from .viewer import spawn_note
+
         print(spawn_note(path), file=sys.stderr)
     return path
 
@@ -127,8 +139,7 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
     times = rr.TimeColumn("sim_time", duration=t)
     rr.log("/world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)
     ref = log.pos_d[:, 0]
-    rr.log("/world/reference", rr.LineStrips3D([log.slot[:, 0]], colors=[[250, 180, 0]], radii=0.01),
-           static=True)
+    rr.log("/world/reference", rr.LineStrips3D([log.slot[:, 0]], colors=[[250, 180, 0]], radii=0.01), static=True)
     circle = _circle(safety_distance / 2)
     for i, name in enumerate(names):
         color = LEADER_COLOR if i == 0 else FOLLOWER_COLOR
@@ -138,11 +149,15 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
         rr.log(f"{base}/rotors", rotors, static=True)
         rr.log(f"{base}/safety", rr.LineStrips3D([circle], colors=[[120, 120, 120]], radii=0.004), static=True)
         q = log.quat[:, i]
-        rr.send_columns(base, indexes=[times], columns=rr.Transform3D.columns(
-            translation=log.pos[:, i], quaternion=np.column_stack([q[:, 1], q[:, 2], q[:, 3], q[:, 0]])))
+        rr.send_columns(
+            base,
+            indexes=[times],
+            columns=rr.Transform3D.columns(
+                translation=log.pos[:, i], quaternion=np.column_stack([q[:, 1], q[:, 2], q[:, 3], q[:, 0]])
+            ),
+        )
         rr.log(f"/world/trails/{name}", rr.Points3D.from_fields(colors=[color], radii=[0.015]), static=True)
-        rr.send_columns(f"/world/trails/{name}", indexes=[times],
-                        columns=rr.Points3D.columns(positions=log.pos[:, i]))
+        rr.send_columns(f"/world/trails/{name}", indexes=[times], columns=rr.Points3D.columns(positions=log.pos[:, i]))
         err = (log.slot[:, i] if i > 0 else ref) - log.pos[:, i]
         _scalars(f"/plots/error/{name}", times, err, ["x", "y", "z"])
         u = log.U[:, i]
@@ -152,21 +167,24 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
         slots = log.slot[:, 1:]
         n_f = slots.shape[1]
         rr.log("/world/slots", rr.Points3D.from_fields(colors=[[60, 200, 90]], radii=[0.03]), static=True)
-        rr.send_columns("/world/slots", indexes=[times],
-                        columns=rr.Points3D.columns(positions=slots.reshape(-1, 3)).partition([n_f] * len(t)))
+        rr.send_columns(
+            "/world/slots",
+            indexes=[times],
+            columns=rr.Points3D.columns(positions=slots.reshape(-1, 3)).partition([n_f] * len(t)),
+        )
         for j in range(n_f):
             marker = f"/world/slot_markers/{names[j + 1]}"
-            rr.log(f"{marker}/dot", rr.Points3D([[0.0, 0.0, 0.0]], colors=[[60, 200, 90]], radii=[0.06]),
-                   static=True)
+            rr.log(f"{marker}/dot", rr.Points3D([[0.0, 0.0, 0.0]], colors=[[60, 200, 90]], radii=[0.06]), static=True)
             rr.send_columns(marker, indexes=[times], columns=rr.Transform3D.columns(translation=slots[:, j]))
         ld = leader_distances(log.pos)
         for j in range(n_f):
-            _scalars(f"/plots/distance/leader/{names[j + 1]}", times, ld[:, j:j + 1], [f"L-{names[j + 1]}"])
+            _scalars(f"/plots/distance/leader/{names[j + 1]}", times, ld[:, j : j + 1], [f"L-{names[j + 1]}"])
         _scalars("/plots/distance/leader/D", times, log.D[:, None], ["D"])
         fd, pairs = follower_distances(log.pos)
         for c, (a, b) in enumerate(pairs):
-            _scalars(f"/plots/distance/followers/{names[a]}_{names[b]}", times, fd[:, c:c + 1],
-                     [f"{names[a]}-{names[b]}"])
+            _scalars(
+                f"/plots/distance/followers/{names[a]}_{names[b]}", times, fd[:, c : c + 1], [f"{names[a]}-{names[b]}"]
+            )
     _scalars("/plots/wind/speed", times, log.wind_speed[:, :2], ["Vx (m/s)", "Vy (m/s)"])
     _scalars("/plots/wind/force", times, log.wind_force[:, 0, :2], ["Fx (N)", "Fy (N)"])
     if _has_aero(result):
@@ -175,17 +193,19 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
         rr.set_time("sim_time", duration=ev["t"])
         other = names[ev["other"]] if ev["other"] >= 0 else ""
         rr.log("/plots/anti_collision", rr.TextLog(f"{names[ev['drone']]} {ev['action']} {other}".strip()))
-    for (tc, a, b) in result.contact_log:
+    for tc, a, b in result.contact_log:
         rr.set_time("sim_time", duration=tc)
-        rr.log("/plots/anti_collision", rr.TextLog(f"CONTACT {names[a]} - {names[b]}",
-                                                     level=rr.TextLogLevel.ERROR))
+        rr.log("/plots/anti_collision", rr.TextLog(f"CONTACT {names[a]} - {names[b]}", level=rr.TextLogLevel.ERROR))
 
 
 def _has_aero(result) -> bool:
     """True when the run's physics preset added downwash or ground effect (docs/aero.md)."""
     aero = result.summary.get("aero") if isinstance(getattr(result, "summary", None), dict) else None
-    return bool(aero and (aero.get("downwash") or aero.get("ground_effect"))
-                and getattr(result.log, "downwash", None) is not None)
+    return bool(
+        aero
+        and (aero.get("downwash") or aero.get("ground_effect"))
+        and getattr(result.log, "downwash", None) is not None
+    )
 
 
 def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
@@ -194,12 +214,14 @@ def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
     from .aero.downwash import half_width
     from .params import DEFAULT_PARAMS
 
-    l = 2 * DEFAULT_PARAMS.L                 # motor distance of Table 1's drone (m)
+    l = 2 * DEFAULT_PARAMS.L  # motor distance of Table 1's drone (m)
     r0, r1 = float(half_width(0.0, l)), float(half_width(depth, l))
     top, bot = _circle(r0, m), _circle(r1, m)
     bot[:, 2] = -depth
-    lines = [np.array([[r0 * np.cos(a), r0 * np.sin(a), 0.0], [r1 * np.cos(a), r1 * np.sin(a), -depth]])
-             for a in np.arange(4) * np.pi / 2 + np.pi / 4]
+    lines = [
+        np.array([[r0 * np.cos(a), r0 * np.sin(a), 0.0], [r1 * np.cos(a), r1 * np.sin(a), -depth]])
+        for a in np.arange(4) * np.pi / 2 + np.pi / 4
+    ]
     return [top, bot, *lines]
 
 
@@ -216,5 +238,6 @@ def _log_aero(result, names: list[str], times) -> None:
             base = f"/world/drones/{name}/jet"
             rr.log(base, rr.LineStrips3D(jet, colors=[[120, 190, 255, 110]], radii=0.004), static=True)
             scale = np.nan_to_num(log.rotor[:, i].sum(axis=1) / m_g, nan=0.0).clip(0.0, 3.0)
-            rr.send_columns(base, indexes=[times],
-                            columns=rr.Transform3D.columns(scale=np.repeat(scale[:, None], 3, axis=1)))
+            rr.send_columns(
+                base, indexes=[times], columns=rr.Transform3D.columns(scale=np.repeat(scale[:, None], 3, axis=1))
+            )

@@ -19,8 +19,10 @@ def format_summary(summary: dict, scenario) -> str:
     """Per-drone RMSE, step metrics, formation, separation, contacts, events, speed."""
     lines: list[str] = []
     s = summary
-    lines.append(f"scenario {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.2f} s "
-                 f"({s['real_time_factor']:.0f}x real time), {s['n_drones']} drone(s), seed {s['seed']}")
+    lines.append(
+        f"scenario {s['scenario']}: {s['sim_time_s']:.1f} s simulated in {s['wall_time_s']:.2f} s "
+        f"({s['real_time_factor']:.0f}x real time), {s['n_drones']} drone(s), seed {s['seed']}"
+    )
     leader = s["drones"]["leader"]
     if "step" in leader:
         lines.append("")
@@ -30,10 +32,14 @@ def format_summary(summary: dict, scenario) -> str:
             m = leader["step"][ax]
             pp = PAPER_STEP[ax]
             paper_settle = "<1.0" if ax == "psi" else f"{pp['settling_s']:.1f}"
-            lines.append(f"{ax:<5} {m['overshoot_pct']:>11.3f}  {_f(m['settling_s'], '{:>10.2f}')}  "
-                         f"{m['steady_state_error']:>8.1e}     {pp['overshoot_pct']:>11.1f}  {paper_settle:>10}")
-        lines.append(f"max |roll| {leader['max_abs_roll_deg']:.1f} deg, max |pitch| {leader['max_abs_pitch_deg']:.1f}"
-                     f" deg, rotor thrust {leader['min_rotor_thrust_n']:.2f}..{leader['max_rotor_thrust_n']:.2f} N")
+            lines.append(
+                f"{ax:<5} {m['overshoot_pct']:>11.3f}  {_f(m['settling_s'], '{:>10.2f}')}  "
+                f"{m['steady_state_error']:>8.1e}     {pp['overshoot_pct']:>11.1f}  {paper_settle:>10}"
+            )
+        lines.append(
+            f"max |roll| {leader['max_abs_roll_deg']:.1f} deg, max |pitch| {leader['max_abs_pitch_deg']:.1f}"
+            f" deg, rotor thrust {leader['min_rotor_thrust_n']:.2f}..{leader['max_rotor_thrust_n']:.2f} N"
+        )
     else:
         lines.append("")
         lines.append("RMSE (eq. 38)       x (m)     y (m)     z (m)  roll (deg) pitch (deg)  max rotor (N)")
@@ -44,47 +50,64 @@ def format_summary(summary: dict, scenario) -> str:
                 r = d.get(key)
                 if r is None:
                     continue
-                lines.append(f"{(name + label):<16} {r['x']:>9.4f} {r['y']:>9.4f} {r['z']:>9.4f} "
-                             f"{r['roll_deg']:>10.4f} {r['pitch_deg']:>10.4f}  "
-                             f"{d['max_rotor_thrust_n']:>8.2f}" if key == "rmse" else
-                             f"{(name + label):<16} {r['x']:>9.4f} {r['y']:>9.4f} {r['z']:>9.4f} "
-                             f"{r['roll_deg']:>10.4f} {r['pitch_deg']:>10.4f}")
+                lines.append(
+                    f"{(name + label):<16} {r['x']:>9.4f} {r['y']:>9.4f} {r['z']:>9.4f} "
+                    f"{r['roll_deg']:>10.4f} {r['pitch_deg']:>10.4f}  "
+                    f"{d['max_rotor_thrust_n']:>8.2f}"
+                    if key == "rmse"
+                    else f"{(name + label):<16} {r['x']:>9.4f} {r['y']:>9.4f} {r['z']:>9.4f} "
+                    f"{r['roll_deg']:>10.4f} {r['pitch_deg']:>10.4f}"
+                )
         traj = scenario.trajectory
         if traj in ("circle", "lemniscate") and scenario.trajectory_params.get("climb_rate", 0) == 0:
             paper = PAPER_TABLE5.get((traj, bool(s.get("wind"))))
             if paper:
-                lines.append(f"{'paper (Table 5)':<16} {paper['x']:>9.4f} {paper['y']:>9.4f} {'':>9} "
-                             f"{paper['roll_deg']:>10.4f} {paper['pitch_deg']:>10.4f}   "
-                             f"({traj}, {'with' if s.get('wind') else 'without'} wind)")
+                lines.append(
+                    f"{'paper (Table 5)':<16} {paper['x']:>9.4f} {paper['y']:>9.4f} {'':>9} "
+                    f"{paper['roll_deg']:>10.4f} {paper['pitch_deg']:>10.4f}   "
+                    f"({traj}, {'with' if s.get('wind') else 'without'} wind)"
+                )
                 if s.get("wind") and not s.get("wind_feedforward", True):
-                    lines.append("  (ours with the wind feedforward OFF: the controller does not know the wind; "
-                                 "the paper's figures use it, so these are reported only)")
+                    lines.append(
+                        "  (ours with the wind feedforward OFF: the controller does not know the wind; "
+                        "the paper's figures use it, so these are reported only)"
+                    )
                 if s["sim_time_s"] > steady_after:
-                    lines.append("  (whole-run RMSE is dominated by the flight from the start onto the path; "
-                                 f"'{steady_label.strip()}' is from t = {steady_after:g} s on, "
-                                 "docs/interpretations.md)")
+                    lines.append(
+                        "  (whole-run RMSE is dominated by the flight from the start onto the path; "
+                        f"'{steady_label.strip()}' is from t = {steady_after:g} s on, "
+                        "docs/interpretations.md)"
+                    )
     if s["n_drones"] > 1:
         f = s["formation"]
         settled = [x is not None and math.isfinite(x) for x in f["settling_s"]]
-        settle = ", ".join((f"{x:.2f} s" if ok else "never settled") + f" (D change at {c:g} s)"
-                           for x, ok, c in zip(f["settling_s"], settled, f["change_times_s"]))
+        settle = ", ".join(
+            (f"{x:.2f} s" if ok else "never settled") + f" (D change at {c:g} s)"
+            for x, ok, c in zip(f["settling_s"], settled, f["change_times_s"])
+        )
         lines.append("")
-        lines.append(f"formation settling: {settle or 'no D change within the run'}   "
-                     f"(paper: ~{PAPER_FORMATION_SETTLING_S:g} s)")
+        lines.append(
+            f"formation settling: {settle or 'no D change within the run'}   (paper: ~{PAPER_FORMATION_SETTLING_S:g} s)"
+        )
         final = f"final {f['final_distance_error_m'] * 100:.2f} cm"
         if any(settled):
-            lines.append(f"formation distance error once settled: max {f['max_distance_error_m'] * 100:.1f} cm, "
-                         + final)
+            lines.append(
+                f"formation distance error once settled: max {f['max_distance_error_m'] * 100:.1f} cm, " + final
+            )
         else:
             lines.append(f"formation distance error: {final} (never settled within 5 cm)")
-        lines.append(f"min 3D separation: {s['min_separation_m']:.3f} m ({' & '.join(s['min_separation_pair'])} "
-                     f"at t = {s['min_separation_at_s']:.2f} s)")
+        lines.append(
+            f"min 3D separation: {s['min_separation_m']:.3f} m ({' & '.join(s['min_separation_pair'])} "
+            f"at t = {s['min_separation_at_s']:.2f} s)"
+        )
         lines.append(f"drone-drone contacts (MuJoCo): {s['contacts']}")
         dw = s.get("downwash_dip")
         if dw is not None:
-            where = (f" ({dw['drone']} under {dw['above']} at t = {dw['at_s']:.2f} s)" if dw["drone"] else "")
-            lines.append(f"worst altitude dip in another drone's jet: {dw['worst_m'] * 100:.1f} cm{where}; "
-                         f"time with a drone in a jet {dw['time_in_jet_s']:.2f} s")
+            where = f" ({dw['drone']} under {dw['above']} at t = {dw['at_s']:.2f} s)" if dw["drone"] else ""
+            lines.append(
+                f"worst altitude dip in another drone's jet: {dw['worst_m'] * 100:.1f} cm{where}; "
+                f"time with a drone in a jet {dw['time_in_jet_s']:.2f} s"
+            )
         a = s["anti_collision"]
         lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields")
     if s.get("stopped"):

@@ -32,8 +32,16 @@ from .progress import Progress
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage
 
-__all__ = ["PAPER_FORMATION_SETTLING_S", "PAPER_STEP", "PAPER_TABLE5", "Progress", "RunLog", "RunResult", "run",
-           "summarize"]
+__all__ = [
+    "PAPER_FORMATION_SETTLING_S",
+    "PAPER_STEP",
+    "PAPER_TABLE5",
+    "Progress",
+    "RunLog",
+    "RunResult",
+    "run",
+    "summarize",
+]
 
 
 @dataclass
@@ -41,28 +49,44 @@ class RunLog:
     """Every control-period sample of a run; k = number of samples (steps + 1)."""
 
     names: list[str]
-    t: np.ndarray            # (k,)
-    pos: np.ndarray          # (k, n, 3)
-    vel: np.ndarray          # (k, n, 3)
-    quat: np.ndarray         # (k, n, 4)
-    rpy: np.ndarray          # (k, n, 3)
-    pos_d: np.ndarray        # (k, n, 3) commanded position (after anti-collision)
-    slot: np.ndarray         # (k, n, 3) formation setpoint (leader: its reference)
-    att_d: np.ndarray        # (k, n, 3) commanded (φ_d, θ_d, ψ_d)
-    U: np.ndarray            # (k, n, 4) applied U1..U4 over the following period
-    rotor: np.ndarray        # (k, n, 4) rotor thrusts F1..F4 over the following period
-    wind_speed: np.ndarray   # (k, 3)
-    wind_force: np.ndarray   # (k, n, 3) applied wind force over the following period
-    D: np.ndarray            # (k,)
-    downwash: np.ndarray | None = None       # (k, n, 3) downwash force on each drone (docs/aero.md), N
+    t: np.ndarray  # (k,)
+    pos: np.ndarray  # (k, n, 3)
+    vel: np.ndarray  # (k, n, 3)
+    quat: np.ndarray  # (k, n, 4)
+    rpy: np.ndarray  # (k, n, 3)
+    pos_d: np.ndarray  # (k, n, 3) commanded position (after anti-collision)
+    slot: np.ndarray  # (k, n, 3) formation setpoint (leader: its reference)
+    att_d: np.ndarray  # (k, n, 3) commanded (φ_d, θ_d, ψ_d)
+    U: np.ndarray  # (k, n, 4) applied U1..U4 over the following period
+    rotor: np.ndarray  # (k, n, 4) rotor thrusts F1..F4 over the following period
+    wind_speed: np.ndarray  # (k, 3)
+    wind_force: np.ndarray  # (k, n, 3) applied wind force over the following period
+    D: np.ndarray  # (k,)
+    downwash: np.ndarray | None = None  # (k, n, 3) downwash force on each drone (docs/aero.md), N
     ground_effect: np.ndarray | None = None  # (k, n, 3) ground-effect force on each drone, N
 
     @classmethod
-    def allocate(cls, names: list[str], k: int) -> "RunLog":
+    def allocate(cls, names: list[str], k: int) -> RunLog:
         n = len(names)
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
-        return cls(names, z(k), z(k, n, 3), z(k, n, 3), z(k, n, 4), z(k, n, 3), z(k, n, 3), z(k, n, 3),
-                   z(k, n, 3), z(k, n, 4), z(k, n, 4), z(k, 3), z(k, n, 3), z(k), z(k, n, 3), z(k, n, 3))
+        return cls(
+            names,
+            z(k),
+            z(k, n, 3),
+            z(k, n, 3),
+            z(k, n, 4),
+            z(k, n, 3),
+            z(k, n, 3),
+            z(k, n, 3),
+            z(k, n, 3),
+            z(k, n, 4),
+            z(k, n, 4),
+            z(k, 3),
+            z(k, n, 3),
+            z(k),
+            z(k, n, 3),
+            z(k, n, 3),
+        )
 
     def observe(self, k: int, obs: dict, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
         """Sample k from the observation and the command computed from it (before the step)."""
@@ -88,10 +112,28 @@ class RunLog:
             if "ground_effect" in rec.aero_forces:
                 self.ground_effect[k] = rec.aero_forces["ground_effect"]
 
-    def truncated(self, k: int) -> "RunLog":
-        log = RunLog(self.names, *(getattr(self, f)[:k] for f in
-                                   ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor",
-                                    "wind_speed", "wind_force", "D")))
+    def truncated(self, k: int) -> RunLog:
+        log = RunLog(
+            self.names,
+            *(
+                getattr(self, f)[:k]
+                for f in (
+                    "t",
+                    "pos",
+                    "vel",
+                    "quat",
+                    "rpy",
+                    "pos_d",
+                    "slot",
+                    "att_d",
+                    "U",
+                    "rotor",
+                    "wind_speed",
+                    "wind_force",
+                    "D",
+                )
+            ),
+        )
         log.downwash = None if self.downwash is None else self.downwash[:k]
         log.ground_effect = None if self.ground_effect is None else self.ground_effect[:k]
         return log
@@ -108,9 +150,17 @@ class RunResult:
     extra: dict = field(default_factory=dict)
 
 
-def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_collision: str | None = None,
-        seed: int | None = None, progress: bool | None = None, duration: float | None = None,
-        aero: str | None = None, force_stages: Sequence[ForceStage] = ()) -> RunResult:
+def run(
+    scenario: Scenario | str,
+    *,
+    gains: np.ndarray | None = None,
+    anti_collision: str | None = None,
+    seed: int | None = None,
+    progress: bool | None = None,
+    duration: float | None = None,
+    aero: str | None = None,
+    force_stages: Sequence[ForceStage] = (),
+) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
     aero: a physics preset (``"paper"``, ``"realistic"``; docs/aero.md) replacing the scenario's.
@@ -126,7 +176,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
         sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
     if anti_collision is not None:
         sc = sc.with_overrides(anti_collision=anti_collision)
-    announced: list[str] = []      # the first run's notice, printed before compiling
+    announced: list[str] = []  # the first run's notice, printed before compiling
 
     def announce(msg: str) -> None:
         announced.append(msg)
@@ -139,7 +189,7 @@ def run(scenario: Scenario | str, *, gains: np.ndarray | None = None, anti_colli
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps
     log = RunLog.allocate(env.names, K + 1)
-    log.downwash[:] = 0.0          # zero under the paper's model (no such stage)
+    log.downwash[:] = 0.0  # zero under the paper's model (no such stage)
     log.ground_effect[:] = 0.0
     bar = Progress(K, sc.name, progress)
     error: BaseException | None = None
@@ -197,9 +247,11 @@ class _CooperativeInterrupt:
     def _handler(self, signum, frame) -> None:
         self.requested = True
 
-    def __enter__(self) -> "_CooperativeInterrupt":
-        if threading.current_thread() is threading.main_thread() \
-                and signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+    def __enter__(self) -> _CooperativeInterrupt:
+        if (
+            threading.current_thread() is threading.main_thread()
+            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+        ):
             self._previous = signal.signal(signal.SIGINT, self._handler)
         return self
 
@@ -213,11 +265,19 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     """The JSON summary (stable keys of the issues; more may be added)."""
     t = log.t
     sim_time = float(t[-1]) if len(t) else 0.0
-    out: dict = {"scenario": sc.name, "sim_time_s": sim_time, "wall_time_s": wall,
-                 "real_time_factor": sim_time / wall if wall > 0 else float("inf"),
-                 "n_drones": sc.n_drones, "seed": env.seed, "gains_source": sc.gains_source,
-                 "anti_collision_rule": policy.rule.name, "wind": bool(sc.wind.enabled),
-                 "wind_feedforward": bool(sc.wind_feedforward), "drones": {}}
+    out: dict = {
+        "scenario": sc.name,
+        "sim_time_s": sim_time,
+        "wall_time_s": wall,
+        "real_time_factor": sim_time / wall if wall > 0 else float("inf"),
+        "n_drones": sc.n_drones,
+        "seed": env.seed,
+        "gains_source": sc.gains_source,
+        "anti_collision_rule": policy.rule.name,
+        "wind": bool(sc.wind.enabled),
+        "wind_feedforward": bool(sc.wind_feedforward),
+        "drones": {},
+    }
     steady = t >= sc.steady_after
     for i, name in enumerate(log.names):
         ref = log.slot[:, i] if i > 0 else log.pos_d[:, i]
@@ -234,8 +294,10 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         if i == 0 and sc.trajectory == "step" and len(t) > 1:
             target = env.reference.pos[0]
             yaw_t = float(env.reference.yaw[0])
-            d["step"] = {ax: step_metrics(t, log.pos[:, 0, j], float(target[j]), float(log.pos[0, 0, j]))
-                         for j, ax in enumerate("xyz")}
+            d["step"] = {
+                ax: step_metrics(t, log.pos[:, 0, j], float(target[j]), float(log.pos[0, 0, j]))
+                for j, ax in enumerate("xyz")
+            }
             d["step"]["psi"] = step_metrics(t, log.rpy[:, 0, 2], yaw_t, float(log.rpy[0, 0, 2]))
         out["drones"][name] = d
     out["contacts"] = int(env.sim.contact_events)
@@ -259,17 +321,28 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         changes = env.scenario.diameter_schedule().change_times
         changes = changes[changes <= sim_time]
         settling, max_err = formation_settling(t, dist, log.D, changes)
-        out["formation"] = {"settling_s": settling, "change_times_s": changes.tolist(),
-                            "max_distance_error_m": max_err,
-                            "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max())}
+        out["formation"] = {
+            "settling_s": settling,
+            "change_times_s": changes.tolist(),
+            "max_distance_error_m": max_err,
+            "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max()),
+        }
         dip = downwash_dip(t, log.pos, log.pos_d, log.quat)
         out["downwash_dip_worst_m"] = dip["worst_m"]
         named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
-        out["downwash_dip"] = {"worst_m": dip["worst_m"], **named, "at_s": dip["t_s"],
-                               "time_in_jet_s": dip["time_in_jet_s"], "below_ref_worst_m": dip["below_ref_worst_m"]}
+        out["downwash_dip"] = {
+            "worst_m": dip["worst_m"],
+            **named,
+            "at_s": dip["t_s"],
+            "time_in_jet_s": dip["time_in_jet_s"],
+            "below_ref_worst_m": dip["below_ref_worst_m"],
+        }
         ev = policy.events
-        out["anti_collision"] = {"rule": policy.rule.name, "events": len(ev),
-                                 "yields": sum(1 for e in ev if e["action"] in ("up", "down"))}
+        out["anti_collision"] = {
+            "rule": policy.rule.name,
+            "events": len(ev),
+            "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
+        }
     else:  # the stable keys exist for one drone too
         out["min_separation_m"] = None
         out["formation"] = None
@@ -281,5 +354,4 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
 def _rmse_dict(e: np.ndarray, att_e: np.ndarray) -> dict:
     r = rmse(e)
     ra = rmse(att_e)
-    return {"x": float(r[0]), "y": float(r[1]), "z": float(r[2]), "roll_deg": float(ra[0]),
-            "pitch_deg": float(ra[1])}
+    return {"x": float(r[0]), "y": float(r[1]), "z": float(r[2]), "roll_deg": float(ra[0]), "pitch_deg": float(ra[1])}

@@ -29,13 +29,26 @@ from .resources import SCENARIOS_DIR
 from .trajectories import TRAJECTORIES, make_trajectory
 from .wind import WindConfig
 
-_TOP_KEYS = {"name", "description", "duration", "control_period", "timestep", "integrator", "seed",
-             "steady_after", "leader", "followers", "formation", "controller", "wind", "aero"}
+_TOP_KEYS = {
+    "name",
+    "description",
+    "duration",
+    "control_period",
+    "timestep",
+    "integrator",
+    "seed",
+    "steady_after",
+    "leader",
+    "followers",
+    "formation",
+    "controller",
+    "wind",
+    "aero",
+}
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
-_FORMATION_KEYS = {"diameter", "anti_collision", "safety_distance", "hop", "hysteresis", "arrive",
-                   "sensing_range"}
+_FORMATION_KEYS = {"diameter", "anti_collision", "safety_distance", "hop", "hysteresis", "arrive", "sensing_range"}
 _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map"}
 
 
@@ -61,23 +74,23 @@ class Scenario:
     steady_after: float
     trajectory: str
     trajectory_params: dict[str, Any]
-    leader_start: np.ndarray          # (3,)
+    leader_start: np.ndarray  # (3,)
     leader_yaw_deg: float
     n_followers: int
     follower_starts: np.ndarray | None  # (n_f, 3) or None when random
     random_start: RandomStart | None
-    diameter: Any                     # float or [[t, D], ...]
+    diameter: Any  # float or [[t, D], ...]
     anti_collision: str
     anti_collision_params: dict[str, float]
     sensing_range: float
-    gains: np.ndarray                 # (12,) or (n, 12)
+    gains: np.ndarray  # (12,) or (n, 12)
     gains_source: str
     wind_feedforward: bool
     attitude_map: str
     wind: WindConfig
     path: str = ""
     raw: dict = field(default_factory=dict, repr=False, compare=False)
-    aero: AeroConfig = PAPER          # physics preset (docs/aero.md); the paper's model by default
+    aero: AeroConfig = PAPER  # physics preset (docs/aero.md); the paper's model by default
 
     @property
     def n_drones(self) -> int:
@@ -99,10 +112,14 @@ class Scenario:
             return self.leader_start[None, :].copy()
         if self.follower_starts is not None:
             return np.vstack([self.leader_start, self.follower_starts])
-        return np.vstack([self.leader_start, random_follower_starts(self.leader_start, self.n_followers,
-                                                                    self.random_start, where=self.path)])
+        return np.vstack(
+            [
+                self.leader_start,
+                random_follower_starts(self.leader_start, self.n_followers, self.random_start, where=self.path),
+            ]
+        )
 
-    def with_overrides(self, **kw) -> "Scenario":
+    def with_overrides(self, **kw) -> Scenario:
         """A copy with some fields replaced (e.g. ``gains=...``, ``anti_collision="paper"``).
 
         ``seed=s`` is the scenario's seed s everywhere (``run --seed``, ``sweep``, ``stress``,
@@ -116,8 +133,9 @@ class Scenario:
                 kw["random_start"] = replace(self.random_start, seed=kw["seed"])
         if "duration" in kw or "control_period" in kw:
             T = float(kw.get("control_period", self.control_period))
-            kw["duration"] = check_duration(kw.get("duration", self.duration), T,
-                                            int(kw.get("n_followers", self.n_followers)) + 1, "duration")
+            kw["duration"] = check_duration(
+                kw.get("duration", self.duration), T, int(kw.get("n_followers", self.n_followers)) + 1, "duration"
+            )
         return replace(self, **kw)
 
 
@@ -194,15 +212,20 @@ def check_duration(duration: Any, control_period: float, n_drones: int, where: s
     if d <= 0:
         raise UserError(f"must be positive, got {d:g} s", where=where)
     if d < control_period * (1 - 1e-9):
-        raise UserError(f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would "
-                        f"be simulated", where=where)
+        raise UserError(
+            f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would be simulated",
+            where=where,
+        )
     n_steps = round(d / control_period)
     need = run_log_bytes(n_steps, n_drones)
     avail = available_memory_bytes()
     if avail is not None and need > MEMORY_SHARE * avail:
-        raise UserError(f"{d:g} s at {control_period:g} s per step is {n_steps:.3g} steps of {n_drones} drone(s); "
-                        f"its log would take about {_gib(need)}, more than {MEMORY_SHARE:.0%} of the "
-                        f"{_gib(avail)} of memory available: shorten the run", where=where)
+        raise UserError(
+            f"{d:g} s at {control_period:g} s per step is {n_steps:.3g} steps of {n_drones} drone(s); "
+            f"its log would take about {_gib(need)}, more than {MEMORY_SHARE:.0%} of the "
+            f"{_gib(avail)} of memory available: shorten the run",
+            where=where,
+        )
     return d
 
 
@@ -215,13 +238,18 @@ def check_trajectory_params(name: str, params: dict, where: str) -> None:
     sig = inspect.signature(TRAJECTORIES[name])
     for key, v in params.items():
         if key not in sig.parameters:
-            raise UserError(f"unknown parameter of trajectory {name!r}; allowed: {', '.join(sig.parameters)}",
-                            where=f"{where}.{key}")
+            raise UserError(
+                f"unknown parameter of trajectory {name!r}; allowed: {', '.join(sig.parameters)}",
+                where=f"{where}.{key}",
+            )
         default = sig.parameters[key].default
         if isinstance(default, (tuple, list)):
             m = len(default)
-            if (not isinstance(v, list) or len(v) != m
-                    or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)):
+            if (
+                not isinstance(v, list)
+                or len(v) != m
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)
+            ):
                 raise UserError(f"must be a list of {m} numbers, got {v!r}", where=f"{where}.{key}")
             if not all(np.isfinite(x) for x in v):
                 raise UserError(f"must be finite numbers, got {v!r}", where=f"{where}.{key}")
@@ -242,18 +270,23 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
     try:
         with np.errstate(all="ignore"):
             ref = traj(t)
-    except (ArithmeticError, ValueError) as exc:        # e.g. omega**2 overflowing a Python float
+    except (ArithmeticError, ValueError) as exc:  # e.g. omega**2 overflowing a Python float
         raise UserError(f"the reference is not finite ({exc}); check the parameters", where=where) from None
     for f in ("pos", "vel", "acc", "yaw", "yaw_rate", "yaw_acc"):
         a = np.asarray(getattr(ref, f), float)
         bad = ~np.isfinite(a.reshape(len(t), -1)).all(axis=1)
         if bad.any():
-            raise UserError(f"the reference's {f.replace('_', ' ')} is not finite at t = {t[bad][0]:g} s; "
-                            f"check the parameters", where=where)
+            raise UserError(
+                f"the reference's {f.replace('_', ' ')} is not finite at t = {t[bad][0]:g} s; check the parameters",
+                where=where,
+            )
     far = np.linalg.norm(ref.pos, axis=1) > MAX_RANGE_M
     if far.any():
-        raise UserError(f"the reference goes farther than {MAX_RANGE_M:g} m from the origin (at t = {t[far][0]:g} s), "
-                        f"where the simulator stops the run", where=where)
+        raise UserError(
+            f"the reference goes farther than {MAX_RANGE_M:g} m from the origin (at t = {t[far][0]:g} s), "
+            f"where the simulator stops the run",
+            where=where,
+        )
     z = ref.pos[:, 2]
     if (z < 0).any():
         i = int(np.argmax(z < 0))
@@ -270,15 +303,21 @@ def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> Non
         raise UserError(f"{names[i]} starts below the ground (z = {starts[i, 2]:g} m); z must be >= 0", where=where)
     far = np.flatnonzero(np.linalg.norm(starts, axis=1) > MAX_RANGE_M)
     if len(far):
-        raise UserError(f"{names[int(far[0])]} starts farther than {MAX_RANGE_M:g} m from the origin, where the "
-                        f"simulator stops the run", where=where)
-    d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)   # (n, n)
+        raise UserError(
+            f"{names[int(far[0])]} starts farther than {MAX_RANGE_M:g} m from the origin, where the "
+            f"simulator stops the run",
+            where=where,
+        )
+    d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)  # (n, n)
     d[np.diag_indices(len(starts))] = np.inf
     i, j = np.unravel_index(np.argmin(d), d.shape)
     if d[i, j] < START_CLEARANCE_M:
         i, j = sorted((int(i), int(j)))
-        raise UserError(f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
-                        f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)", where=where)
+        raise UserError(
+            f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
+            f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)",
+            where=where,
+        )
 
 
 def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
@@ -293,15 +332,18 @@ def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: s
     check_random_start_feasible(n, rs, where)
     spacing = max(rs.min_spacing, START_CLEARANCE_M)
     rng = np.random.default_rng(rs.seed)
-    pts = np.empty((n + 1, 2))                  # (n + 1, 2) leader first
+    pts = np.empty((n + 1, 2))  # (n + 1, 2) leader first
     pts[0] = np.asarray(leader[:2], float)
     placed, tries = 1, 0
     while placed < n + 1:
         tries += 1
         if tries > rs.max_tries:
-            raise UserError(f"could not place {n} followers at least {spacing:g} m apart within "
-                            f"{rs.radius:g} m of the leader after {rs.max_tries} tries; lower min_spacing "
-                            f"or raise radius", where=f"{where}: followers.random_start")
+            raise UserError(
+                f"could not place {n} followers at least {spacing:g} m apart within "
+                f"{rs.radius:g} m of the leader after {rs.max_tries} tries; lower min_spacing "
+                f"or raise radius",
+                where=f"{where}: followers.random_start",
+            )
         r = rs.radius * np.sqrt(rng.uniform())
         a = rng.uniform(0, 2 * np.pi)
         p = pts[0] + r * np.array([np.cos(a), np.sin(a)])
@@ -326,16 +368,22 @@ def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> Non
     if not (np.isfinite(r) and np.isfinite(s)) or r <= 0 or s <= 0:
         raise UserError("radius and min_spacing must be positive", where=wr)
     if r > MAX_RANGE_M or s > MAX_RANGE_M:
-        raise UserError(f"radius and min_spacing must be at most {MAX_RANGE_M:g} m (a drone farther than that "
-                        f"from the origin stops the run)", where=wr)
+        raise UserError(
+            f"radius and min_spacing must be at most {MAX_RANGE_M:g} m (a drone farther than that "
+            f"from the origin stops the run)",
+            where=wr,
+        )
     if n < 0:
         raise UserError(f"follower count must be >= 0, got {n}", where=wr)
     se = max(s, START_CLEARANCE_M)
     if (n + 1) * (se / 2) ** 2 > 0.9069 * (r + se / 2) ** 2:
-        raise UserError(f"cannot place {n} followers {se:g} m apart (and from the leader) within "
-                        f"{r:g} m of the leader: not enough room (the packing bound allows at most "
-                        f"{max(int(0.9069 * (r + se / 2) ** 2 / (se / 2) ** 2) - 1, 0)} followers); lower min_spacing "
-                        f"or raise radius", where=wr)
+        raise UserError(
+            f"cannot place {n} followers {se:g} m apart (and from the leader) within "
+            f"{r:g} m of the leader: not enough room (the packing bound allows at most "
+            f"{max(int(0.9069 * (r + se / 2) ** 2 / (se / 2) ** 2) - 1, 0)} followers); lower min_spacing "
+            f"or raise radius",
+            where=wr,
+        )
 
 
 def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
@@ -343,13 +391,13 @@ def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
         raise UserError("must be a table", where=where)
     unknown = set(table) - allowed
     if unknown:
-        raise UserError(f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}",
-                        where=where)
+        raise UserError(
+            f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}", where=where
+        )
     return table
 
 
-def _number(table: dict, key: str, default, where: str, *, positive: bool = False, minimum=None,
-            integer: bool = False):
+def _number(table: dict, key: str, default, where: str, *, positive: bool = False, minimum=None, integer: bool = False):
     if key not in table:
         if default is None:
             raise UserError("missing field", where=f"{where}{key}")
@@ -395,32 +443,36 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     duration = float(_number(data, "duration", None, w, positive=True))
     T = float(_number(data, "control_period", 0.01, w, positive=True))
     if T > duration:
-        raise UserError(f"{T:g} s is longer than the duration ({duration:g} s): nothing would be simulated",
-                        where=f"{w}control_period")
+        raise UserError(
+            f"{T:g} s is longer than the duration ({duration:g} s): nothing would be simulated",
+            where=f"{w}control_period",
+        )
     dt = float(_number(data, "timestep", 0.005, w, positive=True))
     nsub = round(T / dt)
     if nsub < 1 or abs(nsub * dt - T) > 1e-9:
         raise UserError(f"must divide control_period = {T} s (got {dt} s)", where=f"{w}timestep")
     integrator = data.get("integrator", "RK4")
     if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
-        raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast",
-                        where=f"{w}integrator")
+        raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast", where=f"{w}integrator")
     seed = check_seed(data.get("seed", 0), f"{w}seed")
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
-    leader = _check_keys(data.get("leader", None) if "leader" in data else _missing(w + "leader"),
-                         _LEADER_KEYS, w + "leader")
+    leader = _check_keys(
+        data.get("leader", None) if "leader" in data else _missing(w + "leader"), _LEADER_KEYS, w + "leader"
+    )
     if "trajectory" not in leader:
         raise UserError("missing field", where=f"{w}leader.trajectory")
     traj = leader["trajectory"]
     if not isinstance(traj, str) or traj not in TRAJECTORIES:
-        raise UserError(f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
-                        where=f"{w}leader.trajectory")
+        raise UserError(
+            f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
+            where=f"{w}leader.trajectory",
+        )
     tparams = leader.get("params", {})
     if not isinstance(tparams, dict):
         raise UserError("must be a table", where=f"{w}leader.params")
     check_trajectory_params(traj, tparams, f"{w}leader.params")
-    make_trajectory(traj, tparams, where=f"{w}leader.params")   # validates the parameters
+    make_trajectory(traj, tparams, where=f"{w}leader.params")  # validates the parameters
     leader_start = _vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{w}leader.start")
     yaw_deg = float(_number(leader, "yaw_deg", 0.0, f"{w}leader."))
 
@@ -428,8 +480,16 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if "start" in fol and "random_start" in fol:
         raise UserError("give either start or random_start, not both", where=f"{w}followers")
     default_count = len(fol["start"]) if isinstance(fol.get("start"), list) else None
-    n_f = int(_number(fol, "count", default_count if default_count is not None else None,
-                      f"{w}followers.", integer=True, minimum=0))
+    n_f = int(
+        _number(
+            fol,
+            "count",
+            default_count if default_count is not None else None,
+            f"{w}followers.",
+            integer=True,
+            minimum=0,
+        )
+    )
     if n_f > MAX_FOLLOWERS:
         raise UserError(f"at most {MAX_FOLLOWERS} followers, got {n_f}", where=f"{w}followers.count")
     starts = None
@@ -438,15 +498,18 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         if "start" in fol:
             starts = _vec(fol["start"], None, f"{w}followers.start")
             if starts.shape != (n_f, 3):
-                raise UserError(f"must be {n_f} [x, y, z] positions, got shape {starts.shape}",
-                                where=f"{w}followers.start")
+                raise UserError(
+                    f"must be {n_f} [x, y, z] positions, got shape {starts.shape}", where=f"{w}followers.start"
+                )
         elif "random_start" in fol:
             r = _check_keys(fol["random_start"], _RANDOM_KEYS, f"{w}followers.random_start")
             wr = f"{w}followers.random_start."
-            rstart = RandomStart(radius=float(_number(r, "radius", 3.0, wr, positive=True)),
-                                 min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
-                                 seed=check_seed(r.get("seed", seed), f"{wr}seed"),
-                                 max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)))
+            rstart = RandomStart(
+                radius=float(_number(r, "radius", 3.0, wr, positive=True)),
+                min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
+                seed=check_seed(r.get("seed", seed), f"{wr}seed"),
+                max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)),
+            )
             if rstart.max_tries > MAX_TRIES:
                 raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
             check_random_start_feasible(n_f, rstart, path)
@@ -456,16 +519,21 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
     diameter = form.get("diameter", 1.0)
     if not _only_numbers(diameter):
-        raise UserError(f"must be a number or a list of [time, D] pairs, got {diameter!r}",
-                        where=f"{w}formation.diameter")
+        raise UserError(
+            f"must be a number or a list of [time, D] pairs, got {diameter!r}", where=f"{w}formation.diameter"
+        )
     DiameterSchedule(diameter, where=f"{w}formation.diameter")
     rule = form.get("anti_collision", "layers")
     if not isinstance(rule, str) or rule not in ANTI_COLLISION_RULES:
-        raise UserError(f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
-                        where=f"{w}formation.anti_collision")
+        raise UserError(
+            f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
+            where=f"{w}formation.anti_collision",
+        )
     wf = f"{w}formation."
-    ac_params = {k: float(_number(form, k, d, wf, positive=True)) for k, d in
-                 (("safety_distance", 0.8), ("hop", 0.4), ("hysteresis", 0.05), ("arrive", 0.2))}
+    ac_params = {
+        k: float(_number(form, k, d, wf, positive=True))
+        for k, d in (("safety_distance", 0.8), ("hop", 0.4), ("hysteresis", 0.05), ("arrive", 0.2))
+    }
     sensing = float(_number(form, "sensing_range", 4.0, wf, positive=True))
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
@@ -481,7 +549,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
                 raise UserError(str(exc), where=f"{w}controller.gains") from None
     else:
         if not _only_numbers(g):
-            raise UserError(f"must be \"table4\", a gains file or 12 numbers, got {g!r}", where=f"{w}controller.gains")
+            raise UserError(f'must be "table4", a gains file or 12 numbers, got {g!r}', where=f"{w}controller.gains")
         gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
     ff = ctl.get("wind_feedforward", True)
     if not isinstance(ff, bool):
@@ -497,8 +565,10 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
 
     aero = parse_aero(data.get("aero"), where=f"{w}aero")
     if 0 < aero.motor_tau < dt:
-        raise UserError(f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
-                        where=f"{w}aero.motor_tau")
+        raise UserError(
+            f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
+            where=f"{w}aero.motor_tau",
+        )
     # Checks across fields, still before anything flies.
     check_duration(duration, T, 1 + n_f, f"{w}duration")
     check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
@@ -512,13 +582,35 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         if key in data and not isinstance(data[key], str):
             raise UserError(f"must be a string, got {data[key]!r}", where=f"{w}{key}")
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
-    return Scenario(name=str(nm), description=str(data.get("description", "")), duration=duration,
-                    control_period=T, timestep=dt, integrator=integrator, seed=seed, steady_after=steady_after,
-                    trajectory=traj, trajectory_params=dict(tparams), leader_start=leader_start,
-                    leader_yaw_deg=yaw_deg, n_followers=n_f, follower_starts=starts, random_start=rstart,
-                    diameter=diameter, anti_collision=rule, anti_collision_params=ac_params,
-                    sensing_range=sensing, gains=gains, gains_source=source, wind_feedforward=ff,
-                    attitude_map=amap, wind=wind, path=path, raw=data, aero=aero)
+    return Scenario(
+        name=str(nm),
+        description=str(data.get("description", "")),
+        duration=duration,
+        control_period=T,
+        timestep=dt,
+        integrator=integrator,
+        seed=seed,
+        steady_after=steady_after,
+        trajectory=traj,
+        trajectory_params=dict(tparams),
+        leader_start=leader_start,
+        leader_yaw_deg=yaw_deg,
+        n_followers=n_f,
+        follower_starts=starts,
+        random_start=rstart,
+        diameter=diameter,
+        anti_collision=rule,
+        anti_collision_params=ac_params,
+        sensing_range=sensing,
+        gains=gains,
+        gains_source=source,
+        wind_feedforward=ff,
+        attitude_map=amap,
+        wind=wind,
+        path=path,
+        raw=data,
+        aero=aero,
+    )
 
 
 def _missing(where: str):
@@ -541,8 +633,9 @@ def resolve(name_or_path: str) -> Path:
         return p
     found = bundled_scenarios()
     if name_or_path not in found:
-        raise UserError(f"unknown scenario {name_or_path!r}; bundled: {', '.join(found) or 'none'} "
-                        f"(or give a path to a .toml file)")
+        raise UserError(
+            f"unknown scenario {name_or_path!r}; bundled: {', '.join(found) or 'none'} (or give a path to a .toml file)"
+        )
     return found[name_or_path]
 
 

@@ -50,11 +50,21 @@ from .world import World
 
 #: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
 HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
-HEALTH_NAMES = {HEALTHY: "healthy", NON_FINITE: "non-finite state", BELOW_FLOOR: "below the floor",
-                TOO_FAR: "too far", TILTED: "tilted too far", MUJOCO_WARNING: "MuJoCo divergence warning"}
+HEALTH_NAMES = {
+    HEALTHY: "healthy",
+    NON_FINITE: "non-finite state",
+    BELOW_FLOOR: "below the floor",
+    TOO_FAR: "too far",
+    TILTED: "tilted too far",
+    MUJOCO_WARNING: "MuJoCo divergence warning",
+}
 #: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
-DIVERGENCE_WARNINGS = (mujoco.mjtWarning.mjWARN_BADQACC, mujoco.mjtWarning.mjWARN_BADQPOS,
-                       mujoco.mjtWarning.mjWARN_BADQVEL, mujoco.mjtWarning.mjWARN_BADCTRL)
+DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADCTRL,
+)
 _W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = (int(w) for w in DIVERGENCE_WARNINGS)
 
 
@@ -63,17 +73,17 @@ class Monitor(Protocol):
 
     name: str
 
-    def reset(self, sim: "Sim") -> None: ...
+    def reset(self, sim: Sim) -> None: ...
 
-    def after_step(self, sim: "Sim") -> None: ...
+    def after_step(self, sim: Sim) -> None: ...
 
 
 class ForceStage(Protocol):
     name: str
 
-    def reset(self, sim: "Sim") -> None: ...
+    def reset(self, sim: Sim) -> None: ...
 
-    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         """ADD this stage's world-frame force (N, 3) [N] and torque (N, 3) [N·m] at each drone's CoM
         for the coming physics step. N = all drones of all copies, in sim order (copy-major)."""
 
@@ -106,8 +116,9 @@ def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_
 
 
 @jit
-def copy_state(qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: float, max_distance: float,
-               max_tilt: float) -> int:
+def copy_state(
+    qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: float, max_distance: float, max_tilt: float
+) -> int:
     """The code of the first unhealthy drone of copy c (rows c·n .. c·n + n − 1 of qpos (N, 7),
     qvel (N, 6)): :func:`drone_state`'s, or TILTED where |roll| or |pitch| > ``max_tilt``; 0 if none."""
     for i in range(c * n, c * n + n):
@@ -125,16 +136,18 @@ def copy_state(qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: floa
 
 
 @jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(1, dtype=np.int8))])
-def health_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float,
-                  max_tilt: float, out: np.ndarray) -> None:
+def health_kernel(
+    qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float, max_tilt: float, out: np.ndarray
+) -> None:
     """The state part of the health mask: out (m,) = :func:`copy_state` of each copy of n drones."""
     for c in range(out.shape[0]):
         out[c] = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
 
 
 @jit(samples=lambda: [(*_state_samples(), 2, 1, -0.5, 1e3, np.inf)])
-def first_unhealthy(qpos: np.ndarray, qvel: np.ndarray, n: int, m: int, floor_z: float, max_distance: float,
-                    max_tilt: float) -> int:
+def first_unhealthy(
+    qpos: np.ndarray, qvel: np.ndarray, n: int, m: int, floor_z: float, max_distance: float, max_tilt: float
+) -> int:
     """The first nonzero :func:`copy_state` code of the m copies (0: all healthy)."""
     for c in range(m):
         code = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
@@ -153,8 +166,7 @@ def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.
             out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
 
 
-@jit(samples=lambda: [(np.zeros((5, 6))[1::2, 0:3], np.zeros((5, 6))[1::2, 3:6], np.zeros((2, 3)),
-                       np.zeros((2, 3)))])
+@jit(samples=lambda: [(np.zeros((5, 6))[1::2, 0:3], np.zeros((5, 6))[1::2, 3:6], np.zeros((2, 3)), np.zeros((2, 3)))])
 def flush_stage_forces(xf: np.ndarray, xtorque: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
     """xf (N, 3) += force, xtorque (N, 3) = torque (the extra stages' sum of one physics step), then
     force and torque back to zero for the next step."""
@@ -195,10 +207,10 @@ class DragStage:
 
     name = "drag"
 
-    def reset(self, sim: "Sim") -> None:
-        self.neg_drag = -sim.params.drag          # (3,)
+    def reset(self, sim: Sim) -> None:
+        self.neg_drag = -sim.params.drag  # (3,)
 
-    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         add_drag_kernel(sim.vel, self.neg_drag, force)
 
 
@@ -211,8 +223,8 @@ class WindStage:
     def __init__(self) -> None:
         self.force = np.zeros((0, 3))
 
-    def reset(self, sim: "Sim") -> None:
-        self.force = np.zeros((sim.n_total, 3))   # (N, 3)
+    def reset(self, sim: Sim) -> None:
+        self.force = np.zeros((sim.n_total, 3))  # (N, 3)
 
     def set(self, force: np.ndarray | None) -> None:
         """The force (N, 3) or (3,) for the coming period (None: zero)."""
@@ -221,7 +233,7 @@ class WindStage:
         else:
             self.force[:] = force
 
-    def apply(self, sim: "Sim", force: np.ndarray, torque: np.ndarray) -> None:
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         force += self.force
 
 
@@ -248,9 +260,18 @@ class Sim:
     floor_z, max_distance, max_tilt: the health limits (m, m, rad; ``max_tilt`` None: not checked).
     """
 
-    def __init__(self, world: World, control_period: float = 0.01, *, n_copies: int = 1,
-                 force_stages: Sequence[ForceStage] = (), monitors: Sequence[Monitor] = (), floor_z: float = -0.5, max_distance: float = 1e3,
-                 max_tilt: float | None = None) -> None:
+    def __init__(
+        self,
+        world: World,
+        control_period: float = 0.01,
+        *,
+        n_copies: int = 1,
+        force_stages: Sequence[ForceStage] = (),
+        monitors: Sequence[Monitor] = (),
+        floor_z: float = -0.5,
+        max_distance: float = 1e3,
+        max_tilt: float | None = None,
+    ) -> None:
         m = world.model
         dt = m.opt.timestep
         nsub = int(round(control_period / dt))
@@ -265,7 +286,7 @@ class Sim:
         self.data = mujoco.MjData(m)
         self.n_total = N = world.n_drones
         self.n_copies = int(n_copies)
-        self.n = N // self.n_copies                      # drones per copy
+        self.n = N // self.n_copies  # drones per copy
         self.control_period = float(control_period)
         self.n_substeps = nsub
         self.floor_z = float(floor_z)
@@ -275,28 +296,28 @@ class Sim:
         self.params: QuadParams = p
         self._f_min, self._f_max = p.f_min, p.f_max
         d = self.data
-        self.qpos = d.qpos.reshape(N, 7)                 # views into MjData
+        self.qpos = d.qpos.reshape(N, 7)  # views into MjData
         self.qvel = d.qvel.reshape(N, 6)
-        self.pos = self.qpos[:, 0:3]                     # (N, 3)
-        self.quat = self.qpos[:, 3:7]                    # (N, 4) w, x, y, z
-        self.vel = self.qvel[:, 0:3]                     # (N, 3) world frame
-        self.omega = self.qvel[:, 3:6]                   # (N, 3) body frame
-        self.ctrl = d.ctrl.reshape(N, 4)                 # (N, 4) = U1..U4 applied
+        self.pos = self.qpos[:, 0:3]  # (N, 3)
+        self.quat = self.qpos[:, 3:7]  # (N, 4) w, x, y, z
+        self.vel = self.qvel[:, 0:3]  # (N, 3) world frame
+        self.omega = self.qvel[:, 3:6]  # (N, 3) body frame
+        self.ctrl = d.ctrl.reshape(N, 4)  # (N, 4) = U1..U4 applied
         idx = _index(world.body_ids)
-        self._xfrc_force = d.xfrc_applied[idx, 0:3]      # (N, 3) views
+        self._xfrc_force = d.xfrc_applied[idx, 0:3]  # (N, 3) views
         self._xfrc_torque = d.xfrc_applied[idx, 3:6]
         if not np.shares_memory(self._xfrc_force, d.xfrc_applied):
             raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
-        self._warnings = d.warning.number                # (7,) live view of MuJoCo's warning counters
+        self._warnings = d.warning.number  # (7,) live view of MuJoCo's warning counters
         self._geom_drone = world.geom_drone
-        self.rotor_thrust = np.zeros((N, 4))             # (N, 4) F1..F4 produced (the last step's)
+        self.rotor_thrust = np.zeros((N, 4))  # (N, 4) F1..F4 produced (the last step's)
         # First-order rotor lag (actuators with dyntype="filter", docs/aero.md): MuJoCo integrates the
         # actuator states; rotor_thrust reports the produced thrust (from the states), rotor_command
         # what was commanded (after saturation). Without lag the two are the same.
         self.motor_lag = m.na == 4 * N and m.na > 0
         self._act = d.act.reshape(N, 4) if self.motor_lag else None
-        self.rotor_command = np.zeros((N, 4))            # (N, 4)
-        self._force = np.zeros((N, 3))                   # (N, 3) stage sums (general path)
+        self.rotor_command = np.zeros((N, 4))  # (N, 4)
+        self._force = np.zeros((N, 3))  # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
         self.drag = DragStage()
         self.wind = WindStage()
@@ -344,8 +365,9 @@ class Sim:
     def time(self) -> float:
         return float(self.data.time)
 
-    def reset(self, positions: np.ndarray | None = None, yaws: np.ndarray | None = None,
-              velocities: np.ndarray | None = None) -> None:
+    def reset(
+        self, positions: np.ndarray | None = None, yaws: np.ndarray | None = None, velocities: np.ndarray | None = None
+    ) -> None:
         """Back to rest at ``positions`` (N, 3) with ``yaws`` (N,) (defaults: the world's)."""
         mujoco.mj_resetData(self.model, self.data)
         pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
@@ -360,14 +382,14 @@ class Sim:
         self.rotor_command[:] = 0.0
         self._force[:] = 0.0
         self._torque[:] = 0.0
-        self.contact_events = 0          # pairs of drones coming into contact (rising edges)
-        self.contact_steps = 0           # physics steps with any drone–drone contact
+        self.contact_events = 0  # pairs of drones coming into contact (rising edges)
+        self.contact_steps = 0  # physics steps with any drone–drone contact
         self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
         self._pairs_in_contact: set[tuple[int, int]] = set()
-        self.parked = np.zeros(self.n_copies, dtype=bool)    # (m,) copies held at their start
+        self.parked = np.zeros(self.n_copies, dtype=bool)  # (m,) copies held at their start
         self._parked_rows = np.zeros((self.n_total, 1), dtype=bool)
         self._any_parked = False
-        self._park_qpos = self.qpos.copy()                   # (N, 7) where parked drones are held
+        self._park_qpos = self.qpos.copy()  # (N, 7) where parked drones are held
         for stage in self.stages:
             stage.reset(self)
         self._set_path()
@@ -375,15 +397,16 @@ class Sim:
         for mon in self.monitors:
             mon.reset(self)
 
-    def reset_copies(self, copies: np.ndarray, positions: np.ndarray | None = None,
-                     yaws: np.ndarray | None = None) -> None:
+    def reset_copies(
+        self, copies: np.ndarray, positions: np.ndarray | None = None, yaws: np.ndarray | None = None
+    ) -> None:
         """Put only the copies of the bool mask ``copies`` (m,) back at rest at the rows of ``positions``
         (N, 3) and ``yaws`` (N,) (defaults: the world's), as :meth:`reset` would, leaving the other
         copies alone (a vector environment's per-copy auto-reset): their state, inputs and applied
         forces, the solver's warm start and the contact bookkeeping of their drones are cleared.
         MuJoCo's warning counters and ``time`` are shared by all copies and are left as they are."""
         mask = np.asarray(copies, dtype=bool).reshape(self.n_copies)
-        rows = np.repeat(mask, self.n)                       # (N,)
+        rows = np.repeat(mask, self.n)  # (N,)
         pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
         yaw = self.world.initial_yaws if yaws is None else np.asarray(yaws, float)
         self.qpos[rows, 0:3] = pos[rows]
@@ -436,11 +459,11 @@ class Sim:
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
             if lag:
-                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)     # produced rotor thrusts
+                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)  # produced rotor thrusts
             if extra:
                 for stage in extra:
                     stage.apply(self, force, torque)
-                flush_stage_forces(xf, self._xfrc_torque, force, torque)   # xf += f, torque = tq; f, tq = 0
+                flush_stage_forces(xf, self._xfrc_torque, force, torque)  # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             if d.ncon or self._pairs_in_contact:
                 self._count_contacts()
@@ -489,16 +512,19 @@ class Sim:
         if self.mujoco_warned():
             code = MUJOCO_WARNING
         else:
-            code = first_unhealthy(self.qpos, self.qvel, self.n, self.n_copies, self.floor_z, self.max_distance,
-                                   self.max_tilt)
+            code = first_unhealthy(
+                self.qpos, self.qvel, self.n, self.n_copies, self.floor_z, self.max_distance, self.max_tilt
+            )
             if code == HEALTHY:
                 return
         pos = self.pos
         when = f"simulation diverged at t = {self.time:.2f} s"
         if code == MUJOCO_WARNING:
             names = [mujoco.mjtWarning(int(w)).name for w in DIVERGENCE_WARNINGS if self._warnings[int(w)]]
-            raise SimulationDiverged(f"simulation diverged: MuJoCo reported {', '.join(names)} (a state it cannot "
-                                     f"integrate) and reset the simulation")
+            raise SimulationDiverged(
+                f"simulation diverged: MuJoCo reported {', '.join(names)} (a state it cannot "
+                f"integrate) and reset the simulation"
+            )
         if code == NON_FINITE:
             raise SimulationDiverged(f"{when}: non-finite state")
         if code == BELOW_FLOOR:
@@ -516,7 +542,7 @@ class Sim:
         mask[np.asarray(copies)] = True
         self.parked |= mask
         self._any_parked = bool(self.parked.any())
-        self._parked_rows = np.repeat(self.parked, self.n)[:, None]     # (N, 1)
+        self._parked_rows = np.repeat(self.parked, self.n)[:, None]  # (N, 1)
         self._put_back()
 
     def _put_back(self) -> None:

@@ -78,12 +78,15 @@ def euler_to_quat(rpy: np.ndarray) -> np.ndarray:
     cr, sr = np.cos(h[..., 0]), np.sin(h[..., 0])
     cp, sp = np.cos(h[..., 1]), np.sin(h[..., 1])
     cy, sy = np.cos(h[..., 2]), np.sin(h[..., 2])
-    return np.stack([
-        cr * cp * cy + sr * sp * sy,
-        sr * cp * cy - cr * sp * sy,
-        cr * sp * cy + sr * cp * sy,
-        cr * cp * sy - sr * sp * cy,
-    ], axis=-1)
+    return np.stack(
+        [
+            cr * cp * cy + sr * sp * sy,
+            sr * cp * cy - cr * sp * sy,
+            cr * sp * cy + sr * cp * sy,
+            cr * cp * sy - sr * sp * cy,
+        ],
+        axis=-1,
+    )
 
 
 def quat_to_rotmat(quat: np.ndarray) -> np.ndarray:

@@ -24,7 +24,7 @@ from .parallel import map_ordered
 from .progress import Progress
 from .scenario import RandomStart, check_random_start_feasible
 
-RULES = tuple(ANTI_COLLISION_RULES)   # layers (default), paper, off, clearance, compensated
+RULES = tuple(ANTI_COLLISION_RULES)  # layers (default), paper, off, clearance, compensated
 
 
 @dataclass(frozen=True)
@@ -40,7 +40,7 @@ class StressCase:
     sensing_range: float = 4.0
     trajectory: str = "circle"
     diameter: float = 1.0
-    aero: str = "paper"           # physics preset (docs/aero.md)
+    aero: str = "paper"  # physics preset (docs/aero.md)
 
 
 def stress_scenario(case: StressCase):
@@ -53,14 +53,18 @@ def stress_scenario(case: StressCase):
 
 def stress_data(case: StressCase) -> dict:
     """The scenario table of one case (``swarm-mj stress --save-scenario`` writes it as TOML)."""
-    return {"name": f"stress-{case.rule}-{case.seed}", "duration": case.duration, "seed": case.seed,
-            "leader": {"trajectory": case.trajectory, "start": [0.0, 0.0, 0.0]},
-            "followers": {"count": case.followers,
-                          "random_start": {"radius": case.radius, "min_spacing": case.min_spacing,
-                                           "seed": case.seed}},
-            "formation": {"diameter": case.diameter, "anti_collision": case.rule,
-                          "sensing_range": case.sensing_range},
-            "aero": {"model": case.aero}}
+    return {
+        "name": f"stress-{case.rule}-{case.seed}",
+        "duration": case.duration,
+        "seed": case.seed,
+        "leader": {"trajectory": case.trajectory, "start": [0.0, 0.0, 0.0]},
+        "followers": {
+            "count": case.followers,
+            "random_start": {"radius": case.radius, "min_spacing": case.min_spacing, "seed": case.seed},
+        },
+        "formation": {"diameter": case.diameter, "anti_collision": case.rule, "sensing_range": case.sensing_range},
+        "aero": {"model": case.aero},
+    }
 
 
 def fly_case(case: StressCase) -> dict:
@@ -70,38 +74,57 @@ def fly_case(case: StressCase) -> dict:
     res = run(stress_scenario(case), progress=False)
     s = res.summary
     settle = s["formation"]["settling_s"][0] if s["formation"]["settling_s"] else float("inf")
-    return {"rule": case.rule, "seed": case.seed, "contacts": int(s["contacts"]),
-            "contact_log": [list(c) for c in res.contact_log],
-            "min_separation_m": float(s["min_separation_m"]),
-            "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
-            "settling_s": float(settle), "yields": int(s["anti_collision"]["yields"]),
-            "stopped": s.get("stopped"), "crashes": int(s.get("crashes", 0)),
-            "ground_contacts": int(s.get("ground_contacts", 0)),
-            "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
-            "time_in_jet_s": float((s.get("downwash_dip") or {}).get("time_in_jet_s", 0.0))}
+    return {
+        "rule": case.rule,
+        "seed": case.seed,
+        "contacts": int(s["contacts"]),
+        "contact_log": [list(c) for c in res.contact_log],
+        "min_separation_m": float(s["min_separation_m"]),
+        "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
+        "settling_s": float(settle),
+        "yields": int(s["anti_collision"]["yields"]),
+        "stopped": s.get("stopped"),
+        "crashes": int(s.get("crashes", 0)),
+        "ground_contacts": int(s.get("ground_contacts", 0)),
+        "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
+        "time_in_jet_s": float((s.get("downwash_dip") or {}).get("time_in_jet_s", 0.0)),
+    }
 
 
 def summarize_rule(rows: list[dict]) -> dict:
     """Per-rule line of the table from the rows of :func:`fly_case`."""
     settle = np.array([r["settling_s"] for r in rows], dtype=float)
-    return {"starts": len(rows), "starts_with_contact": sum(r["contacts"] > 0 for r in rows),
-            "contacts": sum(r["contacts"] for r in rows),
-            "min_separation_airborne_m": min((r["min_separation_airborne_m"] for r in rows), default=float("inf")),
-            "settling_median_s": float(np.median(settle)) if len(settle) else float("nan"),
-            "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
-            "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
-            "stopped": [r["seed"] for r in rows if r["stopped"]],
-            "downwash_dip_worst_m": max((r["downwash_dip_m"] for r in rows), default=0.0),
-            "downwash_dip_worst_seed": max(rows, key=lambda r: r["downwash_dip_m"])["seed"] if rows else None,
-            "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
-            "crashes": sum(r.get("crashes", 0) for r in rows),
-            "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
-            "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows)}
+    return {
+        "starts": len(rows),
+        "starts_with_contact": sum(r["contacts"] > 0 for r in rows),
+        "contacts": sum(r["contacts"] for r in rows),
+        "min_separation_airborne_m": min((r["min_separation_airborne_m"] for r in rows), default=float("inf")),
+        "settling_median_s": float(np.median(settle)) if len(settle) else float("nan"),
+        "settling_worst_s": float(settle.max()) if len(settle) else float("nan"),
+        "seeds_with_contact": [r["seed"] for r in rows if r["contacts"] > 0],
+        "stopped": [r["seed"] for r in rows if r["stopped"]],
+        "downwash_dip_worst_m": max((r["downwash_dip_m"] for r in rows), default=0.0),
+        "downwash_dip_worst_seed": max(rows, key=lambda r: r["downwash_dip_m"])["seed"] if rows else None,
+        "time_in_jet_worst_s": max((r["time_in_jet_s"] for r in rows), default=0.0),
+        "crashes": sum(r.get("crashes", 0) for r in rows),
+        "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
+        "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows),
+    }
 
 
-def stress(rules: list[str], starts: int, followers: int, radius: float, min_spacing: float,
-           duration: float, seed0: int = 0, workers: int | None = None,
-           sensing_range: float = 4.0, progress: bool = False, aero: str = "paper") -> tuple[dict, list[dict]]:
+def stress(
+    rules: list[str],
+    starts: int,
+    followers: int,
+    radius: float,
+    min_spacing: float,
+    duration: float,
+    seed0: int = 0,
+    workers: int | None = None,
+    sensing_range: float = 4.0,
+    progress: bool = False,
+    aero: str = "paper",
+) -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows).
 
     The flights go through :func:`swarm_mj.parallel.map_ordered` (spawn workers, CPU affinity,
@@ -117,8 +140,11 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
     if workers is not None and workers < 1:
         raise UserError("--workers must be at least 1")
     check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
-    cases = [StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
-             for rule in rules for k in range(starts)]
+    cases = [
+        StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
+        for rule in rules
+        for k in range(starts)
+    ]
     with Progress(len(cases), "stress", None if progress else False, unit="starts") as bar:
         rows = map_ordered(fly_case, cases, workers=workers, progress=bar)
     table = {rule: summarize_rule([r for r in rows if r["rule"] == rule]) for rule in rules}
@@ -128,19 +154,24 @@ def stress(rules: list[str], starts: int, followers: int, radius: float, min_spa
 def format_table(table: dict, followers: int) -> str:
     """The per-rule table as text (crashed: runs stopped as diverged; crashes: ground crashes,
     docs/aero.md; dip: the worst downwash dip, docs/interpretations.md §4)."""
-    head = (f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
-            f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}"
-            f"   ({followers} followers)")
+    head = (
+        f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
+        f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}"
+        f"   ({followers} followers)"
+    )
     lines = [head]
     for rule, r in table.items():
-        lines.append(f"{rule:<11} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
-                     f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
-                     f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
-                     f"{r['downwash_dip_worst_m']:>8.3f}")
+        lines.append(
+            f"{rule:<11} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
+            f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
+            f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
+            f"{r['downwash_dip_worst_m']:>8.3f}"
+        )
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
-            lines.append(f"           seeds with contact: {', '.join(map(str, seeds[:20]))}"
-                         f"{' ...' if len(seeds) > 20 else ''}")
+            lines.append(
+                f"           seeds with contact: {', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}"
+            )
     return "\n".join(lines)
 
 
@@ -156,9 +187,11 @@ def replay_lines(table: dict, rows: list[dict], scenario_file: str | None) -> li
         if not rs:
             continue
         w = max(rs, key=lambda r: (r["contacts"], -r["min_separation_airborne_m"]))
-        out.append(f"worst '{rule}' start: seed {w['seed']} ({w['contacts']} contacts, min airborne separation "
-                   f"{w['min_separation_airborne_m']:.3f} m); replay: swarm-mj run {f} --seed {w['seed']} "
-                   f"--anti-collision {rule}")
+        out.append(
+            f"worst '{rule}' start: seed {w['seed']} ({w['contacts']} contacts, min airborne separation "
+            f"{w['min_separation_airborne_m']:.3f} m); replay: swarm-mj run {f} --seed {w['seed']} "
+            f"--anti-collision {rule}"
+        )
     if not scenario_file:
         out.append("  (STRESS.toml: add --save-scenario STRESS.toml to write the scenario these starts flew)")
     return out

@@ -132,7 +132,7 @@ def _set_path(doc: dict, key: str, value: Any) -> dict:
         if nxt is None:
             nxt = node[p] = {}
         if not isinstance(nxt, dict):
-            raise UserError(f"--param {key}: {'.'.join(parts[:i + 1])} is not a table")
+            raise UserError(f"--param {key}: {'.'.join(parts[: i + 1])} is not a table")
         node = nxt
     node[parts[-1]] = value
     return d
@@ -163,8 +163,7 @@ def apply_param(sc: Scenario, key: str, value: Any) -> Scenario:
     except UserError as exc:
         raise UserError(f"{where}: {exc}") from None
     if key.startswith("wind.") and key != "wind.enabled" and not (base.wind.enabled and new.wind.enabled):
-        raise UserError(f"{where}: scenario {sc.name!r} has no wind (wind.enabled = false), "
-                        f"so {key} changes nothing")
+        raise UserError(f"{where}: scenario {sc.name!r} has no wind (wind.enabled = false), so {key} changes nothing")
     changed: dict[str, Any] = {}
     for f in fields(Scenario):
         if f.name in ("raw", "path", "name"):
@@ -207,9 +206,14 @@ def run_task(task: SweepTask) -> dict[str, Any]:
     from .runner import run
 
     res = run(seeded(task.scenario, task.seed), seed=task.seed, progress=False, duration=task.duration)
-    return {"seed": task.seed, "value_index": task.value_index, "metrics": run_metrics(res.summary),
-            "wall_s": float(res.summary["wall_time_s"]), "sim_time_s": float(res.summary["sim_time_s"]),
-            "stopped": res.summary.get("stopped")}
+    return {
+        "seed": task.seed,
+        "value_index": task.value_index,
+        "metrics": run_metrics(res.summary),
+        "wall_s": float(res.summary["wall_time_s"]),
+        "sim_time_s": float(res.summary["sim_time_s"]),
+        "stopped": res.summary.get("stopped"),
+    }
 
 
 @dataclass
@@ -220,19 +224,35 @@ class SweepResult:
     param: str | None
     values: list[Any]
     duration: float
-    runs: list[dict]                              # task order: value-major, then seed
-    stats: list[dict[str, dict]] = field(default_factory=list)   # per value: metric -> stats
+    runs: list[dict]  # task order: value-major, then seed
+    stats: list[dict[str, dict]] = field(default_factory=list)  # per value: metric -> stats
     workers: int = 1
     backend: str = "processes"
     wall_s: float = 0.0
 
     def to_dict(self) -> dict:
-        return {"scenario": self.scenario, "n_drones": self.n_drones, "seeds": self.seeds, "param": self.param,
-                "values": self.values, "duration_s": self.duration, "workers": self.workers,
-                "backend": self.backend, "wall_s": self.wall_s,
-                "results": [{"value": v, "stats": s} for v, s in zip(self.values, self.stats)],
-                "runs": [{"value": self.values[r["value_index"]], "seed": r["seed"], "metrics": r["metrics"],
-                          "wall_s": r["wall_s"], "stopped": r["stopped"]} for r in self.runs]}
+        return {
+            "scenario": self.scenario,
+            "n_drones": self.n_drones,
+            "seeds": self.seeds,
+            "param": self.param,
+            "values": self.values,
+            "duration_s": self.duration,
+            "workers": self.workers,
+            "backend": self.backend,
+            "wall_s": self.wall_s,
+            "results": [{"value": v, "stats": s} for v, s in zip(self.values, self.stats)],
+            "runs": [
+                {
+                    "value": self.values[r["value_index"]],
+                    "seed": r["seed"],
+                    "metrics": r["metrics"],
+                    "wall_s": r["wall_s"],
+                    "stopped": r["stopped"],
+                }
+                for r in self.runs
+            ],
+        }
 
 
 def compute_stats(runs: Sequence[dict], n_values: int) -> list[dict[str, dict]]:
@@ -241,14 +261,26 @@ def compute_stats(runs: Sequence[dict], n_values: int) -> list[dict[str, dict]]:
     for vi in range(n_values):
         rs = [r for r in runs if r["value_index"] == vi]
         keys = [k for k in METRIC_KEYS if any(k in r["metrics"] for r in rs)]
-        out.append({k: metric_stats([r["metrics"].get(k, float("nan")) for r in rs], [r["seed"] for r in rs],
-                                    _WORST[k]) for k in keys})
+        out.append(
+            {
+                k: metric_stats([r["metrics"].get(k, float("nan")) for r in rs], [r["seed"] for r in rs], _WORST[k])
+                for k in keys
+            }
+        )
     return out
 
 
-def sweep(scenario: Scenario | str, seeds: int | Iterable[int] = 20, param: str | None = None,
-          values: Sequence[Any] | None = None, *, workers: int | None = None, ray_address: str | None = None,
-          duration: float | None = None, progress: bool = False) -> SweepResult:
+def sweep(
+    scenario: Scenario | str,
+    seeds: int | Iterable[int] = 20,
+    param: str | None = None,
+    values: Sequence[Any] | None = None,
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    duration: float | None = None,
+    progress: bool = False,
+) -> SweepResult:
     """Fly ``scenario`` for every (value, seed) and gather mean/std/worst of :data:`METRICS`.
 
     ``seeds``: a count N (seeds 0..N−1) or the seeds themselves. ``param``/``values``: a
@@ -262,8 +294,7 @@ def sweep(scenario: Scenario | str, seeds: int | Iterable[int] = 20, param: str 
         raise UserError(f"--seeds must be >= 1, got {seeds}")
     if any(s < 0 for s in seed_list):
         raise UserError("seeds must be >= 0")
-    if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration)
-                                     and duration > 0):
+    if duration is not None and not (isinstance(duration, (int, float)) and math.isfinite(duration) and duration > 0):
         raise UserError(f"--duration must be a positive number of seconds, got {duration}")
     if param is None:
         variants, vals = [sc], [None]
@@ -288,9 +319,18 @@ def sweep(scenario: Scenario | str, seeds: int | Iterable[int] = 20, param: str 
         bar.close()
     dur = float(duration if duration is not None else sc.duration)
     used = min(w, total)
-    res = SweepResult(scenario=sc.name, n_drones=sc.n_drones, seeds=seed_list, param=param,
-                      values=vals, duration=dur, runs=runs, workers=used, backend=backend_name(used, ray_address),
-                      wall_s=time.perf_counter() - t0)
+    res = SweepResult(
+        scenario=sc.name,
+        n_drones=sc.n_drones,
+        seeds=seed_list,
+        param=param,
+        values=vals,
+        duration=dur,
+        runs=runs,
+        workers=used,
+        backend=backend_name(used, ray_address),
+        wall_s=time.perf_counter() - t0,
+    )
     res.stats = compute_stats(runs, len(vals))
     return res
 
@@ -324,8 +364,10 @@ def format_sweep(res: SweepResult) -> str:
     """Mean, std and worst (with its seed) per metric, one block per parameter value."""
     seeds = res.seeds
     srange = f"{seeds[0]}..{seeds[-1]}" if seeds == list(range(seeds[0], seeds[-1] + 1)) else ", ".join(map(str, seeds))
-    lines = [f"sweep {res.scenario}: {len(seeds)} seed(s) ({srange}) x {len(res.values)} value(s), "
-             f"{res.duration:g} s simulated each, {res.workers} worker(s) ({res.backend}), {res.wall_s:.1f} s wall"]
+    lines = [
+        f"sweep {res.scenario}: {len(seeds)} seed(s) ({srange}) x {len(res.values)} value(s), "
+        f"{res.duration:g} s simulated each, {res.workers} worker(s) ({res.backend}), {res.wall_s:.1f} s wall"
+    ]
     labels = {m[0]: (m[1], m[2]) for m in METRICS}
     for v, st in zip(res.values, res.stats):
         lines.append("")
@@ -339,8 +381,7 @@ def format_sweep(res: SweepResult) -> str:
             extra = f" ({s['n_nonfinite']} never)" if s["n_nonfinite"] else ""
             tag = "min" if w == "min" else "max"
             at = f"({tag} at seed {s['worst_seed']})" if s["worst_seed"] is not None else ""
-            lines.append(f"{label:<48}{_fmt(s['mean']):>10}{_fmt(s['std']):>10}{_fmt(s['worst']):>10}  "
-                         f"{at}{extra}")
+            lines.append(f"{label:<48}{_fmt(s['mean']):>10}{_fmt(s['std']):>10}{_fmt(s['worst']):>10}  {at}{extra}")
     stopped = sum(1 for r in res.runs if r["stopped"])
     if stopped:
         lines.append("")

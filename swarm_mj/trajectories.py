@@ -17,12 +17,12 @@ from .errors import UserError
 
 @dataclass(frozen=True)
 class Reference:
-    pos: np.ndarray       # (k, 3)
-    vel: np.ndarray       # (k, 3)
-    acc: np.ndarray       # (k, 3)
-    yaw: np.ndarray       # (k,)
+    pos: np.ndarray  # (k, 3)
+    vel: np.ndarray  # (k, 3)
+    acc: np.ndarray  # (k, 3)
+    yaw: np.ndarray  # (k,)
     yaw_rate: np.ndarray  # (k,)
-    yaw_acc: np.ndarray   # (k,)
+    yaw_acc: np.ndarray  # (k,)
 
 
 def _t(t) -> np.ndarray:
@@ -33,8 +33,9 @@ def _constant(t, pos, yaw) -> Reference:
     t = _t(t)
     k = len(t)
     z = np.zeros((k, 3))
-    return Reference(np.tile(np.asarray(pos, float), (k, 1)), z, z.copy(), np.full(k, float(yaw)),
-                     np.zeros(k), np.zeros(k))
+    return Reference(
+        np.tile(np.asarray(pos, float), (k, 1)), z, z.copy(), np.full(k, float(yaw)), np.zeros(k), np.zeros(k)
+    )
 
 
 def step(target=(1.0, 1.0, 1.0), yaw_deg: float = 25.0) -> Callable[[np.ndarray], Reference]:
@@ -54,9 +55,11 @@ def _harmonic(t, amp, omega, phase_cos: bool):
     return amp * np.sin(omega * t), amp * omega * np.cos(omega * t), -amp * omega**2 * np.sin(omega * t)
 
 
-def lemniscate(amplitude: float = 2.5, omega: float = 0.08, altitude: float = 2.0,
-               center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+def lemniscate(
+    amplitude: float = 2.5, omega: float = 0.08, altitude: float = 2.0, center=(0.0, 0.0)
+) -> Callable[[np.ndarray], Reference]:
     """Paper eq. (30): x = 2.5 sin(0.08t), y = 2.5 sin(0.04t), z = 2."""
+
     def f(t):
         t = _t(t)
         k = len(t)
@@ -66,12 +69,15 @@ def lemniscate(amplitude: float = 2.5, omega: float = 0.08, altitude: float = 2.
         vel = np.column_stack([x[1], y[1], np.zeros(k)])
         acc = np.column_stack([x[2], y[2], np.zeros(k)])
         return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+
     return f
 
 
-def circle(radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, climb_rate: float = 0.0,
-           center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+def circle(
+    radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, climb_rate: float = 0.0, center=(0.0, 0.0)
+) -> Callable[[np.ndarray], Reference]:
     """docs/interpretations.md §3 circle: x = 2.5 sin(0.08t), y = 2.5 cos(0.08t), z = altitude + climb_rate·t."""
+
     def f(t):
         t = _t(t)
         k = len(t)
@@ -81,11 +87,13 @@ def circle(radius: float = 2.5, omega: float = 0.08, altitude: float = 2.0, clim
         vel = np.column_stack([x[1], y[1], np.full(k, climb_rate)])
         acc = np.column_stack([x[2], y[2], np.zeros(k)])
         return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+
     return f
 
 
-def ascending_orbit(radius: float = 2.5, omega: float = 0.08, altitude: float = 1.0,
-                    climb_rate: float = 0.02, center=(0.0, 0.0)) -> Callable[[np.ndarray], Reference]:
+def ascending_orbit(
+    radius: float = 2.5, omega: float = 0.08, altitude: float = 1.0, climb_rate: float = 0.02, center=(0.0, 0.0)
+) -> Callable[[np.ndarray], Reference]:
     """docs/interpretations.md §3 ascending orbit: the circle with z = 1 + 0.02t."""
     return circle(radius, omega, altitude, climb_rate, center)
 
@@ -102,8 +110,7 @@ TRAJECTORIES: dict[str, Callable[..., Callable[[np.ndarray], Reference]]] = {
 def make_trajectory(name: str, params: dict | None = None, where: str = "trajectory"):
     """Build a trajectory by name with keyword parameters from a scenario file."""
     if name not in TRAJECTORIES:
-        raise UserError(f"unknown trajectory {name!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
-                        where=where)
+        raise UserError(f"unknown trajectory {name!r}; choose one of {', '.join(sorted(TRAJECTORIES))}", where=where)
     try:
         return TRAJECTORIES[name](**(params or {}))
     except TypeError as exc:

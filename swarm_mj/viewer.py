@@ -34,10 +34,10 @@ from urllib.parse import quote
 from .errors import SwarmError, UserError
 
 HOST = "127.0.0.1"
-DEFAULT_PORT = 9090          # Rerun's own default web-viewer port
-DESKTOP_CHECK_S = 3.0        # a desktop viewer still alive after this long is left running
-READY_TIMEOUT_S = 30.0       # the web server's ports must answer within this
-STOP_TIMEOUT_S = 5.0         # SIGTERM, then SIGKILL after this
+DEFAULT_PORT = 9090  # Rerun's own default web-viewer port
+DESKTOP_CHECK_S = 3.0  # a desktop viewer still alive after this long is left running
+READY_TIMEOUT_S = 30.0  # the web server's ports must answer within this
+STOP_TIMEOUT_S = 5.0  # SIGTERM, then SIGKILL after this
 
 
 class ViewerError(SwarmError):
@@ -66,8 +66,10 @@ def find_rerun() -> Path:
     for c in candidates:
         if c.is_file() and os.access(c, os.X_OK):
             return c
-    raise ViewerError("the Rerun viewer was not found (it comes with rerun-sdk: pip install rerun-sdk); "
-                      f"looked for {', '.join(str(c) for c in candidates)}")
+    raise ViewerError(
+        "the Rerun viewer was not found (it comes with rerun-sdk: pip install rerun-sdk); "
+        f"looked for {', '.join(str(c) for c in candidates)}"
+    )
 
 
 def has_display() -> bool:
@@ -116,8 +118,10 @@ def web_url(port: int) -> str:
 
 def ssh_hint(port: int) -> str:
     """How to reach the served page from another machine."""
-    return (f"from another machine: ssh -N -L {port}:{HOST}:{port} -L {port + 1}:{HOST}:{port + 1} "
-            f"USER@THIS_HOST, then open the same URL there")
+    return (
+        f"from another machine: ssh -N -L {port}:{HOST}:{port} -L {port + 1}:{HOST}:{port + 1} "
+        f"USER@THIS_HOST, then open the same URL there"
+    )
 
 
 def _port_open(port: int) -> bool:
@@ -176,13 +180,14 @@ def _signal_group(proc: subprocess.Popen, sig: int) -> None:
 def _popen(cmd: list[str], log) -> subprocess.Popen:
     kw: dict = {"stdin": subprocess.DEVNULL, "stdout": log, "stderr": subprocess.STDOUT}
     if os.name == "posix":
-        kw["start_new_session"] = True     # Ctrl-C reaches us, and we stop the whole group
+        kw["start_new_session"] = True  # Ctrl-C reaches us, and we stop the whole group
     return subprocess.Popen(cmd, **kw)
 
 
 @contextlib.contextmanager
-def serve_web(path: str | Path, port: int = DEFAULT_PORT, *,
-              ready_timeout: float = READY_TIMEOUT_S) -> Iterator[subprocess.Popen]:
+def serve_web(
+    path: str | Path, port: int = DEFAULT_PORT, *, ready_timeout: float = READY_TIMEOUT_S
+) -> Iterator[subprocess.Popen]:
     """Serve ``path`` in Rerun's web viewer on ``127.0.0.1:port`` (recording on ``port + 1``).
 
     Yields the server process once both ports answer; stops it on exit, whatever happens.
@@ -191,8 +196,17 @@ def serve_web(path: str | Path, port: int = DEFAULT_PORT, *,
     """
     path = check_recording(path)
     check_port(port)
-    cmd = [str(find_rerun()), "--serve-web", "--bind", HOST, "--web-viewer-port", str(port),
-           "--port", str(port + 1), str(path)]
+    cmd = [
+        str(find_rerun()),
+        "--serve-web",
+        "--bind",
+        HOST,
+        "--web-viewer-port",
+        str(port),
+        "--port",
+        str(port + 1),
+        str(path),
+    ]
     with tempfile.TemporaryFile() as log:
         proc = _popen(cmd, log)
         try:
@@ -201,8 +215,10 @@ def serve_web(path: str | Path, port: int = DEFAULT_PORT, *,
                 if proc.poll() is not None:
                     raise ViewerError(f"the Rerun web viewer stopped (exit {proc.returncode}): {_tail(log)}")
                 if time.monotonic() > deadline:
-                    raise ViewerError(f"the Rerun web viewer did not answer on ports {port} and {port + 1} "
-                                      f"within {ready_timeout:.0f} s: {_tail(log)}")
+                    raise ViewerError(
+                        f"the Rerun web viewer did not answer on ports {port} and {port + 1} "
+                        f"within {ready_timeout:.0f} s: {_tail(log)}"
+                    )
                 time.sleep(0.1)
             yield proc
             if proc.poll() is not None:
@@ -219,8 +235,10 @@ def serve_until_interrupted(path: str | Path, port: int = DEFAULT_PORT) -> int:
     """
     old_term = None
     if _main_thread() and hasattr(signal, "SIGTERM"):
+
         def _on_term(signum, frame):
             raise KeyboardInterrupt
+
         old_term = signal.signal(signal.SIGTERM, _on_term)
     try:
         with serve_web(path, port) as proc:
@@ -235,8 +253,10 @@ def serve_until_interrupted(path: str | Path, port: int = DEFAULT_PORT) -> int:
 
 def no_display_line(path: str | Path) -> str:
     """One line: why no window opens, and how to view ``path`` instead."""
-    return (f"no display here (DISPLAY and WAYLAND_DISPLAY unset); view {path} in a browser with: "
-            f"swarm-mj view {path} --web   (or on a machine with a screen: rerun {path})")
+    return (
+        f"no display here (DISPLAY and WAYLAND_DISPLAY unset); view {path} in a browser with: "
+        f"swarm-mj view {path} --web   (or on a machine with a screen: rerun {path})"
+    )
 
 
 def open_desktop(path: str | Path) -> int:

@@ -153,7 +153,12 @@ def _schedule(name: str, v: Any) -> tuple[Window, ...]:
         axes = w[2]
         if not t0 < t1:
             raise _FieldError(where, f"window is empty or inverted: t_start {t0} must be < t_end {t1}")
-        if not isinstance(axes, str) or not axes or any(c not in _AXIS_INDEX for c in axes) or len(set(axes)) != len(axes):
+        if (
+            not isinstance(axes, str)
+            or not axes
+            or any(c not in _AXIS_INDEX for c in axes)
+            or len(set(axes)) != len(axes)
+        ):
             raise _FieldError(where, f'axes must be a non-empty string of distinct letters from "xy", got {axes!r}')
         out.append((t0, t1, axes))
     return tuple(out)
@@ -384,9 +389,7 @@ def ou_filter(x0: np.ndarray, w: np.ndarray, a: np.ndarray) -> np.ndarray:
     return out
 
 
-def ou_series(
-    k: int, dt: float, tau: np.ndarray, sigma: np.ndarray, rng: np.random.Generator
-) -> np.ndarray:
+def ou_series(k: int, dt: float, tau: np.ndarray, sigma: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     """Paper eq. (36), exact OU discretisation at ``dt``: k samples of m independent processes.
 
     X_0 ~ N(0, sigma^2) (stationary start), X_i = a X_{i-1} + sigma sqrt(1 - a^2) eta_i,
@@ -440,8 +443,11 @@ class WindSeries:
         feedforward and the log all call it.
         """
         if not self.relative_airspeed:
-            n = drone_vel.shape[0] if isinstance(drone_vel, np.ndarray) and drone_vel.ndim == 2 \
+            n = (
+                drone_vel.shape[0]
+                if isinstance(drone_vel, np.ndarray) and drone_vel.ndim == 2
                 else np.asarray(drone_vel, dtype=float).reshape(-1, 3).shape[0]
+            )
             out = np.empty((n, 3))
             out[:] = self.force[i]
             return out
@@ -489,15 +495,15 @@ class WindField:
             err = float(np.max(np.abs(steps - self.dt)))
             if err > 1e-6 * self.dt:
                 raise ValueError(
-                    f"times must be uniformly spaced with step dt = {self.dt}; "
-                    f"steps deviate by up to {err:.3g} s"
+                    f"times must be uniformly spaced with step dt = {self.dt}; steps deviate by up to {err:.3g} s"
                 )
         cfg = self.config
         k = t.size
         if not cfg.enabled:
             zeros = np.zeros((k, 3))
-            return WindSeries(t, zeros, zeros.copy(), np.zeros((k, 3), dtype=bool),
-                              cfg.rho, cfg.cd, cfg.area, cfg.relative_airspeed)
+            return WindSeries(
+                t, zeros, zeros.copy(), np.zeros((k, 3), dtype=bool), cfg.rho, cfg.cd, cfg.area, cfg.relative_airspeed
+            )
         speed = deterministic_speed(t, cfg)  # (k, 3)
         speed[:, :2] += self.turbulence(k)
         on = schedule_mask(t, cfg.schedule)  # (k, 3)

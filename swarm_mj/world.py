@@ -37,8 +37,11 @@ from .resources import QUADROTOR_XML
 
 LEADER_RGBA = (0.85, 0.15, 0.15, 1.0)
 FOLLOWER_RGBA = (0.15, 0.45, 0.85, 1.0)
-INTEGRATORS = {"RK4": mujoco.mjtIntegrator.mjINT_RK4, "Euler": mujoco.mjtIntegrator.mjINT_EULER,
-               "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST}
+INTEGRATORS = {
+    "RK4": mujoco.mjtIntegrator.mjINT_RK4,
+    "Euler": mujoco.mjtIntegrator.mjINT_EULER,
+    "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
+}
 
 
 def default_names(n_drones: int) -> list[str]:
@@ -51,12 +54,12 @@ class World:
     """A compiled swarm model and what is needed to address each drone in it."""
 
     model: mujoco.MjModel
-    names: list[str]                 # (n,)
+    names: list[str]  # (n,)
     params: QuadParams
-    body_ids: np.ndarray             # (n,) id of each drone's massive body (xfrc_applied row)
-    geom_drone: np.ndarray           # (ngeom,) drone index owning each geom, -1 for the world
-    initial_positions: np.ndarray    # (n, 3)
-    initial_yaws: np.ndarray         # (n,)
+    body_ids: np.ndarray  # (n,) id of each drone's massive body (xfrc_applied row)
+    geom_drone: np.ndarray  # (ngeom,) drone index owning each geom, -1 for the world
+    initial_positions: np.ndarray  # (n, 3)
+    initial_yaws: np.ndarray  # (n,)
     xml: str
 
     @property
@@ -64,8 +67,9 @@ class World:
         return len(self.names)
 
 
-def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Path, *, ground: bool = False,
-                motor_tau: float = 0.0) -> mjcf.RootElement:
+def _drone_mjcf(
+    name: str, params: QuadParams, rgba: Sequence[float], asset: Path, *, ground: bool = False, motor_tau: float = 0.0
+) -> mjcf.RootElement:
     if not asset.exists():
         raise UserError(f"quadrotor asset not found: {asset}")
     try:
@@ -79,8 +83,7 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
     body.inertial.mass = params.m
     body.inertial.diaginertia = [params.Ix, params.Iy, params.Iz]
     L = params.L
-    gears = {"U1": [0, 0, 1, 0, 0, 0], "U2": [0, 0, 0, L, 0, 0],
-             "U3": [0, 0, 0, 0, L, 0], "U4": [0, 0, 0, 0, 0, L]}
+    gears = {"U1": [0, 0, 1, 0, 0, 0], "U2": [0, 0, 0, L, 0, 0], "U3": [0, 0, 0, 0, L, 0], "U4": [0, 0, 0, 0, 0, L]}
     for act, gear in gears.items():
         motor = drone.find("actuator", act)
         if motor is None:
@@ -100,8 +103,16 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
             old = drone.find("actuator", act)
             site = old.site
             old.remove()
-            drone.actuator.add("general", name=act, site=site, gear=gear, dyntype="filter",
-                               dynprm=[float(motor_tau)], gainprm=[1.0], biastype="none")
+            drone.actuator.add(
+                "general",
+                name=act,
+                site=site,
+                gear=gear,
+                dyntype="filter",
+                dynprm=[float(motor_tau)],
+                gainprm=[1.0],
+                biastype="none",
+            )
     if ground:
         # Landing gear (docs/aero.md): a strut under the hub and a square skid plate at its foot. The
         # skid touches only the floor: collision bit 4 (the floor has contype 4, the skid conaffinity 4
@@ -111,10 +122,31 @@ def _drone_mjcf(name: str, params: QuadParams, rgba: Sequence[float], asset: Pat
         from .aero.ground import SKID_HALF, SKID_HALF_Z, SKID_Z, STRUT_RADIUS
 
         body = drone.find("body", "body")
-        body.add("geom", name="strut", type="capsule", fromto=[0, 0, -0.02, 0, 0, SKID_Z], size=[STRUT_RADIUS],
-                 contype=0, conaffinity=0, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
-        body.add("geom", name="skid", type="box", size=[SKID_HALF, SKID_HALF, SKID_HALF_Z], pos=[0, 0, SKID_Z],
-                 euler=[0, 0, 45], contype=0, conaffinity=4, group=1, density=0, rgba=[0.2, 0.2, 0.25, 1])
+        body.add(
+            "geom",
+            name="strut",
+            type="capsule",
+            fromto=[0, 0, -0.02, 0, 0, SKID_Z],
+            size=[STRUT_RADIUS],
+            contype=0,
+            conaffinity=0,
+            group=1,
+            density=0,
+            rgba=[0.2, 0.2, 0.25, 1],
+        )
+        body.add(
+            "geom",
+            name="skid",
+            type="box",
+            size=[SKID_HALF, SKID_HALF, SKID_HALF_Z],
+            pos=[0, 0, SKID_Z],
+            euler=[0, 0, 45],
+            contype=0,
+            conaffinity=4,
+            group=1,
+            density=0,
+            rgba=[0.2, 0.2, 0.25, 1],
+        )
         disc = drone.find("geom", "rotor_plane")
         if disc is not None:
             disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
@@ -134,8 +166,11 @@ def _take_colliders(drone: mjcf.RootElement) -> list[str]:
     out = []
     for geom in drone.find_all("geom"):
         ct = geom.contype if geom.contype is not None else (geom.dclass.geom.contype if geom.dclass else None)
-        ca = geom.conaffinity if geom.conaffinity is not None else (
-            geom.dclass.geom.conaffinity if geom.dclass else None)
+        ca = (
+            geom.conaffinity
+            if geom.conaffinity is not None
+            else (geom.dclass.geom.conaffinity if geom.dclass else None)
+        )
         if (1 if ct is None else ct) or (1 if ca is None else ca):
             if geom.name is None:
                 raise UserError("every colliding geom of the quadrotor asset needs a name (contact pairs)")
@@ -212,7 +247,7 @@ def build_world(
     arena.option.timestep = timestep
     arena.option.integrator = integrator
     arena.option.gravity = [0.0, 0.0, -params.g]
-    arena.option.density = 0.0      # fluid model off: drag enters through xfrc_applied
+    arena.option.density = 0.0  # fluid model off: drag enters through xfrc_applied
     arena.option.viscosity = 0.0
     if not collisions:
         arena.option.flag.contact = "disable"
@@ -221,30 +256,54 @@ def build_world(
     arena.visual.quality.shadowsize = 2048
     getattr(arena.visual, "global").offwidth = 1920
     getattr(arena.visual, "global").offheight = 1080
-    arena.asset.add("texture", name="grid", type="2d", builtin="checker", rgb1=[0.82, 0.85, 0.88],
-                    rgb2=[0.72, 0.75, 0.78], width=512, height=512, mark="edge", markrgb=[0.6, 0.6, 0.65])
+    arena.asset.add(
+        "texture",
+        name="grid",
+        type="2d",
+        builtin="checker",
+        rgb1=[0.82, 0.85, 0.88],
+        rgb2=[0.72, 0.75, 0.78],
+        width=512,
+        height=512,
+        mark="edge",
+        markrgb=[0.6, 0.6, 0.65],
+    )
     arena.asset.add("material", name="grid", texture="grid", texrepeat=[1, 1], texuniform=True, reflectance=0.05)
-    arena.asset.add("texture", name="sky", type="skybox", builtin="gradient", rgb1=[0.55, 0.7, 0.9],
-                    rgb2=[0.95, 0.97, 1.0], width=256, height=256)
+    arena.asset.add(
+        "texture",
+        name="sky",
+        type="skybox",
+        builtin="gradient",
+        rgb1=[0.55, 0.7, 0.9],
+        rgb2=[0.95, 0.97, 1.0],
+        width=256,
+        height=256,
+    )
     if ground:
         # A solid floor (aero presets with ground = true, docs/aero.md): it touches each drone's rotor
         # disc and landing skid (collision bit 4, see _drone_mjcf).
-        arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
-                            contype=4, conaffinity=0, group=0)
+        arena.worldbody.add(
+            "geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid", contype=4, conaffinity=0, group=0
+        )
     elif floor:
         # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
         # and a drone below the floor is reported as a divergence by the simulator.
-        arena.worldbody.add("geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid",
-                            contype=0, conaffinity=0, group=0)
-    arena.worldbody.add("light", name="sun", pos=[0, 0, 12], dir=[0, 0, -1], directional=True,
-                        diffuse=[0.6, 0.6, 0.6], castshadow=True)
+        arena.worldbody.add(
+            "geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid", contype=0, conaffinity=0, group=0
+        )
+    arena.worldbody.add(
+        "light", name="sun", pos=[0, 0, 12], dir=[0, 0, -1], directional=True, diffuse=[0.6, 0.6, 0.6], castshadow=True
+    )
 
-    if contact_groups is not None and (not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1
-                                       or n_drones % contact_groups):
+    if contact_groups is not None and (
+        not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
+    ):
         raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
     if contact_groups is not None and ground:
-        raise UserError("contact_groups (independent copies) with a solid ground is not supported yet: "
-                        "the copies' floor contacts would need pairs too")
+        raise UserError(
+            "contact_groups (independent copies) with a solid ground is not supported yet: "
+            "the copies' floor contacts would need pairs too"
+        )
     frames = []
     colliders: list[list[str]] = []  # per drone: its colliding geoms' full names (contact_groups only)
     for k, name in enumerate(names):
@@ -263,16 +322,20 @@ def build_world(
                 motor.site = None
                 motor.joint = free
         frames.append(frame)
-    arena.worldbody.add("camera", name="track", mode="targetbodycom", target=frames[0],
-                        pos=[-7.0, -7.0, 6.0], fovy=50)
+    arena.worldbody.add("camera", name="track", mode="targetbodycom", target=frames[0], pos=[-7.0, -7.0, 6.0], fovy=50)
 
     xml = arena.to_xml_string()
     if colliders:
         # written into the XML directly: PyMJCF's own pair elements cost O(pairs · geoms) to resolve
         size = n_drones // contact_groups
-        pairs = [f'<pair geom1="{ga}" geom2="{gb}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>'
-                 for g in range(contact_groups) for a in range(g * size, (g + 1) * size)
-                 for b in range(a + 1, (g + 1) * size) for ga in colliders[a] for gb in colliders[b]]
+        pairs = [
+            f'<pair geom1="{ga}" geom2="{gb}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>'
+            for g in range(contact_groups)
+            for a in range(g * size, (g + 1) * size)
+            for b in range(a + 1, (g + 1) * size)
+            for ga in colliders[a]
+            for gb in colliders[b]
+        ]
         head, tail = xml.rsplit("</mujoco>", 1)
         xml = head + "  <contact>\n    " + "\n    ".join(pairs) + "\n  </contact>\n</mujoco>" + tail
     try:
@@ -286,5 +349,13 @@ def build_world(
     geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
     for k, bid in enumerate(body_ids):
         geom_drone[model.geom_bodyid == bid] = k
-    return World(model=model, names=names, params=params, body_ids=body_ids, geom_drone=geom_drone,
-                 initial_positions=positions.copy(), initial_yaws=yaws.copy(), xml=xml)
+    return World(
+        model=model,
+        names=names,
+        params=params,
+        body_ids=body_ids,
+        geom_drone=geom_drone,
+        initial_positions=positions.copy(),
+        initial_yaws=yaws.copy(),
+        xml=xml,
+    )

@@ -65,7 +65,7 @@ def _sim(positions, *, cfg=None, quats=None, vel=None, dt=0.005, T=None):
 def _rot(q):
     m = np.zeros(9)
     mujoco.mju_quat2Mat(m, np.asarray(q, float))
-    return m.reshape(3, 3)                      # columns: body axes in the world frame
+    return m.reshape(3, 3)  # columns: body axes in the world frame
 
 
 def _expected_downwash(pos, quats, thrust_total):
@@ -125,14 +125,16 @@ def test_hover_induced_velocity_is_momentum_theory():
     assert jet_speed(0.5, 50.0, v_h, l) < 1e-6
 
 
-@pytest.mark.parametrize("offset", [(0.0, 0.0, -0.4), (0.2, 0.0, -0.4), (0.0, 0.35, -0.8), (0.5, -0.3, -1.2),
-                                    (0.1, 0.1, -0.05), (0.0, 0.0, 0.4)])
+@pytest.mark.parametrize(
+    "offset",
+    [(0.0, 0.0, -0.4), (0.2, 0.0, -0.4), (0.0, 0.35, -0.8), (0.5, -0.3, -1.2), (0.1, 0.1, -0.05), (0.0, 0.0, 0.4)],
+)
 def test_downwash_force_matches_formula_at_offsets(offset):
     """The stage's force and torque on a yawed, tilted lower drone below a tilted, thrusting upper drone
     equal the jet formula summed over the four rotor discs and the hub, computed independently."""
     upper = np.array([0.0, 0.0, 2.0])
     pos = np.array([upper, upper + offset])
-    q_up = np.array([np.cos(0.1), np.sin(0.1), 0.0, 0.0])            # 11.5° roll: the jet leans
+    q_up = np.array([np.cos(0.1), np.sin(0.1), 0.0, 0.0])  # 11.5° roll: the jet leans
     q_lo = np.array([np.cos(0.3), 0.05, -0.03, np.sin(0.3)])
     q_lo /= np.linalg.norm(q_lo)
     sim = _sim(pos, quats=np.array([q_up, q_lo]))
@@ -144,9 +146,9 @@ def test_downwash_force_matches_formula_at_offsets(offset):
     np.testing.assert_allclose(f, F, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(tq, Tq, rtol=1e-10, atol=1e-12)
     if offset[2] < -0.1 and np.hypot(*offset[:2]) < 0.4:
-        assert f[1, 2] < -0.1                        # pushed down by a tenth of a newton or more
+        assert f[1, 2] < -0.1  # pushed down by a tenth of a newton or more
     upper_one = 1 if offset[2] > 0 else 0
-    assert np.all(f[upper_one] == 0.0)               # the upper one of two feels nothing
+    assert np.all(f[upper_one] == 0.0)  # the upper one of two feels nothing
 
 
 def test_downwash_on_axis_at_0_4_m_by_hand():
@@ -162,13 +164,14 @@ def test_downwash_on_axis_at_0_4_m_by_hand():
     expected = 0.5 * 1.225 * 1.17 * (4 * np.pi * 0.09**2 * u_rotor**2 + 0.0144 * uc**2)
     assert f[1, 2] == pytest.approx(-expected, rel=1e-12)
     assert plate_force(uc, BODY_AREA) + 4 * plate_force(u_rotor) == pytest.approx(expected, rel=1e-12)
-    np.testing.assert_allclose(tq[1], 0.0, atol=1e-12)           # symmetric: no torque
+    np.testing.assert_allclose(tq[1], 0.0, atol=1e-12)  # symmetric: no torque
     assert 0.1 * P.m * P.g < expected < 0.5 * P.m * P.g
 
 
 def test_downwash_copies_do_not_interact():
     """Only drones of the same copy (copy-major order, n per copy) feel each other's jets: the stage reads
     only the documented attributes of the simulator."""
+
     class FakeSim:
         n = 2
         params = P
@@ -181,7 +184,7 @@ def test_downwash_copies_do_not_interact():
     st.reset(sim)
     f, tq = np.zeros((4, 3)), np.zeros((4, 3))
     st.apply(sim, f, tq)
-    assert f[1, 2] < 0 and f[2, 2] < 0                 # each copy's lower drone
+    assert f[1, 2] < 0 and f[2, 2] < 0  # each copy's lower drone
     assert f[0, 2] == 0 and f[3, 2] == 0
     assert f[1, 2] == pytest.approx(f[2, 2], rel=1e-14)
 
@@ -210,13 +213,12 @@ def test_crossing_drone_pushes_lower_one_down_by_the_modelled_amount():
             pos_d = np.array([[min(-1.5 + 1.0 * t, 1.5), 0.0, 2.4], [0.0, 0.0, 2.0]])
             vel_d = z3.copy()
             vel_d[0, 0] = 1.0 if pos_d[0, 0] < 1.5 else 0.0
-            U = ctl.compute(rpy, rpy_rate, pos, vel, pos_d, vel_d, z3, np.zeros(2), wind_force=z3,
-                            omega_body=omega)
+            U = ctl.compute(rpy, rpy_rate, pos, vel, pos_d, vel_d, z3, np.zeros(2), wind_force=z3, omega_body=omega)
             vz0, q0 = sim.vel[1, 2], sim.quat.copy()
             sim.step(U)
-            thrust = sim.rotor_thrust.sum(axis=1)             # saturated U1 held over the step
+            thrust = sim.rotor_thrust.sum(axis=1)  # saturated U1 held over the step
             F, _ = _expected_downwash(pos, q0, thrust) if downwash else (np.zeros((2, 3)), None)
-            cos_tilt = 0.5 * (_rot(q0[1])[2, 2] + _rot(sim.quat[1])[2, 2])     # over the step (trapezoid)
+            cos_tilt = 0.5 * (_rot(q0[1])[2, 2] + _rot(sim.quat[1])[2, 2])  # over the step (trapezoid)
             a = (thrust[1] * cos_tilt - P.m * P.g + F[1, 2] - P.Kz * vz0) / P.m
             z_pred += vz_pred * dt + 0.5 * a * dt * dt
             vz_pred += a * dt
@@ -225,14 +227,16 @@ def test_crossing_drone_pushes_lower_one_down_by_the_modelled_amount():
             err_z = max(err_z, abs(sim.pos[1, 2] - z_pred))
             push = min(push, F[1, 2])
         assert sim.contact_events == 0
-        print(f"downwash={downwash}: dip {max(dips):.4f} m, strongest push {push:.3f} N, "
-              f"max |vz error| {err_v:.2e} m/s, max |z error| {err_z:.2e} m")
+        print(
+            f"downwash={downwash}: dip {max(dips):.4f} m, strongest push {push:.3f} N, "
+            f"max |vz error| {err_v:.2e} m/s, max |z error| {err_z:.2e} m"
+        )
         # the lower drone moves as the formula's force says, to 0.2 mm/s and 0.05 mm over 3 s
         assert err_v < 2e-4 and err_z < 5e-5
         return max(dips), push
 
     dip, push = fly(True)
-    assert push < -0.5                           # the jet's push at its strongest, N
+    assert push < -0.5  # the jet's push at its strongest, N
     assert 0.03 < dip < 0.3
     dip0, push0 = fly(False)
     assert push0 == 0.0 and dip0 < 0.002
@@ -285,7 +289,7 @@ def test_motor_lag_step_response(tau):
     dt = 0.005
     sim = _sim([[0, 0, 5.0]], cfg=cfg, dt=dt)
     assert sim.motor_lag
-    F = np.array([1.0, 1.5, 2.0, 0.5])                 # per-rotor commands: U = MIX F
+    F = np.array([1.0, 1.5, 2.0, 0.5])  # per-rotor commands: U = MIX F
     from swarm_mj.mixing import rotor_to_u
 
     U = rotor_to_u(F[None])
@@ -308,7 +312,8 @@ def test_paper_preset_has_no_lag_landing_gear_or_solid_floor():
     assert w.xml == build_world(2, ground=False, motor_tau=0.0).xml
     wr = build_world(2, ground=True, motor_tau=0.02)
     assert wr.model.na == 8
-    assert wr.model.ngeom == w.model.ngeom + 4             # a strut and a skid per drone
+    assert wr.model.ngeom == w.model.ngeom + 4  # a strut and a skid per drone
+
     # drone-drone geometry is the paper's: the same pairs of geoms of two drones can collide, and the
     # landing gear touches only the floor
     def collide(m, g, h):
@@ -318,13 +323,20 @@ def test_paper_preset_has_no_lag_landing_gear_or_solid_floor():
         gd = np.full(m.ngeom, -1)
         for k, name in enumerate(("leader", "follower1")):
             gd[m.geom_bodyid == mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, f"{name}/body")] = k
-        return {(mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, h))
-                for g in np.flatnonzero(gd == 0) for h in np.flatnonzero(gd == 1) if collide(m, g, h)}
+        return {
+            (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, g), mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_GEOM, h))
+            for g in np.flatnonzero(gd == 0)
+            for h in np.flatnonzero(gd == 1)
+            if collide(m, g, h)
+        }
 
     assert pairs(wr.model) == pairs(w.model) and len(pairs(w.model)) == 9
     floor_r = mujoco.mj_name2id(wr.model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
-    touching = {mujoco.mj_id2name(wr.model, mujoco.mjtObj.mjOBJ_GEOM, g) for g in range(wr.model.ngeom)
-                if collide(wr.model, floor_r, g)}
+    touching = {
+        mujoco.mj_id2name(wr.model, mujoco.mjtObj.mjOBJ_GEOM, g)
+        for g in range(wr.model.ngeom)
+        if collide(wr.model, floor_r, g)
+    }
     assert touching == {f"{d}/{g}" for d in ("leader", "follower1") for g in ("rotor_plane", "skid")}
 
 
@@ -336,10 +348,10 @@ def test_ground_holds_a_drone_at_rest_with_zero_thrust():
     sim = _sim(rest_positions(np.array([[0.0, 0.0, 0.0]])), cfg=cfg, T=0.01)
     assert sim.pos[0, 2] == pytest.approx(REST_HEIGHT)
     U = np.zeros((1, 4))
-    for _ in range(300):                                   # 3 s
+    for _ in range(300):  # 3 s
         sim.step(U)
         sim.check()
-    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3          # resting on its skid (contact compliance: mm)
+    assert abs(sim.pos[0, 2] - REST_HEIGHT) < 2e-3  # resting on its skid (contact compliance: mm)
     assert np.abs(sim.vel).max() < 1e-3
     assert 1 - 2 * (sim.quat[0, 1] ** 2 + sim.quat[0, 2] ** 2) > np.cos(np.deg2rad(0.5))
     mon = sim.monitors[0]
@@ -391,26 +403,37 @@ def test_aero_table_and_overrides():
             parse_aero(bad)
     sc = load_scenario("circle")
     assert sc.aero.is_paper
-    with pytest.raises(UserError, match="aero.motor_tau"):          # shorter than the physics step
+    with pytest.raises(UserError, match="aero.motor_tau"):  # shorter than the physics step
         parse_scenario(dict(sc.raw, aero={"motor_tau": 0.001}), "<t>")
     data = dict(sc.raw, aero={"model": "realistic", "ground_effect": False})
     sc2 = parse_scenario(data, "<t>")
-    sc3 = with_aero(sc2, "paper")                     # --aero keeps the scenario's own overrides
+    sc3 = with_aero(sc2, "paper")  # --aero keeps the scenario's own overrides
     assert sc3.aero.model == "paper" and not sc3.aero.ground_effect and not sc3.aero.ground
 
 
-@pytest.mark.parametrize("doc,field", [
-    ('duration = 2.0\n[leader]\ntrajectory = "step"\nparams = { target = [1.0, 1.0, -0.4] }\n', "leader.params"),
-    ('duration = 2.0\n[leader]\ntrajectory = "hover"\n[followers]\nstart = [[1.5, 0.0, 0.0], [3.0, 0.0, -1.0]]\n',
-     "followers.start"),
-    ('duration = 2.0\n[leader]\ntrajectory = "hover"\nstart = [0.0, 0.0, -0.1]\n', "leader.start"),
-])
+@pytest.mark.parametrize(
+    "doc,field",
+    [
+        ('duration = 2.0\n[leader]\ntrajectory = "step"\nparams = { target = [1.0, 1.0, -0.4] }\n', "leader.params"),
+        (
+            'duration = 2.0\n[leader]\ntrajectory = "hover"\n[followers]\n'
+            "start = [[1.5, 0.0, 0.0], [3.0, 0.0, -1.0]]\n",
+            "followers.start",
+        ),
+        ('duration = 2.0\n[leader]\ntrajectory = "hover"\nstart = [0.0, 0.0, -0.1]\n', "leader.start"),
+    ],
+)
 def test_below_ground_is_refused_with_exit_2(tmp_path, doc, field):
     f = tmp_path / "bad.toml"
     f.write_text(doc)
     for aero in ("paper", "realistic"):
-        p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", "run", str(f), "--no-record", "--quiet",
-                            "--aero", aero], capture_output=True, text=True, timeout=120, check=False)
+        p = subprocess.run(
+            [sys.executable, "-m", "swarm_mj.cli", "run", str(f), "--no-record", "--quiet", "--aero", aero],
+            capture_output=True,
+            text=True,
+            timeout=120,
+            check=False,
+        )
         assert p.returncode == 2, p.stderr
         lines = p.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("swarm-mj: error:") and field in lines[0]
@@ -456,7 +479,7 @@ def test_recording_holds_aero_forces_and_jets(tmp_path):
     assert res.error is None
     out = write_recording(res, tmp_path / "a.rrd")
     with rr.server.Server(datasets={"ds": [str(out)]}) as server:
-        client = server.client()          # keep every object alive until the query has run
+        client = server.client()  # keep every object alive until the query has run
         dataset = client.get_dataset("ds")
         df = dataset.reader(index="sim_time").to_pandas()
     log = res.log
@@ -466,10 +489,12 @@ def test_recording_holds_aero_forces_and_jets(tmp_path):
         ge = np.array([np.asarray(v, float) for v in df[f"/plots/aero/ground_effect/{name}:Scalars:scalars"]])
         np.testing.assert_allclose(dw, log.downwash[:, i], atol=1e-6)
         np.testing.assert_allclose(ge, log.ground_effect[:, i], atol=1e-6)
-        scale = np.array([np.stack(list(v)).astype(float).ravel() for v in
-                          df[f"/world/drones/{name}/jet:Transform3D:scale"]])
-        np.testing.assert_allclose(scale[:, 0], np.clip(log.rotor[:, i].sum(axis=1) / (P.m * P.g), 0, 3),
-                                   rtol=1e-6, atol=1e-6)
+        scale = np.array(
+            [np.stack(list(v)).astype(float).ravel() for v in df[f"/world/drones/{name}/jet:Transform3D:scale"]]
+        )
+        np.testing.assert_allclose(
+            scale[:, 0], np.clip(log.rotor[:, i].sum(axis=1) / (P.m * P.g), 0, 3), rtol=1e-6, atol=1e-6
+        )
 
 
 def test_tilted_touchdown_is_a_crash_even_when_slow():
@@ -478,7 +503,7 @@ def test_tilted_touchdown_is_a_crash_even_when_slow():
     cfg = parse_aero({"ground": True})
     a = np.deg2rad(40.0)
     sim = _sim([[0, 0, 0.2]], cfg=cfg, quats=np.array([[np.cos(a / 2), np.sin(a / 2), 0.0, 0.0]]))
-    lowest = 0.25 * np.sin(a) + 0.015 * np.cos(a) - 0.01 * np.cos(a)    # disc edge below the CoM
+    lowest = 0.25 * np.sin(a) + 0.015 * np.cos(a) - 0.01 * np.cos(a)  # disc edge below the CoM
     for _ in range(50):
         sim.step(np.zeros((1, 4)))
     mon = sim.monitors[0]
@@ -501,8 +526,10 @@ def test_compiled_kernels_equal_their_numpy_source():
     quat = rng.normal(size=(N, 4)) * [1, 0.2, 0.2, 1]
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     thrust = rng.uniform(0, 2, (N, 4))
-    for fn, args in ((downwash_kernel, (pos, quat, thrust, 4, 0.25, 1.225, 0.09, 0.018, 0.01, 0.09)),
-                     (ground_effect_kernel, (pos, quat, thrust, 0.25, 0.02, 0.09, 0.045))):
+    for fn, args in (
+        (downwash_kernel, (pos, quat, thrust, 4, 0.25, 1.225, 0.09, 0.018, 0.01, 0.09)),
+        (ground_effect_kernel, (pos, quat, thrust, 0.25, 0.02, 0.09, 0.045)),
+    ):
         a = [np.zeros((N, 3)) for _ in range(4)]
         b = [np.zeros((N, 3)) for _ in range(4)]
         fn(*args, *a)

@@ -32,7 +32,7 @@ from swarm_mj.policy import BacksteppingPolicy
 from swarm_mj.runner import run
 from swarm_mj.scenario import load_scenario
 
-DIP_BAR_M = 0.10   # issue 15: worst altitude dip of a drone in another's jet
+DIP_BAR_M = 0.10  # issue 15: worst altitude dip of a drone in another's jet
 T = 0.01
 
 # --------------------------------------------------------------------------- in MuJoCo, realistic physics
@@ -45,8 +45,7 @@ def test_layers_sinks_past_the_bar_on_a_known_start_where_clearance_does_not():
     case = StressCase("layers", 0, 5, 3.0, 0.6, 5.0, aero="realistic")
     layers = run(stress_scenario(case), progress=False).summary
     assert layers["downwash_dip_worst_m"] > DIP_BAR_M, layers["downwash_dip"]
-    clear = run(stress_scenario(StressCase("clearance", 0, 5, 3.0, 0.6, 5.0, aero="realistic")),
-                progress=False).summary
+    clear = run(stress_scenario(StressCase("clearance", 0, 5, 3.0, 0.6, 5.0, aero="realistic")), progress=False).summary
     assert clear["anti_collision_rule"] == "clearance"
     assert clear["downwash_dip_worst_m"] <= DIP_BAR_M, clear["downwash_dip"]
     assert clear["contacts"] == 0 and clear["crashes"] == 0
@@ -61,7 +60,7 @@ def test_clearance_on_a_swarm_scenario_under_realistic_physics():
     assert res.error is None, s.get("stopped")
     assert s["contacts"] == 0 and s["crashes"] == 0, (res.contact_log[:3], s["crashes"])
     assert s["downwash_dip_worst_m"] <= DIP_BAR_M, s["downwash_dip"]
-    assert s["formation"]["settling_s"][0] < 8.0                   # formed up (6.2 s, tools/aero_compare.py)
+    assert s["formation"]["settling_s"][0] < 8.0  # formed up (6.2 s, tools/aero_compare.py)
 
 
 # --------------------------------------------------------------------------- the feedforward switch
@@ -70,10 +69,10 @@ def test_clearance_on_a_swarm_scenario_under_realistic_physics():
 def test_the_feedforward_is_the_rules_and_only_under_downwash():
     sc = load_scenario("circle").with_overrides(duration=1.0)
     assert ClearanceRule.downwash_feedforward and not LayeredRule.downwash_feedforward
-    assert BacksteppingPolicy(sc).downwash_ff is None                                  # paper physics
+    assert BacksteppingPolicy(sc).downwash_ff is None  # paper physics
     real = with_aero(sc, "realistic")
     assert BacksteppingPolicy(real, anti_collision="clearance").downwash_ff is not None
-    assert BacksteppingPolicy(real).downwash_ff is None                                # the default (layers): none
+    assert BacksteppingPolicy(real).downwash_ff is None  # the default (layers): none
 
 
 def test_feedforward_predicts_a_push_down_under_a_drone_and_none_beside_it():
@@ -108,7 +107,7 @@ def test_interface_and_names():
     assert out.shape == (6, 3) and steer.dtype == bool and steer.tolist() == [False] + [True] * 5
     p, v, a = rule.references(T, pos, pos_d, np.zeros((6, 3)), np.zeros((6, 3)), 0.0)
     assert p.shape == v.shape == a.shape == (6, 3)
-    np.testing.assert_array_equal(p[0], pos_d[0])                      # the leader keeps its reference
+    np.testing.assert_array_equal(p[0], pos_d[0])  # the leader keeps its reference
 
 
 def _fly(rule, pos: np.ndarray, leader_fn, steps: int, D: float = 1.0) -> np.ndarray:
@@ -132,11 +131,11 @@ def test_a_follower_stays_on_the_ground_while_the_leader_flies_over_its_start():
 
     z = _fly(ClearanceRule(2), np.array([[-1.5, 0.0, 1.5], [0.0, 0.0, 0.0]]), leader, 150)
     t_over = np.arange(150) * T
-    over = np.abs(-1.5 + 3.0 * t_over) < 0.5                            # the leader within 0.5 m of the start
-    assert (z[over, 1] <= 1e-9).all()                                  # on the ground while it passes
-    assert z[-1, 1] > 0.3                                               # and takes off after
+    over = np.abs(-1.5 + 3.0 * t_over) < 0.5  # the leader within 0.5 m of the start
+    assert (z[over, 1] <= 1e-9).all()  # on the ground while it passes
+    assert z[-1, 1] > 0.3  # and takes off after
     z_layers = _fly(LayeredRule(2), np.array([[-1.5, 0.0, 1.5], [0.0, 0.0, 0.0]]), leader, 150)
-    assert (z_layers[over, 1] > 0.2).any()                             # the layered rule lifts off under it
+    assert (z_layers[over, 1] > 0.2).any()  # the layered rule lifts off under it
 
 
 def test_no_drop_over_a_drone_within_the_jet_clearance_where_the_layered_rule_drops():
@@ -157,7 +156,7 @@ def test_no_drop_over_a_drone_within_the_jet_clearance_where_the_layered_rule_dr
         for k in range(30):
             rule.update(k * T, pos, pos_d.copy(), 2.0)
         assert (rule.phase[1] == FORMED) == drops, cls.__name__
-    pos[2, :2] += [5.0, 5.0]                                            # follower 2 gone: it drops
+    pos[2, :2] += [5.0, 5.0]  # follower 2 gone: it drops
     for k in range(30, 60):
         rule.update(k * T, pos, pos_d.copy(), 2.0)
     assert rule.phase[1] == FORMED

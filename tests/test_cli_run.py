@@ -27,8 +27,9 @@ VOLATILE = {"wall_time_s", "real_time_factor"}
 
 
 def swarm(*args, cwd: Path, timeout: float = 300) -> subprocess.CompletedProcess:
-    return subprocess.run([*CLI, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout,
-                          stdin=subprocess.DEVNULL)
+    return subprocess.run(
+        [*CLI, *map(str, args)], cwd=cwd, capture_output=True, text=True, timeout=timeout, stdin=subprocess.DEVNULL
+    )
 
 
 def one_error_line(p: subprocess.CompletedProcess) -> str:
@@ -55,8 +56,9 @@ def rrd_leader_times_and_positions(path: Path) -> tuple[np.ndarray, np.ndarray]:
         dataset = client.get_dataset("ds")
         df = dataset.filter_contents(["/world/drones/leader"]).reader(index="sim_time").to_pandas()
     t = df["sim_time"].to_numpy().astype("timedelta64[ns]").astype(np.int64) / 1e9
-    pos = np.array([np.stack(list(v)).astype(np.float64)[0]
-                    for v in df["/world/drones/leader:Transform3D:translation"]])
+    pos = np.array(
+        [np.stack(list(v)).astype(np.float64)[0] for v in df["/world/drones/leader:Transform3D:translation"]]
+    )
     return t, pos
 
 
@@ -69,8 +71,9 @@ def circle_summaries(tmp_path_factory):
     d = tmp_path_factory.mktemp("summ")
     out = []
     for i in range(2):
-        p = swarm("run", "circle", "--duration", 20, "--seed", 3, "--no-record", "--quiet", "--summary",
-                  f"s{i}.json", cwd=d)
+        p = swarm(
+            "run", "circle", "--duration", 20, "--seed", 3, "--no-record", "--quiet", "--summary", f"s{i}.json", cwd=d
+        )
         assert p.returncode == 0, p.stderr
         out.append(json.loads((d / f"s{i}.json").read_text()))
     assert not list(d.glob("*.rrd")), "--no-record must not write a recording"
@@ -81,13 +84,15 @@ def test_summary_has_the_stable_keys(circle_summaries):
     s = circle_summaries[0]
     assert s["scenario"] == "circle"
     assert s["sim_time_s"] == pytest.approx(20.0)
-    assert isinstance(s["wall_time_s"], float) and isinstance(s["real_time_factor"], float)   # present; speed is benched in tools/
+    assert isinstance(s["wall_time_s"], float) and isinstance(
+        s["real_time_factor"], float
+    )  # present; speed is benched in tools/
     assert set(s["drones"]) == {"leader", "follower1", "follower2", "follower3", "follower4", "follower5"}
     for name, d in s["drones"].items():
         assert set(d["rmse"]) >= {"x", "y", "z", "roll_deg", "pitch_deg"}, name
         assert all(isinstance(v, float) and np.isfinite(v) for v in d["rmse"].values())
         assert 0 <= d["max_rotor_thrust_n"] <= 4.5
-        assert "step" not in d                         # step metrics only for the step
+        assert "step" not in d  # step metrics only for the step
     assert isinstance(s["contacts"], int) and s["contacts"] >= 0
     assert s["min_separation_m"] > 0
     assert isinstance(s["formation"]["settling_s"], list)
@@ -130,10 +135,15 @@ BAD_FILES = {
     "unknown_key": (GOOD + 'colour = "red"\n', ["colour", "unknown"]),
     "unknown_nested_key": (GOOD + "speed = 3.0\n", ["leader", "speed", "unknown"]),
     "missing_duration": ('[leader]\ntrajectory = "hover"\n', ["duration", "missing"]),
-    "negative_D": ('duration = 5.0\n[leader]\ntrajectory = "circle"\n[followers]\nstart = [[1.0, 0.0, 0.0]]\n'
-                   "[formation]\ndiameter = -1.0\n", ["formation.diameter", "positive", "-1"]),
-    "unknown_trajectory": ('duration = 5.0\n[leader]\ntrajectory = "spiral"\n',
-                           ["leader.trajectory", "spiral", "unknown"]),
+    "negative_D": (
+        'duration = 5.0\n[leader]\ntrajectory = "circle"\n[followers]\nstart = [[1.0, 0.0, 0.0]]\n'
+        "[formation]\ndiameter = -1.0\n",
+        ["formation.diameter", "positive", "-1"],
+    ),
+    "unknown_trajectory": (
+        'duration = 5.0\n[leader]\ntrajectory = "spiral"\n',
+        ["leader.trajectory", "spiral", "unknown"],
+    ),
     "bad_gains": (GOOD + "[controller]\ngains = [1.0, 2.0]\n", ["controller.gains", "12"]),
 }
 
@@ -151,7 +161,7 @@ def test_bad_scenario_file_gives_one_line_and_exit_2(tmp_path, case):
     assert f.name in line, line
     for n in needles:
         assert n in line, (n, line)
-    assert existing.read_bytes() == b"previous recording"       # not destroyed
+    assert existing.read_bytes() == b"previous recording"  # not destroyed
     assert not (tmp_path / "s.json").exists()
     assert sorted(x.name for x in tmp_path.iterdir()) == sorted([f.name, existing.name])
 
@@ -168,14 +178,17 @@ def test_unknown_bundled_name_gives_one_line_and_exit_2(tmp_path):
     assert p.returncode == 2
     line = one_error_line(p)
     assert "circel" in line and "unknown scenario" in line
-    assert "circle" in line                                     # lists what is bundled
+    assert "circle" in line  # lists what is bundled
     assert not list(tmp_path.iterdir())
 
 
-@pytest.mark.parametrize("args,needles", [
-    (["--duration", "-1"], ["--duration", "positive"]),
-    (["--gains", "nope.toml"], ["nope.toml", "not found"]),
-])
+@pytest.mark.parametrize(
+    "args,needles",
+    [
+        (["--duration", "-1"], ["--duration", "positive"]),
+        (["--gains", "nope.toml"], ["nope.toml", "not found"]),
+    ],
+)
 def test_bad_options_give_one_line_and_exit_2(tmp_path, args, needles):
     p = swarm("run", "step", *args, cwd=tmp_path)
     assert p.returncode == 2
@@ -189,15 +202,17 @@ def test_bad_options_give_one_line_and_exit_2(tmp_path, args, needles):
 
 # Attitude gains far beyond what a 10-ms zero-order hold can carry: the attitude loop is unstable
 # in discrete time, the drone flips during the step and falls through the floor (about 1 s).
-DIVERGING = ('description = "absurd attitude gains: diverges"\nduration = 10.0\n\n[leader]\ntrajectory = "step"\n\n'
-             "[controller]\ngains = [1000.0, 1000.0, 1000.0, 1000.0, 1000.0, 1000.0, "
-             "4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]\n")
+DIVERGING = (
+    'description = "absurd attitude gains: diverges"\nduration = 10.0\n\n[leader]\ntrajectory = "step"\n\n'
+    "[controller]\ngains = [1000.0, 1000.0, 1000.0, 1000.0, 1000.0, 1000.0, "
+    "4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]\n"
+)
 
 
 def test_diverging_run_exits_1_with_a_message_and_a_readable_recording(tmp_path):
     (tmp_path / "diverge.toml").write_text(DIVERGING)
     out = tmp_path / "d.rrd"
-    out.write_bytes(b"previous recording")                      # replaced (atomically) by what ran
+    out.write_bytes(b"previous recording")  # replaced (atomically) by what ran
     p = swarm("run", "diverge.toml", "-o", out.name, "--summary", "d.json", "--quiet", cwd=tmp_path)
     assert p.returncode == 1, (p.returncode, p.stderr)
     line = one_error_line(p)
@@ -205,7 +220,7 @@ def test_diverging_run_exits_1_with_a_message_and_a_readable_recording(tmp_path)
     verify_rrd(out)
     assert out.read_bytes() != b"previous recording"
     t, pos = rrd_leader_times_and_positions(out)
-    assert 0.0 < t[-1] < 10.0                                   # stopped early, what ran is there
+    assert 0.0 < t[-1] < 10.0  # stopped early, what ran is there
     assert np.isfinite(pos).all()
     s = json.loads((tmp_path / "d.json").read_text())
     assert s["sim_time_s"] == pytest.approx(t[-1], abs=1e-6)
@@ -217,14 +232,19 @@ def test_diverging_run_exits_1_with_a_message_and_a_readable_recording(tmp_path)
 
 def test_interrupted_run_exits_130_with_a_readable_recording(tmp_path):
     pty = pytest.importorskip("pty")
-    master, slave = pty.openpty()       # a terminal on stderr, so that the progress bar shows
-    proc = subprocess.Popen([*CLI, "run", "circle", "-o", "X.rrd", "--summary", "X.json"], cwd=tmp_path,
-                            stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=slave)
+    master, slave = pty.openpty()  # a terminal on stderr, so that the progress bar shows
+    proc = subprocess.Popen(
+        [*CLI, "run", "circle", "-o", "X.rrd", "--summary", "X.json"],
+        cwd=tmp_path,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=slave,
+    )
     os.close(slave)
     err = b""
     try:
         deadline = time.monotonic() + 120
-        while b"%" not in err:          # the progress bar: the simulation loop is running
+        while b"%" not in err:  # the progress bar: the simulation loop is running
             assert time.monotonic() < deadline, err
             assert proc.poll() is None, err
             r, _, _ = select.select([master], [], [], 0.2)

@@ -26,9 +26,9 @@ from swarm_mj.wind import ALWAYS_ON, WindConfig
 
 pytestmark = pytest.mark.slow
 
-SETTLE_LIMIT_S = 4.0   # issue 11: the paper's starts settle in at most 4 s (paper ≈ 3 s)
-REFORM_LIMIT_S = 3.0   # issue 11 / paper Fig. 14: re-forming after a change of D within 3 s
-TOL_M = 0.05           # "settled": every leader–follower distance within 5 cm of D (SPEC §7)
+SETTLE_LIMIT_S = 4.0  # issue 11: the paper's starts settle in at most 4 s (paper ≈ 3 s)
+REFORM_LIMIT_S = 3.0  # issue 11 / paper Fig. 14: re-forming after a change of D within 3 s
+TOL_M = 0.05  # "settled": every leader–follower distance within 5 cm of D (SPEC §7)
 
 
 def _fly(sc, rule: str | None = None):
@@ -43,7 +43,7 @@ def test_default_rule_flies_seeded_random_starts_without_contact():
         res = _fly(stress_scenario(StressCase("layers", seed, 5, 3.0, 0.6, 8.0)))
         s = res.summary
         assert s["contacts"] == 0, (seed, res.contact_log[:3])
-        assert s["formation"]["settling_s"][0] < 8.0, seed            # and formed up within the run
+        assert s["formation"]["settling_s"][0] < 8.0, seed  # and formed up within the run
 
 
 def test_default_rule_eight_followers_without_contact():
@@ -108,8 +108,9 @@ def test_variable_diameter_reforms_within_3_s_of_each_change():
 
 
 def test_stress_tool_table_and_json(tmp_path):
-    table, rows = stress(["layers", "paper"], starts=2, followers=5, radius=3.0, min_spacing=0.6,
-                         duration=3.0, seed0=0, workers=2)
+    table, rows = stress(
+        ["layers", "paper"], starts=2, followers=5, radius=3.0, min_spacing=0.6, duration=3.0, seed0=0, workers=2
+    )
     assert set(table) == {"layers", "paper"} and len(rows) == 4
     for rule, r in table.items():
         assert r["starts"] == 2
@@ -124,8 +125,9 @@ def test_stress_tool_table_and_json(tmp_path):
     ap = argparse.ArgumentParser()
     add_parser(ap.add_subparsers())
     out = tmp_path / "s.json"
-    args = ap.parse_args(["stress", "--rule", "off", "--starts", "1", "--duration", "2", "--workers", "1",
-                          "--json", str(out)])
+    args = ap.parse_args(
+        ["stress", "--rule", "off", "--starts", "1", "--duration", "2", "--workers", "1", "--json", str(out)]
+    )
     assert main(args) == 0
     data = json.loads(out.read_text())
     assert data["table"]["off"]["starts"] == 1 and len(data["starts"]) == 1

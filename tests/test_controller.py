@@ -22,7 +22,7 @@ from swarm_mj.params import DEFAULT_PARAMS as P
 from swarm_mj.state import body_rates_to_euler_rates
 
 Z3 = np.zeros((1, 3))
-RNG_GAINS = np.random.default_rng(7).uniform(0.5, 9.0, 12)   # distinct per axis: catches swapped pairs
+RNG_GAINS = np.random.default_rng(7).uniform(0.5, 9.0, 12)  # distinct per axis: catches swapped pairs
 
 
 def _poly_roots(a: float, b: float) -> np.ndarray:
@@ -58,9 +58,8 @@ def _call(ctl, rpy, rate, pos, vel, pos_d, vel_d=None, acc_d=None, yaw_d=0.0, **
 @pytest.mark.parametrize("yaw", [0.0, 0.7, -2.5])
 def test_hover_with_zero_error_gives_weight_and_no_torque(amap, yaw):
     ctl = Backstepping(1, attitude_map=amap)
-    for _ in range(3):   # the finite-difference history must not disturb the equilibrium
-        U = _call(ctl, [0, 0, yaw], [0, 0, 0], [0.3, -1.0, 2.0], [0, 0, 0], [0.3, -1.0, 2.0], yaw_d=yaw,
-                  omega_body=Z3)
+    for _ in range(3):  # the finite-difference history must not disturb the equilibrium
+        U = _call(ctl, [0, 0, yaw], [0, 0, 0], [0.3, -1.0, 2.0], [0, 0, 0], [0.3, -1.0, 2.0], yaw_d=yaw, omega_body=Z3)
         assert U[0, 0] == pytest.approx(P.m * P.g, rel=1e-12)
         np.testing.assert_allclose(U[0, 1:], 0.0, atol=1e-12)
 
@@ -83,8 +82,17 @@ def test_tilted_state_with_zero_error(amap, phi, theta, psi):
     ay = (math.cos(phi) * math.sin(theta) * math.sin(psi) - math.sin(phi) * math.cos(psi)) * U1 / P.m
     ctl = Backstepping(1, attitude_map=amap)
     for _ in range(3):
-        U = _call(ctl, [phi, theta, psi], [0, 0, 0], [1, 2, 3], [0, 0, 0], [1, 2, 3], acc_d=[ax, ay, 0.0],
-                  yaw_d=psi, omega_body=Z3)
+        U = _call(
+            ctl,
+            [phi, theta, psi],
+            [0, 0, 0],
+            [1, 2, 3],
+            [0, 0, 0],
+            [1, 2, 3],
+            acc_d=[ax, ay, 0.0],
+            yaw_d=psi,
+            omega_body=Z3,
+        )
         assert U[0, 0] == pytest.approx(U1, rel=1e-12)
         np.testing.assert_allclose(ctl.att_d[0], [phi, theta, psi], atol=1e-12)
         np.testing.assert_allclose(U[0, 1:], 0.0, atol=1e-10)
@@ -105,11 +113,17 @@ def _attitude_rhs(gains, yaw_d):
         ctl = Backstepping(1, gains, attitude_map="paper")
         U = _call(ctl, [s[0], s[2], s[4]], [s[1], s[3], s[5]], [0, 0, 1], [0, 0, 0], [0, 0, 1], yaw_d=yaw_d)[0]
         pd, td, yd = s[1], s[3], s[5]
-        return np.array([
-            pd, (p.Iy - p.Iz) / p.Ix * td * yd + p.L / p.Ix * U[1],
-            td, (p.Iz - p.Ix) / p.Iy * pd * yd + p.L / p.Iy * U[2],
-            yd, (p.Ix - p.Iy) / p.Iz * pd * td + p.L / p.Iz * U[3],
-        ])
+        return np.array(
+            [
+                pd,
+                (p.Iy - p.Iz) / p.Ix * td * yd + p.L / p.Ix * U[1],
+                td,
+                (p.Iz - p.Ix) / p.Iy * pd * yd + p.L / p.Iy * U[2],
+                yd,
+                (p.Ix - p.Iy) / p.Iz * pd * td + p.L / p.Iz * U[3],
+            ]
+        )
+
     return f
 
 
@@ -134,12 +148,18 @@ def _position_rhs(gains, pos_d, yaw_d):
             rpy = new
         phi, th, psi = rpy
         U1 = U[0]
-        acc = np.array([
-            (math.cos(phi) * math.sin(th) * math.cos(psi) + math.sin(phi) * math.sin(psi)) * U1 / p.m,
-            (math.cos(phi) * math.sin(th) * math.sin(psi) - math.sin(phi) * math.cos(psi)) * U1 / p.m,
-            math.cos(phi) * math.cos(th) * U1 / p.m - p.g,
-        ]) - p.drag * vel / p.m
+        acc = (
+            np.array(
+                [
+                    (math.cos(phi) * math.sin(th) * math.cos(psi) + math.sin(phi) * math.sin(psi)) * U1 / p.m,
+                    (math.cos(phi) * math.sin(th) * math.sin(psi) - math.sin(phi) * math.cos(psi)) * U1 / p.m,
+                    math.cos(phi) * math.cos(th) * U1 / p.m - p.g,
+                ]
+            )
+            - p.drag * vel / p.m
+        )
         return np.array([vel[0], acc[0], vel[1], acc[1], vel[2], acc[2]])
+
     return f
 
 
@@ -148,15 +168,16 @@ def _position_rhs(gains, pos_d, yaw_d):
 def test_attitude_error_dynamics_have_the_backstepping_polynomial(gains, yaw_d):
     s0 = np.array([0.0, 0.0, 0.0, 0.0, yaw_d, 0.0])
     f = _attitude_rhs(gains, yaw_d)
-    np.testing.assert_allclose(f(s0), 0.0, atol=1e-12)          # hover is an equilibrium
+    np.testing.assert_allclose(f(s0), 0.0, atol=1e-12)  # hover is an equilibrium
     eig = np.linalg.eigvals(_jacobian(f, s0))
-    expected = np.concatenate([_poly_roots(gains[0], gains[1]), _poly_roots(gains[2], gains[3]),
-                               _poly_roots(gains[4], gains[5])])
+    expected = np.concatenate(
+        [_poly_roots(gains[0], gains[1]), _poly_roots(gains[2], gains[3]), _poly_roots(gains[4], gains[5])]
+    )
     np.testing.assert_allclose(_sorted(eig), _sorted(expected), rtol=1e-5, atol=1e-5)
     # and axis by axis: each 2×2 diagonal block is the roll / pitch / yaw loop
     J = _jacobian(f, s0)
     for ax in range(3):
-        blk = J[2 * ax:2 * ax + 2, 2 * ax:2 * ax + 2]
+        blk = J[2 * ax : 2 * ax + 2, 2 * ax : 2 * ax + 2]
         a, b = gains[2 * ax], gains[2 * ax + 1]
         # s² − tr·s + det  ≡  s² + (a + b)s + (1 + ab)
         assert -np.trace(blk) == pytest.approx(a + b, rel=1e-6)
@@ -172,17 +193,18 @@ def test_position_error_dynamics_have_the_backstepping_polynomial(gains, yaw_d):
     np.testing.assert_allclose(f(s0), 0.0, atol=1e-12)
     J = _jacobian(f, s0)
     eig = np.linalg.eigvals(J)
-    expected = np.concatenate([_poly_roots(gains[6], gains[7]), _poly_roots(gains[8], gains[9]),
-                               _poly_roots(gains[10], gains[11])])
+    expected = np.concatenate(
+        [_poly_roots(gains[6], gains[7]), _poly_roots(gains[8], gains[9]), _poly_roots(gains[10], gains[11])]
+    )
     np.testing.assert_allclose(_sorted(eig), _sorted(expected), rtol=1e-5, atol=1e-5)
-    for ax in range(3):     # decoupled: x, y, z each with their own pair of gains
-        blk = J[2 * ax:2 * ax + 2, 2 * ax:2 * ax + 2]
+    for ax in range(3):  # decoupled: x, y, z each with their own pair of gains
+        blk = J[2 * ax : 2 * ax + 2, 2 * ax : 2 * ax + 2]
         a, b = gains[6 + 2 * ax], gains[7 + 2 * ax]
         assert -np.trace(blk) == pytest.approx(a + b, rel=1e-6)
         assert np.linalg.det(blk) == pytest.approx(1 + a * b, rel=1e-6)
     off = J.copy()
     for ax in range(3):
-        off[2 * ax:2 * ax + 2, 2 * ax:2 * ax + 2] = 0.0
+        off[2 * ax : 2 * ax + 2, 2 * ax : 2 * ax + 2] = 0.0
     np.testing.assert_allclose(off, 0.0, atol=1e-5)
 
 
@@ -197,22 +219,36 @@ def test_exact_attitude_map_realises_the_papers_euler_accelerations():
         # ω from η̇: body_rates_to_euler_rates is linear in ω, invert it numerically
         E = np.column_stack([body_rates_to_euler_rates(rpy, e) for e in np.eye(3)])
         omega = np.linalg.solve(E, eta_dot)
-        args = (rpy, eta_dot, rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3),
-                rng.uniform(-1, 1, 3), rng.uniform(-1, 1, 3))
+        args = (
+            rpy,
+            eta_dot,
+            rng.uniform(-1, 1, 3),
+            rng.uniform(-1, 1, 3),
+            rng.uniform(-1, 1, 3),
+            rng.uniform(-1, 1, 3),
+            rng.uniform(-1, 1, 3),
+        )
         kw = {"yaw_d": rng.uniform(-3, 3)}
         Up = _call(Backstepping(1, attitude_map="paper"), *args, **kw)[0]
         Ue = _call(Backstepping(1, attitude_map="exact"), *args, omega_body=omega[None], **kw)[0]
         assert Ue[0] == pytest.approx(Up[0], rel=1e-12)
         # eq. (1): η̈ = Coriolis + (L/I)·U
         pd, td, yd = eta_dot
-        eta_dd_paper = np.array([(P.Iy - P.Iz) / P.Ix * td * yd, (P.Iz - P.Ix) / P.Iy * pd * yd,
-                                 (P.Ix - P.Iy) / P.Iz * pd * td]) + P.L / I * Up[1:]
+        eta_dd_paper = (
+            np.array([(P.Iy - P.Iz) / P.Ix * td * yd, (P.Iz - P.Ix) / P.Iy * pd * yd, (P.Ix - P.Iy) / P.Iz * pd * td])
+            + P.L / I * Up[1:]
+        )
         # rigid body: ω̇ = I⁻¹(τ − ω × Iω), η̈ = d/dt E(η)ω = (∂(Eω)/∂η)·η̇ + E·ω̇
         tau = P.L * Ue[1:]
         omega_dot = (tau - np.cross(omega, I * omega)) / I
         h = 1e-6
-        dE = np.column_stack([(body_rates_to_euler_rates(rpy + h * e, omega)
-                               - body_rates_to_euler_rates(rpy - h * e, omega)) / (2 * h) for e in np.eye(3)])
+        dE = np.column_stack(
+            [
+                (body_rates_to_euler_rates(rpy + h * e, omega) - body_rates_to_euler_rates(rpy - h * e, omega))
+                / (2 * h)
+                for e in np.eye(3)
+            ]
+        )
         eta_dd_rigid = dE @ eta_dot + E @ omega_dot
         np.testing.assert_allclose(eta_dd_rigid, eta_dd_paper, rtol=1e-6, atol=1e-6)
 
@@ -221,17 +257,37 @@ def test_exact_attitude_map_realises_the_papers_euler_accelerations():
 
 
 def _random_states(rng, n):
-    return dict(rpy=rng.uniform(-0.4, 0.4, (n, 3)), rate=rng.uniform(-1, 1, (n, 3)),
-                pos=rng.uniform(-2, 2, (n, 3)), vel=rng.uniform(-1, 1, (n, 3)), pos_d=rng.uniform(-2, 2, (n, 3)),
-                vel_d=rng.uniform(-1, 1, (n, 3)), acc_d=rng.uniform(-1, 1, (n, 3)), yaw=rng.uniform(-3, 3, n),
-                yaw_rate=rng.uniform(-0.5, 0.5, n), yaw_acc=rng.uniform(-0.5, 0.5, n),
-                wind=rng.uniform(-0.3, 0.3, (n, 3)) * [1, 1, 0], omega=rng.uniform(-1, 1, (n, 3)))
+    return dict(
+        rpy=rng.uniform(-0.4, 0.4, (n, 3)),
+        rate=rng.uniform(-1, 1, (n, 3)),
+        pos=rng.uniform(-2, 2, (n, 3)),
+        vel=rng.uniform(-1, 1, (n, 3)),
+        pos_d=rng.uniform(-2, 2, (n, 3)),
+        vel_d=rng.uniform(-1, 1, (n, 3)),
+        acc_d=rng.uniform(-1, 1, (n, 3)),
+        yaw=rng.uniform(-3, 3, n),
+        yaw_rate=rng.uniform(-0.5, 0.5, n),
+        yaw_acc=rng.uniform(-0.5, 0.5, n),
+        wind=rng.uniform(-0.3, 0.3, (n, 3)) * [1, 1, 0],
+        omega=rng.uniform(-1, 1, (n, 3)),
+    )
 
 
 def _compute(ctl, s, sl=slice(None)):
-    return ctl.compute(s["rpy"][sl], s["rate"][sl], s["pos"][sl], s["vel"][sl], s["pos_d"][sl], s["vel_d"][sl],
-                       s["acc_d"][sl], s["yaw"][sl], s["yaw_rate"][sl], s["yaw_acc"][sl], wind_force=s["wind"][sl],
-                       omega_body=s["omega"][sl])
+    return ctl.compute(
+        s["rpy"][sl],
+        s["rate"][sl],
+        s["pos"][sl],
+        s["vel"][sl],
+        s["pos_d"][sl],
+        s["vel_d"][sl],
+        s["acc_d"][sl],
+        s["yaw"][sl],
+        s["yaw_rate"][sl],
+        s["yaw_acc"][sl],
+        wind_force=s["wind"][sl],
+        omega_body=s["omega"][sl],
+    )
 
 
 @pytest.mark.parametrize("amap", ["exact", "paper"])
@@ -252,7 +308,7 @@ def test_vectorised_call_equals_single_drone_calls(amap):
     gains = rng.uniform(0.5, 9.0, (n, 12))
     vec = Backstepping(n, gains, attitude_map=amap)
     singles = [Backstepping(1, gains[i], attitude_map=amap) for i in range(n)]
-    for _ in range(4):     # several calls: the finite-difference history is per drone
+    for _ in range(4):  # several calls: the finite-difference history is per drone
         s = _random_states(rng, n)
         U = _compute(vec, s)
         for i in range(n):
@@ -261,11 +317,23 @@ def test_vectorised_call_equals_single_drone_calls(amap):
             np.testing.assert_allclose(vec.att_d[i], singles[i].att_d[0], rtol=1e-12, atol=1e-12)
 
 
-@pytest.mark.parametrize("bad", [
-    np.ones(11), np.ones((3, 12)), np.ones((2, 13)), np.ones((2, 2, 12)),
-    np.r_[np.ones(11), 0.0], np.r_[np.ones(11), -1.0], np.r_[np.ones(11), np.nan], np.r_[np.ones(11), np.inf],
-    ["a"] * 12, "table4", [[1.0] * 12, [1.0] * 11],
-], ids=["11", "n_mismatch", "13", "3d", "zero", "negative", "nan", "inf", "strings", "string", "ragged"])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        np.ones(11),
+        np.ones((3, 12)),
+        np.ones((2, 13)),
+        np.ones((2, 2, 12)),
+        np.r_[np.ones(11), 0.0],
+        np.r_[np.ones(11), -1.0],
+        np.r_[np.ones(11), np.nan],
+        np.r_[np.ones(11), np.inf],
+        ["a"] * 12,
+        "table4",
+        [[1.0] * 12, [1.0] * 11],
+    ],
+    ids=["11", "n_mismatch", "13", "3d", "zero", "negative", "nan", "inf", "strings", "string", "ragged"],
+)
 def test_invalid_gains_raise_user_error(bad):
     with pytest.raises(UserError):
         Backstepping(2, bad)
@@ -310,15 +378,15 @@ def test_wind_feedforward_shifts_ux_uy_by_minus_f_over_u1(amap):
     rng = np.random.default_rng(5)
     s = _random_states(rng, n)
     s["rpy"] *= 0.3
-    s["pos_d"] = s["pos"] + rng.uniform(-0.05, 0.05, (n, 3))      # small errors: no clipping of φ_d, θ_d
+    s["pos_d"] = s["pos"] + rng.uniform(-0.05, 0.05, (n, 3))  # small errors: no clipping of φ_d, θ_d
     s["vel_d"] = s["vel"] + rng.uniform(-0.05, 0.05, (n, 3))
     s["acc_d"] = rng.uniform(-0.5, 0.5, (n, 3))
-    s["wind"] = rng.uniform(-0.4, 0.4, (n, 3)) * [1, 1, 0]     # horizontal wind force (N), as in eq. (37)
+    s["wind"] = rng.uniform(-0.4, 0.4, (n, 3)) * [1, 1, 0]  # horizontal wind force (N), as in eq. (37)
     on = Backstepping(n, attitude_map=amap, wind_feedforward=True)
     off = Backstepping(n, attitude_map=amap, wind_feedforward=False)
     U_on, U_off = _compute(on, s), _compute(off, s)
-    np.testing.assert_allclose(U_on[:, 0], U_off[:, 0], rtol=1e-14)       # U1 does not see a horizontal wind
-    assert (np.abs(on.att_d[:, :2]) < np.deg2rad(44)).all()              # no clipping in this check
+    np.testing.assert_allclose(U_on[:, 0], U_off[:, 0], rtol=1e-14)  # U1 does not see a horizontal wind
+    assert (np.abs(on.att_d[:, :2]) < np.deg2rad(44)).all()  # no clipping in this check
     ux_on, uy_on = _ux_uy(on.att_d)
     ux_off, uy_off = _ux_uy(off.att_d)
     U1 = U_on[:, 0]
@@ -338,7 +406,7 @@ def test_wind_feedforward_cancels_the_wind_on_eq_1():
     F = np.array([[0.35, -0.2, 0.0]])
     ctl = Backstepping(1, attitude_map="paper")
     rpy = np.zeros(3)
-    for _ in range(40):     # attitude at its command (fixed point)
+    for _ in range(40):  # attitude at its command (fixed point)
         c = Backstepping(1, attitude_map="paper")
         U = _call(c, rpy, [0, 0, 0], [0, 0, 2], [0, 0, 0], [0, 0, 2], wind_force=F)[0]
         rpy = c.att_d[0].copy()
@@ -380,7 +448,7 @@ STEP_BARS = {"x": 2.0, "y": 2.0, "z": 1.5, "psi": 2.0}
 @pytest.mark.slow
 def test_step_is_the_spec_step(step_run):
     log = step_run.log
-    np.testing.assert_allclose(log.pos[0, 0], [0, 0, 0], atol=1e-12)           # from rest on the ground
+    np.testing.assert_allclose(log.pos[0, 0], [0, 0, 0], atol=1e-12)  # from rest on the ground
     np.testing.assert_allclose(log.vel[0, 0], [0, 0, 0], atol=1e-12)
     np.testing.assert_allclose(log.pos_d[:, 0], np.tile([1.0, 1.0, 1.0], (len(log.t), 1)))
     np.testing.assert_allclose(log.att_d[:, 0, 2], np.deg2rad(25.0))
@@ -420,7 +488,7 @@ def test_step_attitude_stays_within_55_degrees(step_run):
 @pytest.mark.slow
 def test_step_rotor_thrusts_within_limits_and_reported(step_run):
     log = step_run.log
-    F = log.rotor[:-1, 0]             # the last sample has no following period
+    F = log.rotor[:-1, 0]  # the last sample has no following period
     assert np.isfinite(F).all()
     assert F.min() >= -1e-12 and F.max() <= 4.5 + 1e-12
     # the wrench applied is the one those rotors give (docs/interpretations.md §1 configuration)
@@ -446,7 +514,7 @@ def test_lemniscate_180s_rmse_within_table_5():
     t = log.t
     assert t[-1] == pytest.approx(180.0)
     assert not r.scenario.wind.enabled
-    ref = np.column_stack([2.5 * np.sin(0.08 * t), 2.5 * np.sin(0.04 * t)])   # eq. (30)
+    ref = np.column_stack([2.5 * np.sin(0.08 * t), 2.5 * np.sin(0.04 * t)])  # eq. (30)
     err = ref - log.pos[:, 0, :2]
     ex, ey = np.sqrt(np.mean(err**2, axis=0))
     assert ex <= 0.0075, f"RMSE x {ex:.5f} m"

@@ -24,7 +24,7 @@ UPRIGHT = np.array([1.0, 0.0, 0.0, 0.0])
 
 def _log(upper: list, lower: list, lower_ref_z: list, quat_upper=UPRIGHT):
     """Two drones over k samples: drone 0 at ``upper`` (k, 3), drone 1 at ``lower`` (k, 3)."""
-    pos = np.stack([np.asarray(upper, float), np.asarray(lower, float)], axis=1)        # (k, 2, 3)
+    pos = np.stack([np.asarray(upper, float), np.asarray(lower, float)], axis=1)  # (k, 2, 3)
     k = pos.shape[0]
     pos_d = pos.copy()
     pos_d[:, 1, 2] = lower_ref_z
@@ -51,7 +51,7 @@ def test_dip_is_the_sinking_since_entering_the_jet_not_the_lag_it_had():
 
 
 def test_only_drones_inside_the_jets_edge_count():
-    edge_at_1m = JET_R0_M + JET_SPREAD * 1.0 + DRONE_RADIUS_M          # jet edge + rotor span, 1 m down
+    edge_at_1m = JET_R0_M + JET_SPREAD * 1.0 + DRONE_RADIUS_M  # jet edge + rotor span, 1 m down
     for offset, counted in ((edge_at_1m - 0.05, True), (edge_at_1m + 0.05, False)):
         # on its reference when the stretch begins, 8 cm low a sample later
         t, pos, pos_d, quat = _log([[0, 0, 2.0]] * 2, [[offset, 0, 1.0], [offset, 0, 0.92]], [1.0, 1.0])
@@ -64,11 +64,14 @@ def test_only_drones_inside_the_jets_edge_count():
 
 def test_jet_reach_and_take_off():
     top = JET_REACH_M + 0.1
-    t, pos, pos_d, quat = _log([[0, 0, top], [0, 0, top], [0, 0, top], [0, 0, top + 1.4]],
-                               [[0, 0, 0.05], [0, 0, 0.15], [0, 0, 0.12], [0, 0, 1.0]], [0.5, 0.5, 0.5, 1.5])
+    t, pos, pos_d, quat = _log(
+        [[0, 0, top], [0, 0, top], [0, 0, top], [0, 0, top + 1.4]],
+        [[0, 0, 0.05], [0, 0, 0.15], [0, 0, 0.12], [0, 0, 1.0]],
+        [0.5, 0.5, 0.5, 1.5],
+    )
     jet = in_jet(pos, quat)
-    assert not jet[:, 0, 0].any() and not jet[3, 0, 1]                 # depth reach + 0.5 m: out of reach
-    assert jet[1, 0, 1] and jet[2, 0, 1]                                # depth reach − 0.05 m: in reach
+    assert not jet[:, 0, 0].any() and not jet[3, 0, 1]  # depth reach + 0.5 m: out of reach
+    assert jet[1, 0, 1] and jet[2, 0, 1]  # depth reach − 0.05 m: in reach
     d = downwash_dip(t, pos, pos_d, quat)
     # sample 0: on the ground (never above 0.1 m yet): not counted; samples 1-2: airborne, in the
     # jet, 0.35 then 0.38 m low: it sank 0.03 m; sample 3 (0.5 m low): out of reach
@@ -81,11 +84,11 @@ def test_the_jet_follows_the_upper_drones_tilt():
     q = np.array([math.cos(a / 2), 0.0, math.sin(a / 2), 0.0])
     depth = 1.5
     axis = -np.array([math.sin(a), 0.0, math.cos(a)])
-    on_axis = np.array([0, 0, 3.0]) + depth * axis                     # straight down the tilted jet
-    straight_below = np.array([0, 0, 3.0 - depth])                       # 0.75 m off the tilted axis... check:
+    on_axis = np.array([0, 0, 3.0]) + depth * axis  # straight down the tilted jet
+    straight_below = np.array([0, 0, 3.0 - depth])  # 0.75 m off the tilted axis... check:
     s = float((straight_below - [0, 0, 3.0]) @ axis)
-    r = math.sqrt(depth ** 2 - s ** 2)
-    assert r > 0.7                                                      # a real offset, so the case matters
+    r = math.sqrt(depth**2 - s**2)
+    assert r > 0.7  # a real offset, so the case matters
     edge = JET_R0_M + JET_SPREAD * s + DRONE_RADIUS_M
     _, pos, _, quat = _log([[0, 0, 3.0]] * 2, [on_axis, straight_below], [on_axis[2] + 0.1] * 2, quat_upper=q)
     jet = in_jet(pos, quat)

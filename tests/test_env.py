@@ -107,7 +107,7 @@ def test_backstepping_through_env_reproduces_run(name, seed):
     slot = np.stack([s.observation["setpoint"] for s in steps])
 
     assert pos.shape == res.log.pos.shape
-    np.testing.assert_array_equal(pos, res.log.pos)                 # every step, bit for bit
+    np.testing.assert_array_equal(pos, res.log.pos)  # every step, bit for bit
     np.testing.assert_array_equal(pos[-1], res.log.pos[-1])
     np.testing.assert_array_equal(slot, res.log.slot)
     s = res.summary
@@ -125,18 +125,18 @@ def test_reset_with_seed_is_deterministic_and_seeds_differ():
     env = SwarmEnv(sc, terminate_on_contact=False)
     U = hover_actions(env)
     a, steps_a = rollout(env, U, seed=3)
-    b, steps_b = rollout(env, U, seed=3)                               # same instance, reset again
+    b, steps_b = rollout(env, U, seed=3)  # same instance, reset again
     c, _ = rollout(SwarmEnv(sc, terminate_on_contact=False), U, seed=3)  # fresh instance
     d, _ = rollout(env, U, seed=4)
-    assert a[-1, :, 2].min() > 0.1                                    # airborne: the wind acts on them
+    assert a[-1, :, 2].min() > 0.1  # airborne: the wind acts on them
     np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(a, c)
     np.testing.assert_array_equal([s.reward for s in steps_a[1:]], [s.reward for s in steps_b[1:]])
     wind3 = [s.observation["wind_force"] for s in steps_a]
     env.reset(seed=4)
-    assert np.abs(env.wind.force - SwarmEnv(sc, seed=3).wind.force).max() > 1e-3   # another wind
-    assert np.abs(np.asarray(wind3)).max() > 0.01                                 # and it is on
-    assert np.abs(a - d).max() > 1e-6                                             # another flight
+    assert np.abs(env.wind.force - SwarmEnv(sc, seed=3).wind.force).max() > 1e-3  # another wind
+    assert np.abs(np.asarray(wind3)).max() > 0.01  # and it is on
+    assert np.abs(a - d).max() > 1e-6  # another flight
 
 
 # ----------------------------------------------------------------------------- actions
@@ -146,12 +146,12 @@ def test_out_of_bounds_action_is_saturated_not_nan():
     spec = env.action_spec()
     n, K = env.n, env.n_steps
     huge = np.zeros((K, n, 4))
-    huge[..., 0] = 1e6                                      # every rotor asks for far more than f_max
+    huge[..., 0] = 1e6  # every rotor asks for far more than f_max
     top = np.zeros((K, n, 4))
-    top[..., 0] = spec.maximum[:, 0]                        # exactly all rotors at f_max
+    top[..., 0] = spec.maximum[:, 0]  # exactly all rotors at f_max
     a, _ = rollout(env, huge)
     b, _ = rollout(env, top)
-    np.testing.assert_array_equal(a, b)                     # the saturation clipped 1e6 to 4 f_max
+    np.testing.assert_array_equal(a, b)  # the saturation clipped 1e6 to 4 f_max
 
     rng = np.random.default_rng(1)
     ts = env.reset()
@@ -183,22 +183,22 @@ def test_contact_terminates_the_episode():
     env = SwarmEnv(sc, terminate_on_contact=True)
     _, steps = rollout(env, policy=BacksteppingPolicy(sc, env.params))
     last = steps[-1]
-    assert last.last() and last.discount == 0.0                       # dm_env.termination
-    assert len(steps) - 1 < env.n_steps                               # before the end
+    assert last.last() and last.discount == 0.0  # dm_env.termination
+    assert len(steps) - 1 < env.n_steps  # before the end
     assert env.sim.contact_events >= 1
     assert last.reward <= -100.0
 
 
 def test_duration_truncates_the_episode():
-    sc = short("anti_collision", 2.0)                                  # layers rule: no contact
+    sc = short("anti_collision", 2.0)  # layers rule: no contact
     env = SwarmEnv(sc, terminate_on_contact=True)
     _, steps = rollout(env, policy=BacksteppingPolicy(sc, env.params))
     last = steps[-1]
-    assert last.step_type == dm_env.StepType.LAST and last.discount == 1.0   # dm_env.truncation
+    assert last.step_type == dm_env.StepType.LAST and last.discount == 1.0  # dm_env.truncation
     assert len(steps) - 1 == env.n_steps
     assert last.observation["time"] == pytest.approx(sc.duration)
     assert all(s.mid() and s.discount == 1.0 for s in steps[1:-1])
-    assert env.step(np.zeros((env.n, 4))).first()                     # dm_env: a step after LAST restarts
+    assert env.step(np.zeros((env.n, 4))).first()  # dm_env: a step after LAST restarts
 
 
 # ----------------------------------------------------------------------------- Gymnasium
@@ -302,7 +302,7 @@ def test_pettingzoo_agents_see_their_own_rows():
             assert set(obs[agent]["neighbours"].shape) == {sc.n_drones, 3}
         obs, rewards, terms, truncs, infos = env.step({a: U[k, i] for i, a in enumerate(env.possible_agents)})
         ts = ref.step(U[k])
-        assert set(rewards.values()) == {ts.reward}                  # one team reward
+        assert set(rewards.values()) == {ts.reward}  # one team reward
     assert all(truncs.values()) and not any(terms.values()) and env.agents == []
     assert env.state().shape == env.state_space.shape
     with pytest.raises(UserError):

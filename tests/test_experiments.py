@@ -33,7 +33,7 @@ from swarm_mj.progress import Progress
 
 
 def test_map_ordered_equals_serial_in_item_order():
-    items = [3000, 1, 2500, 2, 2000, 3]          # big and small: the small ones finish first
+    items = [3000, 1, 2500, 2, 2000, 3]  # big and small: the small ones finish first
     seen = []
     bar = Progress(len(items), "t", enabled=False)
     out = map_ordered(math.factorial, items, workers=2, progress=bar, on_result=lambda i, r: seen.append(i))
@@ -58,13 +58,19 @@ def test_worker_count_checks():
 
 def test_ctrl_c_during_a_sweep_exits_130_in_one_line(tmp_path):
     env = dict(os.environ)
-    p = subprocess.Popen([sys.executable, "-m", "swarm_mj.cli", "sweep", "circle", "--seeds", "8", "--duration", "2",
-                          "--workers", "2"], cwd=tmp_path, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True, start_new_session=True)
+    p = subprocess.Popen(
+        [sys.executable, "-m", "swarm_mj.cli", "sweep", "circle", "--seeds", "8", "--duration", "2", "--workers", "2"],
+        cwd=tmp_path,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
     try:
-        first = p.stderr.readline()              # a run has completed: the workers are busy with the next ones
+        first = p.stderr.readline()  # a run has completed: the workers are busy with the next ones
         assert first.startswith("[1/8]"), first
-        os.killpg(p.pid, signal.SIGINT)          # what a terminal's Ctrl-C does: the whole process group
+        os.killpg(p.pid, signal.SIGINT)  # what a terminal's Ctrl-C does: the whole process group
         _, err = p.communicate(timeout=600)
     finally:
         if p.poll() is None:
@@ -84,12 +90,12 @@ class _Tty(io.StringIO):
 
 def test_progress_percentage_text():
     s = _Tty()
-    bar = Progress(200, "circle", stream=s)         # a terminal: enabled
+    bar = Progress(200, "circle", stream=s)  # a terminal: enabled
     for k in range(201):
         bar.update(k)
     bar.close()
     frames = s.getvalue().split("\r")[1:]
-    assert len(frames) == 101                        # one redraw per percent
+    assert len(frames) == 101  # one redraw per percent
     assert frames[50].startswith("circle [############-------------]  50%")
     assert frames[-1].startswith("circle [#########################] 100%") and frames[-1].endswith("s\033[K\n")
 
@@ -99,7 +105,7 @@ def test_progress_count_note_and_log():
     bar = Progress(4, "video x.mp4", unit="frames", stream=s)
     bar.note("opening the renderer")
     assert "0/4 frames" in s.getvalue() and s.getvalue().endswith("opening the renderer\033[K")
-    bar.advance()                                    # progress ends the wait: the note goes
+    bar.advance()  # progress ends the wait: the note goes
     last = s.getvalue().split("\r")[-1]
     assert last.startswith("video x.mp4 [######-------------------] 1/4 frames") and "opening" not in last
     for _ in range(3):
@@ -108,18 +114,18 @@ def test_progress_count_note_and_log():
     bar.close()
     text = s.getvalue()
     assert "4/4 frames" in text and "frames/s" in text
-    assert "\r\033[Kdone: x.mp4\n" in text          # the line is printed above the bar, which is redrawn
+    assert "\r\033[Kdone: x.mp4\n" in text  # the line is printed above the bar, which is redrawn
 
 
 def test_progress_quiet_when_not_a_terminal_but_lines_still_print():
-    s = io.StringIO()                                # not a terminal
+    s = io.StringIO()  # not a terminal
     bar = Progress(3, "sweep", stream=s)
     bar.update(2)
     bar.log("[1/3] a run")
     bar.close()
     assert s.getvalue() == "[1/3] a run\n"
     s = io.StringIO()
-    bar = Progress(3, "sweep", enabled=False, stream=s)     # --quiet
+    bar = Progress(3, "sweep", enabled=False, stream=s)  # --quiet
     bar.update(2)
     bar.log("[1/3] a run")
     bar.close()
@@ -131,8 +137,22 @@ def test_progress_quiet_when_not_a_terminal_but_lines_still_print():
 
 def test_stress_rows_in_case_order_and_table_from_rows(tmp_path, capsys):
     out = tmp_path / "s.json"
-    rc = cli_main(["stress", "--starts", "2", "--followers", "2", "--duration", "1", "--workers", "2",
-                   "--quiet", "--json", str(out)])
+    rc = cli_main(
+        [
+            "stress",
+            "--starts",
+            "2",
+            "--followers",
+            "2",
+            "--duration",
+            "1",
+            "--workers",
+            "2",
+            "--quiet",
+            "--json",
+            str(out),
+        ]
+    )
     assert rc == 0
     data = json.loads(out.read_text())
     rows = data["starts"]

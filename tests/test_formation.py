@@ -44,14 +44,14 @@ T = 0.01  # control period (s), docs/interpretations.md §2
 @pytest.mark.parametrize("n_f", [1, 2, 3, 5, 8, 12])
 def test_polygon_slots_are_a_regular_polygon_of_circumradius_D(n_f):
     D = 1.7
-    off = polygon_offsets(n_f, D)                                     # (n_f, 3)
+    off = polygon_offsets(n_f, D)  # (n_f, 3)
     assert off.shape == (n_f, 3)
     np.testing.assert_allclose(np.hypot(off[:, 0], off[:, 1]), D, atol=1e-12)
     np.testing.assert_allclose(off[:, 2], 0.0)
     ang = np.arctan2(off[:, 1], off[:, 0])
-    expected = np.pi / 2 + 2 * np.pi * np.arange(n_f) / n_f           # docs/interpretations.md §4: π/2 + 2π(k−1)/n_f
+    expected = np.pi / 2 + 2 * np.pi * np.arange(n_f) / n_f  # docs/interpretations.md §4: π/2 + 2π(k−1)/n_f
     np.testing.assert_allclose(np.cos(ang - expected), 1.0, atol=1e-12)
-    if n_f > 1:                                                        # adjacent slots 2·D·sin(π/n_f) apart
+    if n_f > 1:  # adjacent slots 2·D·sin(π/n_f) apart
         gaps = np.linalg.norm(off - np.roll(off, -1, axis=0), axis=1)
         np.testing.assert_allclose(gaps, 2 * D * math.sin(math.pi / n_f), atol=1e-12)
 
@@ -78,10 +78,17 @@ def test_diameter_schedule_is_eq_34():
     assert DiameterSchedule(1.3)(100.0) == 1.3
 
 
-@pytest.mark.parametrize("bad, needle", [
-    (-1.0, "positive"), ([[0.0, 1.0], [5.0, 0.0]], "positive"), ([[1.0, 1.0]], "start at 0"),
-    ([[0.0, 1.0], [5.0, 2.0], [5.0, 3.0]], "increase"), ([], "empty"), ("wide", "number"),
-])
+@pytest.mark.parametrize(
+    "bad, needle",
+    [
+        (-1.0, "positive"),
+        ([[0.0, 1.0], [5.0, 0.0]], "positive"),
+        ([[1.0, 1.0]], "start at 0"),
+        ([[0.0, 1.0], [5.0, 2.0], [5.0, 3.0]], "increase"),
+        ([], "empty"),
+        ("wide", "number"),
+    ],
+)
 def test_diameter_schedule_refuses_bad_input(bad, needle):
     with pytest.raises(UserError, match=needle):
         DiameterSchedule(bad)
@@ -100,9 +107,9 @@ def test_paper_rule_higher_index_hops_up_and_keeps_xy():
     pos = _pair(0.7)
     rule.reset(pos)
     pos_d, steer = rule.update(0.0, pos, pos.copy(), 2.0)
-    assert not steer.any()                                            # the paper's rule steers nobody
-    np.testing.assert_allclose(pos_d[:, :2], pos[:, :2])              # (x, y) unchanged (Fig. 5)
-    np.testing.assert_allclose(pos_d[:, 2], [2.0, 2.0, 2.4])          # follower 2 yields, +0.4 m
+    assert not steer.any()  # the paper's rule steers nobody
+    np.testing.assert_allclose(pos_d[:, :2], pos[:, :2])  # (x, y) unchanged (Fig. 5)
+    np.testing.assert_allclose(pos_d[:, 2], [2.0, 2.0, 2.4])  # follower 2 yields, +0.4 m
     assert [(e["drone"], e["other"], e["action"]) for e in rule.events] == [(2, 1, "up")]
 
 
@@ -111,7 +118,7 @@ def test_paper_rule_hops_down_when_below_and_releases_with_hysteresis():
     pos = _pair(0.7, z1=2.0, z2=1.9)
     rule.reset(pos)
     pos_d, _ = rule.update(0.0, pos, pos.copy(), 2.0)
-    assert pos_d[2, 2] == pytest.approx(1.9 - 0.4)                    # below the other: down
+    assert pos_d[2, 2] == pytest.approx(1.9 - 0.4)  # below the other: down
     # still inside D̄ + hysteresis: keeps the offset; beyond it: released
     for dx, expected in ((0.84, -0.4), (0.86, 0.0)):
         pos = _pair(dx, z1=2.0, z2=1.5)
@@ -189,15 +196,16 @@ def _min_pair_distance(hist: np.ndarray) -> float:
     return float(np.linalg.norm(hist[:, i] - hist[:, j], axis=-1).min())
 
 
-EQ31 = np.array([[0.0, 0.0, 0.0], [1.5, 0.0, 0.0], [3.0, 0.0, 0.0], [-1.5, 0.0, 0.0], [-3.0, 0.0, 0.0],
-                 [0.0, -1.5, 0.0]])
+EQ31 = np.array(
+    [[0.0, 0.0, 0.0], [1.5, 0.0, 0.0], [3.0, 0.0, 0.0], [-1.5, 0.0, 0.0], [-3.0, 0.0, 0.0], [0.0, -1.5, 0.0]]
+)
 
 
 def test_layered_rule_forms_the_pentagon_from_eq_31():
     hist, phases, rule = fly_kinematic(LayeredRule(6), EQ31, _climb_to([0.0, 0.0, 2.0]), duration=12.0)
     end = hist[-1]
     slots = end[0] + polygon_offsets(5, 1.0)
-    np.testing.assert_allclose(end[1:], slots, atol=0.02)             # at its slot, at the leader's altitude
+    np.testing.assert_allclose(end[1:], slots, atol=0.02)  # at its slot, at the leader's altitude
     assert (phases[-1] == FORMED).all()
     kinds = {(e["drone"], e["action"]) for e in rule.events}
     for k in range(1, 6):
@@ -210,31 +218,32 @@ def test_layered_rule_crosses_on_separate_layers():
     for k in range(1, 6):
         zk = hist[:, k, 2][crossing[:, k]]
         assert len(zk)
-        layer = 2.0 + 0.4 * k                                          # formation altitude + k·hop
-        assert zk.min() >= layer - rule.climb_tol - 1e-9, k           # crossing starts near its layer
-        assert zk.max() <= layer + 1e-6, k                             # and never rises past it
+        layer = 2.0 + 0.4 * k  # formation altitude + k·hop
+        assert zk.min() >= layer - rule.climb_tol - 1e-9, k  # crossing starts near its layer
+        assert zk.max() <= layer + 1e-6, k  # and never rises past it
     # drones whose columns pass within two rotor spans of each other are a layer apart
     i, j = np.triu_indices(6, 1)
     h = np.linalg.norm(hist[:, i, :2] - hist[:, j, :2], axis=-1)
     dz = np.abs(hist[:, i, 2] - hist[:, j, 2])
     close = h < 0.7
-    assert close.any()                                                  # the starts do make them cross
+    assert close.any()  # the starts do make them cross
     assert dz[close].min() > 0.3
 
 
 @pytest.mark.parametrize("n_f", [1, 3, 8])
 def test_layered_rule_any_number_of_followers(n_f):
     rng = np.random.default_rng(n_f)
-    starts = np.vstack([[0.0, 0.0, 0.0],
-                        random_follower_starts(np.zeros(3), n_f, RandomStart(radius=3.0, seed=int(rng.integers(99))))])
+    starts = np.vstack(
+        [[0.0, 0.0, 0.0], random_follower_starts(np.zeros(3), n_f, RandomStart(radius=3.0, seed=int(rng.integers(99))))]
+    )
     hist, phases, _ = fly_kinematic(LayeredRule(n_f + 1), starts, _climb_to([0.0, 0.0, 2.0]), duration=15.0)
     end = hist[-1]
     slots = end[0] + polygon_offsets(n_f, 1.0)
     np.testing.assert_allclose(end[1:, :2], slots[:, :2], atol=0.02)
-    if 2 * math.sin(math.pi / n_f) > 0.8:                               # neighbours beyond D̄: all level
+    if 2 * math.sin(math.pi / n_f) > 0.8:  # neighbours beyond D̄: all level
         np.testing.assert_allclose(end[1:, 2], 2.0, atol=0.02)
-    else:                                                               # within D̄ (8 followers, D = 1 m): the
-        assert (np.abs(end[1:, 2] - 2.0) <= 0.4 + 0.02).all()           # paper's rule keeps them a hop apart
+    else:  # within D̄ (8 followers, D = 1 m): the
+        assert (np.abs(end[1:, 2] - 2.0) <= 0.4 + 0.02).all()  # paper's rule keeps them a hop apart
     assert (phases[-1] == FORMED).all()
     assert _min_pair_distance(hist[hist[:, :, 2].min(axis=1) > 0.1]) > 0.35
 
@@ -250,8 +259,8 @@ def test_layered_rule_steers_followers_only_and_hands_consistent_references():
         pos_d = np.vstack([pos[:1], pos[0] + unit])
         pos_d, steer = rule.update(t, pos, pos_d, 0.0)
         assert not steer[0] and steer[1:].all()
-        np.testing.assert_array_equal(pos_d[0], pos[0])                # the leader flies its own reference
-        if prev is not None:                                            # the velocity handed over is the path's
+        np.testing.assert_array_equal(pos_d[0], pos[0])  # the leader flies its own reference
+        if prev is not None:  # the velocity handed over is the path's
             np.testing.assert_allclose((pos_d[1:] - prev[1:]) / T, rule.vel_d[1:], atol=1e-9)
         prev = pos_d.copy()
         pos[1:] = pos_d[1:]
@@ -284,7 +293,7 @@ def test_references_are_update_with_the_steered_rows_taken_from_the_rule(make):
         np.testing.assert_array_equal(got_acc, want_acc)
         formed_seen |= bool(getattr(b, "_all_formed", False))
         pos[1:] = want_pos[1:]
-    assert formed_seen or not isinstance(b, LayeredRule)              # both paths of the layered rule ran
+    assert formed_seen or not isinstance(b, LayeredRule)  # both paths of the layered rule ran
 
 
 def test_altitude_path_respects_its_limits_and_does_not_overshoot():
@@ -322,13 +331,13 @@ def test_crossing_follower_brakes_for_a_lower_index_drone_on_its_altitude():
     closest = np.inf
     for k in range(600):
         pos_d, _ = rule.update(k * T, pos, far.copy(), 2.0)
-        pos[2] = pos_d[2]                                              # follower 2 flies; 1 stays put
-        pos[2, 2] = 2.8                                                 # (and both keep one altitude)
+        pos[2] = pos_d[2]  # follower 2 flies; 1 stays put
+        pos[2, 2] = 2.8  # (and both keep one altitude)
         rule.zp[2] = 2.8
         closest = min(closest, abs(pos[2, 0] - pos[1, 0]))
     assert any(e["action"] == "hold" and e["drone"] == 2 and e["other"] == 1 for e in rule.events)
-    assert closest > 0.6                                                # it stopped outside the rotors' reach
-    assert np.linalg.norm(rule.path_v[2]) < 0.05                        # and holds there
+    assert closest > 0.6  # it stopped outside the rotors' reach
+    assert np.linalg.norm(rule.path_v[2]) < 0.05  # and holds there
 
 
 def test_drop_waits_while_a_drone_in_transit_is_under_the_slot():
@@ -342,8 +351,8 @@ def test_drop_waits_while_a_drone_in_transit_is_under_the_slot():
     pos_d = np.vstack([leader, leader + polygon_offsets(2, 1.0)])
     for k in range(50):
         rule.update(k * T, pos, pos_d.copy(), 2.0)
-    assert rule.phase[1] == CROSS                                       # does not drop onto follower 2
-    pos[2, :2] += [5.0, 5.0]                                            # follower 2 gone
+    assert rule.phase[1] == CROSS  # does not drop onto follower 2
+    pos[2, :2] += [5.0, 5.0]  # follower 2 gone
     for k in range(50, 100):
         rule.update(k * T, pos, pos_d.copy(), 2.0)
     assert rule.phase[1] == FORMED
@@ -351,11 +360,11 @@ def test_drop_waits_while_a_drone_in_transit_is_under_the_slot():
 
 def test_climbing_follower_waits_under_a_hovering_leader_overhead():
     rule = LayeredRule(2)
-    pos = np.array([[0.0, 0.0, 2.0], [0.3, 0.0, 0.0]])               # leader hovers 0.3 m off its column
+    pos = np.array([[0.0, 0.0, 2.0], [0.3, 0.0, 0.0]])  # leader hovers 0.3 m off its column
     hist, phases, _ = fly_kinematic(rule, pos, _hover([0.0, 0.0, 2.0]), duration=6.0)
     under = np.linalg.norm(hist[:, 1, :2] - hist[:, 0, :2], axis=1) < 0.7
     assert under.any()
-    assert (hist[under, 1, 2] <= 2.0 - 0.4 + 1e-6).all()               # hop below the leader while under it
+    assert (hist[under, 1, 2] <= 2.0 - 0.4 + 1e-6).all()  # hop below the leader while under it
     np.testing.assert_allclose(hist[-1, 1], [0.0, 1.0, 2.0], atol=0.02)  # and reaches its slot after
 
 
@@ -366,7 +375,7 @@ def test_random_starts_are_seeded_spaced_and_within_the_radius():
     leader = np.array([0.5, -0.5, 0.0])
     rs = RandomStart(radius=3.0, min_spacing=0.6, seed=7)
     a = random_follower_starts(leader, 5, rs)
-    np.testing.assert_array_equal(a, random_follower_starts(leader, 5, rs))   # same seed, same starts
+    np.testing.assert_array_equal(a, random_follower_starts(leader, 5, rs))  # same seed, same starts
     assert not np.allclose(a, random_follower_starts(leader, 5, RandomStart(3.0, 0.6, seed=8)))
     assert a.shape == (5, 3) and (a[:, 2] == 0.0).all()
     assert (np.linalg.norm(a[:, :2] - leader[:2], axis=1) <= 3.0 + 1e-12).all()
@@ -384,8 +393,9 @@ def test_start_clearance_covers_the_rotor_span():
     assert START_CLEARANCE_M > 2 * (0.25 + 0.09)
 
 
-@pytest.mark.parametrize("n, radius, spacing", [(5, 1.0, 1.5), (30, 1.0, 0.8), (8, 1.0, 1.2), (3, 0.0, 0.6),
-                                                (3, 2.0, -1.0)])
+@pytest.mark.parametrize(
+    "n, radius, spacing", [(5, 1.0, 1.5), (30, 1.0, 0.8), (8, 1.0, 1.2), (3, 0.0, 0.6), (3, 2.0, -1.0)]
+)
 def test_impossible_random_start_is_refused(n, radius, spacing):
     with pytest.raises(UserError, match="followers.random_start"):
         check_random_start_feasible(n, RandomStart(radius=radius, min_spacing=spacing), "x.toml")
@@ -393,14 +403,17 @@ def test_impossible_random_start_is_refused(n, radius, spacing):
 
 def test_tight_request_is_refused_after_max_tries_not_looping():
     rs = RandomStart(radius=1.5, min_spacing=0.75, seed=0, max_tries=200)
-    check_random_start_feasible(12, rs)                                 # passes the packing bound...
-    with pytest.raises(UserError, match="after 200 tries"):             # ...but cannot be drawn
+    check_random_start_feasible(12, rs)  # passes the packing bound...
+    with pytest.raises(UserError, match="after 200 tries"):  # ...but cannot be drawn
         random_follower_starts(np.zeros(3), 12, rs)
 
 
 def _random_scenario(count: int, radius: float, spacing: float) -> dict:
-    return {"duration": 5.0, "leader": {"trajectory": "circle"},
-            "followers": {"count": count, "random_start": {"radius": radius, "min_spacing": spacing, "seed": 1}}}
+    return {
+        "duration": 5.0,
+        "leader": {"trajectory": "circle"},
+        "followers": {"count": count, "random_start": {"radius": radius, "min_spacing": spacing, "seed": 1}},
+    }
 
 
 def test_random_start_request_is_refused_when_the_scenario_is_read():
@@ -415,13 +428,20 @@ def test_random_start_request_is_refused_when_the_scenario_is_read():
 
 def test_impossible_random_start_reaches_the_cli_as_one_line_and_exit_2(tmp_path):
     f = tmp_path / "bad.toml"
-    f.write_text('duration = 5.0\n[leader]\ntrajectory = "circle"\n[followers]\ncount = 6\n'
-                 "[followers.random_start]\nradius = 1.0\nmin_spacing = 2.0\nseed = 1\n")
-    p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", "run", "bad.toml", "--no-record"], cwd=tmp_path,
-                       capture_output=True, text=True, timeout=120)
+    f.write_text(
+        'duration = 5.0\n[leader]\ntrajectory = "circle"\n[followers]\ncount = 6\n'
+        "[followers.random_start]\nradius = 1.0\nmin_spacing = 2.0\nseed = 1\n"
+    )
+    p = subprocess.run(
+        [sys.executable, "-m", "swarm_mj.cli", "run", "bad.toml", "--no-record"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 2, (p.returncode, p.stderr)
     lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1, p.stderr
     assert "bad.toml" in lines[0] and "followers.random_start" in lines[0]
     assert p.stdout == ""
-    assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.toml"]   # nothing flown, nothing written
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.toml"]  # nothing flown, nothing written

@@ -143,7 +143,7 @@ def test_one_batched_call_per_iteration_and_greedy_replacement():
     # Callback: iterations 0..iters, growing history, best-so-far.
     assert [s[0] for s in seen] == list(range(iters + 1))
     assert seen[0][2] == rec.costs[0].min() == r.initial_best_cost
-    for it, bx, bc, h in seen:
+    for it, _bx, bc, h in seen:
         assert h.shape == (it + 1,) and h[-1] == bc
     np.testing.assert_array_equal(seen[-1][1], r.best_x)
     np.testing.assert_array_equal(seen[-1][3], r.history)

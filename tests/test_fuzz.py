@@ -35,17 +35,25 @@ from hypothesis import strategies as st
 
 from swarm_mj import cli
 
-_COMMON = {"deadline": None, "print_blob": True,
-           "suppress_health_check": [HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
-                                     HealthCheck.data_too_large, HealthCheck.filter_too_much]}
+_COMMON = {
+    "deadline": None,
+    "print_blob": True,
+    "suppress_health_check": [
+        HealthCheck.too_slow,
+        HealthCheck.function_scoped_fixture,
+        HealthCheck.data_too_large,
+        HealthCheck.filter_too_much,
+    ],
+}
 settings.register_profile("ci", max_examples=40, derandomize=True, **_COMMON)
 settings.register_profile("long", max_examples=2000, **_COMMON)
 PROFILE = os.environ.get("HYPOTHESIS_PROFILE", "ci")
 if PROFILE not in ("ci", "long"):
     PROFILE = "ci"
 SCENARIO_SETTINGS = settings(settings.get_profile(PROFILE))
-ARGS_SETTINGS = settings(settings.get_profile(PROFILE),
-                         max_examples=max(10, settings.get_profile(PROFILE).max_examples // 4))
+ARGS_SETTINGS = settings(
+    settings.get_profile(PROFILE), max_examples=max(10, settings.get_profile(PROFILE).max_examples // 4)
+)
 SUBPROCESS_SETTINGS = settings(settings.get_profile("ci"), max_examples=4)
 
 MAX_DURATION = 0.5
@@ -93,9 +101,35 @@ def toml_text(data: dict) -> str:
 
 # TOML integers are 64-bit; strings, booleans, lists, tables and non-finite floats: every wrong type.
 WEIRD = st.one_of(
-    st.sampled_from([float("nan"), float("inf"), float("-inf"), 0, -1, 0.0, -0.0, 1e300, -1e300, 2**63 - 1,
-                     -(2**63), 1e-300, "", "x", "big", "origin", "up", True, False, [], [1], [1, 2], [[1, 2, 3]],
-                     {}, {"a": 1}]),
+    st.sampled_from(
+        [
+            float("nan"),
+            float("inf"),
+            float("-inf"),
+            0,
+            -1,
+            0.0,
+            -0.0,
+            1e300,
+            -1e300,
+            2**63 - 1,
+            -(2**63),
+            1e-300,
+            "",
+            "x",
+            "big",
+            "origin",
+            "up",
+            True,
+            False,
+            [],
+            [1],
+            [1, 2],
+            [[1, 2, 3]],
+            {},
+            {"a": 1},
+        ]
+    ),
     st.floats(allow_nan=True, allow_infinity=True),
     st.integers(min_value=-(2**63), max_value=2**63 - 1),
     st.text(max_size=6),
@@ -123,10 +157,20 @@ TRAJ_PARAMS = {
     "step": {"target": point(3, 0.0, 2.0), "yaw_deg": num(-180, 180)},
     "hover": {"position": point(3, 0.0, 2.5), "yaw_deg": num(-180, 180)},
     "lemniscate": {"amplitude": num(-4, 4), "omega": num(-1, 1), "altitude": num(0.2, 3), "center": point(2, -2, 2)},
-    "circle": {"radius": num(-4, 4), "omega": num(-1, 1), "altitude": num(0.2, 3), "climb_rate": num(0, 0.5),
-               "center": point(2, -2, 2)},
-    "ascending_orbit": {"radius": num(-4, 4), "omega": num(-1, 1), "altitude": num(0.2, 3),
-                        "climb_rate": num(0, 0.5), "center": point(2, -2, 2)},
+    "circle": {
+        "radius": num(-4, 4),
+        "omega": num(-1, 1),
+        "altitude": num(0.2, 3),
+        "climb_rate": num(0, 0.5),
+        "center": point(2, -2, 2),
+    },
+    "ascending_orbit": {
+        "radius": num(-4, 4),
+        "omega": num(-1, 1),
+        "altitude": num(0.2, 3),
+        "climb_rate": num(0, 0.5),
+        "center": point(2, -2, 2),
+    },
 }
 TIMING = [(0.01, 0.005), (0.01, 0.01), (0.02, 0.005), (0.01, 0.0025), (0.02, 0.01)]
 
@@ -173,8 +217,10 @@ def scenario_tables(draw, gains_file: str, gains_dir: str) -> dict:
     kind = draw(st.sampled_from(["none", "explicit", "random"]))
     if kind == "explicit" and n:
         # on a ring 1.5-3 m out (valid spacing), then maybe jittered into a clash
-        base = [[r * math.cos(2 * math.pi * k / n), r * math.sin(2 * math.pi * k / n), 0.0]
-                for k, r in zip(range(n), draw(st.lists(num(1.5, 3.0), min_size=n, max_size=n)))]
+        base = [
+            [r * math.cos(2 * math.pi * k / n), r * math.sin(2 * math.pi * k / n), 0.0]
+            for k, r in zip(range(n), draw(st.lists(num(1.5, 3.0), min_size=n, max_size=n)))
+        ]
         if draw(st.integers(0, 5)) == 0 and n >= 2:
             base[1] = [base[0][0] + draw(num(-0.3, 0.3)), base[0][1], base[0][2]]
         fol["start"] = m(st.just(base))
@@ -199,13 +245,20 @@ def scenario_tables(draw, gains_file: str, gains_dir: str) -> dict:
     if opt():
         form: dict = {}
         if opt():
-            form["diameter"] = m(st.one_of(num(0.5, 2.0),
-                                           st.tuples(num(0.5, 2.0), num(0.5, 2.0))
-                                           .map(lambda d: [[0.0, d[0]], [0.2, d[1]]])))
+            form["diameter"] = m(
+                st.one_of(
+                    num(0.5, 2.0), st.tuples(num(0.5, 2.0), num(0.5, 2.0)).map(lambda d: [[0.0, d[0]], [0.2, d[1]]])
+                )
+            )
         if opt():
             form["anti_collision"] = m(st.sampled_from(["layers", "paper", "off"]))
-        for k, lo, hi in (("safety_distance", 0.3, 1.5), ("hop", 0.1, 0.8), ("hysteresis", 0.01, 0.2),
-                          ("arrive", 0.05, 0.5), ("sensing_range", 1.0, 8.0)):
+        for k, lo, hi in (
+            ("safety_distance", 0.3, 1.5),
+            ("hop", 0.1, 0.8),
+            ("hysteresis", 0.01, 0.2),
+            ("arrive", 0.05, 0.5),
+            ("sensing_range", 1.0, 8.0),
+        ):
             if draw(st.integers(0, 3)) == 0:
                 form[k] = m(num(lo, hi))
         data["formation"] = form
@@ -213,9 +266,15 @@ def scenario_tables(draw, gains_file: str, gains_dir: str) -> dict:
     if opt():
         ctl: dict = {}
         if opt():
-            ctl["gains"] = m(st.one_of(st.just("table4"), st.just(gains_file), st.just(gains_dir),
-                                       st.just("missing_gains.toml"),
-                                       st.lists(num(0.5, 12.0), min_size=12, max_size=12)))
+            ctl["gains"] = m(
+                st.one_of(
+                    st.just("table4"),
+                    st.just(gains_file),
+                    st.just(gains_dir),
+                    st.just("missing_gains.toml"),
+                    st.lists(num(0.5, 12.0), min_size=12, max_size=12),
+                )
+            )
         if opt():
             ctl["wind_feedforward"] = m(st.booleans())
         if opt():
@@ -233,8 +292,9 @@ def scenario_tables(draw, gains_file: str, gains_dir: str) -> dict:
         if draw(st.integers(0, 3)) == 0:
             wind["sinusoids_x"] = m(st.lists(point(3, -2, 2), max_size=2))
         if draw(st.integers(0, 3)) == 0:
-            wind["schedule"] = m(st.lists(st.tuples(num(0, 0.2), num(0.3, 1.0), st.sampled_from(["x", "y", "xy"]))
-                                          .map(list), max_size=2))
+            wind["schedule"] = m(
+                st.lists(st.tuples(num(0, 0.2), num(0.3, 1.0), st.sampled_from(["x", "y", "xy"])).map(list), max_size=2)
+            )
         for k in ("rho", "cd", "area"):
             if draw(st.integers(0, 5)) == 0:
                 wind[k] = m(num(0, 2))
@@ -275,10 +335,10 @@ def call_cli(argv: list[str]) -> Outcome:
 
     out, err = io.StringIO(), io.StringIO()
     with pytest.MonkeyPatch.context() as mp, contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
-        mp.setattr(atomic, "write_json_atomic", spy)        # undone after each example
+        mp.setattr(atomic, "write_json_atomic", spy)  # undone after each example
         try:
             rc = cli.main(argv)
-        except SystemExit as exc:                       # argparse: usage errors exit 2, --help 0
+        except SystemExit as exc:  # argparse: usage errors exit 2, --help 0
             rc = exc.code if isinstance(exc.code, int) else 2
     return Outcome(rc, err.getvalue(), seen.get("summary"))
 
@@ -288,8 +348,11 @@ def check(o: Outcome, summary_path: Path | None) -> None:
     assert o.rc in (0, 1, 2), (o.rc, o.err)
     assert "Traceback" not in o.err, o.err
     if o.rc == 2 or (o.rc == 1 and o.summary is None):
-        lines = [ln for ln in o.err.splitlines() if ln.startswith(("swarm-mj: error:", "swarm-mj run: error:"))
-                 or "usage:" in ln]
+        lines = [
+            ln
+            for ln in o.err.splitlines()
+            if ln.startswith(("swarm-mj: error:", "swarm-mj run: error:")) or "usage:" in ln
+        ]
         assert lines, o.err
     if o.rc == 0 and summary_path is not None:
         assert o.summary is not None
@@ -309,7 +372,7 @@ def files(tmp_path_factory):
 @given(data=st.data())
 def test_fuzz_scenario_tables(files, data):
     table = data.draw(scenario_tables(str(files / "gains.toml"), str(files / "gainsdir")))
-    if data.draw(st.integers(0, 40)) == 0:        # now and then a file that is not TOML at all
+    if data.draw(st.integers(0, 40)) == 0:  # now and then a file that is not TOML at all
         text = data.draw(st.sampled_from(["[leader", "duration = ", "x = 1\nx = 2", "\x00\xff", "= 3"]))
     else:
         text = toml_text(table)
@@ -340,8 +403,21 @@ FLAGS = ["--no-record", "--quiet", "--spawn-not-an-option", "--help"]
 
 @st.composite
 def arg_lists(draw) -> list[str]:
-    scen = draw(st.sampled_from(["circle", "step", "hover_missing", "circle_single", "anti_collision",
-                                 "wind_lemniscate", "nodir/x.toml", "GAINSDIR", ""]))
+    scen = draw(
+        st.sampled_from(
+            [
+                "circle",
+                "step",
+                "hover_missing",
+                "circle_single",
+                "anti_collision",
+                "wind_lemniscate",
+                "nodir/x.toml",
+                "GAINSDIR",
+                "",
+            ]
+        )
+    )
     args = ["run", scen]
     for opt in draw(st.lists(st.sampled_from(sorted(OPTION_VALUES)), max_size=4, unique=True)):
         args += [opt, draw(st.sampled_from(OPTION_VALUES[opt]))]
@@ -362,8 +438,7 @@ def test_fuzz_cli_arguments(files, monkeypatch, argv):
     monkeypatch.chdir(files)
     for name in ("s.json", "r.rrd"):
         (files / name).unlink(missing_ok=True)
-    argv = [a.replace("GAINSDIR", str(files / "gainsdir")).replace("GAINS", str(files / "gains.toml"))
-            for a in argv]
+    argv = [a.replace("GAINSDIR", str(files / "gainsdir")).replace("GAINS", str(files / "gains.toml")) for a in argv]
     o = call_cli(argv)
     check(o, files / "s.json" if "s.json" in argv and "--help" not in argv else None)
 
@@ -377,11 +452,17 @@ def test_fuzz_scenarios_in_a_subprocess(files, table):
     out.unlink(missing_ok=True)
     root = str(Path(__file__).resolve().parents[1])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
-    p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", "run", str(scen), "--no-record", "--quiet",
-                        "--summary", str(out)], cwd=files, capture_output=True, text=True, env=env, timeout=600,
-                       stdin=subprocess.DEVNULL, check=False)
+    p = subprocess.run(
+        [sys.executable, "-m", "swarm_mj.cli", "run", str(scen), "--no-record", "--quiet", "--summary", str(out)],
+        cwd=files,
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=600,
+        stdin=subprocess.DEVNULL,
+        check=False,
+    )
     assert p.returncode in (0, 1, 2), p.stderr
     assert "Traceback" not in p.stderr, p.stderr
     if p.returncode == 0:
         json.loads(out.read_text(), parse_constant=lambda c: pytest.fail(f"{c} in the summary file"))
-

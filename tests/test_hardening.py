@@ -49,11 +49,28 @@ gains = {gains}
 """
 
 
-def scenario_file(tmp_path: Path, *, duration="0.3", control_period="0.01", trajectory="circle", params="",
-                  followers="[[1.5, 0.0, 0.0], [-1.5, 0.0, 0.0]]", gains='"table4"', name="s.toml") -> Path:
+def scenario_file(
+    tmp_path: Path,
+    *,
+    duration="0.3",
+    control_period="0.01",
+    trajectory="circle",
+    params="",
+    followers="[[1.5, 0.0, 0.0], [-1.5, 0.0, 0.0]]",
+    gains='"table4"',
+    name="s.toml",
+) -> Path:
     p = tmp_path / name
-    p.write_text(CIRCLE.format(duration=duration, control_period=control_period, trajectory=trajectory,
-                               params=params, followers=followers, gains=gains))
+    p.write_text(
+        CIRCLE.format(
+            duration=duration,
+            control_period=control_period,
+            trajectory=trajectory,
+            params=params,
+            followers=followers,
+            gains=gains,
+        )
+    )
     return p
 
 
@@ -127,12 +144,24 @@ def test_tune_output_checked_first(tmp_path, monkeypatch, capsys, out):
 
 
 def test_json_safe_is_strict_and_converts_numpy():
-    data = {"a": float("nan"), "b": [float("inf"), -np.inf, np.float32(1.5)], "c": np.arange(3),
-            "d": np.int64(7), "e": (np.bool_(True), None), "f": {"g": np.array([np.nan, 2.0])}}
+    data = {
+        "a": float("nan"),
+        "b": [float("inf"), -np.inf, np.float32(1.5)],
+        "c": np.arange(3),
+        "d": np.int64(7),
+        "e": (np.bool_(True), None),
+        "f": {"g": np.array([np.nan, 2.0])},
+    }
     text = dumps_strict(data)
     back = json.loads(text, parse_constant=lambda c: pytest.fail(f"non-strict constant {c}"))
-    assert back == {"a": None, "b": [None, None, 1.5], "c": [0, 1, 2], "d": 7, "e": [True, None],
-                    "f": {"g": [None, 2.0]}}
+    assert back == {
+        "a": None,
+        "b": [None, None, 1.5],
+        "c": [0, 1, 2],
+        "d": 7,
+        "e": [True, None],
+        "f": {"g": [None, 2.0]},
+    }
     assert json_safe(float("nan")) is None
 
 
@@ -143,7 +172,7 @@ def test_regular_file_is_replaced_atomically_and_keeps_its_mode(tmp_path):
     write_json_atomic(p, {"x": 1})
     assert json.loads(p.read_text()) == {"x": 1}
     assert stat.S_IMODE(p.stat().st_mode) == 0o640
-    assert [q.name for q in tmp_path.iterdir()] == ["s.json"]          # no temporary file left
+    assert [q.name for q in tmp_path.iterdir()] == ["s.json"]  # no temporary file left
 
 
 def test_symlink_is_written_through_to_its_target(tmp_path):
@@ -160,6 +189,7 @@ def _fifo_reader(path: Path, out: list) -> threading.Thread:
     def read():
         with open(path, "rb") as f:
             out.append(f.read())
+
     t = threading.Thread(target=read, daemon=True)
     t.start()
     return t
@@ -198,15 +228,20 @@ def test_run_summary_into_a_fifo(tmp_path, capsys):
     assert json.loads(got[0])["scenario"] == "circle"
 
 
-@pytest.mark.skipif(not (os.path.exists("/dev/full") and stat.S_ISCHR(os.stat("/dev/full").st_mode)
-                         and os.access("/dev/full", os.W_OK)), reason="no writable /dev/full")
+@pytest.mark.skipif(
+    not (
+        os.path.exists("/dev/full") and stat.S_ISCHR(os.stat("/dev/full").st_mode) and os.access("/dev/full", os.W_OK)
+    ),
+    reason="no writable /dev/full",
+)
 def test_dev_full_is_a_one_line_error_and_stays_a_device(monkeypatch, capsys):
     # A regression must fail here, not replace the device node: os.replace may not be reached.
     monkeypatch.setattr(os, "replace", lambda *a: pytest.fail("tried to replace /dev/full"))
     with pytest.raises(OutputError, match="No space left"):
         write_text_atomic("/dev/full", "x" * 10)
-    line = cli_error(capsys, ["run", "circle", "--duration", "0.2", "--no-record", "--quiet",
-                              "--summary", "/dev/full"], code=1)
+    line = cli_error(
+        capsys, ["run", "circle", "--duration", "0.2", "--no-record", "--quiet", "--summary", "/dev/full"], code=1
+    )
     assert "/dev/full" in line
     assert stat.S_ISCHR(os.stat("/dev/full").st_mode)
 
@@ -215,9 +250,8 @@ def test_recording_through_a_symlink_keeps_the_link(tmp_path, monkeypatch, capsy
     monkeypatch.chdir(tmp_path)
     (tmp_path / "runs").mkdir()
     link = tmp_path / "latest.rrd"
-    link.symlink_to("runs/real.rrd")                     # dangling until the run writes its target
-    assert cli.main(["run", "circle", "--duration", "0.2", "--quiet", "-o", "latest.rrd"]) == 0, \
-        capsys.readouterr().err
+    link.symlink_to("runs/real.rrd")  # dangling until the run writes its target
+    assert cli.main(["run", "circle", "--duration", "0.2", "--quiet", "-o", "latest.rrd"]) == 0, capsys.readouterr().err
     assert link.is_symlink() and (tmp_path / "runs" / "real.rrd").stat().st_size > 0
     assert not list(tmp_path.rglob("*.partial"))
 
@@ -231,19 +265,23 @@ def test_dash_is_standard_output(capsys):
 # --------------------------------------------------------------------------- items 5-9: the scenario
 
 
-@pytest.mark.parametrize("trajectory, params, field, problem", [
-    ("circle", 'params = { radius = "big" }', "leader.params.radius", "must be a number"),
-    ("circle", 'params = { center = "origin" }', "leader.params.center", "list of 2 numbers"),
-    ("step", 'params = { target = "up" }', "leader.params.target", "list of 3 numbers"),
-    ("step", "params = { target = [1, 1] }", "leader.params.target", "list of 3 numbers"),
-    ("circle", "params = { omega = nan }", "leader.params.omega", "finite"),
-    ("circle", "params = { omega = 1e200 }", "leader.params", "not finite"),
-    ("circle", "params = { altitude = -1.0 }", "leader.params", "below the ground"),
-    ("circle", "params = { spin = 1.0 }", "leader.params.spin", "unknown parameter"),
-    ("step", 'params = { yaw_deg = true }', "leader.params.yaw_deg", "must be a number"),
-])
-def test_trajectory_parameters_named_before_the_run(tmp_path, monkeypatch, capsys, no_flight, trajectory, params,
-                                                    field, problem):
+@pytest.mark.parametrize(
+    "trajectory, params, field, problem",
+    [
+        ("circle", 'params = { radius = "big" }', "leader.params.radius", "must be a number"),
+        ("circle", 'params = { center = "origin" }', "leader.params.center", "list of 2 numbers"),
+        ("step", 'params = { target = "up" }', "leader.params.target", "list of 3 numbers"),
+        ("step", "params = { target = [1, 1] }", "leader.params.target", "list of 3 numbers"),
+        ("circle", "params = { omega = nan }", "leader.params.omega", "finite"),
+        ("circle", "params = { omega = 1e200 }", "leader.params", "not finite"),
+        ("circle", "params = { altitude = -1.0 }", "leader.params", "below the ground"),
+        ("circle", "params = { spin = 1.0 }", "leader.params.spin", "unknown parameter"),
+        ("step", "params = { yaw_deg = true }", "leader.params.yaw_deg", "must be a number"),
+    ],
+)
+def test_trajectory_parameters_named_before_the_run(
+    tmp_path, monkeypatch, capsys, no_flight, trajectory, params, field, problem
+):
     monkeypatch.chdir(tmp_path)
     f = scenario_file(tmp_path, trajectory=trajectory, params=params)
     line = cli_error(capsys, ["run", f, "--summary", "s.json"])
@@ -251,11 +289,14 @@ def test_trajectory_parameters_named_before_the_run(tmp_path, monkeypatch, capsy
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.toml"]
 
 
-@pytest.mark.parametrize("followers, pair", [
-    ("[[1.5, 0.0, 0.0], [1.5, 0.0, 0.0]]", "follower1 and follower2"),
-    ("[[1.5, 0.0, 0.0], [1.61, 0.0, 0.0]]", "follower1 and follower2"),
-    ("[[0.3, 0.4, 0.0], [-1.5, 0.0, 0.0]]", "leader and follower1"),
-])
+@pytest.mark.parametrize(
+    "followers, pair",
+    [
+        ("[[1.5, 0.0, 0.0], [1.5, 0.0, 0.0]]", "follower1 and follower2"),
+        ("[[1.5, 0.0, 0.0], [1.61, 0.0, 0.0]]", "follower1 and follower2"),
+        ("[[0.3, 0.4, 0.0], [-1.5, 0.0, 0.0]]", "leader and follower1"),
+    ],
+)
 def test_explicit_starts_too_close_are_refused(tmp_path, monkeypatch, capsys, no_flight, followers, pair):
     monkeypatch.chdir(tmp_path)
     f = scenario_file(tmp_path, followers=followers)
@@ -267,7 +308,7 @@ def test_explicit_starts_too_close_are_refused(tmp_path, monkeypatch, capsys, no
 def test_explicit_starts_spacing_boundary_and_ground():
     base = {"duration": 1.0, "leader": {"trajectory": "hover"}}
     ok = {**base, "followers": {"start": [[START_CLEARANCE_M, 0.0, 0.0], [0.0, START_CLEARANCE_M, 0.0]]}}
-    assert parse_scenario(ok).n_followers == 2                         # exactly the clearance: accepted
+    assert parse_scenario(ok).n_followers == 2  # exactly the clearance: accepted
     near = {**base, "followers": {"start": [[START_CLEARANCE_M - 1e-3, 0.0, 0.0], [0.0, 2.0, 0.0]]}}
     with pytest.raises(UserError, match="apart"):
         parse_scenario(near)
@@ -278,20 +319,24 @@ def test_explicit_starts_spacing_boundary_and_ground():
         parse_scenario({**base, "leader": {"trajectory": "hover", "start": [0, 0, -1]}})
     # every bundled scenario passes
     from swarm_mj.scenario import bundled_scenarios
+
     for name in bundled_scenarios():
         load_scenario(name)
 
 
-@pytest.mark.parametrize("argv_tail, field, problem", [
-    (["--duration", "inf"], "--duration", "finite"),
-    (["--duration", "nan"], "--duration", "finite"),
-    (["--duration", "1e9"], "--duration", "GiB"),
-    (["--duration", "-1"], "--duration", "positive"),
-    (["--duration", "0.001"], "--duration", "shorter than one control period"),
-    (["--seed", "-1"], "--seed", ">= 0"),
-    (["--seed", str(MAX_SEED + 1)], "--seed", str(MAX_SEED)),
-    (["--gains", "/"], "/", "folder"),
-])
+@pytest.mark.parametrize(
+    "argv_tail, field, problem",
+    [
+        (["--duration", "inf"], "--duration", "finite"),
+        (["--duration", "nan"], "--duration", "finite"),
+        (["--duration", "1e9"], "--duration", "GiB"),
+        (["--duration", "-1"], "--duration", "positive"),
+        (["--duration", "0.001"], "--duration", "shorter than one control period"),
+        (["--seed", "-1"], "--seed", ">= 0"),
+        (["--seed", str(MAX_SEED + 1)], "--seed", str(MAX_SEED)),
+        (["--gains", "/"], "/", "folder"),
+    ],
+)
 def test_extreme_options_one_line(tmp_path, monkeypatch, capsys, no_flight, argv_tail, field, problem):
     monkeypatch.chdir(tmp_path)
     line = cli_error(capsys, ["run", "circle", *argv_tail])
@@ -299,14 +344,18 @@ def test_extreme_options_one_line(tmp_path, monkeypatch, capsys, no_flight, argv
     assert list(tmp_path.iterdir()) == []
 
 
-@pytest.mark.parametrize("duration, control_period, field, problem", [
-    ("1e9", "0.01", "duration", "GiB"),
-    ("0.005", "0.01", "control_period", "longer than the duration"),
-    ("0.3", "0.5", "control_period", "longer than the duration"),
-    ("inf", "0.01", "duration", "finite"),
-])
-def test_file_durations_against_control_period_and_memory(tmp_path, monkeypatch, capsys, no_flight, duration,
-                                                          control_period, field, problem):
+@pytest.mark.parametrize(
+    "duration, control_period, field, problem",
+    [
+        ("1e9", "0.01", "duration", "GiB"),
+        ("0.005", "0.01", "control_period", "longer than the duration"),
+        ("0.3", "0.5", "control_period", "longer than the duration"),
+        ("inf", "0.01", "duration", "finite"),
+    ],
+)
+def test_file_durations_against_control_period_and_memory(
+    tmp_path, monkeypatch, capsys, no_flight, duration, control_period, field, problem
+):
     monkeypatch.chdir(tmp_path)
     f = scenario_file(tmp_path, duration=duration, control_period=control_period)
     line = cli_error(capsys, ["run", f])
@@ -318,7 +367,7 @@ def test_memory_estimate_counts_steps_drones_and_fields(monkeypatch):
 
     assert run_log_bytes(99, 6) == 8 * 100 * (33 * 6 + 35)
     assert scenario.available_memory_bytes() is None or scenario.available_memory_bytes() > 0
-    avail = 2**30                                             # pretend 1 GiB is available
+    avail = 2**30  # pretend 1 GiB is available
     monkeypatch.setattr(scenario, "available_memory_bytes", lambda: avail)
     # the largest accepted duration's log is at most half the memory; a little more is refused
     n = 6
@@ -359,11 +408,21 @@ def test_gains_file_with_the_wrong_number_of_rows(tmp_path, monkeypatch, capsys,
 
 def test_reproducers_in_a_subprocess_leave_nothing(tmp_path):
     """Two of the issue's reproducers as a user types them: one line, exit 2, nothing written."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]),
-                                                        os.environ.get("PYTHONPATH", "")])}
+    env = {
+        **os.environ,
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+    }
     for argv in (["run", "circle", "--duration", "inf"], ["run", "circle", "-o", "nodir/x.rrd"]):
-        p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", *argv], cwd=tmp_path, capture_output=True,
-                           text=True, env=env, timeout=300, stdin=subprocess.DEVNULL, check=False)
+        p = subprocess.run(
+            [sys.executable, "-m", "swarm_mj.cli", *argv],
+            cwd=tmp_path,
+            capture_output=True,
+            text=True,
+            env=env,
+            timeout=300,
+            stdin=subprocess.DEVNULL,
+            check=False,
+        )
         assert p.returncode == 2 and "Traceback" not in p.stderr, p.stderr
         assert len(p.stderr.strip().splitlines()) == 1
     assert list(tmp_path.iterdir()) == []
@@ -373,9 +432,13 @@ def test_reproducers_in_a_subprocess_leave_nothing(tmp_path):
 
 
 def _random_start_table(seed: int = 0) -> dict:
-    return {"duration": 0.5, "seed": seed, "leader": {"trajectory": "circle"},
-            "followers": {"count": 3, "random_start": {"radius": 3.0, "min_spacing": 0.6, "seed": 11}},
-            "wind": {"enabled": True}}
+    return {
+        "duration": 0.5,
+        "seed": seed,
+        "leader": {"trajectory": "circle"},
+        "followers": {"count": 3, "random_start": {"radius": 3.0, "min_spacing": 0.6, "seed": 11}},
+        "wind": {"enabled": True},
+    }
 
 
 def test_with_overrides_seed_rederives_random_starts_and_wind():
@@ -401,23 +464,40 @@ def test_stress_seed_replayed_by_run(tmp_path, monkeypatch, capsys):
     row = fly_case(case)
     f = tmp_path / "stress.toml"
     f.write_text(scenario_toml(stress_data(StressCase("layers", 0, 3, 2.5, 0.6, 1.0))))
-    rc = cli.main(["run", str(f), "--seed", "3", "--anti-collision", "paper", "--no-record", "--quiet",
-                   "--summary", "s.json"])
+    rc = cli.main(
+        ["run", str(f), "--seed", "3", "--anti-collision", "paper", "--no-record", "--quiet", "--summary", "s.json"]
+    )
     assert rc == 0, capsys.readouterr().err
     s = json.loads(Path("s.json").read_text())
     assert s["contacts"] == row["contacts"]
     assert s["min_separation_m"] == row["min_separation_m"]
     # and a different seed flies different starts
-    rc = cli.main(["run", str(f), "--seed", "4", "--anti-collision", "paper", "--no-record", "--quiet",
-                   "--summary", "s4.json"])
+    rc = cli.main(
+        ["run", str(f), "--seed", "4", "--anti-collision", "paper", "--no-record", "--quiet", "--summary", "s4.json"]
+    )
     assert rc == 0
     assert json.loads(Path("s4.json").read_text())["min_separation_m"] != row["min_separation_m"]
 
 
 def test_stress_prints_the_replay_command(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
-    rc = cli.main(["stress", "--rule", "off", "--starts", "2", "--followers", "2", "--duration", "0.3",
-                   "--workers", "1", "--save-scenario", "st.toml"])
+    rc = cli.main(
+        [
+            "stress",
+            "--rule",
+            "off",
+            "--starts",
+            "2",
+            "--followers",
+            "2",
+            "--duration",
+            "0.3",
+            "--workers",
+            "1",
+            "--save-scenario",
+            "st.toml",
+        ]
+    )
     out = capsys.readouterr().out
     assert rc == 0
     replay = [ln for ln in out.splitlines() if "replay: swarm-mj run st.toml --seed" in ln]
@@ -433,8 +513,12 @@ def test_sweep_prints_a_replay_command_that_flies_the_same_run(tmp_path, monkeyp
     monkeypatch.chdir(tmp_path)
     f = tmp_path / "rs.toml"
     f.write_text(scenario_toml(_random_start_table()))
-    assert cli.main(["sweep", str(f), "--seeds", "3", "--duration", "0.3", "--workers", "1", "--quiet",
-                     "--json", "sw.json"]) == 0
+    assert (
+        cli.main(
+            ["sweep", str(f), "--seeds", "3", "--duration", "0.3", "--workers", "1", "--quiet", "--json", "sw.json"]
+        )
+        == 0
+    )
     out = capsys.readouterr().out
     line = next(ln for ln in out.splitlines() if "replay: swarm-mj run" in ln)
     argv = shlex.split(line.split("replay: ", 1)[1])[1:]
@@ -453,6 +537,7 @@ def test_sweep_prints_a_replay_command_that_flies_the_same_run(tmp_path, monkeyp
 
 def _fmt(summary: dict, sc) -> str:
     from swarm_mj.report_table import format_summary
+
     return format_summary(summary, sc)
 
 
@@ -462,10 +547,10 @@ def test_summary_text_of_a_short_run_that_never_settled(tmp_path, monkeypatch, c
     out = capsys.readouterr().out
     assert rc == 0
     s = json.loads(Path("s.json").read_text())
-    assert s["formation"]["settling_s"] == [None]                    # strict JSON: never settled -> null
+    assert s["formation"]["settling_s"] == [None]  # strict JSON: never settled -> null
     assert not re.search(r"never s\b", out) and "never settled" in out
-    assert "once settled" not in out                                 # no "max 0.0 cm once settled"
-    assert "from t = 10 s" not in out and ">10s" not in out          # a 0.5 s run has no steady part
+    assert "once settled" not in out  # no "max 0.0 cm once settled"
+    assert "from t = 10 s" not in out and ">10s" not in out  # a 0.5 s run has no steady part
     assert "SPEC" not in out
     # the same text from the summary read back from JSON
     text = _fmt(s, load_scenario("circle"))
@@ -474,17 +559,29 @@ def test_summary_text_of_a_short_run_that_never_settled(tmp_path, monkeypatch, c
 
 def test_summary_text_of_a_long_run_cites_the_docs():
     sc = load_scenario("circle_single")
-    s = {"scenario": "x", "sim_time_s": 20.0, "wall_time_s": 1.0, "real_time_factor": 20.0, "n_drones": 1,
-         "seed": 0, "wind": False,
-         "drones": {"leader": {"rmse": dict.fromkeys(("x", "y", "z", "roll_deg", "pitch_deg"), 0.1),
-                               "rmse_steady": dict.fromkeys(("x", "y", "z", "roll_deg", "pitch_deg"), 0.01),
-                               "max_rotor_thrust_n": 3.0}}}
+    s = {
+        "scenario": "x",
+        "sim_time_s": 20.0,
+        "wall_time_s": 1.0,
+        "real_time_factor": 20.0,
+        "n_drones": 1,
+        "seed": 0,
+        "wind": False,
+        "drones": {
+            "leader": {
+                "rmse": dict.fromkeys(("x", "y", "z", "roll_deg", "pitch_deg"), 0.1),
+                "rmse_steady": dict.fromkeys(("x", "y", "z", "roll_deg", "pitch_deg"), 0.01),
+                "max_rotor_thrust_n": 3.0,
+            }
+        },
+    }
     text = _fmt(s, sc)
     assert "from t = 10 s on, docs/interpretations.md" in text and "SPEC" not in text
 
 
 def test_interrupt_with_no_record_does_not_claim_a_recording(tmp_path, monkeypatch, capsys):
     from swarm_mj import runner
+
     real = runner.run
 
     def interrupted(*a, **k):

@@ -40,10 +40,15 @@ def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Hamilton product of quaternions (..., 4), (w, x, y, z)."""
     aw, ax, ay, az = np.moveaxis(a, -1, 0)
     bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz,
-                     aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx,
-                     aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+    return np.stack(
+        [
+            aw * bw - ax * bx - ay * by - az * bz,
+            aw * bx + ax * bw + ay * bz - az * by,
+            aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw,
+        ],
+        axis=-1,
+    )
 
 
 def qconj(q: np.ndarray) -> np.ndarray:
@@ -57,8 +62,7 @@ def q_axis_angle(axis, angle) -> np.ndarray:
 
 def q_from_zyx(roll: float, pitch: float, yaw: float) -> np.ndarray:
     """R = Rz(yaw)·Ry(pitch)·Rx(roll) as a product of elementary rotations."""
-    return qmul(qmul(q_axis_angle([0, 0, 1], yaw), q_axis_angle([0, 1, 0], pitch)),
-                q_axis_angle([1, 0, 0], roll))
+    return qmul(qmul(q_axis_angle([0, 0, 1], yaw), q_axis_angle([0, 1, 0], pitch)), q_axis_angle([1, 0, 0], roll))
 
 
 def rot_x(a):
@@ -104,9 +108,14 @@ def angle_between(q1: np.ndarray, q2: np.ndarray) -> np.ndarray:
 
 def zyx_from_R(R: np.ndarray) -> np.ndarray:
     """(roll, pitch, yaw) (..., 3) of R = Rz·Ry·Rx, read off the matrix entries."""
-    return np.stack([np.arctan2(R[..., 2, 1], R[..., 2, 2]),
-                     -np.arcsin(np.clip(R[..., 2, 0], -1, 1)),
-                     np.arctan2(R[..., 1, 0], R[..., 0, 0])], axis=-1)
+    return np.stack(
+        [
+            np.arctan2(R[..., 2, 1], R[..., 2, 2]),
+            -np.arcsin(np.clip(R[..., 2, 0], -1, 1)),
+            np.arctan2(R[..., 1, 0], R[..., 0, 0]),
+        ],
+        axis=-1,
+    )
 
 
 def newton_euler(y: np.ndarray, U: np.ndarray, F_ext: np.ndarray) -> np.ndarray:
@@ -192,7 +201,7 @@ def test_mass_and_inertia_match_table1(n):
     free = free_body_ids(world)
     assert len(free) == n
     np.testing.assert_allclose(m.body_subtreemass[free], M, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(m.body_subtreemass[0], n * M, rtol=1e-12)   # nothing else has mass
+    np.testing.assert_allclose(m.body_subtreemass[0], n * M, rtol=1e-12)  # nothing else has mass
     # The joint-space mass matrix is what the dynamics use: for a free body with its centre of
     # mass at the joint origin it is diag(m, m, m, Ix, Iy, Iz) in any orientation.
     d = mujoco.MjData(m)
@@ -211,7 +220,7 @@ def test_hover_holds_altitude():
     p0 = np.array([[0.3, -0.2, 1.0]])
     sim = Sim(build_world(1, positions=p0))
     U = np.array([[HOVER, 0.0, 0.0, 0.0]])
-    for _ in range(1000):       # 10 s
+    for _ in range(1000):  # 10 s
         sim.step(U)
     assert sim.time == pytest.approx(10.0)
     drift = np.abs(sim.pos - p0).max()
@@ -252,9 +261,9 @@ def test_thrust_acts_along_body_z():
     np.testing.assert_allclose(d.qacc[0:3], a_expected, rtol=0, atol=1e-12)
     np.testing.assert_allclose(d.qacc[3:6], 0.0, atol=1e-12)
     thrust_dir = (d.qacc[0:3] - GRAV) / np.linalg.norm(d.qacc[0:3] - GRAV)
-    np.testing.assert_allclose(thrust_dir, R[:, 2], atol=1e-12)         # the drone's own z axis
+    np.testing.assert_allclose(thrust_dir, R[:, 2], atol=1e-12)  # the drone's own z axis
     assert np.degrees(np.arccos(thrust_dir[2])) == pytest.approx(np.degrees(np.arccos(R[2, 2])), abs=1e-9)
-    assert thrust_dir[2] < 0.9                                          # not world z
+    assert thrust_dir[2] < 0.9  # not world z
     # finite difference: 10 ms of motion (2 RK4 steps) is exactly p0 + a t²/2 (constant acceleration)
     p0 = d.qpos[0:3].copy()
     for _ in range(2):
@@ -313,7 +322,7 @@ def test_torque_motors_on_the_free_joint_give_the_site_wrench():
         mujoco.mj_forward(w.model, datas[k])
     np.testing.assert_allclose(datas["joint"].qfrc_actuator, datas["site"].qfrc_actuator, rtol=0, atol=1e-12)
     np.testing.assert_allclose(datas["joint"].qacc, datas["site"].qacc, rtol=1e-12, atol=1e-10)
-    for _ in range(200):                      # 1 s of tumbling flight under the same inputs
+    for _ in range(200):  # 1 s of tumbling flight under the same inputs
         for k, w in worlds.items():
             mujoco.mj_step(w.model, datas[k])
     np.testing.assert_allclose(datas["joint"].qpos, datas["site"].qpos, rtol=0, atol=1e-9)
@@ -331,12 +340,16 @@ def test_euler_equations(torque):
     mujoco.mj_forward(world.model, d)
     tau = L * np.asarray(torque)
     Iw = INERTIA * w
-    gyro = np.array([w[1] * Iw[2] - w[2] * Iw[1],          # ω × Iω written out
-                     w[2] * Iw[0] - w[0] * Iw[2],
-                     w[0] * Iw[1] - w[1] * Iw[0]])
+    gyro = np.array(
+        [
+            w[1] * Iw[2] - w[2] * Iw[1],  # ω × Iω written out
+            w[2] * Iw[0] - w[0] * Iw[2],
+            w[0] * Iw[1] - w[1] * Iw[0],
+        ]
+    )
     wdot = (tau - gyro) / INERTIA
     np.testing.assert_allclose(d.qacc[3:6], wdot, rtol=1e-10, atol=1e-10)
-    assert np.abs(gyro).max() > 0.01                 # the coupling is really exercised
+    assert np.abs(gyro).max() > 0.01  # the coupling is really exercised
     # translation is not affected by the spin (centre of mass at the joint origin)
     a = rotmat(q0) @ np.array([0.0, 0.0, HOVER]) / M + GRAV
     np.testing.assert_allclose(d.qacc[0:3], a, atol=1e-12)
@@ -350,7 +363,7 @@ def test_drag_decay(v0):
     sim = Sim(build_world(1, positions=[p0]))
     sim.reset(velocities=v0[None])
     U = np.array([[HOVER, 0.0, 0.0, 0.0]])
-    for _ in range(500):                                   # 5 s
+    for _ in range(500):  # 5 s
         sim.step(U)
     t = sim.time
     decay = np.exp(-K * t / M)
@@ -362,10 +375,10 @@ def test_drag_decay(v0):
     # margin, while a wrong coefficient (Kz for Kx: 14 % of the loss), drag applied twice or not at
     # all (the loss is 5.6-6.4 % of v0 here) fails by orders of magnitude.
     np.testing.assert_allclose(sim.vel[0], v_exp, rtol=1e-5, atol=1e-12)
-    np.testing.assert_allclose(sim.pos[0] - p0, p_exp - p0, rtol=1e-5, atol=1e-12)   # measured 8e-7
+    np.testing.assert_allclose(sim.pos[0] - p0, p_exp - p0, rtol=1e-5, atol=1e-12)  # measured 8e-7
     moving = v0 != 0
     lost = 1.0 - sim.vel[0][moving] / v0[moving]
-    assert np.all(lost > 0.05)                             # the decay itself is measurable
+    assert np.all(lost > 0.05)  # the decay itself is measurable
 
 
 # ----------------------------------------------------------------------------- 6. external force
@@ -375,7 +388,7 @@ def test_external_force_acceleration():
     sim = Sim(build_world(3, positions=p0))
     U = np.tile([HOVER, 0.0, 0.0, 0.0], (3, 1))
     sim.step(U, F)
-    for _ in range(99):                                    # 1 s in all
+    for _ in range(99):  # 1 s in all
         sim.step(U, F)
     t = sim.time
     decay = np.exp(-K * t / M)
@@ -429,26 +442,26 @@ def test_mujoco_matches_newton_euler_reference():
     """
     n = 3
     home = np.array([[0.0, 0.0, 5.0], [30.0, 0.0, 5.0], [0.0, 30.0, 5.0]])
-    sim = Sim(build_world(n, positions=home))              # product defaults: RK4, 5 ms, drag via xfrc
+    sim = Sim(build_world(n, positions=home))  # product defaults: RK4, 5 ms, drag via xfrc
     assert sim.model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4 and sim.model.opt.timestep == 0.005
     rng = np.random.default_rng(20240607)
     y = np.zeros((n, 13))
     y[:, 0:3] = home
     y[:, 6] = 1.0
-    h_ref, sub = 0.0005, 20                               # reference: RK4 at 0.5 ms
+    h_ref, sub = 0.0005, 20  # reference: RK4 at 0.5 ms
     max_dp = max_dang = 0.0
     max_tilt = flown = 0.0
     target, yaw_t, wind = home.copy(), np.zeros(n), np.zeros((n, 3))
     prev = home.copy()
-    for k in range(1000):                                 # 10 s, zero-order hold at 10 ms
-        if k % 100 == 0:                                  # new random waypoint, heading, wind each second
+    for k in range(1000):  # 10 s, zero-order hold at 10 ms
+        if k % 100 == 0:  # new random waypoint, heading, wind each second
             target = home + rng.uniform(-3, 3, size=(n, 3))
             yaw_t = rng.uniform(-np.pi, np.pi, size=n)
             wind = rng.normal(0.0, 0.15, size=(n, 3))
         U = _geometric_controller(sim.pos, sim.vel, sim.quat, sim.omega, target, yaw_t)
-        U += np.column_stack([rng.normal(0, 0.5, n), rng.normal(0, 0.2, (n, 3))])   # random inputs
+        U += np.column_stack([rng.normal(0, 0.5, n), rng.normal(0, 0.2, (n, 3))])  # random inputs
         sim.step(U, wind)
-        U_app = sim.ctrl.copy()                           # after rotor saturation: what MuJoCo got
+        U_app = sim.ctrl.copy()  # after rotor saturation: what MuJoCo got
         for _ in range(sub):
             y = rk4(newton_euler, y, h_ref, U_app, wind)
         y[:, 6:10] /= np.linalg.norm(y[:, 6:10], axis=1, keepdims=True)
@@ -458,9 +471,11 @@ def test_mujoco_matches_newton_euler_reference():
         flown += np.linalg.norm(sim.pos - prev, axis=1).max()
         prev = sim.pos.copy()
     sim.check()
-    print(f"\nNewton-Euler reference: max |dp| {max_dp * 1e3:.4f} mm, max attitude error "
-          f"{np.degrees(max_dang):.2e} deg, max tilt {max_tilt:.1f} deg, path {flown:.1f} m")
-    assert max_tilt > 15.0 and flown > 10.0               # the flight is not trivial
+    print(
+        f"\nNewton-Euler reference: max |dp| {max_dp * 1e3:.4f} mm, max attitude error "
+        f"{np.degrees(max_dang):.2e} deg, max tilt {max_tilt:.1f} deg, path {flown:.1f} m"
+    )
+    assert max_tilt > 15.0 and flown > 10.0  # the flight is not trivial
     assert max_dp < 1e-3, f"position error {max_dp:.3e} m"
     assert np.degrees(max_dang) < 0.1, f"attitude error {np.degrees(max_dang):.3e} deg"
 
@@ -484,9 +499,13 @@ def _mujoco_to_eq1_state(sim):
     ang = zyx_from_R(rotmat(sim.quat))
     phi, th = ang[:, 0], ang[:, 1]
     p, q, r = sim.omega.T
-    dang = np.column_stack([p + (q * np.sin(phi) + r * np.cos(phi)) * np.tan(th),
-                            q * np.cos(phi) - r * np.sin(phi),
-                            (q * np.sin(phi) + r * np.cos(phi)) / np.cos(th)])
+    dang = np.column_stack(
+        [
+            p + (q * np.sin(phi) + r * np.cos(phi)) * np.tan(th),
+            q * np.cos(phi) - r * np.sin(phi),
+            (q * np.sin(phi) + r * np.cos(phi)) / np.cos(th),
+        ]
+    )
     return ang, dang
 
 
@@ -516,20 +535,21 @@ def test_mujoco_matches_eq1_near_hover():
     x[:, 6], x[:, 8], x[:, 10] = np.tile(home[:, 0], 2), np.tile(home[:, 1], 2), np.tile(home[:, 2], 2)
     Ix = np.array([IX] * n + [1.1 * IX] * n)
     Iy = np.array([IY] * n + [1.1 * IY] * n)
-    h_ref, sub = 0.0005, 20                                # eq. (1) by RK4 at 0.5 ms
-    err_p = np.zeros(2 * n)                                # max |Δposition| (m), nominal then 10 % off
-    err_a = np.zeros((2 * n, 3))                           # max |Δ(φ, θ, ψ)| (rad)
+    h_ref, sub = 0.0005, 20  # eq. (1) by RK4 at 0.5 ms
+    err_p = np.zeros(2 * n)  # max |Δposition| (m), nominal then 10 % off
+    err_a = np.zeros((2 * n, 3))  # max |Δ(φ, θ, ψ)| (rad)
     tilt = 0.0
     target = home.copy()
-    for k in range(1000):                                  # 10 s, zero-order hold at 10 ms
+    for k in range(1000):  # 10 s, zero-order hold at 10 ms
         if k % 100 == 0:
             target = home + rng.uniform(-1.0, 1.0, size=(n, 3))
         noise = np.column_stack([rng.normal(0, 0.2, n), rng.normal(0, 0.02, (n, 3))])
         ang, dang = _mujoco_to_eq1_state(sim)
         sim.step(_small_angle_controller(sim.pos, sim.vel, ang, dang, target, noise))
-        Ue = _small_angle_controller(x[:, 6:12:2], x[:, 7:12:2], x[:, 0:6:2], x[:, 1:6:2],
-                                     np.tile(target, (2, 1)), np.tile(noise, (2, 1)))
-        Ue = mixing_saturate_independent(Ue)               # the same rotor limits as the product
+        Ue = _small_angle_controller(
+            x[:, 6:12:2], x[:, 7:12:2], x[:, 0:6:2], x[:, 1:6:2], np.tile(target, (2, 1)), np.tile(noise, (2, 1))
+        )
+        Ue = mixing_saturate_independent(Ue)  # the same rotor limits as the product
         for _ in range(sub):
             x = rk4(eq1, x, h_ref, Ue, Ix, Iy, IZ)
         ang, _ = _mujoco_to_eq1_state(sim)
@@ -540,14 +560,16 @@ def test_mujoco_matches_eq1_near_hover():
     sim.check()
     ep, ea = err_p[:n].max(), np.degrees(err_a[:n].max(axis=0))
     ep_off, ea_off = err_p[n:].max(), np.degrees(err_a[n:, :2].max())
-    print(f"\neq. (1): max |dp| {ep * 1e3:.3f} mm, max |d roll|, |d pitch|, |d yaw| "
-          f"{ea[0]:.4f}, {ea[1]:.4f}, {ea[2]:.4f} deg at max tilt {np.degrees(tilt):.2f} deg; "
-          f"eq. (1) with Ix, Iy +10 %: {ep_off * 1e3:.2f} mm, {ea_off:.3f} deg")
-    assert np.degrees(tilt) > 3.0                          # the flight is not trivial
+    print(
+        f"\neq. (1): max |dp| {ep * 1e3:.3f} mm, max |d roll|, |d pitch|, |d yaw| "
+        f"{ea[0]:.4f}, {ea[1]:.4f}, {ea[2]:.4f} deg at max tilt {np.degrees(tilt):.2f} deg; "
+        f"eq. (1) with Ix, Iy +10 %: {ep_off * 1e3:.2f} mm, {ea_off:.3f} deg"
+    )
+    assert np.degrees(tilt) > 3.0  # the flight is not trivial
     assert ep < 3e-3, f"position error {ep:.3e} m"
     assert max(ea[0], ea[1]) < 0.1, f"roll/pitch error {ea[:2]} deg"
     assert ea[2] < np.degrees(tilt**2), f"yaw error {ea[2]:.3e} deg > tilt² {np.degrees(tilt**2):.3f} deg"
-    assert ep_off > 3e-3 and ea_off > 0.1                  # ... and a 10 % inertia error is caught
+    assert ep_off > 3e-3 and ea_off > 0.1  # ... and a 10 % inertia error is caught
 
 
 def mixing_saturate_independent(U: np.ndarray) -> np.ndarray:
@@ -558,10 +580,10 @@ def mixing_saturate_independent(U: np.ndarray) -> np.ndarray:
 
 def rotor_from_u(U: np.ndarray) -> np.ndarray:
     U1, U2, U3, U4 = np.moveaxis(U, -1, 0)
-    return np.stack([U1 / 4 - U2 / 2 + U4 / 4,
-                     U1 / 4 - U3 / 2 - U4 / 4,
-                     U1 / 4 + U2 / 2 + U4 / 4,
-                     U1 / 4 + U3 / 2 - U4 / 4], axis=-1)
+    return np.stack(
+        [U1 / 4 - U2 / 2 + U4 / 4, U1 / 4 - U3 / 2 - U4 / 4, U1 / 4 + U2 / 2 + U4 / 4, U1 / 4 + U3 / 2 - U4 / 4],
+        axis=-1,
+    )
 
 
 def u_from_rotor(F: np.ndarray) -> np.ndarray:
@@ -573,7 +595,7 @@ def u_from_rotor(F: np.ndarray) -> np.ndarray:
 def _fly(p, v, steps, collisions=True):
     sim = Sim(build_world(2, positions=p, collisions=collisions))
     sim.reset(velocities=v)
-    U = np.tile([HOVER, 0.0, 0.0, 0.0], (2, 1))            # gravity compensated
+    U = np.tile([HOVER, 0.0, 0.0, 0.0], (2, 1))  # gravity compensated
     seen = set()
     for _ in range(steps):
         sim.step(U)
@@ -584,7 +606,7 @@ def _fly(p, v, steps, collisions=True):
 def test_drones_flown_into_each_other_collide():
     p = np.array([[0.0, 0.0, 2.0], [1.2, 0.0, 2.0]])
     v = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
-    sim, seen = _fly(p, v, 50)                             # 0.5 s; rotor planes meet after ~0.35 s
+    sim, seen = _fly(p, v, 50)  # 0.5 s; rotor planes meet after ~0.35 s
     assert sim.contact_events >= 1
     assert seen == {(0, 1)}
     assert sim.contact_log and sim.contact_log[0][1:] == (0, 1)
@@ -609,7 +631,7 @@ def test_no_contacts_when_collisions_disabled():
     v = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     sim, seen = _fly(p, v, 100, collisions=False)
     assert sim.contact_events == 0 and seen == set()
-    assert sim.pos[1, 0] < sim.pos[0, 0]                   # they passed through each other
+    assert sim.pos[1, 0] < sim.pos[0, 0]  # they passed through each other
 
 
 # ----------------------------------------------------------------------------- 10. mixing
@@ -619,7 +641,7 @@ def test_mixing_round_trip_and_saturation():
     F = mixing.u_to_rotor(U)
     np.testing.assert_allclose(F, rotor_from_u(U), atol=1e-12)
     np.testing.assert_allclose(mixing.rotor_to_u(F), U, atol=1e-12)
-    np.testing.assert_allclose(u_from_rotor(rotor_from_u(U)), U, atol=1e-12)   # the test's own pair
+    np.testing.assert_allclose(u_from_rotor(rotor_from_u(U)), U, atol=1e-12)  # the test's own pair
     # hover: four equal rotors
     np.testing.assert_allclose(mixing.u_to_rotor(np.array([HOVER, 0, 0, 0])), HOVER / 4, atol=1e-12)
     # saturation: wild commands, each rotor clipped to [0, 4.5] N, the wrench is the clipped rotors'
@@ -644,15 +666,18 @@ def test_mixing_round_trip_and_saturation():
 
 
 # ----------------------------------------------------------------------------- 11. bad input
-@pytest.mark.parametrize("call, needle", [
-    (lambda: build_world(0), "0"),
-    (lambda: QuadParams(m=-1), "-1"),
-    (lambda: build_world(1, params=QuadParams(Iz=0.0)), "Iz"),
-    (lambda: build_world(2, asset="/nonexistent.xml"), "/nonexistent.xml"),
-    (lambda: build_world(3, positions=np.zeros((2, 3))), "(2, 3)"),
-    (lambda: build_world(2, positions=np.zeros((2, 2))), "(2, 2)"),
-    (lambda: build_world(1, positions=[[0.0, np.nan, 1.0]]), "positions"),
-])
+@pytest.mark.parametrize(
+    "call, needle",
+    [
+        (lambda: build_world(0), "0"),
+        (lambda: QuadParams(m=-1), "-1"),
+        (lambda: build_world(1, params=QuadParams(Iz=0.0)), "Iz"),
+        (lambda: build_world(2, asset="/nonexistent.xml"), "/nonexistent.xml"),
+        (lambda: build_world(3, positions=np.zeros((2, 3))), "(2, 3)"),
+        (lambda: build_world(2, positions=np.zeros((2, 2))), "(2, 2)"),
+        (lambda: build_world(1, positions=[[0.0, np.nan, 1.0]]), "positions"),
+    ],
+)
 def test_bad_input_raises_user_error(call, needle):
     with pytest.raises(UserError) as info:
         call()

@@ -37,12 +37,12 @@ from swarm_mj.sim import Sim
 from swarm_mj.world import build_world
 
 ROOT = Path(__file__).resolve().parents[1]
-T = 0.01                                   # control period (s)
-DURATION = 2.0                             # s
+T = 0.01  # control period (s)
+DURATION = 2.0  # s
 U_HELD = np.array([[6.0, 0.3, -0.2, 0.25]])  # (1, 4) U1 (N), U2..U4 (N; torque = L·U)
-WIND_FORCE = np.array([0.4, -0.3, 0.1])    # (3,) N, world frame
-V0 = np.array([1.0, -0.5, 0.2])            # (3,) m/s initial velocity
-START = np.array([0.0, 0.0, 100.0])        # high enough never to reach the floor
+WIND_FORCE = np.array([0.4, -0.3, 0.1])  # (3,) N, world frame
+V0 = np.array([1.0, -0.5, 0.2])  # (3,) m/s initial velocity
+START = np.array([0.0, 0.0, 100.0])  # high enough never to reach the floor
 
 
 def fly(dt: float, params: QuadParams = DEFAULT_PARAMS, integrator: str = "RK4") -> tuple[np.ndarray, np.ndarray]:
@@ -77,7 +77,7 @@ def test_flight_tumbles_and_drifts(flights):
     """The flight is the hard case it claims to be: fast body rates, a long drift."""
     pos, quat = flights[0.001]
     assert np.linalg.norm(pos[-1] - pos[0]) > 10.0
-    rate = angle_deg(quat[1:], quat[:-1]).max() / T          # °/s between samples
+    rate = angle_deg(quat[1:], quat[:-1]).max() / T  # °/s between samples
     assert np.deg2rad(rate) > 10.0
 
 
@@ -102,9 +102,9 @@ def test_drag_hold_explains_the_difference(flights):
     p10, _ = flights[0.01]
     t = np.arange(len(p1))[:, None] * T
     P = DEFAULT_PARAMS
-    predicted = ((0.01 - 0.001) / 2) * (P.drag / P.m) * (p1 - p1[0] - V0 * t)   # (k, 3)
+    predicted = ((0.01 - 0.001) / 2) * (P.drag / P.m) * (p1 - p1[0] - V0 * t)  # (k, 3)
     diff = p10 - p1
-    assert np.linalg.norm(diff, axis=1).max() > 5e-4          # the effect is there to be explained
+    assert np.linalg.norm(diff, axis=1).max() > 5e-4  # the effect is there to be explained
     assert np.linalg.norm(diff - predicted, axis=1).max() <= 5e-5
 
 
@@ -120,7 +120,7 @@ def test_rk4_error_falls_with_the_fourth_power(flights):
     e10 = np.linalg.norm(r10 - r1, axis=1).max()
     e5 = np.linalg.norm(r5 - r1, axis=1).max()
     assert 10 <= e10 / e5 <= 25
-    assert e10 <= 2e-5                       # 4 µm measured: without the drag hold RK4 is far below 1 mm
+    assert e10 <= 2e-5  # 4 µm measured: without the drag hold RK4 is far below 1 mm
 
 
 def test_first_order_integrators_are_far_worse(flights):
@@ -143,12 +143,12 @@ def _tool():
 def test_same_printed_digits():
     acc = _tool()
     assert acc.same_printed(0.10040248, 0.1001, "{:.2f}")
-    assert not acc.same_printed(1.43, 1.4351, "{:.2f}")       # 1.43 vs 1.44
+    assert not acc.same_printed(1.43, 1.4351, "{:.2f}")  # 1.43 vs 1.44
     assert acc.same_printed(1.43, 1.4349, "{:.2f}")
     assert acc.same_printed(0.00188247, 0.00188244, "{:.4f}")
     assert not acc.same_printed(0.00184, 0.00196, "{:.4f}")  # 0.0018 vs 0.0020
-    assert acc.same_printed(-0.001, 0.001, "{:.2f}")          # "-0.00" prints as 0.00
-    assert acc.same_printed(float("inf"), "inf", "{:.2f}")   # never settled, in memory and from JSON
+    assert acc.same_printed(-0.001, 0.001, "{:.2f}")  # "-0.00" prints as 0.00
+    assert acc.same_printed(float("inf"), "inf", "{:.2f}")  # never settled, in memory and from JSON
     assert not acc.same_printed(float("inf"), 9.99, "{:.2f}")
     assert acc.same_printed(None, None, "{:.2f}") and not acc.same_printed(None, 0.0, "{:.2f}")
     assert not acc.same_printed(3, 4, "{}")
@@ -156,9 +156,12 @@ def test_same_printed_digits():
 
 def _summary(settle: list, rmse_x: float, contacts: int = 0) -> dict:
     r = {"x": rmse_x, "y": 0.01, "z": 0.0, "roll_deg": 0.1, "pitch_deg": 0.2}
-    return {"drones": {"leader": {"rmse": r, "rmse_steady": dict(r), "max_abs_roll_deg": 1.0,
-                                  "max_abs_pitch_deg": 2.0}},
-            "contacts": contacts, "min_separation_m": 0.8, "formation": {"settling_s": settle}}
+    return {
+        "drones": {"leader": {"rmse": r, "rmse_steady": dict(r), "max_abs_roll_deg": 1.0, "max_abs_pitch_deg": 2.0}},
+        "contacts": contacts,
+        "min_separation_m": 0.8,
+        "formation": {"settling_s": settle},
+    }
 
 
 def test_differing_lists_changed_figures():
@@ -177,18 +180,29 @@ def test_choose_step_takes_the_largest_rk4_step_that_holds():
     acc = _tool()
 
     def s(label, integ, dt, dev):
-        return {"label": label, "integrator": integ, "timestep_s": dt, "worst_deviation_m": dev, "stopped": [],
-                "differing": [], "over_bar": []}
+        return {
+            "label": label,
+            "integrator": integ,
+            "timestep_s": dt,
+            "worst_deviation_m": dev,
+            "stopped": [],
+            "differing": [],
+            "over_bar": [],
+        }
 
-    rows = [s("a", "RK4", 0.001, 0.0), s("b", "RK4", 0.005, 2e-4), s("c", "RK4", 0.01, 8e-4),
-            s("d", "Euler", 0.02, 0.0)]
+    rows = [
+        s("a", "RK4", 0.001, 0.0),
+        s("b", "RK4", 0.005, 2e-4),
+        s("c", "RK4", 0.01, 8e-4),
+        s("d", "Euler", 0.02, 0.0),
+    ]
     assert acc.choose_step(rows)["label"] == "c"
     rows[2]["worst_deviation_m"] = 1.5e-3
     rows[2]["over_bar"] = [{"case": "x", "sensitive": True}]
     assert acc.choose_step(rows)["label"] == "b"
-    assert acc.choose_step(rows, allow_sensitive=True)["label"] == "c"   # x moves as much with a nudged start
+    assert acc.choose_step(rows, allow_sensitive=True)["label"] == "c"  # x moves as much with a nudged start
     rows[1]["differing"] = [{"figure": "RMSE x m", "in_readme": False, "sensitive": False}]
-    assert acc.choose_step(rows)["label"] == "b"                         # not a figure the README prints
+    assert acc.choose_step(rows)["label"] == "b"  # not a figure the README prints
     rows[1]["differing"] = [{"figure": "contacts", "in_readme": True, "sensitive": False}]
     assert acc.choose_step(rows)["label"] == "a"
     assert acc.choose_step(rows, allow_sensitive=True)["label"] == "c"
@@ -200,9 +214,29 @@ def test_tool_runs_end_to_end(tmp_path):
     """The study on the step scenario, shortened: JSON, markdown and the docs page come out."""
     js, md, doc = tmp_path / "a.json", tmp_path / "a.md", tmp_path / "physics_step.md"
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", "")}
-    r = subprocess.run([sys.executable, str(ROOT / "tools" / "accuracy.py"), "--scenarios", "step", "--duration", "2",
-                        "--settings", "RK4:1,RK4:5,RK4:10", "--json", str(js), "--markdown", str(md),
-                        "--docs", str(doc)], check=False, capture_output=True, text=True, env=env, cwd=tmp_path)
+    r = subprocess.run(
+        [
+            sys.executable,
+            str(ROOT / "tools" / "accuracy.py"),
+            "--scenarios",
+            "step",
+            "--duration",
+            "2",
+            "--settings",
+            "RK4:1,RK4:5,RK4:10",
+            "--json",
+            str(js),
+            "--markdown",
+            str(md),
+            "--docs",
+            str(doc),
+        ],
+        check=False,
+        capture_output=True,
+        text=True,
+        env=env,
+        cwd=tmp_path,
+    )
     assert r.returncode == 0, r.stderr
     d = json.loads(js.read_text())
     rows = d["cases"][0]["rows"]
@@ -215,5 +249,5 @@ def test_tool_runs_end_to_end(tmp_path):
 def test_contact_episodes_merge_a_pairs_quick_retouches():
     acc = _tool()
     log = [[1.00, 0, 1], [1.02, 0, 1], [1.05, 0, 1], [1.05, 1, 2], [1.50, 0, 1], [1.58, 1, 2]]
-    assert acc._episodes(log, 0.1) == 4          # (0,1) at 1.00–1.05 and at 1.50; (1,2) at 1.05 and at 1.58
+    assert acc._episodes(log, 0.1) == 4  # (0,1) at 1.00–1.05 and at 1.50; (1,2) at 1.05 and at 1.58
     assert acc._episodes(log, 0.01) == 6

@@ -70,7 +70,7 @@ def test_default_stages_are_drag_then_wind_and_the_general_path_is_bit_identical
     fused = Sim(_world())
     assert [s.name for s in fused.stages] == ["drag", "wind"]
     assert isinstance(fused.stages[0], DragStage) and isinstance(fused.stages[1], WindStage)
-    general = Sim(_world(), force_stages=[ConstantStage(np.zeros(3))])    # adds exactly zero
+    general = Sim(_world(), force_stages=[ConstantStage(np.zeros(3))])  # adds exactly zero
     np.testing.assert_array_equal(_fly(fused, 200, wind), _fly(general, 200, wind))
 
 
@@ -109,6 +109,7 @@ def test_a_stage_torque_turns_the_drone_as_euler_says():
 def test_swarm_env_takes_extra_force_stages():
     """A stage that adds nothing leaves a swarm run bit-identical (general path == fused path);
     one that pushes moves the swarm."""
+
     def fly(stages):
         env = SwarmEnv("scenario1", force_stages=stages)
         policy = BacksteppingPolicy(env.scenario, env.params)
@@ -119,7 +120,7 @@ def test_swarm_env_takes_extra_force_stages():
 
     plain = fly(())
     np.testing.assert_array_equal(fly([ConstantStage(np.zeros(3))]), plain)
-    pushed = fly([ConstantStage(np.array([0.0, 0.0, -1.0]))])          # about 2 m/s² down on every drone
+    pushed = fly([ConstantStage(np.array([0.0, 0.0, -1.0]))])  # about 2 m/s² down on every drone
     assert (pushed[:, 2] < plain[:, 2] - 1e-3).all()
 
 
@@ -131,11 +132,11 @@ def test_copies_are_independent_and_the_health_mask_is_per_copy():
     sim = Sim(_world(m * n, collisions=False), n_copies=m, max_tilt=np.deg2rad(80))
     assert (sim.n, sim.n_copies, sim.n_total) == (n, m, m * n)
     assert (sim.health() == HEALTHY).all()
-    sim.qpos[3, 2] = -1.0                                  # copy 1, second drone: below the floor
-    sim.qvel[4, 0] = np.nan                                # copy 2: non-finite
+    sim.qpos[3, 2] = -1.0  # copy 1, second drone: below the floor
+    sim.qvel[4, 0] = np.nan  # copy 2: non-finite
     np.testing.assert_array_equal(sim.health(), [HEALTHY, BELOW_FLOOR, NON_FINITE])
     sim.reset()
-    sim.quat[1] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]   # copy 0: rolled 90°
+    sim.quat[1] = [np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0]  # copy 0: rolled 90°
     np.testing.assert_array_equal(sim.health(), [TILTED, HEALTHY, HEALTHY])
 
 
@@ -151,7 +152,7 @@ def test_parked_copies_hold_their_start_and_the_others_fly_as_alone():
         alone.step(U1)
     np.testing.assert_array_equal(batched.qpos[0], alone.qpos[0])
     np.testing.assert_array_equal(batched.qpos[2], alone.qpos[0])
-    np.testing.assert_array_equal(batched.pos[1], [0.0, 0.0, 2.0])      # put back before every step
+    np.testing.assert_array_equal(batched.pos[1], [0.0, 0.0, 2.0])  # put back before every step
     assert (batched.health() == HEALTHY).all()
 
 
@@ -168,22 +169,31 @@ def test_a_mujoco_divergence_warning_is_a_divergence_even_when_the_state_looks_s
     assert (sim.health() == HEALTHY).all()
 
 
-HURRICANE = ('description = "hover in a wind of 1e6 m/s from t = 0"\nduration = 3.0\n\n[leader]\n'
-             'trajectory = "hover"\n\n[wind]\nmean = [1e6, 0.0]\nschedule = [[0.0, inf, "xy"]]\n')
+HURRICANE = (
+    'description = "hover in a wind of 1e6 m/s from t = 0"\nduration = 3.0\n\n[leader]\n'
+    'trajectory = "hover"\n\n[wind]\nmean = [1e6, 0.0]\nschedule = [[0.0, inf, "xy"]]\n'
+)
 
 
 def test_hover_in_an_absurd_wind_ends_diverged_with_exit_1_and_the_recording_kept(tmp_path):
     """Issue 16 item 3: MuJoCo's automatic reset kept the drone at its start and the run exited 0."""
     (tmp_path / "hurricane.toml").write_text(HURRICANE)
-    p = subprocess.run([*CLI, "run", "hurricane.toml", "-o", "h.rrd", "--summary", "h.json", "--quiet"],
-                       cwd=tmp_path, capture_output=True, text=True, timeout=300, stdin=subprocess.DEVNULL)
+    p = subprocess.run(
+        [*CLI, "run", "hurricane.toml", "-o", "h.rrd", "--summary", "h.json", "--quiet"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        stdin=subprocess.DEVNULL,
+    )
     assert p.returncode == 1, (p.returncode, p.stderr)
     assert "Traceback" not in p.stderr
     assert "diverged" in p.stderr and "mjWARN_BADQACC" in p.stderr
     assert (tmp_path / "h.rrd").stat().st_size > 0
     if RERUN.exists():
-        v = subprocess.run([str(RERUN), "rrd", "verify", str(tmp_path / "h.rrd")], capture_output=True, text=True,
-                           timeout=120)
+        v = subprocess.run(
+            [str(RERUN), "rrd", "verify", str(tmp_path / "h.rrd")], capture_output=True, text=True, timeout=120
+        )
         assert v.returncode == 0, v.stderr
 
 
@@ -208,7 +218,7 @@ def test_step_record_holds_what_was_applied_and_why():
         np.testing.assert_array_equal(rec.U, env.sim.ctrl)
         np.testing.assert_array_equal(rec.wind_force, env.wind.drone_forces(k, np.zeros((env.n, 3))))
         assert rec.pos_d is cmd.pos_d and rec.att_d is cmd.att_d
-    ts = env.step(np.asarray(policy(ts.observation)))                      # a plain U: no references
+    ts = env.step(np.asarray(policy(ts.observation)))  # a plain U: no references
     assert env.last_applied.pos_d is None and env.last_applied.att_d is None
 
 
@@ -228,14 +238,19 @@ def test_setpoint_actions_record_their_references_and_attitude():
 
 def _interrupt_once(tmp_path: Path, delay: float) -> tuple[int, str]:
     pty = pytest.importorskip("pty")
-    master, slave = pty.openpty()       # a terminal on stderr, so that the progress bar shows
-    proc = subprocess.Popen([*CLI, "run", "circle", "--duration", "3000", "-o", "X.rrd"], cwd=tmp_path,
-                            stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=slave)
+    master, slave = pty.openpty()  # a terminal on stderr, so that the progress bar shows
+    proc = subprocess.Popen(
+        [*CLI, "run", "circle", "--duration", "3000", "-o", "X.rrd"],
+        cwd=tmp_path,
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.DEVNULL,
+        stderr=slave,
+    )
     os.close(slave)
     err = b""
     try:
         deadline = time.monotonic() + 120
-        while b"%" not in err:          # the progress bar: the simulation loop is running
+        while b"%" not in err:  # the progress bar: the simulation loop is running
             assert time.monotonic() < deadline, err
             assert proc.poll() is None, err
             r, _, _ = select.select([master], [], [], 0.05)
@@ -326,7 +341,7 @@ def test_no_import_cycles_and_no_private_names_across_modules():
             if not target.startswith("swarm_mj"):
                 continue
             for name in names:
-                if f"{target}.{name}" in modules:               # a submodule
+                if f"{target}.{name}" in modules:  # a submodule
                     graph[mod].add(f"{target}.{name}")
                 elif name.startswith("_") and not name.startswith("__"):
                     private.append(f"{mod}: {target}.{name}")
@@ -334,8 +349,10 @@ def test_no_import_cycles_and_no_private_names_across_modules():
                 graph[mod].add(target)
     assert not private, private
     # a package's __init__ re-exporting its modules is not a cycle of the code; the modules themselves must be acyclic
-    code = {m: {t for t in deps if not (m.startswith(t + ".") and t in modules and modules[t].name == "__init__.py")}
-            for m, deps in graph.items()}
+    code = {
+        m: {t for t in deps if not (m.startswith(t + ".") and t in modules and modules[t].name == "__init__.py")}
+        for m, deps in graph.items()
+    }
     state: dict[str, int] = {}
     cycle: list[str] = []
 
@@ -343,7 +360,7 @@ def test_no_import_cycles_and_no_private_names_across_modules():
         state[m] = 1
         for t in sorted(code.get(m, ())):
             if state.get(t) == 1:
-                cycle.extend(stack[stack.index(t):] + [t] if t in stack else [m, t])
+                cycle.extend(stack[stack.index(t) :] + [t] if t in stack else [m, t])
                 return True
             if state.get(t) is None and visit(t, stack + [t]):
                 return True
@@ -357,12 +374,20 @@ def test_no_import_cycles_and_no_private_names_across_modules():
 
 
 def test_public_api_imports_from_the_package():
-    p = subprocess.run([sys.executable, "-c", "import os, sys\n"
-                        "from swarm_mj import SwarmEnv, BacksteppingPolicy, load_scenario, run\n"
-                        "import swarm_mj\n"
-                        "assert 'MUJOCO_GL' in os.environ or not sys.platform.startswith('linux')\n"
-                        "assert run.__module__ == 'swarm_mj.runner' and SwarmEnv.__module__ == 'swarm_mj.env'\n"
-                        "print(swarm_mj.__version__)"],
-                       capture_output=True, text=True, timeout=120)
+    p = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "import os, sys\n"
+            "from swarm_mj import SwarmEnv, BacksteppingPolicy, load_scenario, run\n"
+            "import swarm_mj\n"
+            "assert 'MUJOCO_GL' in os.environ or not sys.platform.startswith('linux')\n"
+            "assert run.__module__ == 'swarm_mj.runner' and SwarmEnv.__module__ == 'swarm_mj.env'\n"
+            "print(swarm_mj.__version__)",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == importlib.import_module("swarm_mj").__version__

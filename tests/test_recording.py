@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 rr = pytest.importorskip("rerun")
-pytest.importorskip("datafusion")   # rerun-sdk[catalog]: reading a recording back needs it
+pytest.importorskip("datafusion")  # rerun-sdk[catalog]: reading a recording back needs it
 
 from swarm_mj.cli import main as cli_main  # noqa: E402
 from swarm_mj.runner import run  # noqa: E402
@@ -26,7 +26,7 @@ RERUN = Path(sys.executable).with_name("rerun")
 def read_rrd(path: Path):
     """All columns of a recording on the sim_time index, as a pandas DataFrame (PLATFORM.md)."""
     with rr.server.Server(datasets={"ds": [str(path)]}) as server:
-        client = server.client()          # keep every object alive until the query has run
+        client = server.client()  # keep every object alive until the query has run
         dataset = client.get_dataset("ds")
         df = dataset.reader(index="sim_time").to_pandas()
     return df
@@ -46,8 +46,21 @@ def circle(tmp_path_factory):
     """``swarm-mj run circle --duration 20`` and, independently, runner.run with the same seed."""
     d = tmp_path_factory.mktemp("rec")
     out = d / "circle.rrd"
-    rc = cli_main(["run", "circle", "--duration", str(DURATION), "--seed", str(SEED), "-o", str(out),
-                   "--summary", str(d / "circle.json"), "--quiet"])
+    rc = cli_main(
+        [
+            "run",
+            "circle",
+            "--duration",
+            str(DURATION),
+            "--seed",
+            str(SEED),
+            "-o",
+            str(out),
+            "--summary",
+            str(d / "circle.json"),
+            "--quiet",
+        ]
+    )
     assert rc == 0
     result = run("circle", duration=DURATION, seed=SEED, progress=False)
     assert result.error is None
@@ -77,7 +90,7 @@ def test_logged_poses_equal_the_simulated_ones(circle):
     for i, name in enumerate(log.names):
         tr = col(df, f"/world/drones/{name}:Transform3D:translation")[:, 0]
         np.testing.assert_allclose(tr, log.pos[:, i], rtol=2e-7, atol=1e-6, err_msg=name)
-        q = col(df, f"/world/drones/{name}:Transform3D:quaternion")[:, 0]        # Rerun order x, y, z, w
+        q = col(df, f"/world/drones/{name}:Transform3D:quaternion")[:, 0]  # Rerun order x, y, z, w
         np.testing.assert_allclose(q, log.quat[:, i][:, [1, 2, 3, 0]], atol=1e-6, err_msg=name)
         trail = col(df, f"/world/trails/{name}:Points3D:positions")[:, 0]
         np.testing.assert_allclose(trail, log.pos[:, i], rtol=2e-7, atol=1e-6, err_msg=name)
@@ -105,12 +118,14 @@ def test_plots_hold_the_logged_signals(circle):
     # paper Fig. 14: horizontal leader–follower and follower–follower distances, and D
     for j in range(1, n):
         dist = scalars(df, f"/plots/distance/leader/{log.names[j]}:Scalars:scalars")[:, 0]
-        np.testing.assert_allclose(dist, np.linalg.norm(log.pos[:, j, :2] - log.pos[:, 0, :2], axis=1),
-                                   rtol=2e-7, atol=1e-6)
+        np.testing.assert_allclose(
+            dist, np.linalg.norm(log.pos[:, j, :2] - log.pos[:, 0, :2], axis=1), rtol=2e-7, atol=1e-6
+        )
         for k in range(j + 1, n):
             dd = scalars(df, f"/plots/distance/followers/{log.names[j]}_{log.names[k]}:Scalars:scalars")[:, 0]
-            np.testing.assert_allclose(dd, np.linalg.norm(log.pos[:, j, :2] - log.pos[:, k, :2], axis=1),
-                                       rtol=2e-7, atol=1e-6)
+            np.testing.assert_allclose(
+                dd, np.linalg.norm(log.pos[:, j, :2] - log.pos[:, k, :2], axis=1), rtol=2e-7, atol=1e-6
+            )
     np.testing.assert_allclose(scalars(df, "/plots/distance/leader/D:Scalars:scalars")[:, 0], 1.0)
     ws = scalars(df, "/plots/wind/speed:Scalars:scalars")
     wf = scalars(df, "/plots/wind/force:Scalars:scalars")
@@ -130,12 +145,13 @@ def test_slots_reference_and_safety_circles(circle):
     strips = df["/world/reference:LineStrips3D:strips"].dropna().iloc[-1]
     path = np.stack(list(strips[0])).astype(np.float64)
     t = log.t
-    np.testing.assert_allclose(path, np.column_stack([2.5 * np.sin(0.08 * t), 2.5 * np.cos(0.08 * t),
-                                                      np.full_like(t, 2.0)]), atol=1e-6)
+    np.testing.assert_allclose(
+        path, np.column_stack([2.5 * np.sin(0.08 * t), 2.5 * np.cos(0.08 * t), np.full_like(t, 2.0)]), atol=1e-6
+    )
     for name in log.names:
         circ = df[f"/world/drones/{name}/safety:LineStrips3D:strips"].dropna().iloc[-1]
         pts = np.stack(list(circ[0])).astype(np.float64)
-        np.testing.assert_allclose(np.linalg.norm(pts[:, :2], axis=1), 0.4, atol=1e-6)   # D̄/2
+        np.testing.assert_allclose(np.linalg.norm(pts[:, :2], axis=1), 0.4, atol=1e-6)  # D̄/2
 
 
 def test_every_documented_entity_is_present(circle):
@@ -143,11 +159,23 @@ def test_every_documented_entity_is_present(circle):
     _, df, result = circle
     names = result.log.names
     entities = {c.split(":")[0] for c in df.columns if c.startswith("/")}
-    expected = {"/world/reference", "/world/slots", "/plots/wind/speed", "/plots/wind/force",
-                "/plots/distance/leader/D"}
+    expected = {
+        "/world/reference",
+        "/world/slots",
+        "/plots/wind/speed",
+        "/plots/wind/force",
+        "/plots/distance/leader/D",
+    }
     for name in names:
-        expected |= {f"/world/drones/{name}", f"/world/drones/{name}/frame", f"/world/drones/{name}/safety",
-                     f"/world/trails/{name}", f"/plots/error/{name}", f"/plots/U/{name}", f"/plots/rotors/{name}"}
+        expected |= {
+            f"/world/drones/{name}",
+            f"/world/drones/{name}/frame",
+            f"/world/drones/{name}/safety",
+            f"/world/trails/{name}",
+            f"/plots/error/{name}",
+            f"/plots/U/{name}",
+            f"/plots/rotors/{name}",
+        }
     for f in names[1:]:
         expected.add(f"/plots/distance/leader/{f}")
     for a in range(1, len(names)):
@@ -228,5 +256,6 @@ def test_write_recording_replaces_an_existing_file(tmp_path):
     assert target.read_bytes() != b"old"
     assert sorted(os.listdir(tmp_path)) == ["r.rrd"]
     df = read_rrd(target)
-    np.testing.assert_allclose(col(df, "/world/drones/leader:Transform3D:translation")[:, 0], res.log.pos[:, 0],
-                               rtol=2e-7, atol=1e-6)
+    np.testing.assert_allclose(
+        col(df, "/world/drones/leader:Transform3D:translation")[:, 0], res.log.pos[:, 0], rtol=2e-7, atol=1e-6
+    )

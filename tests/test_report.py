@@ -42,13 +42,19 @@ def test_metric_stats_known_values():
 
 
 def test_compute_stats_groups_by_value():
-    runs = [{"value_index": vi, "seed": s,
-             "metrics": {"rmse_x": 0.1 * (vi + 1) + 0.01 * s, "min_separation_m": 1 - 0.1 * s}}
-            for vi in range(2) for s in range(3)]
+    runs = [
+        {
+            "value_index": vi,
+            "seed": s,
+            "metrics": {"rmse_x": 0.1 * (vi + 1) + 0.01 * s, "min_separation_m": 1 - 0.1 * s},
+        }
+        for vi in range(2)
+        for s in range(3)
+    ]
     st = compute_stats(runs, 2)
     assert st[0]["rmse_x"]["mean"] == pytest.approx(np.mean([0.10, 0.11, 0.12]))
     assert st[1]["rmse_x"]["worst"] == pytest.approx(0.22) and st[1]["rmse_x"]["worst_seed"] == 2
-    assert st[1]["min_separation_m"]["worst"] == pytest.approx(0.8)      # min for separations
+    assert st[1]["min_separation_m"]["worst"] == pytest.approx(0.8)  # min for separations
     assert "contacts" not in st[0]
 
 
@@ -93,7 +99,7 @@ def test_parse_and_apply_param():
     assert parse_param("controller.wind_feedforward=true,false")[1] == [True, False]
     sc = load_scenario("wind_circle").with_overrides(gains=np.full(12, 5.0), gains_source="override")
     s2 = apply_param(sc, "wind.sigma", 0.3)
-    assert s2.wind.sigma == (0.3, 0.3) and np.all(s2.gains == 5.0)       # earlier overrides survive
+    assert s2.wind.sigma == (0.3, 0.3) and np.all(s2.gains == 5.0)  # earlier overrides survive
     s3 = apply_param(load_scenario("circle"), "formation.diameter", 1.5)
     assert s3.diameter == 1.5
     for bad in ("sigma", "wind.sigma=", "=1,2", "wind..sigma=1", "wind.sigma=1,,2", "wind.sigma=1,1"):
@@ -115,15 +121,18 @@ def test_run_metrics_single_drone_has_no_swarm_keys():
 # --------------------------------------------------------------------------- CLI errors
 
 
-@pytest.mark.parametrize("argv, needle", [
-    (["sweep", "no_such_scenario", "--seeds", "1"], "unknown scenario"),
-    (["sweep", "wind_circle", "--seeds", "0"], "--seeds"),
-    (["sweep", "wind_circle", "--param", "wind.sigma"], "KEY=V1"),
-    (["sweep", "wind_circle", "--param", "wind.sigma=0.4,abc"], "wind.sigma"),
-    (["sweep", "wind_circle", "--param", "wind.nope=1"], "nope"),
-    (["sweep", "wind_circle", "--workers", "0"], "--workers"),
-    (["report", "--workers", "0"], "--workers"),
-])
+@pytest.mark.parametrize(
+    "argv, needle",
+    [
+        (["sweep", "no_such_scenario", "--seeds", "1"], "unknown scenario"),
+        (["sweep", "wind_circle", "--seeds", "0"], "--seeds"),
+        (["sweep", "wind_circle", "--param", "wind.sigma"], "KEY=V1"),
+        (["sweep", "wind_circle", "--param", "wind.sigma=0.4,abc"], "wind.sigma"),
+        (["sweep", "wind_circle", "--param", "wind.nope=1"], "nope"),
+        (["sweep", "wind_circle", "--workers", "0"], "--workers"),
+        (["report", "--workers", "0"], "--workers"),
+    ],
+)
 def test_bad_input_one_line_exit_2(argv, needle, capsys):
     assert cli_main(argv) == 2
     err = capsys.readouterr().err
@@ -132,8 +141,24 @@ def test_bad_input_one_line_exit_2(argv, needle, capsys):
 
 def test_sweep_cli_prints_worst_beside_mean_and_json(tmp_path, capsys):
     out = tmp_path / "s.json"
-    assert cli_main(["sweep", "wind_lemniscate", "--seeds", "2", "--duration", "0.5", "--workers", "1",
-                     "--json", str(out), "--quiet"]) == 0
+    assert (
+        cli_main(
+            [
+                "sweep",
+                "wind_lemniscate",
+                "--seeds",
+                "2",
+                "--duration",
+                "0.5",
+                "--workers",
+                "1",
+                "--json",
+                str(out),
+                "--quiet",
+            ]
+        )
+        == 0
+    )
     text = capsys.readouterr().out
     assert "mean" in text and "worst" in text and "leader RMSE x (m)" in text
     data = json.loads(out.read_text())
@@ -146,24 +171,54 @@ def test_sweep_cli_prints_worst_beside_mean_and_json(tmp_path, capsys):
 def test_report_quick_writes_readme_json_and_pngs(tmp_path, monkeypatch, capsys):
     from swarm_mj import report
 
-    tiny = report.Plan(name="quick", table5_s=1.0, swarm_s=1.0, variable_d_s=6.5, anti_s=1.0, wind_seeds=2,
-                       wind_s=1.0, swarm_wind_seeds=1, swarm_wind_s=0.5, sigma_values=(0.4, 1.2), sigma_seeds=1,
-                       crossing_seeds=1, crossing_s=0.5, fpa_seeds=(1,), fpa_population=4, fpa_iterations=1,
-                       snapshot=False)
+    tiny = report.Plan(
+        name="quick",
+        table5_s=1.0,
+        swarm_s=1.0,
+        variable_d_s=6.5,
+        anti_s=1.0,
+        wind_seeds=2,
+        wind_s=1.0,
+        swarm_wind_seeds=1,
+        swarm_wind_s=0.5,
+        sigma_values=(0.4, 1.2),
+        sigma_seeds=1,
+        crossing_seeds=1,
+        crossing_s=0.5,
+        fpa_seeds=(1,),
+        fpa_population=4,
+        fpa_iterations=1,
+        snapshot=False,
+    )
     monkeypatch.setattr(report.Plan, "quick", classmethod(lambda cls: tiny))
     out = tmp_path / "rep"
     assert cli_main(["report", "--quick", "-o", str(out), "--workers", "2", "--quiet"]) == 0
     readme = (out / "README.md").read_text()
-    for needle in ("Table 5", "Step response", "Variable D", "Anti-collision", "Interpretations",
-                   "circumradius", "RMSE twice", "mean ± std"):
+    for needle in (
+        "Table 5",
+        "Step response",
+        "Variable D",
+        "Anti-collision",
+        "Interpretations",
+        "circumradius",
+        "RMSE twice",
+        "mean ± std",
+    ):
         assert needle in readme
     data = json.loads((out / "results.json").read_text())
     assert data["step"]["table4"]["axes"]["x"]["overshoot_pct"] >= 0
     assert len(data["table5"]["rows"]) >= 6 and data["sweeps"]["wind_lemniscate"]["seeds"] == [0, 1]
     assert data["gains"]["table4_ise"] > 0
     pngs = sorted(p.name for p in out.glob("*.png"))
-    assert {"fig07_step.png", "fig09_lemniscate.png", "fig14_variable_d.png", "fig15_wind.png",
-            "swarm_paths_3d.png", "fig16_anticollision.png", "wind_robustness.png"} <= set(pngs)
+    assert {
+        "fig07_step.png",
+        "fig09_lemniscate.png",
+        "fig14_variable_d.png",
+        "fig15_wind.png",
+        "swarm_paths_3d.png",
+        "fig16_anticollision.png",
+        "wind_robustness.png",
+    } <= set(pngs)
     assert {f["file"] for f in data["figures"]} == set(pngs)
     import matplotlib.image as mpimg
 
@@ -171,7 +226,7 @@ def test_report_quick_writes_readme_json_and_pngs(tmp_path, monkeypatch, capsys)
         img = mpimg.imread(out / name)
         assert img.ndim == 3 and img.shape[0] > 200 and img.shape[1] > 300
         assert (out / name).stat().st_size > 10_000
-        assert float(np.std(img[..., :3])) > 0.01          # not blank
+        assert float(np.std(img[..., :3])) > 0.01  # not blank
         assert f"({name})" in readme
 
 
@@ -181,7 +236,7 @@ def test_report_quick_writes_readme_json_and_pngs(tmp_path, monkeypatch, capsys)
 def test_ray_missing_is_one_line(monkeypatch, capsys):
     import sys
 
-    monkeypatch.setitem(sys.modules, "ray", None)          # import ray -> ImportError
+    monkeypatch.setitem(sys.modules, "ray", None)  # import ray -> ImportError
     assert cli_main(["sweep", "wind_lemniscate", "--seeds", "1", "--duration", "0.2", "--ray", "auto"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "swarm-mj[ray]" in err
@@ -213,7 +268,9 @@ class _FakeRay:
                 @staticmethod
                 def remote(x):
                     return _Ref(fn(x))
+
             return R
+
         return wrap
 
     def wait(self, pending, num_returns=1):

@@ -17,9 +17,22 @@ from swarm_mj.scenario import bundled_scenarios, load_scenario, parse_scenario
 BUNDLED = bundled_scenarios()
 
 # The scenarios the issues and SPEC name; more may be bundled.
-REQUIRED = {"step", "lemniscate_single", "circle_single", "circle", "lemniscate", "ascending_orbit",
-            "scenario1", "scenario2", "scenario3", "variable_diameter", "anti_collision",
-            "wind_circle", "wind_lemniscate", "wind_swarm"}
+REQUIRED = {
+    "step",
+    "lemniscate_single",
+    "circle_single",
+    "circle",
+    "lemniscate",
+    "ascending_orbit",
+    "scenario1",
+    "scenario2",
+    "scenario3",
+    "variable_diameter",
+    "anti_collision",
+    "wind_circle",
+    "wind_lemniscate",
+    "wind_swarm",
+}
 
 
 def test_required_scenarios_are_bundled():
@@ -89,10 +102,11 @@ def _with(**changes) -> dict:
 
 def test_defaults_of_a_minimal_scenario():
     sc = parse_scenario(MINIMAL, "x.toml")
-    assert sc.control_period == 0.01 and sc.timestep == 0.005 and sc.integrator == "RK4"   # SPEC §1, §2
+    assert sc.control_period == 0.01 and sc.timestep == 0.005 and sc.integrator == "RK4"  # SPEC §1, §2
     np.testing.assert_array_equal(sc.gains, TABLE4_GAINS)
-    np.testing.assert_allclose(TABLE4_GAINS, [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141,
-                                              4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344])
+    np.testing.assert_allclose(
+        TABLE4_GAINS, [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141, 4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]
+    )
     assert sc.wind_feedforward is True and not sc.wind.enabled
     assert sc.anti_collision == "layers"
     assert sc.anti_collision_params["safety_distance"] == 0.8 and sc.anti_collision_params["hop"] == 0.4
@@ -100,41 +114,60 @@ def test_defaults_of_a_minimal_scenario():
     assert sc.steady_after == 10.0
 
 
-@pytest.mark.parametrize("data,field,problem", [
-    (_with(duration=None), "duration", "missing"),
-    (_with(duration=-3.0), "duration", "positive"),
-    (_with(duration="ten"), "duration", "number"),
-    (_with(colour=3), "colour", "unknown"),
-    (_with(leader={"trajectory": "hover", "speed": 2}), "leader", "speed"),
-    (_with(leader={"trajectory": "spiral"}), "leader.trajectory", "spiral"),
-    (_with(leader={"start": [0, 0, 0]}), "leader.trajectory", "missing"),
-    (_with(leader={"trajectory": "circle", "params": {"radius": 2, "wobble": 1}}), "leader.params", "wobble"),
-    (_with(leader={"trajectory": "hover", "start": [0, 0]}), "leader.start", "3"),
-    (_with(leader=None), "leader", "missing"),
-    (_with(timestep=0.003), "timestep", "divide"),
-    (_with(integrator="leapfrog"), "integrator", "leapfrog"),
-    (_with(seed=-1), "seed", ">= 0"),
-    (_with(followers={"start": [[1, 0, 0]]}, formation={"diameter": -1.0}), "formation.diameter", "positive"),
-    (_with(followers={"start": [[1, 0, 0]]}, formation={"diameter": [[0, 1.0], [5, -2.0]]}),
-     "formation.diameter", "positive"),
-    (_with(followers={"start": [[1, 0, 0]]}, formation={"diameter": [[1, 1.0], [5, 2.0]]}),
-     "formation.diameter", "start at 0"),
-    (_with(followers={"start": [[1, 0, 0]]}, formation={"anti_collision": "magic"}), "formation.anti_collision",
-     "magic"),
-    (_with(followers={"start": [[1, 0, 0]]}, formation={"safety_distance": 0}), "formation.safety_distance",
-     "positive"),
-    (_with(followers={"count": 2, "start": [[1, 0, 0]]}), "followers.start", "2"),
-    (_with(followers={"count": 2}), "followers", "start"),
-    (_with(followers={"count": 30, "random_start": {"radius": 1.0, "min_spacing": 0.8}}),
-     "followers.random_start", "room"),
-    (_with(controller={"gains": [1.0] * 11}), "controller.gains", "shape"),
-    (_with(controller={"gains": [1.0] * 11 + [-2.0]}), "controller.gains", "positive"),
-    (_with(controller={"gains": "missing_gains.toml"}), "missing_gains.toml", "not found"),
-    (_with(controller={"wind_feedforward": "yes"}), "controller.wind_feedforward", "true or false"),
-    (_with(controller={"attitude_map": "quat"}), "controller.attitude_map", "quat"),
-    (_with(controller={"feedforward": True}), "controller", "feedforward"),
-    (_with(wind={"enabled": True, "speed": 3}), "wind.speed", "unknown"),
-], ids=lambda v: v if isinstance(v, str) else None)
+@pytest.mark.parametrize(
+    "data,field,problem",
+    [
+        (_with(duration=None), "duration", "missing"),
+        (_with(duration=-3.0), "duration", "positive"),
+        (_with(duration="ten"), "duration", "number"),
+        (_with(colour=3), "colour", "unknown"),
+        (_with(leader={"trajectory": "hover", "speed": 2}), "leader", "speed"),
+        (_with(leader={"trajectory": "spiral"}), "leader.trajectory", "spiral"),
+        (_with(leader={"start": [0, 0, 0]}), "leader.trajectory", "missing"),
+        (_with(leader={"trajectory": "circle", "params": {"radius": 2, "wobble": 1}}), "leader.params", "wobble"),
+        (_with(leader={"trajectory": "hover", "start": [0, 0]}), "leader.start", "3"),
+        (_with(leader=None), "leader", "missing"),
+        (_with(timestep=0.003), "timestep", "divide"),
+        (_with(integrator="leapfrog"), "integrator", "leapfrog"),
+        (_with(seed=-1), "seed", ">= 0"),
+        (_with(followers={"start": [[1, 0, 0]]}, formation={"diameter": -1.0}), "formation.diameter", "positive"),
+        (
+            _with(followers={"start": [[1, 0, 0]]}, formation={"diameter": [[0, 1.0], [5, -2.0]]}),
+            "formation.diameter",
+            "positive",
+        ),
+        (
+            _with(followers={"start": [[1, 0, 0]]}, formation={"diameter": [[1, 1.0], [5, 2.0]]}),
+            "formation.diameter",
+            "start at 0",
+        ),
+        (
+            _with(followers={"start": [[1, 0, 0]]}, formation={"anti_collision": "magic"}),
+            "formation.anti_collision",
+            "magic",
+        ),
+        (
+            _with(followers={"start": [[1, 0, 0]]}, formation={"safety_distance": 0}),
+            "formation.safety_distance",
+            "positive",
+        ),
+        (_with(followers={"count": 2, "start": [[1, 0, 0]]}), "followers.start", "2"),
+        (_with(followers={"count": 2}), "followers", "start"),
+        (
+            _with(followers={"count": 30, "random_start": {"radius": 1.0, "min_spacing": 0.8}}),
+            "followers.random_start",
+            "room",
+        ),
+        (_with(controller={"gains": [1.0] * 11}), "controller.gains", "shape"),
+        (_with(controller={"gains": [1.0] * 11 + [-2.0]}), "controller.gains", "positive"),
+        (_with(controller={"gains": "missing_gains.toml"}), "missing_gains.toml", "not found"),
+        (_with(controller={"wind_feedforward": "yes"}), "controller.wind_feedforward", "true or false"),
+        (_with(controller={"attitude_map": "quat"}), "controller.attitude_map", "quat"),
+        (_with(controller={"feedforward": True}), "controller", "feedforward"),
+        (_with(wind={"enabled": True, "speed": 3}), "wind.speed", "unknown"),
+    ],
+    ids=lambda v: v if isinstance(v, str) else None,
+)
 def test_mistakes_name_file_field_and_problem(tmp_path, data, field, problem):
     path = str(tmp_path / "bad_scenario.toml")
     with pytest.raises(UserError) as ei:
@@ -184,4 +217,4 @@ def test_cli_rule_and_aero_names_are_the_registries():
 
     assert tuple(ANTI_COLLISION_RULES) == RULE_NAMES
     assert tuple(AERO_MODELS) == AERO_NAMES
-    assert RULE_NAMES[0] == "layers"       # the default of a scenario (test_defaults_of_a_minimal_scenario)
+    assert RULE_NAMES[0] == "layers"  # the default of a scenario (test_defaults_of_a_minimal_scenario)

@@ -1,4 +1,4 @@
-"""Trajectories (docs/interpretations.md §3) and metrics (docs/interpretations.md §7, paper eqs. 25 and 38) on known signals.
+"""Trajectories (docs/interpretations.md §3) and metrics (§7 there, paper eqs. 25 and 38) on known signals.
 
 Every expected value here comes from the formula in docs/interpretations.md / the paper or from a closed-form
 signal (first-order and second-order step responses, sinusoids), never from the code
@@ -118,7 +118,7 @@ def test_step_metrics_damped_oscillation(zeta):
     def y_of(tt):
         return 1.0 - np.exp(-zeta * wn * tt) * (np.cos(wd * tt) + zeta / math.sqrt(1 - zeta**2) * np.sin(wd * tt))
 
-    y = 2.0 * y_of(t)                     # a step of size 2 from 0
+    y = 2.0 * y_of(t)  # a step of size 2 from 0
     m = step_metrics(t, y, 2.0, 0.0)
     expected_os = 100.0 * math.exp(-math.pi * zeta / math.sqrt(1 - zeta**2))
     assert m["overshoot_pct"] == pytest.approx(expected_os, rel=1e-5)
@@ -153,7 +153,7 @@ def test_step_metrics_never_settled_and_zero_step():
 
 
 def test_rmse_of_known_signals():
-    t = np.arange(0.0, 10.0, 0.001)                       # 10 whole periods of sin(2πt)
+    t = np.arange(0.0, 10.0, 0.001)  # 10 whole periods of sin(2πt)
     e = np.column_stack([0.3 * np.sin(2 * np.pi * t), np.full_like(t, -0.2), np.zeros_like(t)])
     np.testing.assert_allclose(rmse(e), [0.3 / math.sqrt(2), 0.2, 0.0], rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(rmse(e.T, axis=1), rmse(e), rtol=1e-15)
@@ -165,7 +165,7 @@ def test_ise_weights_are_those_of_eq_25():
 
 def test_ise_of_known_signals():
     dt = 0.001
-    t = np.arange(0.0, 10.0, dt)                           # 10 s, 10 000 samples
+    t = np.arange(0.0, 10.0, dt)  # 10 s, 10 000 samples
     # constant errors c_j: ISE = T·Σ w_j c_j²
     c = np.array([0.1, -0.2, 0.3, 0.05, -0.01, 0.4])
     e = np.tile(c, (len(t), 1))
@@ -193,17 +193,17 @@ def test_formation_settling_on_synthetic_data():
     dt = 0.01
     t = np.arange(0.0, 30.0 + dt / 2, dt)
     change = np.array([0.0, 6.0, 11.0, 16.0])
-    values = np.array([1.0, 1.7, 1.2, 2.0])               # eq. (34)
+    values = np.array([1.0, 1.7, 1.2, 2.0])  # eq. (34)
     idx = np.searchsorted(change, t + 1e-9, side="right") - 1
     D = values[idx]
-    tau = np.array([0.5, 0.3, 0.8, 0.4, 0.6])            # one per follower
-    e0 = np.array([0.6, -0.5, 0.7, -0.4, 0.3])           # error right after a change (per follower)
+    tau = np.array([0.5, 0.3, 0.8, 0.4, 0.6])  # one per follower
+    e0 = np.array([0.6, -0.5, 0.7, -0.4, 0.3])  # error right after a change (per follower)
     dist = np.empty((len(t), 5))
     for seg in range(4):
         m = idx == seg
         dist[m] = D[m, None] + e0 * np.exp(-(t[m, None] - change[seg]) / tau)
     settling, max_err = formation_settling(t, dist, D, change, tol=0.05)
-    expected = float(np.max(tau * np.log(np.abs(e0) / 0.05)))   # the slowest follower decides
+    expected = float(np.max(tau * np.log(np.abs(e0) / 0.05)))  # the slowest follower decides
     assert len(settling) == 4
     for s in settling:
         assert abs(s - expected) <= dt + 1e-9
@@ -222,14 +222,14 @@ def test_formation_settling_never_and_immediately():
 
 
 def test_min_separation_and_distances_on_synthetic_data():
-    t = np.linspace(-2.0, 2.0, 401)                      # t = 0 at index 200
+    t = np.linspace(-2.0, 2.0, 401)  # t = 0 at index 200
     pos = np.zeros((len(t), 3, 3))
-    pos[:, 1] = np.column_stack([t, np.full_like(t, 0.3), np.full_like(t, 0.4)])   # passes at 0.5 m
+    pos[:, 1] = np.column_stack([t, np.full_like(t, 0.3), np.full_like(t, 0.4)])  # passes at 0.5 m
     pos[:, 2] = [5.0, 5.0, 0.0]
     d, k, pair = min_separation(pos)
     assert d == pytest.approx(0.5, abs=1e-12) and k == 200 and pair == (0, 1)
     ld = leader_distances(pos)
-    np.testing.assert_allclose(ld[:, 0], np.hypot(t, 0.3))     # horizontal only
+    np.testing.assert_allclose(ld[:, 0], np.hypot(t, 0.3))  # horizontal only
     np.testing.assert_allclose(ld[:, 1], math.hypot(5, 5))
     fd, pairs = follower_distances(pos)
     assert pairs == [(1, 2)]

@@ -32,7 +32,7 @@ def _random_gains(n: int, seed: int) -> np.ndarray:
     return 0.1 + np.random.default_rng(seed).random((n, 12)) * 11.9
 
 
-DIVERGING = np.full(12, 100.0)     # far outside the box: the 10-ms loop goes unstable and flips
+DIVERGING = np.full(12, 100.0)  # far outside the box: the 10-ms loop goes unstable and flips
 
 
 # --------------------------------------------------------------------------- the cost itself
@@ -45,7 +45,7 @@ def test_cost_is_eq25_on_the_runner_loop():
     assert res.error is None
     K = settings.n_samples
     log = res.log
-    e = np.empty((K, 6))                                  # samples t = 0, T, ..., (K-1)T
+    e = np.empty((K, 6))  # samples t = 0, T, ..., (K-1)T
     e[:, 0:3] = np.array([1.0, 1.0, 1.0]) - log.pos[:K, 0]
     e[:, 3:5] = log.att_d[:K, 0, 0:2] - log.rpy[:K, 0, 0:2]
     dpsi = np.deg2rad(25.0) - log.rpy[:K, 0, 2]
@@ -55,10 +55,10 @@ def test_cost_is_eq25_on_the_runner_loop():
 
 
 def test_batched_cost_equals_each_candidate_alone():
-    X = np.vstack([TABLE4_GAINS, _random_gains(6, seed=3)])          # (7, 12)
+    X = np.vstack([TABLE4_GAINS, _random_gains(6, seed=3)])  # (7, 12)
     alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X])
     one_model = BatchEvaluator(len(X), SHORT, block=len(X)).evaluate(X)
-    blocks = BatchEvaluator(len(X), SHORT, block=3).evaluate(X)      # three models of 3, 2, 2
+    blocks = BatchEvaluator(len(X), SHORT, block=3).evaluate(X)  # three models of 3, 2, 2
     assert np.isfinite(alone).all()
     np.testing.assert_allclose(one_model, alone, rtol=1e-9, atol=0)
     np.testing.assert_allclose(blocks, alone, rtol=1e-9, atol=0)
@@ -73,18 +73,18 @@ def test_overlapping_copies_never_touch():
 
 
 def test_diverging_candidate_costs_inf_and_does_not_touch_the_others():
-    good = np.vstack([TABLE4_GAINS, _random_gains(2, seed=5)])        # (3, 12)
+    good = np.vstack([TABLE4_GAINS, _random_gains(2, seed=5)])  # (3, 12)
     alone = np.array([BatchEvaluator(1, SHORT).evaluate(g[None])[0] for g in good])
     bad_nan = TABLE4_GAINS.copy()
     bad_nan[4] = np.nan
-    X = np.vstack([good[0], DIVERGING, good[1], bad_nan, good[2]])    # (5, 12)
+    X = np.vstack([good[0], DIVERGING, good[1], bad_nan, good[2]])  # (5, 12)
     ev = BatchEvaluator(len(X), SHORT)
     c = ev.evaluate(X)
     assert math.isinf(c[1]) and c[1] > 0 and math.isinf(c[3])
     assert ev.diverged_at[1] > 0 and ev.diverged_at[3] == 0
     assert (ev.diverged_at[[0, 2, 4]] == -1).all()
     np.testing.assert_allclose(c[[0, 2, 4]], alone, rtol=1e-9, atol=0)
-    for sim in ev.sims:                                   # MuJoCo never saw a bad state
+    for sim in ev.sims:  # MuJoCo never saw a bad state
         assert sim.data.warning[mujoco.mjtWarning.mjWARN_BADQACC].number == 0
         assert np.isfinite(sim.data.qpos).all()
 
@@ -92,7 +92,7 @@ def test_diverging_candidate_costs_inf_and_does_not_touch_the_others():
 def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
     """A controller output turning NaN for one copy (as U1 = …/(cos φ cos θ) would near 90°) marks
     that copy diverged; MuJoCo must never see it (a bad acceleration resets the whole MjData)."""
-    X = np.vstack([TABLE4_GAINS, TABLE4_GAINS * 1.1, _random_gains(1, seed=9)])   # (3, 12)
+    X = np.vstack([TABLE4_GAINS, TABLE4_GAINS * 1.1, _random_gains(1, seed=9)])  # (3, 12)
     alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X[[0, 2]]])
 
     class NaNFromStep50(evaluator_mod.Backstepping):
@@ -130,7 +130,7 @@ def test_same_tune_whatever_the_number_of_workers():
     opts = TuneOptions(population=6, iterations=2, seed=4)
     one = tune_gains(opts, SHORT, workers=1)
     two = tune_gains(opts, SHORT, workers=2)
-    three = tune_gains(opts, SHORT, workers=3)            # uneven chunks 2, 2, 2 ... and 6 = 2+2+2
+    three = tune_gains(opts, SHORT, workers=3)  # uneven chunks 2, 2, 2 ... and 6 = 2+2+2
     assert one.backend == "in-process" and two.backend == "processes" and two.workers == 2
     for other in (two, three):
         np.testing.assert_array_equal(other.best_x, one.best_x)
@@ -141,7 +141,7 @@ def test_same_tune_whatever_the_number_of_workers():
 
 
 def test_process_pool_chunks_are_evaluated_in_order():
-    X = _random_gains(5, seed=8)                          # 5 over 2 workers: chunks of 3 and 2
+    X = _random_gains(5, seed=8)  # 5 over 2 workers: chunks of 3 and 2
     with cost_mod.make_population_cost(SHORT, workers=2) as cost:
         assert isinstance(cost, cost_mod.ProcessPoolCost)
         par = cost(X)
@@ -165,7 +165,7 @@ def test_tiny_tune_on_a_local_ray_instance():
 
 
 def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path, capsys):
-    monkeypatch.setitem(__import__("sys").modules, "ray", None)      # `import ray` fails
+    monkeypatch.setitem(__import__("sys").modules, "ray", None)  # `import ray` fails
     out = tmp_path / "g.toml"
     rc = cli_main(["tune", "--ray", "local", "--population", "4", "--iterations", "1", "-o", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
@@ -179,8 +179,24 @@ def test_ray_missing_is_one_clear_line(monkeypatch, tmp_path, capsys):
 
 def _tiny_tune(tmp_path: Path, *extra: str) -> tuple[int, Path]:
     out = tmp_path / "tuned.toml"
-    rc = cli_main(["tune", "--population", "6", "--iterations", "2", "--t-sim", "3", "--seed", "2",
-                   "--workers", "1", "-o", str(out), *extra])
+    rc = cli_main(
+        [
+            "tune",
+            "--population",
+            "6",
+            "--iterations",
+            "2",
+            "--t-sim",
+            "3",
+            "--seed",
+            "2",
+            "--workers",
+            "1",
+            "-o",
+            str(out),
+            *extra,
+        ]
+    )
     return rc, out
 
 
@@ -212,28 +228,33 @@ def test_gains_file_round_trip(tmp_path):
     assert step_ise(TABLE4_GAINS, StepCostSettings(t_sim=3.0)) == pytest.approx(data["table4_ise"], rel=1e-12)
     # a scenario file can point at it
     sc_file = tmp_path / "step_tuned.toml"
-    sc_file.write_text('duration = 1.0\n[leader]\ntrajectory = "step"\n'
-                       'params = { target = [1.0, 1.0, 1.0], yaw_deg = 25.0 }\n'
-                       f'[controller]\ngains = "{out.name}"\n')
+    sc_file.write_text(
+        'duration = 1.0\n[leader]\ntrajectory = "step"\n'
+        "params = { target = [1.0, 1.0, 1.0], yaw_deg = 25.0 }\n"
+        f'[controller]\ngains = "{out.name}"\n'
+    )
     np.testing.assert_array_equal(load_scenario(str(sc_file)).gains, gains)
     # and so can `swarm-mj run step --gains FILE`
     assert cli_main(["run", "step", "--gains", str(out), "--duration", "0.5", "--no-record", "--quiet"]) == 0
 
 
-@pytest.mark.parametrize("args", [
-    ["--population", "3"],
-    ["--iterations", "0"],
-    ["--lower", "5", "--upper", "1"],
-    ["--lower", "2", "--upper", "2"],
-    ["--lower", "0"],
-    ["--p", "1.5"],
-    ["--p", "-0.1"],
-    ["--gamma", "0"],
-    ["--t-sim", "-1"],
-    ["--workers", "0"],
-    ["--t-sim", "1.5"],                 # shorter than the 2-s settling bars: none could meet them
-    ["--init", "table4", "--lower", "3"],
-])
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["--population", "3"],
+        ["--iterations", "0"],
+        ["--lower", "5", "--upper", "1"],
+        ["--lower", "2", "--upper", "2"],
+        ["--lower", "0"],
+        ["--p", "1.5"],
+        ["--p", "-0.1"],
+        ["--gamma", "0"],
+        ["--t-sim", "-1"],
+        ["--workers", "0"],
+        ["--t-sim", "1.5"],  # shorter than the 2-s settling bars: none could meet them
+        ["--init", "table4", "--lower", "3"],
+    ],
+)
 def test_bad_settings_exit_2_with_one_line(args, tmp_path, capsys):
     out = tmp_path / "g.toml"
     rc = cli_main(["tune", *args, "-o", str(out)])
@@ -254,7 +275,7 @@ def test_interrupted_tune_leaves_the_best_gains_so_far(tmp_path, monkeypatch, ca
 
     def interrupt_on_third_batch(self, X):
         calls["n"] += 1
-        if calls["n"] == 3:                               # initial population, iteration 1, then Ctrl-C
+        if calls["n"] == 3:  # initial population, iteration 1, then Ctrl-C
             raise KeyboardInterrupt
         return real(self, X)
 
@@ -279,7 +300,7 @@ def test_atomic_write_keeps_the_old_file_when_interrupted(tmp_path, monkeypatch)
 
     import swarm_mj.atomic as atomic
 
-    monkeypatch.setattr(atomic.os, "fsync", boom)      # tune writes through swarm_mj.atomic
+    monkeypatch.setattr(atomic.os, "fsync", boom)  # tune writes through swarm_mj.atomic
     with pytest.raises(KeyboardInterrupt):
         tune_cmd.write_text_atomic(path, "gains = [2.0]\n" * 1000)
     assert path.read_text() == "gains = [1.0]\n"
@@ -294,9 +315,15 @@ def test_shipped_seed1_gains_file_is_what_the_code_computes():
     current cost of its gains (else the controller or the physics changed: re-tune)."""
     data = tomllib.loads(SEED1_FILE.read_text())
     s = data["settings"]
-    assert (s["population"], s["iterations"], s["p"], s["gamma"], s["t_sim"], data["seed"]) == \
-        (50, 14, 0.04, 0.02, 10.0, 1)
-    assert (s["constraints"], s["init"]) == ("step-bars", "table4")      # the command's defaults
+    assert (s["population"], s["iterations"], s["p"], s["gamma"], s["t_sim"], data["seed"]) == (
+        50,
+        14,
+        0.04,
+        0.02,
+        10.0,
+        1,
+    )
+    assert (s["constraints"], s["init"]) == ("step-bars", "table4")  # the command's defaults
     gains = load_gains(SEED1_FILE)
     assert ((gains >= s["lower"]) & (gains <= s["upper"])).all()
     assert step_ise(gains) == pytest.approx(data["ise"], rel=1e-9)
@@ -328,7 +355,7 @@ def test_shipped_tuned_gains_meet_the_step_bars():
 
 def test_batched_step_metrics_equal_the_run_summary():
     """The metrics the constraints read are those of `swarm-mj run step --summary`, per candidate."""
-    X = np.vstack([TABLE4_GAINS, _random_gains(3, seed=11)])          # (4, 12)
+    X = np.vstack([TABLE4_GAINS, _random_gains(3, seed=11)])  # (4, 12)
     ev = BatchEvaluator(len(X), StepCostSettings())
     ev.evaluate(X)
     for i, g in enumerate(X):
@@ -347,13 +374,23 @@ def test_violation_is_zero_exactly_when_every_bar_is_met():
     from swarm_mj.tuning.constraints import step_violation
 
     bars = StepBars()
-    ok = {ax: {"overshoot_pct": np.array([0.5]), "settling_s": np.array([bars.settling(ax) - 0.01]),
-               "steady_state_error": np.array([1e-4])} for ax in ("x", "y", "z", "psi")}
+    ok = {
+        ax: {
+            "overshoot_pct": np.array([0.5]),
+            "settling_s": np.array([bars.settling(ax) - 0.01]),
+            "steady_state_error": np.array([1e-4]),
+        }
+        for ax in ("x", "y", "z", "psi")
+    }
     assert step_violation(ok, np.array([50.0]), bars, 10.0)[0] == 0.0
     # each bar on its own: just over it gives exactly its normalised excess
-    cases = [("y", "settling_s", 2.05, 0.05 / 2.0), ("z", "settling_s", 1.6, 0.1 / 1.5),
-             ("x", "overshoot_pct", 1.5, 0.5), ("psi", "steady_state_error", 2e-3, 1.0),
-             ("y", "settling_s", np.inf, (10.0 - 2.0) / 2.0)]           # never settled: at t_end
+    cases = [
+        ("y", "settling_s", 2.05, 0.05 / 2.0),
+        ("z", "settling_s", 1.6, 0.1 / 1.5),
+        ("x", "overshoot_pct", 1.5, 0.5),
+        ("psi", "steady_state_error", 2e-3, 1.0),
+        ("y", "settling_s", np.inf, (10.0 - 2.0) / 2.0),
+    ]  # never settled: at t_end
     for ax, key, value, expected in cases:
         bad = {a: dict(m) for a, m in ok.items()}
         bad[ax][key] = np.array([value])
@@ -382,8 +419,9 @@ def test_tune_with_bars_ends_on_gains_that_meet_them():
     assert with_bars.check.meets_bars and with_bars.best_feasible
     assert with_bars.best_ise <= with_bars.initial_ise <= with_bars.table4_ise
     assert with_bars.best_ise == pytest.approx(step_ise(with_bars.best_x), rel=1e-12)
-    ise_only = tune_gains(TuneOptions(population=8, iterations=2, seed=1, init="random"),
-                          StepCostSettings(bars=None), workers=1)
+    ise_only = tune_gains(
+        TuneOptions(population=8, iterations=2, seed=1, init="random"), StepCostSettings(bars=None), workers=1
+    )
     assert ise_only.settings.bars is None
     assert ise_only.check.violation == pytest.approx(step_check(ise_only.best_x).violation)
 
@@ -392,13 +430,28 @@ def test_random_init_without_a_feasible_flower_reports_no_improvement(tmp_path, 
     """With --init random the initial population may hold no candidate meeting the bars (about
     1 in 100 uniform gain sets does): the improvement is then n/a, not a number made up against
     an infeasible ISE."""
-    initial = 0.1 + np.random.default_rng(0).random((4, 12)) * 11.9     # fpa's first draw, seed 0
+    initial = 0.1 + np.random.default_rng(0).random((4, 12)) * 11.9  # fpa's first draw, seed 0
     ev = BatchEvaluator(4, StepCostSettings())
     ev.evaluate(initial)
-    assert (ev.violation > 0).all()                                      # the premise of this test
+    assert (ev.violation > 0).all()  # the premise of this test
     out = tmp_path / "g.toml"
-    rc = cli_main(["tune", "--population", "4", "--iterations", "1", "--seed", "0", "--init", "random",
-                   "--workers", "1", "-o", str(out)])
+    rc = cli_main(
+        [
+            "tune",
+            "--population",
+            "4",
+            "--iterations",
+            "1",
+            "--seed",
+            "0",
+            "--init",
+            "random",
+            "--workers",
+            "1",
+            "-o",
+            str(out),
+        ]
+    )
     assert rc == 0
     data = tomllib.loads(out.read_text())
     assert math.isnan(data["initial_ise"]) and math.isnan(data["improvement_pct"])

@@ -62,7 +62,9 @@ def same_info(a: dict, b: dict, keys) -> None:
         np.testing.assert_array_equal(a[key][mask], b[key][mask], err_msg=key)
 
 
-def compare_with_sync(sc, m: int, steps: int, mode: AutoresetMode, actions=None, seed: int = 7, atol: float = 0.0) -> dict:
+def compare_with_sync(
+    sc, m: int, steps: int, mode: AutoresetMode, actions=None, seed: int = 7, atol: float = 0.0
+) -> dict:
     """Step SwarmVectorEnv and SyncVectorEnv(SwarmGymEnv) side by side; everything must agree, bit for bit
     (atol = 0) or, where drones touch, to ``atol``: the vector env's contacts come from explicit pairs, the
     single env's from MuJoCo's broad phase, in another order, so the solver sums them in another order."""
@@ -87,8 +89,9 @@ def compare_with_sync(sc, m: int, steps: int, mode: AutoresetMode, actions=None,
         same_info(r1[4], r2[4], ("time", "contacts", "new_contacts", "termination", "wind_seed"))
         if "min_separation" in r2[4]:
             mask = r2[4]["_min_separation"]
-            np.testing.assert_allclose(r1[4]["min_separation"][mask], r2[4]["min_separation"][mask],
-                                       rtol=1e-14, atol=atol)
+            np.testing.assert_allclose(
+                r1[4]["min_separation"][mask], r2[4]["min_separation"][mask], rtol=1e-14, atol=atol
+            )
         if mode == AutoresetMode.SAME_STEP and "final_obs" in r2[4]:
             np.testing.assert_array_equal(r1[4]["_final_obs"], r2[4]["_final_obs"])
             for c in np.flatnonzero(r2[4]["_final_obs"]):
@@ -122,8 +125,9 @@ def test_spaces_and_metadata():
     assert terminated.dtype == np.bool_ and truncated.dtype == np.bool_ and terminated.shape == (3,)
     flat = SwarmVectorEnv("circle", num_envs=3, flatten=True)
     fobs, _ = flat.reset(seed=0)
-    np.testing.assert_array_equal(fobs[1], spaces.flatten(env.single_observation_space,
-                                                          {k: v[1] for k, v in env.reset(seed=0)[0].items()}))
+    np.testing.assert_array_equal(
+        fobs[1], spaces.flatten(env.single_observation_space, {k: v[1] for k, v in env.reset(seed=0)[0].items()})
+    )
 
 
 def test_bad_input():
@@ -196,13 +200,14 @@ def test_per_copy_termination_on_divergence_equals_sync():
 
 def test_termination_on_contact_within_a_copy_only():
     """Two followers 0.4 m apart (rotor planes of radius 0.25 m) touch from the first physics step: every
-    copy terminates on contact, as SwarmGymEnv does; a copy's drones never touch another copy's although all copies fill the same space."""
+    copy terminates on contact, as SwarmGymEnv does; a copy's drones never touch another copy's although
+    all copies fill the same space."""
     sc = load_scenario("circle").with_overrides(duration=1.0)
     starts = np.array(sc.follower_starts, float)
     starts[1] = starts[0] + [0.4, 0.0, 0.0]
     close = sc.with_overrides(follower_starts=starts)
     seen = compare_with_sync(close, m=2, steps=3, mode=AutoresetMode.NEXT_STEP, atol=1e-12)
-    assert seen["terminated"] == 4           # steps 1 and 3 (step 2 resets both copies)
+    assert seen["terminated"] == 4  # steps 1 and 3 (step 2 resets both copies)
     env = SwarmVectorEnv(close, num_envs=2)
     env.reset(seed=0)
     _, _, terminated, _, info = env.step(hover_actions(env, 1, np.random.default_rng(0), sd=0)[0])
@@ -239,8 +244,11 @@ def test_copy_alone_equals_copy_among_63_others():
     alone = SwarmVectorEnv(sc, num_envs=1)
     single = SwarmEnv(sc)
     runs = []
-    for env, rows in ((big, slice(5, 6)), (SwarmVectorEnv(sc, num_envs=64, block=16), slice(5, 6)),
-                      (alone, slice(0, 1))):
+    for env, rows in (
+        (big, slice(5, 6)),
+        (SwarmVectorEnv(sc, num_envs=64, block=16), slice(5, 6)),
+        (alone, slice(0, 1)),
+    ):
         obs, _ = env.reset(seed=[100 + i for i in range(env.num_envs)] if env.num_envs > 1 else 105)
         traj = [obs["pos"][rows].copy()]
         out = []
@@ -300,7 +308,7 @@ def test_kernel_samples_fit_the_kernel():
     for args in _observe_samples():
         fn(*args)
         out = args[-4]
-        assert out.shape[1] == args[-5][-1] + 3 * args[2]        # the wind force is the last key
+        assert out.shape[1] == args[-5][-1] + 3 * args[2]  # the wind force is the last key
 
 
 def test_copies_in_contact_agree_with_a_copy_alone_to_1e_12():

@@ -81,7 +81,7 @@ def _drone_pixels(seg: np.ndarray, world, i: int) -> np.ndarray:
 
 def _window(img: np.ndarray, xy: np.ndarray, r: int) -> np.ndarray:
     x, y = int(round(xy[0])), int(round(xy[1]))
-    return img[max(0, y - r):y + r + 1, max(0, x - r):x + r + 1].reshape(-1, 3).astype(float)
+    return img[max(0, y - r) : y + r + 1, max(0, x - r) : x + r + 1].reshape(-1, 3).astype(float)
 
 
 def _closest_colour_share(pixels: np.ndarray, colour: np.ndarray, other: np.ndarray) -> float:
@@ -111,12 +111,12 @@ def test_parse_size():
 
 def test_check_video_args_rejects_bad_options(tmp_path):
     ok = tmp_path / "a.mp4"
-    video.check_video_args(_args(video=str(ok), snapshot=str(tmp_path / "a.png")))   # fine
+    video.check_video_args(_args(video=str(ok), snapshot=str(tmp_path / "a.png")))  # fine
     bad = [
         _args(video=str(ok), fps=0),
         _args(video=str(ok), fps=-5),
         _args(video=str(ok), size="1280*720"),
-        _args(video=str(ok), size="321x240"),                     # odd: H.264 4:2:0 needs even
+        _args(video=str(ok), size="321x240"),  # odd: H.264 4:2:0 needs even
         _args(video=str(tmp_path / "a.avi")),
         _args(video=str(tmp_path / "missing" / "a.mp4")),
         _args(snapshot=str(tmp_path / "a.jpg")),
@@ -132,8 +132,9 @@ def test_bad_options_exit_2_before_simulating(tmp_path, capsys):
     rc = cli.main(["run", "circle", "--no-record", "--quiet", "--video", str(tmp_path / "nope" / "v.mp4")])
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and err[0].startswith("swarm-mj: error: --video")
-    rc = cli.main(["video", "circle", "-o", str(tmp_path / "v.mp4"), "--snapshot", str(tmp_path / "s.png"),
-                   "--duration", "5"])                          # default still time 20 s > 5 s
+    rc = cli.main(
+        ["video", "circle", "-o", str(tmp_path / "v.mp4"), "--snapshot", str(tmp_path / "s.png"), "--duration", "5"]
+    )  # default still time 20 s > 5 s
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "--snapshot-time" in err[0]
     assert list(tmp_path.iterdir()) == []
@@ -171,12 +172,18 @@ def test_camera_path_keeps_every_drone_in_frame(circle20):
 
 def test_missing_egl_message_names_cause_and_fix(monkeypatch):
     monkeypatch.setattr(video_gl, "mujoco_gl_backend", lambda: "egl")
-    msg = video.describe_gl_failure(ImportError(
-        "Unable to load EGL library", "libEGL.so.1: cannot open shared object file: No such file or directory"))
+    msg = video.describe_gl_failure(
+        ImportError(
+            "Unable to load EGL library", "libEGL.so.1: cannot open shared object file: No such file or directory"
+        )
+    )
     assert "\n" not in msg and "libEGL.so.1 is not installed" in msg and "apt-get install libegl1" in msg
-    msg = video.describe_gl_failure(ImportError(
-        "Cannot initialize a EGL device display. This likely means that your EGL driver does not support "
-        "the PLATFORM_DEVICE extension, which is\n required for creating a headless rendering context."))
+    msg = video.describe_gl_failure(
+        ImportError(
+            "Cannot initialize a EGL device display. This likely means that your EGL driver does not support "
+            "the PLATFORM_DEVICE extension, which is\n required for creating a headless rendering context."
+        )
+    )
     assert "\n" not in msg and "no driver" in msg and "libegl-mesa0" in msg and "libgl1-mesa-dri" in msg
 
 
@@ -192,7 +199,7 @@ def test_video_decodes_with_the_drones_where_the_log_says(short_run, tmp_path, c
     plain = video.VideoStyle(trails=False, reference=False, markers=False, caption=False)
     video.render_video(short_run, out, fps=fps, size=(w, h), progress=True, style=plain)
     assert f"{round(d * fps)}/{round(d * fps)} frames" in capsys.readouterr().err
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["circle.mp4"]      # no partial file left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["circle.mp4"]  # no partial file left
 
     meta = iio.immeta(out, plugin="FFMPEG")
     assert meta["codec"] == "h264" and meta["fps"] == pytest.approx(fps) and tuple(meta["size"]) == (w, h)
@@ -251,8 +258,9 @@ def test_projection_matches_what_mujoco_draws():
             r.disable_segmentation_rendering()
             ys, xs = np.nonzero(seg[..., 0] == 0)
             assert len(xs) > 10
-            px = video.project_points(mujoco.mjv_averageCamera(r.scene.camera[0], r.scene.camera[1]),
-                                      np.array([p]), w, h)[0]
+            px = video.project_points(
+                mujoco.mjv_averageCamera(r.scene.camera[0], r.scene.camera[1]), np.array([p]), w, h
+            )[0]
             # pixel i covers [i, i + 1): the centre of the drawn disc is at mean index + 0.5
             assert np.allclose(px, (xs.mean() + 0.5, ys.mean() + 0.5), atol=1.0), (p, px)
     finally:
@@ -292,13 +300,27 @@ def test_snapshot_at_20s_shows_the_six_drones(circle20, tmp_path):
 @pytest.mark.egl
 def test_cli_video_and_run_snapshot(tmp_path, capsys):
     mp4 = tmp_path / "v.mp4"
-    rc = cli.main(["video", "circle", "--duration", "2", "--fps", "10", "--size", "160x120", "-o", str(mp4),
-                   "--quiet"])
+    rc = cli.main(["video", "circle", "--duration", "2", "--fps", "10", "--size", "160x120", "-o", str(mp4), "--quiet"])
     assert rc == 0
     assert sum(1 for _ in iio.imiter(mp4, plugin="FFMPEG")) == 20
     png, rrd = tmp_path / "s.png", tmp_path / "s.rrd"
-    rc = cli.main(["run", "circle", "--duration", "1", "--quiet", "-o", str(rrd), "--snapshot", str(png),
-                   "--snapshot-time", "0.5", "--size", "160x120"])
+    rc = cli.main(
+        [
+            "run",
+            "circle",
+            "--duration",
+            "1",
+            "--quiet",
+            "-o",
+            str(rrd),
+            "--snapshot",
+            str(png),
+            "--snapshot-time",
+            "0.5",
+            "--size",
+            "160x120",
+        ]
+    )
     assert rc == 0 and rrd.exists() and iio.imread(png).shape == (120, 160, 3)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["s.png", "s.rrd", "v.mp4"]
 
@@ -329,14 +351,28 @@ def test_failed_video_leaves_no_file_and_keeps_the_old_one(short_run, tmp_path, 
 def test_missing_egl_in_process_one_line_exit_1_recording_kept(tmp_path, monkeypatch, capsys):
     def no_egl(model, width, height):
         # what PyOpenGL's EGL platform raises when libEGL.so.1 cannot be opened
-        raise ImportError("Unable to load EGL library",
-                          "libEGL.so.1: cannot open shared object file: No such file or directory")
+        raise ImportError(
+            "Unable to load EGL library", "libEGL.so.1: cannot open shared object file: No such file or directory"
+        )
 
     monkeypatch.setattr(video_gl, "renderer_factory", no_egl)
     monkeypatch.setattr(video_gl, "mujoco_gl_backend", lambda: "egl")
     rrd, png = tmp_path / "c.rrd", tmp_path / "c.png"
-    rc = cli.main(["run", "circle", "--duration", "0.5", "--quiet", "-o", str(rrd), "--snapshot", str(png),
-                   "--snapshot-time", "0.2"])
+    rc = cli.main(
+        [
+            "run",
+            "circle",
+            "--duration",
+            "0.5",
+            "--quiet",
+            "-o",
+            str(rrd),
+            "--snapshot",
+            str(png),
+            "--snapshot-time",
+            "0.2",
+        ]
+    )
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 1
     assert len(err) == 1 and err[0].startswith("swarm-mj: error: headless rendering needs EGL"), err
@@ -364,13 +400,24 @@ _NO_LIBEGL = textwrap.dedent("""
 def test_missing_egl_subprocess(case, tmp_path):
     """A real EGL failure in a fresh process: one line, exit 1, the recording written, no image."""
     env = dict(os.environ)
-    env.pop("MUJOCO_GL", None)                 # swarm_mj's default (egl) is what is under test
+    env.pop("MUJOCO_GL", None)  # swarm_mj's default (egl) is what is under test
     env.pop("PYOPENGL_PLATFORM", None)
     env.pop("EGL_LOG_LEVEL", None)
-    argv = ["run", "circle", "--duration", "0.5", "--quiet", "-o", "c.rrd", "--snapshot", "c.png",
-            "--snapshot-time", "0.2"]
+    argv = [
+        "run",
+        "circle",
+        "--duration",
+        "0.5",
+        "--quiet",
+        "-o",
+        "c.rrd",
+        "--snapshot",
+        "c.png",
+        "--snapshot-time",
+        "0.2",
+    ]
     if case == "no EGL driver":
-        env["__EGL_VENDOR_LIBRARY_DIRS"] = str(tmp_path / "no-vendors")   # GLVND finds no EGL driver
+        env["__EGL_VENDOR_LIBRARY_DIRS"] = str(tmp_path / "no-vendors")  # GLVND finds no EGL driver
         cmd = [sys.executable, "-m", "swarm_mj.cli", *argv]
         cause = "found no driver"
     else:
@@ -404,15 +451,28 @@ def test_osmesa_that_cannot_load_is_one_line_exit_1_recording_kept(tmp_path):
     is written, and the still fails in one line naming MUJOCO_GL=osmesa and the EGL fix."""
     env = dict(os.environ, MUJOCO_GL="osmesa")
     env.pop("PYOPENGL_PLATFORM", None)
-    argv = ["run", "circle", "--duration", "0.5", "--quiet", "-o", "c.rrd", "--snapshot", "c.png",
-            "--snapshot-time", "0.2"]
-    p = subprocess.run([sys.executable, "-c", _NO_OSMESA, *argv], cwd=tmp_path, env=env, capture_output=True,
-                       text=True, timeout=600)
+    argv = [
+        "run",
+        "circle",
+        "--duration",
+        "0.5",
+        "--quiet",
+        "-o",
+        "c.rrd",
+        "--snapshot",
+        "c.png",
+        "--snapshot-time",
+        "0.2",
+    ]
+    p = subprocess.run(
+        [sys.executable, "-c", _NO_OSMESA, *argv], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600
+    )
     err = p.stderr.strip().splitlines()
     assert p.returncode == 1, p.stderr
     assert "Traceback" not in p.stderr, p.stderr
-    assert len(err) == 1 and err[0].startswith("swarm-mj: error: cannot render: MuJoCo could not load "
-                                               "MUJOCO_GL=osmesa"), p.stderr
+    assert len(err) == 1 and err[0].startswith(
+        "swarm-mj: error: cannot render: MuJoCo could not load MUJOCO_GL=osmesa"
+    ), p.stderr
     assert "MUJOCO_GL=egl" in err[0]
     assert (tmp_path / "c.rrd").stat().st_size > 0 and not (tmp_path / "c.png").exists()
     assert sorted(x.name for x in tmp_path.iterdir()) == ["c.rrd"]

@@ -27,7 +27,7 @@ from swarm_mj import viewer
 ROOT = Path(__file__).resolve().parents[1]
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
 CHROMIUM = Path("/usr/bin/chromium")
-HANG_GUARD_S = 120           # subprocess timeouts: a hang fails the test instead of blocking CI
+HANG_GUARD_S = 120  # subprocess timeouts: a hang fails the test instead of blocking CI
 DRONES = ["leader", "follower1", "follower2", "follower3", "follower4", "follower5"]
 
 
@@ -72,8 +72,9 @@ def rerun_servers(port: int) -> list[int]:
 
 
 def start_cli(args: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.Popen:
-    return subprocess.Popen(CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                            env=env or headless_env(), cwd=cwd)
+    return subprocess.Popen(
+        CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env or headless_env(), cwd=cwd
+    )
 
 
 def wait_for_url(proc: subprocess.Popen, timeout: float = HANG_GUARD_S) -> str:
@@ -104,7 +105,7 @@ def stop(proc: subprocess.Popen) -> None:
 
 
 def assert_no_server_left(port: int) -> None:
-    deadline = time.monotonic() + 10          # SIGKILL reaping can take a moment
+    deadline = time.monotonic() + 10  # SIGKILL reaping can take a moment
     while (rerun_servers(port) or port_open(port) or port_open(port + 1)) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not rerun_servers(port), "the rerun server outlived the CLI"
@@ -116,13 +117,19 @@ def small_rrd(tmp_path_factory) -> Path:
     """A 2-s circle recording (enough for the serving checks)."""
     d = tmp_path_factory.mktemp("view")
     out = d / "circle2s.rrd"
-    r = subprocess.run(CLI + ["run", "circle", "--duration", "2", "-o", str(out), "--quiet"],
-                       capture_output=True, text=True, timeout=600, env=headless_env())
+    r = subprocess.run(
+        CLI + ["run", "circle", "--duration", "2", "-o", str(out), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=headless_env(),
+    )
     assert r.returncode == 0, r.stderr
     return out
 
 
 # --------------------------------------------------------------------------- units
+
 
 def test_find_rerun_does_not_need_path(monkeypatch):
     monkeypatch.setenv("PATH", "/nonexistent")
@@ -167,24 +174,31 @@ def test_check_port_refuses_a_listening_port():
 
 # --------------------------------------------------------------------------- view: no display, bad input
 
+
 def test_view_without_display_says_how_in_one_line(small_rrd):
     t0 = time.monotonic()
-    r = subprocess.run(CLI + ["view", str(small_rrd)], capture_output=True, text=True, timeout=HANG_GUARD_S,
-                       env=headless_env())
+    r = subprocess.run(
+        CLI + ["view", str(small_rrd)], capture_output=True, text=True, timeout=HANG_GUARD_S, env=headless_env()
+    )
     elapsed = time.monotonic() - t0
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 1, r.stderr
     assert len(lines) == 1 and lines[0].startswith("swarm-mj: error: no display"), r.stderr
     assert f"swarm-mj view {small_rrd} --web" in lines[0] and f"rerun {small_rrd}" in lines[0]
-    print(f"view without a display: exit {r.returncode} after {elapsed:.2f} s")   # -s shows it
+    print(f"view without a display: exit {r.returncode} after {elapsed:.2f} s")  # -s shows it
 
 
 @pytest.mark.parametrize("kind", ["missing", "directory"])
 def test_view_bad_file_is_one_line_and_exit_2(tmp_path, kind):
     target = tmp_path / "nope.rrd" if kind == "missing" else tmp_path
     for extra in ([], ["--web"]):
-        r = subprocess.run(CLI + ["view", str(target), *extra], capture_output=True, text=True,
-                           timeout=HANG_GUARD_S, env=headless_env())
+        r = subprocess.run(
+            CLI + ["view", str(target), *extra],
+            capture_output=True,
+            text=True,
+            timeout=HANG_GUARD_S,
+            env=headless_env(),
+        )
         assert r.returncode == 2, r.stderr
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and lines[0].startswith("swarm-mj: error:") and "Traceback" not in r.stderr
@@ -195,15 +209,19 @@ def test_view_unreadable_file_is_one_line_and_exit_2(tmp_path):
     f = tmp_path / "locked.rrd"
     f.write_bytes(b"RRF2")
     f.chmod(0)
-    r = subprocess.run(CLI + ["view", str(f)], capture_output=True, text=True, timeout=HANG_GUARD_S,
-                       env=headless_env())
+    r = subprocess.run(CLI + ["view", str(f)], capture_output=True, text=True, timeout=HANG_GUARD_S, env=headless_env())
     assert r.returncode == 2 and "cannot read" in r.stderr
 
 
 def test_view_with_a_broken_display_reports_the_viewer_error(small_rrd):
     """A DISPLAY that does not answer: the viewer fails at once and that is one line, exit 1."""
-    r = subprocess.run(CLI + ["view", str(small_rrd)], capture_output=True, text=True, timeout=HANG_GUARD_S,
-                       env=headless_env(DISPLAY=":987"))
+    r = subprocess.run(
+        CLI + ["view", str(small_rrd)],
+        capture_output=True,
+        text=True,
+        timeout=HANG_GUARD_S,
+        env=headless_env(DISPLAY=":987"),
+    )
     lines = r.stderr.strip().splitlines()
     assert r.returncode == 1 and len(lines) == 1, r.stderr
     assert lines[0].startswith("swarm-mj: error: the Rerun viewer failed"), r.stderr
@@ -211,14 +229,20 @@ def test_view_with_a_broken_display_reports_the_viewer_error(small_rrd):
 
 # --------------------------------------------------------------------------- view --web
 
+
 @pytest.mark.parametrize("which", [0, 1])
 def test_view_web_busy_port_is_one_line_and_exit_2(small_rrd, which):
     port = free_port_pair(20500)
     with socket.socket() as s:
         s.bind(("127.0.0.1", port + which))
         s.listen()
-        r = subprocess.run(CLI + ["view", str(small_rrd), "--web", "--port", str(port)], capture_output=True,
-                           text=True, timeout=HANG_GUARD_S, env=headless_env())
+        r = subprocess.run(
+            CLI + ["view", str(small_rrd), "--web", "--port", str(port)],
+            capture_output=True,
+            text=True,
+            timeout=HANG_GUARD_S,
+            env=headless_env(),
+        )
     assert r.returncode == 2, r.stderr
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and f"port {port + which}" in lines[0] and "in use" in lines[0]
@@ -234,10 +258,10 @@ def test_view_web_serves_the_page_and_ctrl_c_exits_130(small_rrd):
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/", timeout=30) as resp:
             html = resp.read().decode()
             assert resp.status == 200
-        assert "re_viewer.js" in html              # Rerun's web viewer, served by the bundled binary
+        assert "re_viewer.js" in html  # Rerun's web viewer, served by the bundled binary
         with urllib.request.urlopen(f"http://127.0.0.1:{port}/re_viewer_bg.wasm", timeout=60) as resp:
             assert resp.status == 200 and len(resp.read()) > 1_000_000
-        assert port_open(port + 1)                   # the recording's gRPC proxy
+        assert port_open(port + 1)  # the recording's gRPC proxy
         assert len(rerun_servers(port)) == 1
         rc, err = interrupt(proc)
     finally:
@@ -262,18 +286,31 @@ def test_view_web_sigterm_also_stops_the_server(small_rrd):
 
 # --------------------------------------------------------------------------- run --web / --spawn
 
+
 def test_run_web_refuses_no_record_and_a_busy_port_before_flying(tmp_path):
-    r = subprocess.run(CLI + ["run", "circle", "--no-record", "--web"], capture_output=True, text=True,
-                       timeout=HANG_GUARD_S, env=headless_env(), cwd=tmp_path)
+    r = subprocess.run(
+        CLI + ["run", "circle", "--no-record", "--web"],
+        capture_output=True,
+        text=True,
+        timeout=HANG_GUARD_S,
+        env=headless_env(),
+        cwd=tmp_path,
+    )
     assert r.returncode == 2 and "--no-record" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     port = free_port_pair(20700)
     with socket.socket() as s:
         s.bind(("127.0.0.1", port))
         s.listen()
-        r = subprocess.run(CLI + ["run", "circle", "-o", "c.rrd", "--web", "--port", str(port)],
-                           capture_output=True, text=True, timeout=HANG_GUARD_S, env=headless_env(), cwd=tmp_path)
+        r = subprocess.run(
+            CLI + ["run", "circle", "-o", "c.rrd", "--web", "--port", str(port)],
+            capture_output=True,
+            text=True,
+            timeout=HANG_GUARD_S,
+            env=headless_env(),
+            cwd=tmp_path,
+        )
     assert r.returncode == 2 and "in use" in r.stderr and len(r.stderr.strip().splitlines()) == 1
-    assert not (tmp_path / "c.rrd").exists()         # refused before the run
+    assert not (tmp_path / "c.rrd").exists()  # refused before the run
 
 
 @pytest.mark.slow
@@ -283,7 +320,7 @@ def test_run_web_serves_after_the_run(tmp_path):
     proc = start_cli(["run", "circle", "--duration", "2", "-o", str(out), "--quiet", "--web", "--port", str(port)])
     try:
         url = wait_for_url(proc, timeout=600)
-        assert out.stat().st_size > 0                  # written before serving
+        assert out.stat().st_size > 0  # written before serving
         with urllib.request.urlopen(url, timeout=30) as resp:
             assert resp.status == 200
         rc, err = interrupt(proc)
@@ -298,8 +335,13 @@ def test_run_spawn_headless_keeps_the_recording_and_exits_0(tmp_path):
     """Issue 16 item 10: no display and the venv's bin/ not on PATH: a one-line note, exit 0."""
     out = tmp_path / "c.rrd"
     env = headless_env(PATH="/usr/bin:/bin")
-    r = subprocess.run(CLI + ["run", "circle", "--duration", "2", "-o", str(out), "--quiet", "--spawn"],
-                       capture_output=True, text=True, timeout=600, env=env)
+    r = subprocess.run(
+        CLI + ["run", "circle", "--duration", "2", "-o", str(out), "--quiet", "--spawn"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=env,
+    )
     assert r.returncode == 0, r.stderr
     assert out.stat().st_size > 0 and not out.with_name("c.rrd.partial").exists()
     notes = [ln for ln in r.stderr.splitlines() if "no display" in ln]
@@ -307,6 +349,7 @@ def test_run_spawn_headless_keeps_the_recording_and_exits_0(tmp_path):
 
 
 # --------------------------------------------------------------------------- the browser
+
 
 def _load_tool():
     spec = importlib.util.spec_from_file_location("screenshot_viewer", ROOT / "tools" / "screenshot_viewer.py")
@@ -323,8 +366,10 @@ def chromium() -> Path:
     if CHROMIUM.exists():
         return CHROMIUM
     if not (os.environ.get("CI", "").lower() == "true" or os.environ.get("SWARM_MJ_INSTALL_BROWSER") == "1"):
-        pytest.skip(f"{CHROMIUM} is missing: apt-get install chromium, or set SWARM_MJ_INSTALL_BROWSER=1 "
-                    "(or CI=true) to let the test set-up install it")
+        pytest.skip(
+            f"{CHROMIUM} is missing: apt-get install chromium, or set SWARM_MJ_INSTALL_BROWSER=1 "
+            "(or CI=true) to let the test set-up install it"
+        )
     apt = shutil.which("apt-get")
     if apt is None:
         pytest.skip("no apt-get to install chromium with")
@@ -347,16 +392,22 @@ def test_browser_loads_the_recording_and_shows_the_drones(tmp_path, chromium):
     the drones' colours (recording.LEADER_COLOR red, FOLLOWER_COLOR blue)."""
     tool = _load_tool()
     rrd = tmp_path / "circle.rrd"
-    r = subprocess.run(CLI + ["run", "circle", "--duration", "20", "-o", str(rrd), "--quiet"],
-                       capture_output=True, text=True, timeout=900, env=headless_env())
+    r = subprocess.run(
+        CLI + ["run", "circle", "--duration", "20", "-o", str(rrd), "--quiet"],
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env=headless_env(),
+    )
     assert r.returncode == 0, r.stderr
     port = free_port_pair(9099)
     png, page_rrd = tmp_path / "viewer.png", tmp_path / "page.rrd"
     proc = start_cli(["view", str(rrd), "--web", "--port", str(port)])
     try:
         url = wait_for_url(proc)
-        info = tool.shoot(url, png, page_rrd=page_rrd, expected_bytes=rrd.stat().st_size, timeout=300,
-                          chromium=str(chromium))
+        info = tool.shoot(
+            url, png, page_rrd=page_rrd, expected_bytes=rrd.stat().st_size, timeout=300, chromium=str(chromium)
+        )
         rc, err = interrupt(proc)
     finally:
         stop(proc)
@@ -384,6 +435,7 @@ def test_browser_loads_the_recording_and_shows_the_drones(tmp_path, chromium):
 
 # --------------------------------------------------------------------------- what the 3D view shows
 
+
 def test_slot_markers_follow_the_logged_slots(small_rrd):
     """The 3D view draws each slot as a dot under a moving transform (world/slot_markers), so the
     10-s trails stay visible; the dot must sit on the slot that world/slots logs at every sample."""
@@ -397,8 +449,9 @@ def test_slot_markers_follow_the_logged_slots(small_rrd):
     slots = np.array([np.stack(list(v)).astype(np.float64) for v in df["/world/slots:Points3D:positions"]])
     assert slots.ndim == 3 and slots.shape[1:] == (5, 3)
     for j, name in enumerate(DRONES[1:]):
-        tr = np.array([np.stack(list(v)).astype(np.float64)
-                       for v in df[f"/world/slot_markers/{name}:Transform3D:translation"]])[:, 0]
+        tr = np.array(
+            [np.stack(list(v)).astype(np.float64) for v in df[f"/world/slot_markers/{name}:Transform3D:translation"]]
+        )[:, 0]
         np.testing.assert_allclose(tr, slots[:, j], atol=1e-6)
     from swarm_mj.recording import blueprint
 
@@ -418,11 +471,11 @@ def test_pixel_stats_tell_a_drone_from_an_empty_view(tmp_path):
     Image.fromarray(img).save(tmp_path / "white.png")
     s = tool.pixel_stats(tmp_path / "white.png")
     assert s["grey_std"] == 0 and s["leader_red_fraction"] == 0 and s["follower_blue_fraction"] == 0
-    img[10:20, 10:30] = (220, 40, 40)                 # 200 px of recording.LEADER_COLOR
-    img[50:60, 100:150] = (40, 110, 220)              # 500 px of recording.FOLLOWER_COLOR
+    img[10:20, 10:30] = (220, 40, 40)  # 200 px of recording.LEADER_COLOR
+    img[50:60, 100:150] = (40, 110, 220)  # 500 px of recording.FOLLOWER_COLOR
     Image.fromarray(img).save(tmp_path / "drones.png")
     s = tool.pixel_stats(tmp_path / "drones.png")
     assert s["leader_red_fraction"] == pytest.approx(200 / 20000)
     assert s["follower_blue_fraction"] == pytest.approx(500 / 20000)
-    box = tool.pixel_stats(tmp_path / "drones.png", (0, 0, 100, 100))   # only the red patch inside
+    box = tool.pixel_stats(tmp_path / "drones.png", (0, 0, 100, 100))  # only the red patch inside
     assert box["shape"] == [100, 100] and box["follower_blue_fraction"] == 0 and box["leader_red_fraction"] > 0

@@ -227,8 +227,9 @@ def test_turbulence_is_added_to_the_deterministic_part():
     f = WindField(cfg, seed=5)
     t = _times(30.0, t0=10.0)
     s = f.sample(t)
-    np.testing.assert_allclose(s.speed - deterministic_speed(t, cfg), np.c_[f.turbulence(t.size), np.zeros(t.size)],
-                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(
+        s.speed - deterministic_speed(t, cfg), np.c_[f.turbulence(t.size), np.zeros(t.size)], rtol=0, atol=1e-12
+    )
 
 
 def test_force_is_half_rho_cd_a_abs_v_v_where_on():
@@ -248,8 +249,11 @@ def test_force_has_the_sign_of_the_speed():
     """A wind towards -x/-y pushes towards -x/-y (the paper's V^2 would push towards +)."""
     v = np.array([[-4.0, 3.0, 0.0], [2.0, -0.5, 0.0]])
     f = force_from_speed(v, RHO, CD, AREA)
-    np.testing.assert_allclose(f, [[-0.5 * RHO * AREA * 16, 0.5 * RHO * AREA * 9, 0.0],
-                                   [0.5 * RHO * AREA * 4, -0.5 * RHO * AREA * 0.25, 0.0]], rtol=1e-15)
+    np.testing.assert_allclose(
+        f,
+        [[-0.5 * RHO * AREA * 16, 0.5 * RHO * AREA * 9, 0.0], [0.5 * RHO * AREA * 4, -0.5 * RHO * AREA * 0.25, 0.0]],
+        rtol=1e-15,
+    )
     cfg = WindConfig(mean=(-6.0, -2.0), sinusoids_x=(), sinusoids_y=(), sigma=(0.0, 0.0), schedule=ALWAYS_ON)
     s = WindField(cfg, seed=0).sample(_times(1.0))
     np.testing.assert_allclose(s.force[:, 0], -0.5 * RHO * AREA * 36)

@@ -39,11 +39,11 @@ from swarm_mj.scenario import load_scenario, parse_scenario
 
 # docs/interpretations.md §5 / paper eq. (37) and Table 1, written out independently of the code under test.
 RHO, CD, AREA = 1.225, 1.0, 0.025
-C_AIR = 0.5 * RHO * CD * AREA          # N / (m/s)^2
-MASS = 0.486                            # kg
-KX, KY, KZ = 0.0056, 0.0056, 0.0064     # N s / m
+C_AIR = 0.5 * RHO * CD * AREA  # N / (m/s)^2
+MASS = 0.486  # kg
+KX, KY, KZ = 0.0056, 0.0056, 0.0064  # N s / m
 G = 9.81
-T = 0.01                                # control period (s)
+T = 0.01  # control period (s)
 
 # Paper Table 5, "with wind" (m).
 PAPER_LEM_WIND = {"x": 0.0321, "y": 0.0249}
@@ -69,14 +69,25 @@ def eq37(v: np.ndarray) -> np.ndarray:
     return C_AIR * np.abs(v) * v
 
 
-def _scenario(wind: dict, *, duration: float, start=(0.0, 0.0, 2.0), feedforward: bool = True,
-              trajectory: str = "lemniscate", seed: int = 0):
-    return parse_scenario({
-        "duration": duration, "seed": seed,
-        "leader": {"trajectory": trajectory, "start": list(start)},
-        "controller": {"wind_feedforward": feedforward},
-        "wind": wind,
-    }, path="<test_wind_sim>")
+def _scenario(
+    wind: dict,
+    *,
+    duration: float,
+    start=(0.0, 0.0, 2.0),
+    feedforward: bool = True,
+    trajectory: str = "lemniscate",
+    seed: int = 0,
+):
+    return parse_scenario(
+        {
+            "duration": duration,
+            "seed": seed,
+            "leader": {"trajectory": trajectory, "start": list(start)},
+            "controller": {"wind_feedforward": feedforward},
+            "wind": wind,
+        },
+        path="<test_wind_sim>",
+    )
 
 
 def _hover_flight(sc):
@@ -145,12 +156,12 @@ def test_wind_force_is_zero_before_20s_and_x_only_until_50s(paper_wind_hover):
     # Between 20 and 50 s: F_x on, F_y off.
     assert np.abs(f[x_only, 1]).max() == 0.0
     assert np.abs(v1[x_only, 1]).max() < 1e-12
-    assert f[x_only, 0].min() > 0.1                  # ~0.4-1 N of x force from a 5-8 m/s wind
-    assert v1[x_only][-1, 0] > 10.0                  # the drone is blown downwind
+    assert f[x_only, 0].min() > 0.1  # ~0.4-1 N of x force from a 5-8 m/s wind
+    assert v1[x_only][-1, 0] > 10.0  # the drone is blown downwind
     # From 50 s on: both.
     assert f[after, 1].min() > 0.05
     assert np.abs(v1[after, 1]).max() > 1e-3
-    assert np.abs(f[:, 2]).max() == 0.0             # V_z = 0 (eq. 35)
+    assert np.abs(f[:, 2]).max() == 0.0  # V_z = 0 (eq. 35)
 
 
 def test_applied_force_is_eq37_of_logged_speed_and_mask(paper_wind_hover):
@@ -193,8 +204,14 @@ def test_constant_mean_wind_gives_f_over_m_and_eq35_speed():
     solution is v(t) = F/K (1 − exp(−K t / m)); the bar 1e-4 m/s is 1/2000 of the 0.5 m/s
     it reaches.
     """
-    wind = {"enabled": True, "mean": [2.0, -1.0], "sinusoids_x": [], "sinusoids_y": [], "sigma": 0.0,
-            "schedule": [[-math.inf, math.inf, "xy"]]}
+    wind = {
+        "enabled": True,
+        "mean": [2.0, -1.0],
+        "sinusoids_x": [],
+        "sinusoids_y": [],
+        "sigma": 0.0,
+        "schedule": [[-math.inf, math.inf, "xy"]],
+    }
     t, v0, v1, f, speed, q, env = _hover_flight(_scenario(wind, duration=5.0))
     F = np.array([C_AIR * 4.0, -C_AIR * 1.0, 0.0])
     np.testing.assert_allclose(f, np.broadcast_to(F, f.shape), rtol=1e-12)
@@ -203,7 +220,7 @@ def test_constant_mean_wind_gives_f_over_m_and_eq35_speed():
     t_end = t + T
     v_exact = np.where(K > 0, F / K * (1.0 - np.exp(-np.outer(t_end, K) / MASS)), 0.0)
     assert np.abs(v1 - v_exact).max() < 1e-4
-    assert v1[-1, 0] == pytest.approx(F[0] / MASS * 5.0, rel=0.05)   # ~ F t / m, 0.50 m/s
+    assert v1[-1, 0] == pytest.approx(F[0] / MASS * 5.0, rel=0.05)  # ~ F t / m, 0.50 m/s
 
 
 def test_logged_speed_with_sigma_zero_is_eq35():
@@ -212,7 +229,7 @@ def test_logged_speed_with_sigma_zero_is_eq35():
     assert res.error is None
     log = res.log
     np.testing.assert_allclose(log.wind_speed[:, :2], paper_eq35(log.t), rtol=0, atol=1e-12)
-    applied = log.wind_force[:-1, 0]                 # the last sample has no following step
+    applied = log.wind_force[:-1, 0]  # the last sample has no following step
     expected = np.where(paper_schedule(log.t[:-1]), eq37(log.wind_speed[:-1]), 0.0)
     np.testing.assert_allclose(applied, expected, rtol=1e-12, atol=1e-15)
 
@@ -228,8 +245,14 @@ def test_relative_airspeed_uses_wind_minus_drone_velocity():
     ~8.5 m/s in x after 10 s, not ~3.2 m/s.
     """
     V = np.array([5.2, 3.0, 0.0])
-    base = {"enabled": True, "mean": [5.2, 3.0], "sinusoids_x": [], "sinusoids_y": [], "sigma": 0.0,
-            "schedule": [[-math.inf, math.inf, "xy"]]}
+    base = {
+        "enabled": True,
+        "mean": [5.2, 3.0],
+        "sinusoids_x": [],
+        "sinusoids_y": [],
+        "sigma": 0.0,
+        "schedule": [[-math.inf, math.inf, "xy"]],
+    }
     t, v0, v1, f, speed, q, env = _hover_flight(_scenario({**base, "relative_airspeed": True}, duration=10.0))
     np.testing.assert_allclose(f, eq37(V - v0), rtol=1e-12, atol=1e-15)
     r = _accel_residual(v0, v1, f)
@@ -243,7 +266,10 @@ def test_relative_airspeed_uses_wind_minus_drone_velocity():
     v = np.zeros(3)
     h = 1e-3
     for _ in range(10_000):
-        a = rhs(v); b = rhs(v + h / 2 * a); c = rhs(v + h / 2 * b); d = rhs(v + h * c)  # noqa: E702
+        a = rhs(v)
+        b = rhs(v + h / 2 * a)
+        c = rhs(v + h / 2 * b)
+        d = rhs(v + h * c)  # noqa: E702
         v = v + h / 6 * (a + 2 * b + 2 * c + d)
     assert np.abs(v1[-1] - v).max() < 5e-3, (v1[-1], v)
     assert 2.5 < v1[-1, 0] < 4.0
@@ -260,8 +286,9 @@ def test_relative_airspeed_uses_wind_minus_drone_velocity():
 def test_controller_sees_the_force_applied_only_with_feedforward(relative, feedforward):
     """Observation ``wind_force`` at step k = the force MuJoCo gets during step k (docs/interpretations.md §2:
     feedforward with the true wind force), and zeros when the scenario turns it off."""
-    sc = _scenario({"enabled": True, "relative_airspeed": relative}, duration=22.0,
-                   start=(0.0, 0.0, 0.0), feedforward=feedforward)
+    sc = _scenario(
+        {"enabled": True, "relative_airspeed": relative}, duration=22.0, start=(0.0, 0.0, 0.0), feedforward=feedforward
+    )
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
     policy = BacksteppingPolicy(sc, env.params)
     ts = env.reset()
@@ -272,7 +299,7 @@ def test_controller_sees_the_force_applied_only_with_feedforward(relative, feedf
         ts = env.step(policy(obs))
         applied.append(np.array(env.last_wind_force, dtype=float))
     seen, applied = np.array(seen), np.array(applied)
-    assert np.abs(applied[2000:, :, 0]).min() > 0.1      # the wind is on after 20 s
+    assert np.abs(applied[2000:, :, 0]).min() > 0.1  # the wind is on after 20 s
     if feedforward:
         np.testing.assert_array_equal(seen, applied)
     else:
@@ -311,8 +338,10 @@ def _cli_summary(tmp_path_factory, name: str) -> dict:
 @pytest.fixture(scope="module")
 def table5(tmp_path_factory):
     """`swarm-mj run NAME --summary s.json` for the wind scenarios (180 s each)."""
-    return {name: _cli_summary(tmp_path_factory, name)
-            for name in ("wind_lemniscate", "wind_circle", "wind_lemniscate_noff")}
+    return {
+        name: _cli_summary(tmp_path_factory, name)
+        for name in ("wind_lemniscate", "wind_circle", "wind_lemniscate_noff")
+    }
 
 
 @pytest.mark.slow
@@ -359,7 +388,7 @@ def test_table_is_printed_beside_the_paper(capsys):
     assert "paper (Table 5)" in out and "with wind" in out
     for v in ("0.0398", "0.0689", "0.1205", "0.1965"):
         assert v in out
-    assert "leader >10s" in out            # the steady row, with the reason printed below it
+    assert "leader >10s" in out  # the steady row, with the reason printed below it
     assert "t = 10 s" in out
     assert "feedforward OFF" not in out
     rc = main(["run", "wind_lemniscate_noff", "--no-record", "--duration", "12"])
@@ -384,9 +413,9 @@ def test_wind_swarm_no_contacts_and_formation_within_10cm_after_wind_on():
     f = log.wind_force[on][:-1]
     assert np.abs(f[:, :, 0]).mean() > 0.3 and np.abs(f[log.t[on][:-1] >= 50.0, :, 1]).mean() > 0.1
     assert np.abs(f - f[:, :1, :]).max() == 0.0
-    D = 1.0   # wind_swarm.toml: formation.diameter
+    D = 1.0  # wind_swarm.toml: formation.diameter
     assert np.all(log.D == D)
-    horiz = np.linalg.norm(log.pos[on][:, 1:, :2] - log.pos[on][:, :1, :2], axis=2)   # (k, 5)
+    horiz = np.linalg.norm(log.pos[on][:, 1:, :2] - log.pos[on][:, :1, :2], axis=2)  # (k, 5)
     err = np.abs(horiz - D)
     assert err.max() <= 0.10, f"max leader-follower distance error {err.max():.3f} m"
 
@@ -408,8 +437,8 @@ def test_recording_holds_wind_speed_and_force(tmp_path):
     t = df["sim_time"].dt.total_seconds().to_numpy()
     order = np.argsort(t)
     t = t[order]
-    speed = np.stack(df["/plots/wind/speed:Scalars:scalars"].to_numpy()[order]).astype(float)   # (k, 2)
-    force = np.stack(df["/plots/wind/force:Scalars:scalars"].to_numpy()[order]).astype(float)   # (k, 2)
+    speed = np.stack(df["/plots/wind/speed:Scalars:scalars"].to_numpy()[order]).astype(float)  # (k, 2)
+    force = np.stack(df["/plots/wind/force:Scalars:scalars"].to_numpy()[order]).astype(float)  # (k, 2)
     assert "/plots/error/leader:Scalars:scalars" in df.columns
     log = res.log
     np.testing.assert_allclose(t, log.t, atol=1e-9)

@@ -60,8 +60,15 @@ ROOT = Path(__file__).resolve().parents[1]
 
 #: (integrator, timestep in s); the first is the reference.
 DEFAULT_SETTINGS: tuple[tuple[str, float], ...] = (
-    ("RK4", 0.001), ("RK4", 0.0025), ("RK4", 0.005), ("RK4", 0.01),
-    ("Euler", 0.005), ("Euler", 0.01), ("implicitfast", 0.005), ("implicitfast", 0.01))
+    ("RK4", 0.001),
+    ("RK4", 0.0025),
+    ("RK4", 0.005),
+    ("RK4", 0.01),
+    ("Euler", 0.005),
+    ("Euler", 0.01),
+    ("implicitfast", 0.005),
+    ("implicitfast", 0.01),
+)
 #: The rules the README's anti-collision table prints for these scenarios (readme_tables.anticollision).
 RULE_VARIANT_SCENARIOS = ("anti_collision", "scenario1", "scenario2", "scenario3")
 RULES = ("layers", "paper", "off")
@@ -79,8 +86,16 @@ EPISODE_GAP_S = 0.1
 # table prints contacts / min separation / settling of `layers`, contacts / min separation of `paper`,
 # contacts of `off`.
 _README_RMSE = {"circle_single", "lemniscate_single", "wind_circle", "wind_lemniscate"}
-_README_SWARM = {"circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3",
-                 "variable_diameter", "anti_collision"}
+_README_SWARM = {
+    "circle",
+    "lemniscate",
+    "ascending_orbit",
+    "scenario1",
+    "scenario2",
+    "scenario3",
+    "variable_diameter",
+    "anti_collision",
+}
 
 
 # --------------------------------------------------------------------------- printed digits
@@ -155,8 +170,15 @@ def differing(ref: dict[str, tuple[Any, str, bool]], other: dict[str, tuple[Any,
         w = other.get(name, (None, fmt, in_readme))[0]
         if not same_printed(v, w, fmt):
             num = all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in (v, w))
-            out.append({"figure": name, "reference": printed(v, fmt), "value": printed(w, fmt),
-                        "in_readme": in_readme, "change": float(w - v) if num else None})
+            out.append(
+                {
+                    "figure": name,
+                    "reference": printed(v, fmt),
+                    "value": printed(w, fmt),
+                    "in_readme": in_readme,
+                    "change": float(w - v) if num else None,
+                }
+            )
     for name in other.keys() - ref.keys():
         v, fmt, in_readme = other[name]
         out.append({"figure": name, "reference": "–", "value": printed(v, fmt), "in_readme": in_readme})
@@ -175,8 +197,8 @@ def position_deviation(pos: np.ndarray, ref: np.ndarray) -> np.ndarray:
 def attitude_deviation_deg(quat: np.ndarray, ref: np.ndarray) -> np.ndarray:
     """(n,) largest rotation angle (°) over time between attitudes ``quat`` (k, n, 4) and ``ref``."""
     k = min(len(quat), len(ref))
-    a, b = ref[:k], quat[:k]                           # (k, n, 4) (w, x, y, z)
-    w = np.einsum("kni,kni->kn", a, b)                 # conj(a) ⊗ b, scalar part
+    a, b = ref[:k], quat[:k]  # (k, n, 4) (w, x, y, z)
+    w = np.einsum("kni,kni->kn", a, b)  # conj(a) ⊗ b, scalar part
     v = a[..., :1] * b[..., 1:] - b[..., :1] * a[..., 1:] - np.cross(a[..., 1:], b[..., 1:])
     return np.rad2deg(2 * np.arctan2(np.linalg.norm(v, axis=2), np.abs(w))).max(axis=0)
 
@@ -216,9 +238,15 @@ def fly_case(case: dict) -> dict:
         res = run(sc, progress=False)
         wall_total = time.perf_counter() - t0
         s = res.summary
-        runs.append({"pos": np.asarray(res.log.pos), "quat": np.asarray(res.log.quat), "summary": s,
-                     "figs": printed_figures(s, case["scenario"], case["rule"]),
-                     "wall": float(s.get("wall_time_s", wall_total))})
+        runs.append(
+            {
+                "pos": np.asarray(res.log.pos),
+                "quat": np.asarray(res.log.quat),
+                "summary": s,
+                "figs": printed_figures(s, case["scenario"], case["rule"]),
+                "wall": float(s.get("wall_time_s", wall_total)),
+            }
+        )
     ref = runs[0]
     perturbed = None
     if case.get("perturb_m"):
@@ -227,27 +255,36 @@ def fly_case(case: dict) -> dict:
         # step (its sensitivity); a figure is sensitive when any of these runs changes it
         integ, dt = settings[0]
         eps = float(case["perturb_m"])
-        dirs = np.vstack([np.eye(3), -np.eye(3)])[: max(1, int(case.get("perturb_dirs", 1)))]   # (d, 3)
+        dirs = np.vstack([np.eye(3), -np.eye(3)])[: max(1, int(case.get("perturb_dirs", 1)))]  # (d, 3)
         runs_p = []
         for e in dirs:
             sc = base.with_overrides(timestep=float(dt), integrator=integ, leader_start=base.leader_start + eps * e)
             res = run(sc, progress=False)
             figs = printed_figures(res.summary, case["scenario"], case["rule"])
-            runs_p.append({"direction": e.tolist(),
-                           "max_deviation_m": float(position_deviation(np.asarray(res.log.pos), ref["pos"]).max()),
-                           "contacts": int(res.summary["contacts"]), "stopped": res.summary.get("stopped"),
-                           "differing": differing(ref["figs"], figs)})
+            runs_p.append(
+                {
+                    "direction": e.tolist(),
+                    "max_deviation_m": float(position_deviation(np.asarray(res.log.pos), ref["pos"]).max()),
+                    "contacts": int(res.summary["contacts"]),
+                    "stopped": res.summary.get("stopped"),
+                    "differing": differing(ref["figs"], figs),
+                }
+            )
         diffs: dict[str, dict] = {}
         for rp in runs_p:
             for d in rp["differing"]:
                 diffs.setdefault(d["figure"], d)
-        perturbed = {"perturb_m": eps, "directions": len(dirs),
-                     "label": f"{_label(integ, dt)}, leader start moved {eps * 1e6:g} µm"
-                              + (f" ({len(dirs)} directions)" if len(dirs) > 1 else " along x"),
-                     "max_deviation_m": max(rp["max_deviation_m"] for rp in runs_p),
-                     "contacts": [rp["contacts"] for rp in runs_p],
-                     "stopped": [rp["stopped"] for rp in runs_p if rp["stopped"]],
-                     "differing": list(diffs.values()), "runs": runs_p}
+        perturbed = {
+            "perturb_m": eps,
+            "directions": len(dirs),
+            "label": f"{_label(integ, dt)}, leader start moved {eps * 1e6:g} µm"
+            + (f" ({len(dirs)} directions)" if len(dirs) > 1 else " along x"),
+            "max_deviation_m": max(rp["max_deviation_m"] for rp in runs_p),
+            "contacts": [rp["contacts"] for rp in runs_p],
+            "stopped": [rp["stopped"] for rp in runs_p if rp["stopped"]],
+            "differing": list(diffs.values()),
+            "runs": runs_p,
+        }
     labels = [_label(i, d) for i, d in settings]
     cur = runs[labels.index(case["current"])] if case.get("current") in labels else None
     rows = []
@@ -255,37 +292,69 @@ def fly_case(case: dict) -> dict:
         s = r["summary"]
         dev = position_deviation(r["pos"], ref["pos"])
         att = attitude_deviation_deg(r["quat"], ref["quat"])
-        row = {"integrator": integ, "timestep_s": float(dt), "label": _label(integ, dt),
-               "max_deviation_m": float(dev.max()), "deviation_m": dict(zip(base.names, map(float, dev))),
-               "max_attitude_deviation_deg": float(att.max()),
-               "contacts": int(s["contacts"]), "stopped": s.get("stopped"),
-               "samples": len(r["pos"]), "reference_samples": len(ref["pos"]),
-               "wall_s": r["wall"], "wall_ratio": r["wall"] / ref["wall"] if ref["wall"] else float("nan"),
-               "differing": differing(ref["figs"], r["figs"]),
-               "figures": {k: printed(v, f) for k, (v, f, _) in r["figs"].items()}}
+        row = {
+            "integrator": integ,
+            "timestep_s": float(dt),
+            "label": _label(integ, dt),
+            "max_deviation_m": float(dev.max()),
+            "deviation_m": dict(zip(base.names, map(float, dev))),
+            "max_attitude_deviation_deg": float(att.max()),
+            "contacts": int(s["contacts"]),
+            "stopped": s.get("stopped"),
+            "samples": len(r["pos"]),
+            "reference_samples": len(ref["pos"]),
+            "wall_s": r["wall"],
+            "wall_ratio": r["wall"] / ref["wall"] if ref["wall"] else float("nan"),
+            "differing": differing(ref["figs"], r["figs"]),
+            "figures": {k: printed(v, f) for k, (v, f, _) in r["figs"].items()},
+        }
         if cur is not None:
             row["max_deviation_vs_current_m"] = float(position_deviation(r["pos"], cur["pos"]).max())
             row["differing_vs_current"] = differing(cur["figs"], r["figs"])
         rows.append(row)
-    return {"case": case["name"], "scenario": case["scenario"], "rule": case["rule"] or base.anti_collision,
-            "rule_variant": case["rule"] is not None, "n_drones": base.n_drones, "duration_s": base.duration,
-            "current": case.get("current"), "rows": rows, "perturbed": perturbed,
-            "sensitive": perturbed is not None and perturbed["max_deviation_m"] > DEVIATION_BAR_M}
+    return {
+        "case": case["name"],
+        "scenario": case["scenario"],
+        "rule": case["rule"] or base.anti_collision,
+        "rule_variant": case["rule"] is not None,
+        "n_drones": base.n_drones,
+        "duration_s": base.duration,
+        "current": case.get("current"),
+        "rows": rows,
+        "perturbed": perturbed,
+        "sensitive": perturbed is not None and perturbed["max_deviation_m"] > DEVIATION_BAR_M,
+    }
 
 
 # --------------------------------------------------------------------------- study (driver side)
 
 
-def make_cases(names: list[str], duration: float | None, settings: list[tuple[str, float]],
-               rule_variants: bool, current: str = "RK4 5 ms", perturb_m: float = 0.0,
-               perturb_dirs: int = 1) -> list[dict]:
+def make_cases(
+    names: list[str],
+    duration: float | None,
+    settings: list[tuple[str, float]],
+    rule_variants: bool,
+    current: str = "RK4 5 ms",
+    perturb_m: float = 0.0,
+    perturb_dirs: int = 1,
+) -> list[dict]:
     """Every scenario with its own rule, then the README's rule variants of the anti-collision table."""
     from swarm_mj.scenario import load_scenario
 
     cases = []
     for name in names:
-        cases.append({"name": name, "scenario": name, "rule": None, "duration": duration, "settings": settings,
-                      "current": current, "perturb_m": perturb_m, "perturb_dirs": perturb_dirs})
+        cases.append(
+            {
+                "name": name,
+                "scenario": name,
+                "rule": None,
+                "duration": duration,
+                "settings": settings,
+                "current": current,
+                "perturb_m": perturb_m,
+                "perturb_dirs": perturb_dirs,
+            }
+        )
     if rule_variants:
         for name in RULE_VARIANT_SCENARIOS:
             if name not in names:
@@ -293,9 +362,18 @@ def make_cases(names: list[str], duration: float | None, settings: list[tuple[st
             own = load_scenario(name).anti_collision
             for rule in RULES:
                 if rule != own:
-                    cases.append({"name": f"{name} ({rule})", "scenario": name, "rule": rule,
-                                  "duration": duration, "settings": settings, "current": current,
-                                  "perturb_m": perturb_m, "perturb_dirs": perturb_dirs})
+                    cases.append(
+                        {
+                            "name": f"{name} ({rule})",
+                            "scenario": name,
+                            "rule": rule,
+                            "duration": duration,
+                            "settings": settings,
+                            "current": current,
+                            "perturb_m": perturb_m,
+                            "perturb_dirs": perturb_dirs,
+                        }
+                    )
     return cases
 
 
@@ -338,29 +416,55 @@ def summarize_settings(cases: list[dict]) -> list[dict]:
     for j, label in enumerate(labels):
         rows = [(c, c["rows"][j]) for c in cases]
         worst_c, worst_r = max(rows, key=lambda cr: cr[1]["max_deviation_m"])
-        diffs = [{"case": c["case"], **d, "sensitive": _sensitive_figure(c, d["figure"])}
-                 for c, r in rows for d in r["differing"]]
-        over = [{"case": c["case"], "deviation_m": r["max_deviation_m"], "sensitive": c.get("sensitive", False),
-                 "perturbed_deviation_m": (c.get("perturbed") or {}).get("max_deviation_m")}
-                for c, r in rows if r["max_deviation_m"] > DEVIATION_BAR_M]
+        diffs = [
+            {"case": c["case"], **d, "sensitive": _sensitive_figure(c, d["figure"])}
+            for c, r in rows
+            for d in r["differing"]
+        ]
+        over = [
+            {
+                "case": c["case"],
+                "deviation_m": r["max_deviation_m"],
+                "sensitive": c.get("sensitive", False),
+                "perturbed_deviation_m": (c.get("perturbed") or {}).get("max_deviation_m"),
+            }
+            for c, r in rows
+            if r["max_deviation_m"] > DEVIATION_BAR_M
+        ]
         wall = sum(r["wall_s"] for _, r in rows)
         wall_ref = sum(c["rows"][0]["wall_s"] for c in cases)
-        item = {"label": label, "integrator": worst_r["integrator"], "timestep_s": worst_r["timestep_s"],
-                "worst_deviation_m": worst_r["max_deviation_m"], "worst_case": worst_c["case"],
-                "worst_attitude_deviation_deg": max(r["max_attitude_deviation_deg"] for _, r in rows),
-                "over_bar": over, "all_figures_match": not diffs,
-                "readme_figures_match": not any(d["in_readme"] for d in diffs), "differing": diffs,
-                "contacts": sum(r["contacts"] for _, r in rows),
-                "stopped": [c["case"] for c, r in rows if r["stopped"]],
-                "wall_s": wall, "wall_ratio": wall / wall_ref if wall_ref else float("nan")}
+        item = {
+            "label": label,
+            "integrator": worst_r["integrator"],
+            "timestep_s": worst_r["timestep_s"],
+            "worst_deviation_m": worst_r["max_deviation_m"],
+            "worst_case": worst_c["case"],
+            "worst_attitude_deviation_deg": max(r["max_attitude_deviation_deg"] for _, r in rows),
+            "over_bar": over,
+            "all_figures_match": not diffs,
+            "readme_figures_match": not any(d["in_readme"] for d in diffs),
+            "differing": diffs,
+            "contacts": sum(r["contacts"] for _, r in rows),
+            "stopped": [c["case"] for c, r in rows if r["stopped"]],
+            "wall_s": wall,
+            "wall_ratio": wall / wall_ref if wall_ref else float("nan"),
+        }
         if all("max_deviation_vs_current_m" in r for _, r in rows):
             wc, wr = max(rows, key=lambda cr: cr[1]["max_deviation_vs_current_m"])
-            dc = [{"case": c["case"], **d, "sensitive": _sensitive_figure(c, d["figure"])}
-                  for c, r in rows for d in r["differing_vs_current"]]
-            item.update({"worst_deviation_vs_current_m": wr["max_deviation_vs_current_m"],
-                         "worst_case_vs_current": wc["case"], "differing_vs_current": dc,
-                         "all_figures_match_current": not dc,
-                         "readme_figures_match_current": not any(d["in_readme"] for d in dc)})
+            dc = [
+                {"case": c["case"], **d, "sensitive": _sensitive_figure(c, d["figure"])}
+                for c, r in rows
+                for d in r["differing_vs_current"]
+            ]
+            item.update(
+                {
+                    "worst_deviation_vs_current_m": wr["max_deviation_vs_current_m"],
+                    "worst_case_vs_current": wc["case"],
+                    "differing_vs_current": dc,
+                    "all_figures_match_current": not dc,
+                    "readme_figures_match_current": not any(d["in_readme"] for d in dc),
+                }
+            )
         out.append(item)
     by = {s["label"]: s for s in out}
     if "RK4 5 ms" in by:
@@ -381,6 +485,7 @@ def choose_step(settings: list[dict], bar_m: float = DEVIATION_BAR_M, *, allow_s
     when the reference run with a perturbed start (see :func:`summarize_settings`) is over the bar / changes
     that figure too, i.e. when the run does not fix it to that precision whatever the step.
     """
+
     def ok(s: dict) -> bool:
         if s["integrator"] != "RK4" or (s["stopped"] and not allow_sensitive):
             return False
@@ -393,8 +498,17 @@ def choose_step(settings: list[dict], bar_m: float = DEVIATION_BAR_M, *, allow_s
     return max(good, key=lambda s: s["timestep_s"]) if good else None
 
 
-def study(names: list[str], *, duration: float | None, workers: int, settings: list[tuple[str, float]],
-          rule_variants: bool = True, perturb_m: float = 1e-6, perturb_dirs: int = 3, say=print) -> dict:
+def study(
+    names: list[str],
+    *,
+    duration: float | None,
+    workers: int,
+    settings: list[tuple[str, float]],
+    rule_variants: bool = True,
+    perturb_m: float = 1e-6,
+    perturb_dirs: int = 3,
+    say=print,
+) -> dict:
     """Fly the study and return the JSON document."""
     import mujoco
 
@@ -403,13 +517,24 @@ def study(names: list[str], *, duration: float | None, workers: int, settings: l
     cases = make_cases(names, duration, settings, rule_variants, perturb_m=perturb_m, perturb_dirs=perturb_dirs)
     t0 = time.perf_counter()
     results = run_parallel(fly_case, [(c, _cost(c)) for c in cases], workers, say)
-    return conclude({"meta": {"generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                     "machine": machine_description(), "mujoco": mujoco.__version__, "workers": workers,
-                     "duration_override_s": duration, "wall_s": time.perf_counter() - t0,
-                     "reference": _label(*settings[0]), "deviation_bar_m": DEVIATION_BAR_M, "perturb_m": perturb_m,
-                     "perturb_dirs": perturb_dirs,
-                     "argv": sys.argv[1:]},
-            "cases": results})
+    return conclude(
+        {
+            "meta": {
+                "generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+                "machine": machine_description(),
+                "mujoco": mujoco.__version__,
+                "workers": workers,
+                "duration_override_s": duration,
+                "wall_s": time.perf_counter() - t0,
+                "reference": _label(*settings[0]),
+                "deviation_bar_m": DEVIATION_BAR_M,
+                "perturb_m": perturb_m,
+                "perturb_dirs": perturb_dirs,
+                "argv": sys.argv[1:],
+            },
+            "cases": results,
+        }
+    )
 
 
 def conclude(doc: dict) -> dict:
@@ -434,9 +559,12 @@ def _mm(v: float) -> str:
 def _diff_text(diffs: list[dict], limit: int = 4) -> str:
     if not diffs:
         return "all match"
-    parts = [f"{d['figure']} {d['reference']} → {d['value']}"
-             + (f" (by {d['change']:+.2g})" if d.get("change") is not None and "contacts" not in d["figure"] else "")
-             + ("" if d["in_readme"] else " (not in the README)") for d in diffs[:limit]]
+    parts = [
+        f"{d['figure']} {d['reference']} → {d['value']}"
+        + (f" (by {d['change']:+.2g})" if d.get("change") is not None and "contacts" not in d["figure"] else "")
+        + ("" if d["in_readme"] else " (not in the README)")
+        for d in diffs[:limit]
+    ]
     more = f"; +{len(diffs) - limit} more" if len(diffs) > limit else ""
     return "; ".join(parts) + more
 
@@ -444,9 +572,11 @@ def _diff_text(diffs: list[dict], limit: int = 4) -> str:
 def full_table(doc: dict) -> str:
     """Per case and setting (the form for docs/physics_step.md)."""
     cur = doc["cases"][0].get("current") if doc["cases"] else None
-    head = ("| case | setting | max deviation (mm) | per drone (mm) | max attitude deviation (°) | "
-            f"deviation from {cur or 'the current step'} (mm) | contacts | printed figures vs 1-ms RK4 | "
-            "wall time ÷ reference |")
+    head = (
+        "| case | setting | max deviation (mm) | per drone (mm) | max attitude deviation (°) | "
+        f"deviation from {cur or 'the current step'} (mm) | contacts | printed figures vs 1-ms RK4 | "
+        "wall time ÷ reference |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|---|---|"]
     for c in doc["cases"]:
         for j, r in enumerate(c["rows"]):
@@ -455,15 +585,19 @@ def full_table(doc: dict) -> str:
             stop = " (stopped)" if r["stopped"] else ""
             fig = "reference" if j == 0 else _diff_text(r["differing"])
             vc = r.get("max_deviation_vs_current_m")
-            lines.append(f"| {name} | {r['label']}{stop} | {_mm(r['max_deviation_m'])} | {per} | "
-                         f"{r['max_attitude_deviation_deg']:.2g} | {'–' if vc is None else _mm(vc)} | {r['contacts']} | "
-                         f"{fig} | {r['wall_ratio']:.2f} |")
+            lines.append(
+                f"| {name} | {r['label']}{stop} | {_mm(r['max_deviation_m'])} | {per} | "
+                f"{r['max_attitude_deviation_deg']:.2g} | {'–' if vc is None else _mm(vc)} | {r['contacts']} | "
+                f"{fig} | {r['wall_ratio']:.2f} |"
+            )
         p = c.get("perturbed")
         if p:
             stop = " (stopped)" if p["stopped"] else ""
             pc = p["contacts"] if isinstance(p["contacts"], int) else ", ".join(map(str, p["contacts"]))
-            lines.append(f"| | *{p['label']}*{stop} | *{_mm(p['max_deviation_m'])}* | | | | {pc} | "
-                         f"{_diff_text(p['differing'])} | |")
+            lines.append(
+                f"| | *{p['label']}*{stop} | *{_mm(p['max_deviation_m'])}* | | | | {pc} | "
+                f"{_diff_text(p['differing'])} | |"
+            )
     return "\n".join(lines)
 
 
@@ -491,10 +625,12 @@ def short_table(doc: dict) -> str:
     """Per setting over every case (the form for the README)."""
     cur = doc["cases"][0].get("current") if doc["cases"] else "RK4 5 ms"
     quiet, loud = _groups(doc)
-    lines = [f"| physics step | runs without contact ({len(quiet)}): worst deviation from 1-ms RK4 (mm) | "
-             "of them over 1 mm (sensitive¹) | README figures that differ from 1 ms / from " + str(cur) + " | "
-             f"runs with contacts ({len(loud)}): contacts | wall time ÷ 1-ms RK4 | speed vs RK4 5 ms |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        f"| physics step | runs without contact ({len(quiet)}): worst deviation from 1-ms RK4 (mm) | "
+        "of them over 1 mm (sensitive¹) | README figures that differ from 1 ms / from " + str(cur) + " | "
+        f"runs with contacts ({len(loud)}): contacts | wall time ÷ 1-ms RK4 | speed vs RK4 5 ms |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for j, s in enumerate(doc["settings"]):
         q = [(c, c["rows"][j]) for c in quiet]
         lo = [(c, c["rows"][j]) for c in loud]
@@ -502,43 +638,60 @@ def short_table(doc: dict) -> str:
         over = [c for c, r in q if r["max_deviation_m"] > DEVIATION_BAR_M]
         ns = sum(1 for c in over if c.get("sensitive"))
         ov = "none" if not over else f"{len(over)} ({ns})"
-        figs = (f"without contact {_n_readme(q, 'differing')} / {_n_readme(q, 'differing_vs_current')}; "
-                f"with contacts {_n_readme(lo, 'differing')} / {_n_readme(lo, 'differing_vs_current')}")
+        figs = (
+            f"without contact {_n_readme(q, 'differing')} / {_n_readme(q, 'differing_vs_current')}; "
+            f"with contacts {_n_readme(lo, 'differing')} / {_n_readme(lo, 'differing_vs_current')}"
+        )
         stop = sum(1 for _, r in lo if r["stopped"])
         speed = s.get("speed_vs_rk4_5ms")
         dev = "–" if wr is None else f"{_mm(wr['max_deviation_m'])} ({wc['case']})"
-        lines.append(f"| {s['label']} | {dev} | {ov} | {figs} | {sum(r['contacts'] for _, r in lo)} "
-                     f"({stop} runs stopped) | {s['wall_ratio']:.2f} | {'–' if speed is None else f'{speed:.2f}×'} |")
+        lines.append(
+            f"| {s['label']} | {dev} | {ov} | {figs} | {sum(r['contacts'] for _, r in lo)} "
+            f"({stop} runs stopped) | {s['wall_ratio']:.2f} | {'–' if speed is None else f'{speed:.2f}×'} |"
+        )
     pert = doc["meta"].get("perturb_m")
     if pert:
         lines.append("")
-        lines.append(f"¹ sensitive: the 1-ms run itself moves more than 1 mm when the leader's start is moved "
-                     f"{pert * 1e6:g} µm.")
+        lines.append(
+            f"¹ sensitive: the 1-ms run itself moves more than 1 mm when the leader's start is moved {pert * 1e6:g} µm."
+        )
     return "\n".join(lines)
 
 
 def contacts_table(doc: dict) -> str:
     """The contacts mode as markdown: totals, verdict, the starts whose counts differ."""
     kinds = [k for k in ("fine", "coarse", "control") if k in doc]
-    head = ("| rule | starts | run | starts with a contact | contacts | pairs that touched | contact episodes | "
-            "runs that stopped | loop time (s) |")
+    head = (
+        "| rule | starts | run | starts with a contact | contacts | pairs that touched | contact episodes | "
+        "runs that stopped | loop time (s) |"
+    )
     lines = [head, "|---|---|---|---|---|---|---|---|---|"]
     for k in kinds:
         s = doc[k]
-        lines.append(f"| `{doc['settings']['rule']}` | {doc['settings']['starts']} | {s['label']} | "
-                     f"{s['starts_with_contact']} | {s['contacts']} | {s.get('pairs', '–')} | {s.get('episodes', '–')} | "
-                     f"{len(s['stopped'])} | {s['wall_s']:.0f} |")
+        lines.append(
+            f"| `{doc['settings']['rule']}` | {doc['settings']['starts']} | {s['label']} | "
+            f"{s['starts_with_contact']} | {s['contacts']} | {s.get('pairs', '–')} | {s.get('episodes', '–')} | "
+            f"{len(s['stopped'])} | {s['wall_s']:.0f} |"
+        )
     diff = [r for r in doc["starts"] if r["fine"] != r["coarse"]]
     lines.append("")
-    lines.append("Contacts are rising edges of a drone pair's contact, counted once per physics step; pairs "
-                 "that touched counts each pair once per start; an episode merges a pair's touches less than "
-                 f"{doc['verdict'].get('episode_gap_s', 0) * 1e3:g} ms apart.")
+    lines.append(
+        "Contacts are rising edges of a drone pair's contact, counted once per physics step; pairs "
+        "that touched counts each pair once per start; an episode merges a pair's touches less than "
+        f"{doc['verdict'].get('episode_gap_s', 0) * 1e3:g} ms apart."
+    )
     lines.append("")
     if diff:
-        lines.append(f"Starts whose counts differ ({len(diff)}; seed: fine → candidate"
-                     + (", control" if "control" in doc else "") + "): "
-                     + ", ".join(f"{r['seed']}: {r['fine']} → {r['coarse']}"
-                                 + (f", {r['control']}" if "control" in r else "") for r in diff) + ".")
+        lines.append(
+            f"Starts whose counts differ ({len(diff)}; seed: fine → candidate"
+            + (", control" if "control" in doc else "")
+            + "): "
+            + ", ".join(
+                f"{r['seed']}: {r['fine']} → {r['coarse']}" + (f", {r['control']}" if "control" in r else "")
+                for r in diff
+            )
+            + "."
+        )
     else:
         lines.append("Every start has the same contact count at both steps.")
     return "\n".join(lines)
@@ -646,32 +799,41 @@ Regenerate this page with
 def contacts_verdict(doc: dict) -> str:
     f, c = doc["fine"], doc["coarse"]
     v, st = doc["verdict"], doc["settings"]
-    text = (f"The paper's rule (`anti_collision = \"{st['rule']}\"`) over the {st['starts']} stress starts "
-            f"(`swarm-mj stress --rule {st['rule']} --starts {st['starts']}`: {st['followers']} followers within "
-            f"{st['radius']:g} m, seeds {st['seed0']}..{st['seed0'] + st['starts'] - 1}, {st['duration']:g} s each), "
-            f"RK4 at {st['fine_s'] * 1e3:g} ms and at {st['coarse_s'] * 1e3:g} ms: {f['contacts']} contacts in "
-            f"{f['starts_with_contact']} starts at the fine step, {c['contacts']} in {c['starts_with_contact']} at the "
-            f"candidate ({v['relative_difference'] * 100:+.1f} %, bar ±{CONTACT_TOLERANCE * 100:g} %); starts with a "
-            f"contact at the fine step and none at the candidate: {', '.join(map(str, v['missed_starts'])) or 'none'}.")
+    text = (
+        f'The paper\'s rule (`anti_collision = "{st["rule"]}"`) over the {st["starts"]} stress starts '
+        f"(`swarm-mj stress --rule {st['rule']} --starts {st['starts']}`: {st['followers']} followers within "
+        f"{st['radius']:g} m, seeds {st['seed0']}..{st['seed0'] + st['starts'] - 1}, {st['duration']:g} s each), "
+        f"RK4 at {st['fine_s'] * 1e3:g} ms and at {st['coarse_s'] * 1e3:g} ms: {f['contacts']} contacts in "
+        f"{f['starts_with_contact']} starts at the fine step, {c['contacts']} in {c['starts_with_contact']} at the "
+        f"candidate ({v['relative_difference'] * 100:+.1f} %, bar ±{CONTACT_TOLERANCE * 100:g} %); starts with a "
+        f"contact at the fine step and none at the candidate: {', '.join(map(str, v['missed_starts'])) or 'none'}."
+    )
     if "first_contact_within_one_period" in v:
-        text += (f" Of the {v['starts_with_contact_at_both']} starts with a contact at both steps, the first contact "
-                 f"comes at the same time to within one control period in {v['first_contact_within_one_period']} "
-                 f"and within 50 ms in {v['first_contact_within_50ms']}. Pairs that touched: "
-                 f"{v['pairs_relative_difference'] * 100:+.1f} %; contact episodes: "
-                 f"{v['episodes_relative_difference'] * 100:+.1f} %.")
+        text += (
+            f" Of the {v['starts_with_contact_at_both']} starts with a contact at both steps, the first contact "
+            f"comes at the same time to within one control period in {v['first_contact_within_one_period']} "
+            f"and within 50 ms in {v['first_contact_within_50ms']}. Pairs that touched: "
+            f"{v['pairs_relative_difference'] * 100:+.1f} %; contact episodes: "
+            f"{v['episodes_relative_difference'] * 100:+.1f} %."
+        )
     if "control_relative_difference" in v:
         both = [p for p in doc["starts"] if p.get("fine_first_s") is not None and p.get("control_first_s") is not None]
         same = sum(1 for p in both if abs(p["control_first_s"] - p["fine_first_s"]) <= st["coarse_s"] + 1e-9)
         ndiff = sum(1 for p in doc["starts"] if p["fine"] != p.get("control", p["fine"]))
         ndiff_c = sum(1 for p in doc["starts"] if p["fine"] != p["coarse"])
-        text += (f" Control: the fine step again with the start moved {st['control_m'] * 1e6:g} µm changes the "
-                 f"contact count by {v['control_relative_difference'] * 100:+.1f} % (the candidate step: "
-                 f"{v['relative_difference'] * 100:+.1f} %), the count of {ndiff} starts (the candidate: {ndiff_c}) and "
-                 f"the pairs that touched by {v['control_pairs_relative_difference'] * 100:+.1f} %; its first contact "
-                 f"comes within one control period of the fine run's in {same} of {len(both)} starts.")
-    text += (" **By the issue's bar, contacts are counted equivalently at the candidate step.**" if v["holds"] else
-             " **By the issue's bar (within 5 % and no start missed), contacts are not counted equivalently at the "
-             "candidate step.**")
+        text += (
+            f" Control: the fine step again with the start moved {st['control_m'] * 1e6:g} µm changes the "
+            f"contact count by {v['control_relative_difference'] * 100:+.1f} % (the candidate step: "
+            f"{v['relative_difference'] * 100:+.1f} %), the count of {ndiff} starts (the candidate: {ndiff_c}) and "
+            f"the pairs that touched by {v['control_pairs_relative_difference'] * 100:+.1f} %; its first contact "
+            f"comes within one control period of the fine run's in {same} of {len(both)} starts."
+        )
+    text += (
+        " **By the issue's bar, contacts are counted equivalently at the candidate step.**"
+        if v["holds"]
+        else " **By the issue's bar (within 5 % and no start missed), contacts are not counted equivalently at the "
+        "candidate step.**"
+    )
     return text
 
 
@@ -679,7 +841,10 @@ def _split_text(doc: dict, label: str) -> str:
     """One step's outcome in the cases without drone-drone contact at the reference and in those with."""
     quiet, loud = _groups(doc)
     out = []
-    for group, name in ((quiet, "without contact"), (loud, "with contacts or a run that stopped (a drone knocked down)")):
+    for group, name in (
+        (quiet, "without contact"),
+        (loud, "with contacts or a run that stopped (a drone knocked down)"),
+    ):
         if not group:
             continue
         rows = [(c, next(r for r in c["rows"] if r["label"] == label)) for c in group]
@@ -688,12 +853,21 @@ def _split_text(doc: dict, label: str) -> str:
         not_sens = [c["case"] for c in over if not c.get("sensitive")]
         rd = [(c["case"], d) for c, r in rows for d in r["differing"] if d["in_readme"]]
         rc = [(c["case"], d) for c, r in rows for d in r.get("differing_vs_current", []) if d["in_readme"]]
-        out.append(f"In the {len(group)} cases {name}: worst deviation {_mm(wr['max_deviation_m'])} mm ({wc['case']}); "
-                   f"over 1 mm: {', '.join(c['case'] for c in over) or 'none'}"
-                   + ((" (every one of them sensitive: the perturbed start alone moves it more than 1 mm)"
-                       if not not_sens else f" (not sensitive: {', '.join(not_sens)})") if over else "")
-                   + f"; README figures that differ from 1 ms: {len(rd)}, from {doc['cases'][0].get('current')}: "
-                   f"{len(rc)}.")
+        out.append(
+            f"In the {len(group)} cases {name}: worst deviation {_mm(wr['max_deviation_m'])} mm ({wc['case']}); "
+            f"over 1 mm: {', '.join(c['case'] for c in over) or 'none'}"
+            + (
+                (
+                    " (every one of them sensitive: the perturbed start alone moves it more than 1 mm)"
+                    if not not_sens
+                    else f" (not sensitive: {', '.join(not_sens)})"
+                )
+                if over
+                else ""
+            )
+            + f"; README figures that differ from 1 ms: {len(rd)}, from {doc['cases'][0].get('current')}: "
+            f"{len(rc)}."
+        )
     return " ".join(out)
 
 
@@ -707,12 +881,16 @@ def _choice_text(doc: dict) -> str:
     rk4 = sorted((s for s in doc["settings"] if s["integrator"] == "RK4"), key=lambda s: -s["timestep_s"])
     if chosen:
         s = by[chosen["label"]]
-        out.append(f"The largest RK4 step that keeps every figure the README prints as at 1 ms and stays within "
-                   f"{bar} of the 1-ms run in every case is **{chosen['label']}** (worst deviation "
-                   f"{_mm(s['worst_deviation_m'])} mm, in {s['worst_case']}).")
+        out.append(
+            f"The largest RK4 step that keeps every figure the README prints as at 1 ms and stays within "
+            f"{bar} of the 1-ms run in every case is **{chosen['label']}** (worst deviation "
+            f"{_mm(s['worst_deviation_m'])} mm, in {s['worst_case']})."
+        )
     else:
-        out.append(f"No RK4 step coarser than the reference keeps every figure the README prints as at 1 ms and every "
-                   f"case within {bar} of it.")
+        out.append(
+            f"No RK4 step coarser than the reference keeps every figure the README prints as at 1 ms and every "
+            f"case within {bar} of it."
+        )
     for s in rk4:
         if s["label"] == doc["meta"]["reference"] or (chosen and s["timestep_s"] <= chosen["timestep_s"]):
             continue
@@ -721,33 +899,56 @@ def _choice_text(doc: dict) -> str:
         parts = []
         if over:
             pert = doc["meta"].get("perturb_m") or 0.0
-            parts.append("over " + bar + " in " + ", ".join(
-                f"{o['case']} ({_mm(o['deviation_m'])} mm" + (
-                    f"; a {pert * 1e6:g}-µm start change alone: {_mm(o['perturbed_deviation_m'])} mm)"
-                    if pert and o["perturbed_deviation_m"] is not None else ")") for o in over))
+            parts.append(
+                "over "
+                + bar
+                + " in "
+                + ", ".join(
+                    f"{o['case']} ({_mm(o['deviation_m'])} mm"
+                    + (
+                        f"; a {pert * 1e6:g}-µm start change alone: {_mm(o['perturbed_deviation_m'])} mm)"
+                        if pert and o["perturbed_deviation_m"] is not None
+                        else ")"
+                    )
+                    for o in over
+                )
+            )
         if rd:
-            parts.append("README figures that differ from 1 ms: " + "; ".join(
-                f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}"
-                + (" (also with the start change)" if d.get("sensitive") else "") for d in rd[:12])
-                + (f"; +{len(rd) - 12} more" if len(rd) > 12 else ""))
+            parts.append(
+                "README figures that differ from 1 ms: "
+                + "; ".join(
+                    f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}"
+                    + (" (also with the start change)" if d.get("sensitive") else "")
+                    for d in rd[:12]
+                )
+                + (f"; +{len(rd) - 12} more" if len(rd) > 12 else "")
+            )
         nr = [d for d in s["differing"] if not d["in_readme"]]
         if nr:
             parts.append(f"{len(nr)} figure(s) the README does not print differ at its digits")
         rc = [d for d in s.get("differing_vs_current", []) if d["in_readme"]]
         if s["label"] != doc["cases"][0].get("current"):
-            parts.append(f"README figures that differ from {doc['cases'][0].get('current')} (the README's step): " + (
-                "; ".join(f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}" for d in rc[:12])
-                + (f"; +{len(rc) - 12} more" if len(rc) > 12 else "") if rc else "none"))
+            parts.append(
+                f"README figures that differ from {doc['cases'][0].get('current')} (the README's step): "
+                + (
+                    "; ".join(f"{d['case']}: {d['figure']} {d['reference']} → {d['value']}" for d in rc[:12])
+                    + (f"; +{len(rc) - 12} more" if len(rc) > 12 else "")
+                    if rc
+                    else "none"
+                )
+            )
         out.append(f"**{s['label']}**: " + ("; ".join(parts) if parts else "holds") + ".")
         out.append(_split_text(doc, s["label"]))
     cs = doc.get("chosen_allowing_sensitive")
     if cs and cs["label"] != doc["meta"]["reference"] and (not chosen or cs["timestep_s"] > chosen["timestep_s"]):
         s = by[cs["label"]]
-        out.append(f"Counting only what a {doc['meta'].get('perturb_m', 0) * 1e6:g}-µm change of the start does not "
-                   f"change as well (every case over {bar} and every differing figure at {cs['label']} also moves "
-                   f"that much, or changes, with the perturbed start), the largest RK4 step that holds is "
-                   f"**{cs['label']}**; it runs {s.get('speed_vs_rk4_5ms', float('nan')):.2f}× as fast as RK4 "
-                   f"at 5 ms over the whole study.")
+        out.append(
+            f"Counting only what a {doc['meta'].get('perturb_m', 0) * 1e6:g}-µm change of the start does not "
+            f"change as well (every case over {bar} and every differing figure at {cs['label']} also moves "
+            f"that much, or changes, with the perturbed start), the largest RK4 step that holds is "
+            f"**{cs['label']}**; it runs {s.get('speed_vs_rk4_5ms', float('nan')):.2f}× as fast as RK4 "
+            f"at 5 ms over the whole study."
+        )
     return "\n\n".join(out)
 
 
@@ -756,21 +957,33 @@ def render_docs(doc: dict, contacts: dict | None, source: str) -> str:
     labels = [s["label"] for s in settings]
     m = doc["meta"]["machine"]
     dur = doc["meta"]["duration_override_s"]
-    duration_note = (f"**Every case was shortened to at most {dur:g} s of simulated time** (a quick run; "
-                     f"the full study flies each scenario for its own duration)." if dur else
-                     "Every case is flown for its scenario's own duration (10 s to 180 s).")
+    duration_note = (
+        f"**Every case was shortened to at most {dur:g} s of simulated time** (a quick run; "
+        f"the full study flies each scenario for its own duration)."
+        if dur
+        else "Every case is flown for its scenario's own duration (10 s to 180 s)."
+    )
     if contacts is None:
         csec = "Not measured yet: run `python tools/accuracy.py --contacts`."
     else:
         csec = contacts_verdict(contacts) + "\n\n" + contacts_table(contacts)
     cur = doc["cases"][0].get("current") if doc["cases"] else "RK4 5 ms"
-    return DOC.format(source=source, settings_list=", ".join(labels), reference=doc["meta"]["reference"],
-                      current=cur, perturb_um=doc["meta"].get("perturb_m", 0) * 1e6,
-                      perturb_axes=", ".join(["+x", "+y", "+z", "−x", "−y", "−z"][: doc["meta"].get("perturb_dirs", 1)]),
-                      duration_note=duration_note, machine=f"{m['cpu']} ({m['cores']} cores)",
-                      mujoco=doc["meta"]["mujoco"], workers=doc["meta"]["workers"],
-                      short_table=short_table(doc), full_table=full_table(doc), contacts_section=csec,
-                      choice=_choice_text(doc))
+    return DOC.format(
+        source=source,
+        settings_list=", ".join(labels),
+        reference=doc["meta"]["reference"],
+        current=cur,
+        perturb_um=doc["meta"].get("perturb_m", 0) * 1e6,
+        perturb_axes=", ".join(["+x", "+y", "+z", "−x", "−y", "−z"][: doc["meta"].get("perturb_dirs", 1)]),
+        duration_note=duration_note,
+        machine=f"{m['cpu']} ({m['cores']} cores)",
+        mujoco=doc["meta"]["mujoco"],
+        workers=doc["meta"]["workers"],
+        short_table=short_table(doc),
+        full_table=full_table(doc),
+        contacts_section=csec,
+        choice=_choice_text(doc),
+    )
 
 
 # --------------------------------------------------------------------------- contacts mode
@@ -791,10 +1004,16 @@ def fly_contacts(job: dict) -> dict:
         sc = sc.with_overrides(leader_start=sc.leader_start + np.array([job["perturb_m"], 0.0, 0.0]))
     res = run(sc, progress=False)
     s = res.summary
-    return {"seed": case.seed, "kind": job["kind"], "timestep_s": float(job["timestep"]), "contacts": int(s["contacts"]),
-            "contact_log": [[float(c[0]), int(c[1]), int(c[2])] for c in res.contact_log], "stopped": s.get("stopped"),
-            "min_separation_airborne_m": s.get("min_separation_airborne_m"),
-            "wall_s": float(s.get("wall_time_s", float("nan")))}
+    return {
+        "seed": case.seed,
+        "kind": job["kind"],
+        "timestep_s": float(job["timestep"]),
+        "contacts": int(s["contacts"]),
+        "contact_log": [[float(c[0]), int(c[1]), int(c[2])] for c in res.contact_log],
+        "stopped": s.get("stopped"),
+        "min_separation_airborne_m": s.get("min_separation_airborne_m"),
+        "wall_s": float(s.get("wall_time_s", float("nan"))),
+    }
 
 
 def _episodes(log: list, gap: float) -> int:
@@ -808,9 +1027,21 @@ def _episodes(log: list, gap: float) -> int:
     return n
 
 
-def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius: float, min_spacing: float,
-                   duration: float, fine: float, coarse: float, workers: int, control_m: float = 1e-6,
-                   say=print) -> dict:
+def contacts_study(
+    *,
+    rule: str,
+    starts: int,
+    seed0: int,
+    followers: int,
+    radius: float,
+    min_spacing: float,
+    duration: float,
+    fine: float,
+    coarse: float,
+    workers: int,
+    control_m: float = 1e-6,
+    say=print,
+) -> dict:
     """The stress starts at the fine and the candidate step (and, as a control, at the fine step again with
     the start moved ``control_m``): contact counts, per start, and the verdict of issue 20."""
     from swarm_mj.commands.stress import StressCase
@@ -820,8 +1051,18 @@ def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius
     for k in range(starts):
         case = StressCase(rule, seed0 + k, followers, radius, min_spacing, duration)
         for kind, dt, pm in kinds:
-            jobs.append(({"name": f"seed {seed0 + k} {kind} ({dt * 1e3:g} ms)", "case": asdict(case), "timestep": dt,
-                          "kind": kind, "perturb_m": pm}, 1.0 / dt))
+            jobs.append(
+                (
+                    {
+                        "name": f"seed {seed0 + k} {kind} ({dt * 1e3:g} ms)",
+                        "case": asdict(case),
+                        "timestep": dt,
+                        "kind": kind,
+                        "perturb_m": pm,
+                    },
+                    1.0 / dt,
+                )
+            )
     t0 = time.perf_counter()
     rows = run_parallel(fly_contacts, jobs, workers, say)
     by = {(r["seed"], r["kind"]): r for r in rows}
@@ -832,19 +1073,30 @@ def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius
         for kind, _, _ in kinds:
             r = by[(seed0 + k, kind)]
             log = r["contact_log"]
-            item.update({kind: r["contacts"], f"{kind}_stopped": r["stopped"], f"{kind}_log": log,
-                         f"{kind}_first_s": log[0][0] if log else None,
-                         f"{kind}_pairs": len({(i, j) for _, i, j in log}), f"{kind}_episodes": _episodes(log, gap)})
+            item.update(
+                {
+                    kind: r["contacts"],
+                    f"{kind}_stopped": r["stopped"],
+                    f"{kind}_log": log,
+                    f"{kind}_first_s": log[0][0] if log else None,
+                    f"{kind}_pairs": len({(i, j) for _, i, j in log}),
+                    f"{kind}_episodes": _episodes(log, gap),
+                }
+            )
         per_start.append(item)
 
     def side(kind: str, dt: float) -> dict:
         rs = [r for r in rows if r["kind"] == kind]
-        return {"label": _label("RK4", dt) + (f", start moved {control_m * 1e6:g} µm" if kind == "control" else ""),
-                "timestep_s": dt, "contacts": sum(p[kind] for p in per_start),
-                "starts_with_contact": sum(p[kind] > 0 for p in per_start),
-                "pairs": sum(p[f"{kind}_pairs"] for p in per_start),
-                "episodes": sum(p[f"{kind}_episodes"] for p in per_start),
-                "stopped": [r["seed"] for r in rs if r["stopped"]], "wall_s": sum(r["wall_s"] for r in rs)}
+        return {
+            "label": _label("RK4", dt) + (f", start moved {control_m * 1e6:g} µm" if kind == "control" else ""),
+            "timestep_s": dt,
+            "contacts": sum(p[kind] for p in per_start),
+            "starts_with_contact": sum(p[kind] > 0 for p in per_start),
+            "pairs": sum(p[f"{kind}_pairs"] for p in per_start),
+            "episodes": sum(p[f"{kind}_episodes"] for p in per_start),
+            "stopped": [r["seed"] for r in rs if r["stopped"]],
+            "wall_s": sum(r["wall_s"] for r in rs),
+        }
 
     def rel(a: int, b: int) -> float:
         return (b - a) / a if a else (0.0 if b == 0 else float("inf"))
@@ -853,39 +1105,72 @@ def contacts_study(*, rule: str, starts: int, seed0: int, followers: int, radius
     F, C = out["fine"], out["coarse"]
     r = rel(F["contacts"], C["contacts"])
     missed = [p["seed"] for p in per_start if p["fine"] > 0 and p["coarse"] == 0]
-    first = [abs(p["coarse_first_s"] - p["fine_first_s"]) for p in per_start
-             if p["fine_first_s"] is not None and p["coarse_first_s"] is not None]
-    verdict = {"relative_difference": r, "tolerance": CONTACT_TOLERANCE, "missed_starts": missed,
-               "new_starts": [p["seed"] for p in per_start if p["coarse"] > 0 and p["fine"] == 0],
-               "holds": abs(r) <= CONTACT_TOLERANCE and not missed,
-               "first_contact_within_one_period": sum(1 for x in first if x <= coarse + 1e-9),
-               "first_contact_within_50ms": sum(1 for x in first if x <= 0.05 + 1e-9),
-               "starts_with_contact_at_both": len(first),
-               "pairs_relative_difference": rel(F["pairs"], C["pairs"]),
-               "episodes_relative_difference": rel(F["episodes"], C["episodes"]), "episode_gap_s": gap}
+    first = [
+        abs(p["coarse_first_s"] - p["fine_first_s"])
+        for p in per_start
+        if p["fine_first_s"] is not None and p["coarse_first_s"] is not None
+    ]
+    verdict = {
+        "relative_difference": r,
+        "tolerance": CONTACT_TOLERANCE,
+        "missed_starts": missed,
+        "new_starts": [p["seed"] for p in per_start if p["coarse"] > 0 and p["fine"] == 0],
+        "holds": abs(r) <= CONTACT_TOLERANCE and not missed,
+        "first_contact_within_one_period": sum(1 for x in first if x <= coarse + 1e-9),
+        "first_contact_within_50ms": sum(1 for x in first if x <= 0.05 + 1e-9),
+        "starts_with_contact_at_both": len(first),
+        "pairs_relative_difference": rel(F["pairs"], C["pairs"]),
+        "episodes_relative_difference": rel(F["episodes"], C["episodes"]),
+        "episode_gap_s": gap,
+    }
     if "control" in out:
         verdict["control_relative_difference"] = rel(F["contacts"], out["control"]["contacts"])
         verdict["control_pairs_relative_difference"] = rel(F["pairs"], out["control"]["pairs"])
-    return {"meta": {"generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-                     "wall_s": time.perf_counter() - t0, "workers": workers, "argv": sys.argv[1:]},
-            "settings": {"rule": rule, "starts": starts, "seed0": seed0, "followers": followers, "radius": radius,
-                         "min_spacing": min_spacing, "duration": duration, "fine_s": fine, "coarse_s": coarse,
-                         "control_m": control_m},
-            **out, "starts": per_start, "verdict": verdict}
+    return {
+        "meta": {
+            "generated": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+            "wall_s": time.perf_counter() - t0,
+            "workers": workers,
+            "argv": sys.argv[1:],
+        },
+        "settings": {
+            "rule": rule,
+            "starts": starts,
+            "seed0": seed0,
+            "followers": followers,
+            "radius": radius,
+            "min_spacing": min_spacing,
+            "duration": duration,
+            "fine_s": fine,
+            "coarse_s": coarse,
+            "control_m": control_m,
+        },
+        **out,
+        "starts": per_start,
+        "verdict": verdict,
+    }
 
 
 def format_contacts(doc: dict) -> str:
     v, st = doc["verdict"], doc["settings"]
     kinds = [k for k in ("fine", "coarse", "control") if k in doc]
     lines = [f"rule {st['rule']}, {st['starts']} starts, {st['duration']:g} s each"]
-    lines += [f"{doc[k]['label']:>28}: {doc[k]['contacts']} contacts in {doc[k]['starts_with_contact']} starts, "
-              f"{doc[k]['pairs']} pairs touched, {doc[k]['episodes']} episodes ({len(doc[k]['stopped'])} stopped), "
-              f"loop {doc[k]['wall_s']:.1f} s" for k in kinds]
-    lines.append("per start (seed: fine / candidate" + (" / control" if "control" in doc else "") +
-                 "), those with any contact:")
-    lines += [f"  {p['seed']:>4}: {p['fine']} / {p['coarse']}" + (f" / {p['control']}" if "control" in p else "")
-              + ("  <- differs" if p["fine"] != p["coarse"] else "")
-              for p in doc["starts"] if p["fine"] or p["coarse"]]
+    lines += [
+        f"{doc[k]['label']:>28}: {doc[k]['contacts']} contacts in {doc[k]['starts_with_contact']} starts, "
+        f"{doc[k]['pairs']} pairs touched, {doc[k]['episodes']} episodes ({len(doc[k]['stopped'])} stopped), "
+        f"loop {doc[k]['wall_s']:.1f} s"
+        for k in kinds
+    ]
+    lines.append(
+        "per start (seed: fine / candidate" + (" / control" if "control" in doc else "") + "), those with any contact:"
+    )
+    lines += [
+        f"  {p['seed']:>4}: {p['fine']} / {p['coarse']}"
+        + (f" / {p['control']}" if "control" in p else "")
+        + ("  <- differs" if p["fine"] != p["coarse"] else "")
+        for p in doc["starts"]
+        if p["fine"] or p["coarse"]
+    ]
     lines.append(contacts_verdict(doc))
     lines.append("verdict: " + ("contacts counted equivalently" if v["holds"] else "NOT equivalent by the 5 % bar"))
     return "\n".join(lines)
@@ -930,23 +1215,42 @@ def _json(o: Any) -> Any:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0],
-                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__.splitlines()[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--scenarios", help="comma-separated bundled scenario names (default: all)")
-    ap.add_argument("--duration", type=float, help="fly each case for at most this many seconds (quick runs); "
-                    "contacts mode: seconds per start (default 15)")
+    ap.add_argument(
+        "--duration",
+        type=float,
+        help="fly each case for at most this many seconds (quick runs); contacts mode: seconds per start (default 15)",
+    )
     ap.add_argument("--workers", type=int, default=1, help="processes (spawn), default 1")
-    ap.add_argument("--settings", default=None,
-                    help="INTEGRATOR:MS list, the first the reference (default RK4:1,RK4:2.5,RK4:5,RK4:10,"
-                         "Euler:5,Euler:10,implicitfast:5,implicitfast:10)")
-    ap.add_argument("--perturb", type=float, default=1.0, metavar="UM",
-                    help="also fly the reference with the leader's start moved UM µm along x, to measure each "
-                         "case's sensitivity to its initial state (default 1; 0: not)")
-    ap.add_argument("--perturb-dirs", type=int, default=3, metavar="N",
-                    help="perturbed reference runs per case: the start moved along +x, +y, +z, -x, -y, -z, the "
-                         "first N (default 3)")
-    ap.add_argument("--no-rule-variants", action="store_true",
-                    help="leave out the anti-collision table's other rules of anti_collision, scenario1..3")
+    ap.add_argument(
+        "--settings",
+        default=None,
+        help="INTEGRATOR:MS list, the first the reference (default RK4:1,RK4:2.5,RK4:5,RK4:10,"
+        "Euler:5,Euler:10,implicitfast:5,implicitfast:10)",
+    )
+    ap.add_argument(
+        "--perturb",
+        type=float,
+        default=1.0,
+        metavar="UM",
+        help="also fly the reference with the leader's start moved UM µm along x, to measure each "
+        "case's sensitivity to its initial state (default 1; 0: not)",
+    )
+    ap.add_argument(
+        "--perturb-dirs",
+        type=int,
+        default=3,
+        metavar="N",
+        help="perturbed reference runs per case: the start moved along +x, +y, +z, -x, -y, -z, the first N (default 3)",
+    )
+    ap.add_argument(
+        "--no-rule-variants",
+        action="store_true",
+        help="leave out the anti-collision table's other rules of anti_collision, scenario1..3",
+    )
     ap.add_argument("--json", metavar="PATH", help="write the numbers as JSON")
     ap.add_argument("--markdown", metavar="PATH", help="write the short and the full table as markdown")
     ap.add_argument("--docs", metavar="PATH", help="write docs/physics_step.md (the full form with the reasoning)")
@@ -963,9 +1267,14 @@ def main(argv: list[str] | None = None) -> int:
     g.add_argument("--min-spacing", type=float, default=0.6)
     g.add_argument("--fine", type=float, default=5.0, help="fine step in ms (default 5)")
     g.add_argument("--coarse", type=float, default=10.0, help="candidate step in ms (default 10)")
-    g.add_argument("--control", type=float, default=1.0, metavar="UM",
-                   help="also fly the fine step with the start moved UM µm, to show how much the counts change "
-                        "for reasons that have nothing to do with the step (default 1; 0: not)")
+    g.add_argument(
+        "--control",
+        type=float,
+        default=1.0,
+        metavar="UM",
+        help="also fly the fine step with the start moved UM µm, to show how much the counts change "
+        "for reasons that have nothing to do with the step (default 1; 0: not)",
+    )
     a = ap.parse_args(argv)
     if a.workers < 1:
         ap.error("--workers must be at least 1")
@@ -976,9 +1285,20 @@ def main(argv: list[str] | None = None) -> int:
     if a.contacts:
         if a.starts < 1:
             ap.error("--starts must be at least 1")
-        doc = contacts_study(rule=a.rule, starts=a.starts, seed0=a.seed0, followers=a.followers, radius=a.radius,
-                             min_spacing=a.min_spacing, duration=a.duration or 15.0, fine=a.fine / 1e3,
-                             coarse=a.coarse / 1e3, workers=a.workers, control_m=a.control * 1e-6, say=say)
+        doc = contacts_study(
+            rule=a.rule,
+            starts=a.starts,
+            seed0=a.seed0,
+            followers=a.followers,
+            radius=a.radius,
+            min_spacing=a.min_spacing,
+            duration=a.duration or 15.0,
+            fine=a.fine / 1e3,
+            coarse=a.coarse / 1e3,
+            workers=a.workers,
+            control_m=a.control * 1e-6,
+            say=say,
+        )
         print(format_contacts(doc))
         if a.json:
             _write(a.json, json.dumps(_json(doc), indent=1) + "\n")
@@ -998,9 +1318,16 @@ def main(argv: list[str] | None = None) -> int:
         if unknown:
             ap.error(f"unknown scenario(s) {', '.join(unknown)}; bundled: {', '.join(found)}")
         settings = parse_settings(a.settings) if a.settings else list(DEFAULT_SETTINGS)
-        doc = study(names, duration=a.duration, workers=a.workers, settings=settings,
-                    rule_variants=not a.no_rule_variants, perturb_m=a.perturb * 1e-6,
-                    perturb_dirs=a.perturb_dirs, say=say)
+        doc = study(
+            names,
+            duration=a.duration,
+            workers=a.workers,
+            settings=settings,
+            rule_variants=not a.no_rule_variants,
+            perturb_m=a.perturb * 1e-6,
+            perturb_dirs=a.perturb_dirs,
+            say=say,
+        )
         doc = _json(doc)
         source = a.json or "a run of the tool"
         if a.json:
@@ -1008,9 +1335,11 @@ def main(argv: list[str] | None = None) -> int:
     print(short_table(doc))
     ch = doc.get("chosen")
     cs = doc.get("chosen_allowing_sensitive")
-    print(f"\nlargest RK4 step with every README figure as at 1 ms and <= {DEVIATION_BAR_M * 1e3:g} mm: "
-          f"{ch['label'] if ch else 'none'}; allowing what a start perturbation changes too: "
-          f"{cs['label'] if cs else 'none'}")
+    print(
+        f"\nlargest RK4 step with every README figure as at 1 ms and <= {DEVIATION_BAR_M * 1e3:g} mm: "
+        f"{ch['label'] if ch else 'none'}; allowing what a start perturbation changes too: "
+        f"{cs['label'] if cs else 'none'}"
+    )
     if a.markdown:
         _write(a.markdown, "## Summary\n\n" + short_table(doc) + "\n\n## Per case\n\n" + full_table(doc) + "\n")
     if a.readme:

@@ -32,8 +32,17 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 RULES = ("clearance", "layers", "paper")
 AEROS = ("paper", "realistic")
-SWARM_SCENARIOS = ("circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3",
-                   "variable_diameter", "anti_collision", "wind_swarm")
+SWARM_SCENARIOS = (
+    "circle",
+    "lemniscate",
+    "ascending_orbit",
+    "scenario1",
+    "scenario2",
+    "scenario3",
+    "variable_diameter",
+    "anti_collision",
+    "wind_swarm",
+)
 RULE_SCENARIOS = ("anti_collision", "scenario1", "scenario2", "scenario3")
 
 
@@ -57,14 +66,22 @@ def fly_scenario(job: tuple[str, str, str, float | None]) -> dict:
     res = run(sc, anti_collision=rule, progress=False)
     s = res.summary
     settle = s["formation"]["settling_s"]
-    return {"part": "scenario", "scenario": name, "rule": rule, "aero": aero, "duration_s": sc.duration,
-            "contacts": int(s["contacts"]), "crashes": int(s.get("crashes", 0)),
-            "ground_contacts": int(s.get("ground_contacts", 0)),
-            "downwash_dip_worst_m": float(s["downwash_dip_worst_m"]),
-            "settling_s": _finite(settle[0]) if settle else None, "settling_all_s": [_finite(x) for x in settle],
-            "min_separation_m": _finite(s["min_separation_m"]),
-            "min_separation_airborne_m": _finite(s.get("min_separation_airborne_m")),
-            "stopped": s.get("stopped")}
+    return {
+        "part": "scenario",
+        "scenario": name,
+        "rule": rule,
+        "aero": aero,
+        "duration_s": sc.duration,
+        "contacts": int(s["contacts"]),
+        "crashes": int(s.get("crashes", 0)),
+        "ground_contacts": int(s.get("ground_contacts", 0)),
+        "downwash_dip_worst_m": float(s["downwash_dip_worst_m"]),
+        "settling_s": _finite(settle[0]) if settle else None,
+        "settling_all_s": [_finite(x) for x in settle],
+        "min_separation_m": _finite(s["min_separation_m"]),
+        "min_separation_airborne_m": _finite(s.get("min_separation_airborne_m")),
+        "stopped": s.get("stopped"),
+    }
 
 
 def stress_rows(starts: int, workers: int) -> list[dict]:
@@ -75,13 +92,22 @@ def stress_rows(starts: int, workers: int) -> list[dict]:
     for aero in AEROS:
         table, _ = stress(list(RULES), starts, 5, 3.0, 0.6, 15.0, 0, workers, 4.0, aero=aero)
         for rule, r in table.items():
-            out.append({"part": "stress", "rule": rule, "aero": aero, "starts": r["starts"],
-                        "starts_with_contact": r["starts_with_contact"], "contacts": r["contacts"],
-                        "crashes": r.get("crashes", 0), "diverged": len(r["stopped"]),
-                        "downwash_dip_worst_m": r["downwash_dip_worst_m"],
-                        "settling_median_s": _finite(r["settling_median_s"]),
-                        "settling_worst_s": _finite(r["settling_worst_s"]),
-                        "min_separation_airborne_m": _finite(r["min_separation_airborne_m"])})
+            out.append(
+                {
+                    "part": "stress",
+                    "rule": rule,
+                    "aero": aero,
+                    "starts": r["starts"],
+                    "starts_with_contact": r["starts_with_contact"],
+                    "contacts": r["contacts"],
+                    "crashes": r.get("crashes", 0),
+                    "diverged": len(r["stopped"]),
+                    "downwash_dip_worst_m": r["downwash_dip_worst_m"],
+                    "settling_median_s": _finite(r["settling_median_s"]),
+                    "settling_worst_s": _finite(r["settling_worst_s"]),
+                    "min_separation_airborne_m": _finite(r["min_separation_airborne_m"]),
+                }
+            )
     return out
 
 
@@ -99,19 +125,31 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     rows = [] if args.skip_stress else stress_rows(args.starts, args.workers)
     jobs = [(name, "clearance", aero, args.duration) for aero in AEROS for name in SWARM_SCENARIOS]
-    jobs += [(name, rule, aero, args.duration) for aero in AEROS for rule in RULES if rule != "clearance"
-             for name in RULE_SCENARIOS]
+    jobs += [
+        (name, rule, aero, args.duration)
+        for aero in AEROS
+        for rule in RULES
+        if rule != "clearance"
+        for name in RULE_SCENARIOS
+    ]
     with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
         rows += list(pool.map(fly_scenario, jobs))
-    print(f"{'part':<9} {'what':<18} {'rule':<9} {'aero':<9} {'contacts':>8} {'crashes':>7} {'dip (m)':>8} "
-          f"{'settle (s)':>14} {'min sep (m)':>11}")
+    print(
+        f"{'part':<9} {'what':<18} {'rule':<9} {'aero':<9} {'contacts':>8} {'crashes':>7} {'dip (m)':>8} "
+        f"{'settle (s)':>14} {'min sep (m)':>11}"
+    )
     for r in rows:
         what = f"{r['starts']} starts" if r["part"] == "stress" else r["scenario"]
-        settle = (f"{_f(r['settling_median_s'], '{:.2f}')} / {_f(r['settling_worst_s'], '{:.2f}')}"
-                  if r["part"] == "stress" else _f(r["settling_s"], "{:.2f}"))
-        contacts = (f"{r['contacts']} ({r['starts_with_contact']})" if r["part"] == "stress" else str(r["contacts"]))
-        print(f"{r['part']:<9} {what:<18} {r['rule']:<9} {r['aero']:<9} {contacts:>8} {r['crashes']:>7} "
-              f"{r['downwash_dip_worst_m']:>8.3f} {settle:>14} {_f(r['min_separation_airborne_m'], '{:.3f}'):>11}")
+        settle = (
+            f"{_f(r['settling_median_s'], '{:.2f}')} / {_f(r['settling_worst_s'], '{:.2f}')}"
+            if r["part"] == "stress"
+            else _f(r["settling_s"], "{:.2f}")
+        )
+        contacts = f"{r['contacts']} ({r['starts_with_contact']})" if r["part"] == "stress" else str(r["contacts"])
+        print(
+            f"{r['part']:<9} {what:<18} {r['rule']:<9} {r['aero']:<9} {contacts:>8} {r['crashes']:>7} "
+            f"{r['downwash_dip_worst_m']:>8.3f} {settle:>14} {_f(r['min_separation_airborne_m'], '{:.3f}'):>11}"
+        )
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
         tmp = Path(args.json).with_suffix(".tmp")

@@ -25,8 +25,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 
-def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, settle: float = 3.0,
-        offset: float = 0.0) -> dict:
+def fly(
+    depth: float, speed: float, alt: float, aero: str, hold: bool = False, settle: float = 3.0, offset: float = 0.0
+) -> dict:
     """One two-drone flight; returns the worst dip (m) of the lower drone near the upper one
     (``hold``: holding ``offset`` m aside of the point right below it)."""
     from swarm_mj.aero import install, preset
@@ -62,12 +63,11 @@ def fly(depth: float, speed: float, alt: float, aero: str, hold: bool = False, s
             vel_d[1, 0] = speed if pos_d[1, 0] < 2.0 else 0.0
         U = ctl.compute(rpy, rpy_rate, pos, vel, pos_d, vel_d, z3, np.zeros(2), wind_force=z3, omega_body=omega)
         sim.step(U)
-        if t >= settle and (hold or abs(sim.pos[1, 0] - sim.pos[0, 0]) < 1.0):     # near the upper one
+        if t >= settle and (hold or abs(sim.pos[1, 0] - sim.pos[0, 0]) < 1.0):  # near the upper one
             dip = pos_d[1, 2] - sim.pos[1, 2]
             worst = max(worst, dip)
             zs.append(dip)
-    return {"depth_m": depth, "worst_dip_m": float(worst),
-            "final_dip_m": float(zs[-1]) if zs else float("nan")}
+    return {"depth_m": depth, "worst_dip_m": float(worst), "final_dip_m": float(zs[-1]) if zs else float("nan")}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -83,8 +83,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=1.0, help="lower drone's crossing speed (m/s)")
     ap.add_argument("--alt", type=float, default=2.5, help="upper drone's altitude (m)")
     ap.add_argument("--aero", default="realistic", choices=["paper", "realistic"])
-    ap.add_argument("--offsets", nargs="*", type=float, default=[],
-                    help="also the holding dip this far aside (m, horizontally) at each depth")
+    ap.add_argument(
+        "--offsets",
+        nargs="*",
+        type=float,
+        default=[],
+        help="also the holding dip this far aside (m, horizontally) at each depth",
+    )
     ap.add_argument("--json", metavar="PATH")
     a = ap.parse_args(argv)
     u_h = float(hover_induced_velocity(P.hover_thrust))
@@ -95,13 +100,20 @@ def main(argv: list[str] | None = None) -> int:
     for d in a.depths:
         c = fly(d, a.speed, a.alt, a.aero)
         h = fly(d, a.speed, a.alt, a.aero, hold=True)
-        row = {"depth_m": d, "centreline_speed_mps": float(centreline_velocity(d, u_h, l)),
-               "half_width_m": float(half_width(d, l)), "crossing_dip_m": c["worst_dip_m"],
-               "holding_dip_worst_m": h["worst_dip_m"], "holding_dip_final_m": h["final_dip_m"],
-               "speed_mps": a.speed}
+        row = {
+            "depth_m": d,
+            "centreline_speed_mps": float(centreline_velocity(d, u_h, l)),
+            "half_width_m": float(half_width(d, l)),
+            "crossing_dip_m": c["worst_dip_m"],
+            "holding_dip_worst_m": h["worst_dip_m"],
+            "holding_dip_final_m": h["final_dip_m"],
+            "speed_mps": a.speed,
+        }
         rows.append(row)
-        print(f"{d:>9.2f} {row['centreline_speed_mps']:>9.2f} {row['half_width_m']:>9.3f} "
-              f"{row['crossing_dip_m']:>13.3f} {row['holding_dip_worst_m']:>12.3f}")
+        print(
+            f"{d:>9.2f} {row['centreline_speed_mps']:>9.2f} {row['half_width_m']:>9.3f} "
+            f"{row['crossing_dip_m']:>13.3f} {row['holding_dip_worst_m']:>12.3f}"
+        )
         for off in a.offsets:
             o = fly(d, a.speed, a.alt, a.aero, hold=True, offset=off)
             row.setdefault("holding_dip_aside_m", {})[str(off)] = o["worst_dip_m"]

@@ -59,11 +59,29 @@ SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scal
 ROWS: list[dict] = []
 
 
-def row(section: str, name: str, ours_s: float | None, raw_s: float | None, *, value: float | None = None,
-        unit: str = "", note: str = "", **extra) -> dict:
+def row(
+    section: str,
+    name: str,
+    ours_s: float | None,
+    raw_s: float | None,
+    *,
+    value: float | None = None,
+    unit: str = "",
+    note: str = "",
+    **extra,
+) -> dict:
     """One figure: our wall time and the raw baseline's for the same work, and a headline value."""
-    r = {"section": section, "name": name, "value": value, "unit": unit, "ours_s": ours_s, "raw_s": raw_s,
-         "ratio": (ours_s / raw_s) if (ours_s and raw_s) else None, "note": note, **extra}
+    r = {
+        "section": section,
+        "name": name,
+        "value": value,
+        "unit": unit,
+        "ours_s": ours_s,
+        "raw_s": raw_s,
+        "ratio": (ours_s / raw_s) if (ours_s and raw_s) else None,
+        "note": note,
+        **extra,
+    }
     ROWS.append(r)
     v = f"{value:,.1f} {unit}" if value is not None else ""
     rat = f"{r['ratio']:.2f}× raw" if r["ratio"] is not None else ""
@@ -81,11 +99,16 @@ def machine() -> dict:
 
     try:
         import numba
+
         nb = numba.__version__
     except ImportError:
         nb = None
-    return {**machine_description(), "numba": nb, "jit": bool(_jit.AVAILABLE),
-            "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
+    return {
+        **machine_description(),
+        "numba": nb,
+        "jit": bool(_jit.AVAILABLE),
+        "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None,
+    }
 
 
 # --------------------------------------------------------------------------- raw baseline
@@ -123,7 +146,7 @@ def bench_core(quick: bool, repeats: int) -> None:
     F = np.array([0.05, -0.03, 0.0])
     n_ctrl = int((5.0 if quick else 10.0) / sim.control_period)
     ours, raw = [], []
-    for _ in range(min(n_ctrl, 100)):                                     # warm-up (JIT cache load)
+    for _ in range(min(n_ctrl, 100)):  # warm-up (JIT cache load)
         sim.step(U, F)
     for _ in range(repeats):
         sim.reset()
@@ -133,8 +156,15 @@ def bench_core(quick: bool, repeats: int) -> None:
         ours.append(time.perf_counter() - t0)
         raw.append(raw_seconds(world, n_ctrl * sim.n_substeps))
     sim_s = n_ctrl * sim.control_period
-    row("core", f"Sim.step, {n} drones ({sim_s:g} s simulated)", min(ours), min(raw), value=sim_s / min(ours),
-        unit="× real time", note=f"raw mj_step {sim_s / min(raw):,.0f}× real time; best of {repeats}")
+    row(
+        "core",
+        f"Sim.step, {n} drones ({sim_s:g} s simulated)",
+        min(ours),
+        min(raw),
+        value=sim_s / min(ours),
+        unit="× real time",
+        note=f"raw mj_step {sim_s / min(raw):,.0f}× real time; best of {repeats}",
+    )
 
 
 def bench_runs(quick: bool, repeats: int) -> None:
@@ -145,8 +175,8 @@ def bench_runs(quick: bool, repeats: int) -> None:
     dur = 30.0 if quick else 180.0
     for name in ("lemniscate_single", "circle"):
         sc = load_scenario(name).with_overrides(duration=dur)
-        warm = run(sc.with_overrides(duration=1.0), progress=False)            # warm-up (JIT cache, imports,
-        with tempfile.TemporaryDirectory() as tmp:                              # the recorder's start-up)
+        warm = run(sc.with_overrides(duration=1.0), progress=False)  # warm-up (JIT cache, imports,
+        with tempfile.TemporaryDirectory() as tmp:  # the recorder's start-up)
             write_recording(warm, Path(tmp) / "warm.rrd")
         t_run, t_rec, t_raw = [], [], []
         for _ in range(repeats):
@@ -159,17 +189,32 @@ def bench_runs(quick: bool, repeats: int) -> None:
                 t_rec.append(time.perf_counter() - t0)
             from swarm_mj.world import build_world
 
-            w = build_world(sc.n_drones, positions=sc.initial_positions(), timestep=sc.timestep,
-                            integrator=sc.integrator)
+            w = build_world(
+                sc.n_drones, positions=sc.initial_positions(), timestep=sc.timestep, integrator=sc.integrator
+            )
             n_phys = int(round(dur / sc.timestep))
             t_raw.append(raw_seconds(w, n_phys))
         a, r, raw = min(t_run), min(t_rec), min(t_raw)
         label = f"{name} ({sc.n_drones} drone{'s' if sc.n_drones > 1 else ''}, {dur:g} s)"
-        row("runs", f"runner.run {label}", a, raw, value=dur / a, unit="× real time",
-            note=f"raw mj_step {dur / raw:,.0f}× real time")
-        row("runs", f"runner.run + recording {label}", a + r, raw, value=dur / (a + r), unit="× real time",
+        row(
+            "runs",
+            f"runner.run {label}",
+            a,
+            raw,
+            value=dur / a,
+            unit="× real time",
+            note=f"raw mj_step {dur / raw:,.0f}× real time",
+        )
+        row(
+            "runs",
+            f"runner.run + recording {label}",
+            a + r,
+            raw,
+            value=dur / (a + r),
+            unit="× real time",
             note=f"recording overhead {100 * r / a:.0f} % (write_recording {r:.2f} s)",
-            recording_overhead_pct=100 * r / a)
+            recording_overhead_pct=100 * r / a,
+        )
 
 
 def bench_env(quick: bool, repeats: int) -> None:
@@ -207,10 +252,18 @@ def bench_env(quick: bool, repeats: int) -> None:
         t_pol.append(time.perf_counter() - t0)
         t_raw.append(raw_seconds(env.world, K * nsub))
     raw = min(t_raw)
-    row("env", f"SwarmEnv.step, random U near hover ({n} drones)", min(t_rand), raw, value=K / min(t_rand),
-        unit="steps/s", note=f"raw mj_step {K / raw:,.0f} env-steps/s ({nsub} mj_step each)")
-    row("env", f"SwarmEnv.step + BacksteppingPolicy ({n} drones)", min(t_pol), raw, value=K / min(t_pol),
-        unit="steps/s")
+    row(
+        "env",
+        f"SwarmEnv.step, random U near hover ({n} drones)",
+        min(t_rand),
+        raw,
+        value=K / min(t_rand),
+        unit="steps/s",
+        note=f"raw mj_step {K / raw:,.0f} env-steps/s ({nsub} mj_step each)",
+    )
+    row(
+        "env", f"SwarmEnv.step + BacksteppingPolicy ({n} drones)", min(t_pol), raw, value=K / min(t_pol), unit="steps/s"
+    )
 
 
 def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
@@ -234,7 +287,7 @@ def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
     t_vec, t_raw, t_one, t_one_raw = [], [], [], []
     for _ in range(repeats):
         venv.reset(seed=0)
-        venv.step(U[0])                                            # first call: kernels loaded
+        venv.step(U[0])  # first call: kernels loaded
         t0 = time.perf_counter()
         for k in range(K):
             venv.step(U[k])
@@ -248,13 +301,27 @@ def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
         t_one_raw.append(raw_seconds(env.world, K * nsub))
     v, r = min(t_vec), min(t_raw)
     blocks = sorted({blk.b for blk in venv._blocks})
-    row("vector", f"SwarmVectorEnv, {m} x {n} drones, random U near hover", v, r, value=K * m * n / v,
-        unit="drone-steps/s", note=f"raw mj_step on the same {len(venv._blocks)} models ({blocks} copies each) "
-                                   f"{K * m * n / r:,.0f} drone-steps/s; built in {build:.1f} s; best of {repeats}")
+    row(
+        "vector",
+        f"SwarmVectorEnv, {m} x {n} drones, random U near hover",
+        v,
+        r,
+        value=K * m * n / v,
+        unit="drone-steps/s",
+        note=f"raw mj_step on the same {len(venv._blocks)} models ({blocks} copies each) "
+        f"{K * m * n / r:,.0f} drone-steps/s; built in {build:.1f} s; best of {repeats}",
+    )
     o, orw = min(t_one), min(t_one_raw)
-    row("vector", f"SwarmEnv one swarm at a time ({n} drones), random U near hover", o, orw, value=K * n / o,
-        unit="drone-steps/s", note=f"raw mj_step on its model {K * n / orw:,.0f} drone-steps/s; "
-                                   f"the vector env: {K * m * n / v / (K * n / o):.1f}x its drone-steps/s")
+    row(
+        "vector",
+        f"SwarmEnv one swarm at a time ({n} drones), random U near hover",
+        o,
+        orw,
+        value=K * n / o,
+        unit="drone-steps/s",
+        note=f"raw mj_step on its model {K * n / orw:,.0f} drone-steps/s; "
+        f"the vector env: {K * m * n / v / (K * n / o):.1f}x its drone-steps/s",
+    )
 
 
 def _wall(cmd: list[str], env: dict | None = None, cwd: str | None = None) -> float:
@@ -270,14 +337,23 @@ def bench_startup(quick: bool, repeats: int) -> None:
     base = {**os.environ}
     cli = [py, "-m", "swarm_mj.cli", "run", "circle", "--quiet"]
     with tempfile.TemporaryDirectory() as tmp:
-        _wall(cli + ["--duration", "0.1", "--no-record"], base, tmp)          # warm the cache and the disk
+        _wall(cli + ["--duration", "0.1", "--no-record"], base, tmp)  # warm the cache and the disk
         t_start = min(_wall(cli + ["--duration", "0.1", "--no-record"], base, tmp) for _ in range(repeats))
         t_bare = min(_wall([py, "-c", "import mujoco, numpy"], base, tmp) for _ in range(repeats))
-        t_imp = min(_wall([py, "-c", "import swarm_mj.cli, swarm_mj.runner, swarm_mj.recording"], base, tmp)
-                    for _ in range(repeats))
-        row("startup", "start-up: run circle --duration 0.1 --no-record (warm cache)", t_start, t_bare,
-            value=t_start, unit="s", note=f"baseline: a process importing mujoco + numpy ({t_bare:.2f} s); "
-                                          f"importing swarm_mj's CLI, runner, recording: {t_imp:.2f} s")
+        t_imp = min(
+            _wall([py, "-c", "import swarm_mj.cli, swarm_mj.runner, swarm_mj.recording"], base, tmp)
+            for _ in range(repeats)
+        )
+        row(
+            "startup",
+            "start-up: run circle --duration 0.1 --no-record (warm cache)",
+            t_start,
+            t_bare,
+            value=t_start,
+            unit="s",
+            note=f"baseline: a process importing mujoco + numpy ({t_bare:.2f} s); "
+            f"importing swarm_mj's CLI, runner, recording: {t_imp:.2f} s",
+        )
         full = cli + ([] if not quick else ["--duration", "30"])
         t_warm = min(_wall(full + ["-o", str(Path(tmp) / "w.rrd")], base, tmp) for _ in range(repeats))
         cold = []
@@ -286,8 +362,15 @@ def bench_startup(quick: bool, repeats: int) -> None:
             cache.mkdir()
             cold.append(_wall(full + ["-o", str(Path(tmp) / "c.rrd")], {**base, "NUMBA_CACHE_DIR": str(cache)}, tmp))
         what = "run circle" + (" --duration 30" if quick else "") + " with recording"
-        row("startup", f"first {what}, EMPTY Numba cache", min(cold), t_warm, value=min(cold), unit="s",
-            note=f"ratio: against the same run with a warm cache ({t_warm:.2f} s)")
+        row(
+            "startup",
+            f"first {what}, EMPTY Numba cache",
+            min(cold),
+            t_warm,
+            value=min(cold),
+            unit="s",
+            note=f"ratio: against the same run with a warm cache ({t_warm:.2f} s)",
+        )
         row("startup", f"later {what} (warm cache)", t_warm, None, value=t_warm, unit="s")
 
 
@@ -298,11 +381,12 @@ def bench_tuning(quick: bool, repeats: int) -> None:
     pop, iters = (20, 2) if quick else (50, 14)
     opts = TuneOptions(population=pop, iterations=iters, seed=1)
     settings = StepCostSettings()
-    evals = pop * (iters + 1) + 1                                   # + the Table 4 reference
+    evals = pop * (iters + 1) + 1  # + the Table 4 reference
     drone_s = evals * settings.t_sim
     block = 10
-    w = build_world(block, positions=np.column_stack([np.zeros(block), np.zeros(block), np.full(block, 2.0)]),
-                    collisions=False)
+    w = build_world(
+        block, positions=np.column_stack([np.zeros(block), np.zeros(block), np.full(block, 2.0)]), collisions=False
+    )
     probe_s = 5.0 if quick else 20.0
     t_probe = raw_seconds(w, int(probe_s / settings.timestep))
     raw_equiv = t_probe * drone_s / (block * probe_s)
@@ -312,19 +396,37 @@ def bench_tuning(quick: bool, repeats: int) -> None:
         t0 = time.perf_counter()
         out = tune_gains(opts, settings, workers=workers)
         times[workers] = time.perf_counter() - t0
-        row("tuning", f"tune_gains N={pop}, {iters} it., {workers} worker(s)", times[workers], raw_equiv,
-            value=evals / times[workers], unit="ISE evals/s",
-            note=f"{times[workers]:.1f} s; best ISE {out.best_ise:.4f} ({out.backend})")
+        row(
+            "tuning",
+            f"tune_gains N={pop}, {iters} it., {workers} worker(s)",
+            times[workers],
+            raw_equiv,
+            value=evals / times[workers],
+            unit="ISE evals/s",
+            note=f"{times[workers]:.1f} s; best ISE {out.best_ise:.4f} ({out.backend})",
+        )
     if nw > 1:
-        row("tuning", f"tune speed-up, {nw} workers vs 1", None, None, value=times[1] / times[nw], unit="×",
-            note=f"ideal {nw}×")
+        row(
+            "tuning",
+            f"tune speed-up, {nw} workers vs 1",
+            None,
+            None,
+            value=times[1] / times[nw],
+            unit="×",
+            note=f"ideal {nw}×",
+        )
     else:
         row("tuning", "tune speed-up", None, None, note="one CPU: no speed-up to measure")
     # Speed-up over evaluating candidates one at a time with the product's loop (tools/bench_tune.py).
     bt = _load_tool("bench_tune")
     if bt is None or not hasattr(bt, "runner_ise"):
-        row("tuning", "speed-up over runner.run per candidate", None, None,
-            note="skipped: tools/bench_tune.py (runner_ise) not found")
+        row(
+            "tuning",
+            "speed-up over runner.run per candidate",
+            None,
+            None,
+            note="skipped: tools/bench_tune.py (runner_ise) not found",
+        )
         return
     rng = np.random.default_rng(1)
     sample = rng.uniform(opts.lower, opts.upper, (2 if quick else 5, 12))
@@ -333,23 +435,35 @@ def bench_tuning(quick: bool, repeats: int) -> None:
         bt.runner_ise(g, settings)
     per = (time.perf_counter() - t0) / len(sample)
     one_by_one = per * evals
-    row("tuning", f"one at a time: runner.run per candidate, x{evals} (extrapolated)", one_by_one, raw_equiv,
-        value=one_by_one / times[nw], unit="× slower than the tune",
+    row(
+        "tuning",
+        f"one at a time: runner.run per candidate, x{evals} (extrapolated)",
+        one_by_one,
+        raw_equiv,
+        value=one_by_one / times[nw],
+        unit="× slower than the tune",
         note=f"{per:.3f} s per candidate over {len(sample)}; the batched tune on {nw} worker(s) is "
-             f"{one_by_one / times[nw]:.1f}× faster")
+        f"{one_by_one / times[nw]:.1f}× faster",
+    )
     # The stricter baseline: the tune's own evaluator flying one copy per model (batching alone).
     from swarm_mj.tuning.cost import evaluate_batch
 
-    evaluate_batch(sample[:1], settings)                            # builds the 1-copy model
+    evaluate_batch(sample[:1], settings)  # builds the 1-copy model
     t0 = time.perf_counter()
     for g in sample:
         evaluate_batch(g[None], settings)
     per1 = (time.perf_counter() - t0) / len(sample)
     alone = per1 * evals
-    row("tuning", f"one at a time: the tune's evaluator, one copy per model, x{evals} (extrapolated)", alone,
-        raw_equiv, value=alone / times[nw], unit="× slower than the tune",
+    row(
+        "tuning",
+        f"one at a time: the tune's evaluator, one copy per model, x{evals} (extrapolated)",
+        alone,
+        raw_equiv,
+        value=alone / times[nw],
+        unit="× slower than the tune",
         note=f"{per1 * 1e3:.1f} ms per candidate over {len(sample)}; batching alone (1 worker): "
-             f"{alone / times[1]:.1f}×")
+        f"{alone / times[1]:.1f}×",
+    )
 
 
 def bench_video(quick: bool, repeats: int) -> None:
@@ -367,8 +481,9 @@ def bench_video(quick: bool, repeats: int) -> None:
     try:
         with tempfile.TemporaryDirectory() as tmp:
             t0 = time.perf_counter()
-            render_video(res, Path(tmp) / "b.mp4", fps=fps, size=size, start=1.0, end=1.0 + frames / fps,
-                         progress=False)
+            render_video(
+                res, Path(tmp) / "b.mp4", fps=fps, size=size, start=1.0, end=1.0 + frames / fps, progress=False
+            )
             t_vid = time.perf_counter() - t0
         from swarm_mj.world import build_world
 
@@ -390,9 +505,16 @@ def bench_video(quick: bool, repeats: int) -> None:
     except Exception as exc:  # noqa: BLE001 - no EGL on this machine
         row("video", "render_video", None, None, note=f"skipped: {type(exc).__name__}: {exc}")
         return
-    row("video", f"render_video {size[0]}x{size[1]} H.264 ({frames} frames)", t_vid, t_raw, value=frames / t_vid,
-        unit="frames/s", note=f"baseline: bare mujoco.Renderer {frames / t_raw:,.0f} frames/s "
-                              f"(not mj_step); {frames / t_vid / fps:.2f}× playback speed")
+    row(
+        "video",
+        f"render_video {size[0]}x{size[1]} H.264 ({frames} frames)",
+        t_vid,
+        t_raw,
+        value=frames / t_vid,
+        unit="frames/s",
+        note=f"baseline: bare mujoco.Renderer {frames / t_raw:,.0f} frames/s "
+        f"(not mj_step); {frames / t_vid / fps:.2f}× playback speed",
+    )
 
 
 def polygon_scenario(n_drones: int, duration: float, rule: str = "paper"):
@@ -404,9 +526,12 @@ def polygon_scenario(n_drones: int, duration: float, rule: str = "paper"):
     D = max(1.0, 0.6 / np.sin(np.pi / nf)) if nf > 1 else 1.0
     leader = np.array([0.0, 2.5, 0.0])
     starts = leader + polygon_offsets(nf, D)
-    data = {"duration": float(duration), "leader": {"trajectory": "circle", "start": leader.tolist()},
-            "followers": {"start": starts.tolist()},
-            "formation": {"diameter": float(D), "anti_collision": rule}}
+    data = {
+        "duration": float(duration),
+        "leader": {"trajectory": "circle", "start": leader.tolist()},
+        "followers": {"start": starts.tolist()},
+        "formation": {"diameter": float(D), "anti_collision": rule},
+    }
     return parse_scenario(data, "<bench>", name=f"polygon{n_drones}"), D
 
 
@@ -424,12 +549,18 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
         loop = res.summary["wall_time_s"]
         w = build_world(n, positions=sc.initial_positions())
         raw = raw_seconds(w, int(round(dur / sc.timestep)))
-        row("scaling", f"{n} drones: runner.run per simulated second", loop / dur, raw / dur,
-            value=1000 * loop / dur, unit="ms per sim s",
+        row(
+            "scaling",
+            f"{n} drones: runner.run per simulated second",
+            loop / dur,
+            raw / dur,
+            value=1000 * loop / dur,
+            unit="ms per sim s",
             note=f"{1000 * loop / dur / n:.1f} ms per drone; raw {1000 * raw / dur:,.0f} ms; set-up {setup:.2f} s; "
-                 f"D = {D:.1f} m; contacts {res.summary['contacts']}" + (
-                     f"; STOPPED {res.summary['stopped']}" if res.summary.get("stopped") else ""),
-            n_drones=n)
+            f"D = {D:.1f} m; contacts {res.summary['contacts']}"
+            + (f"; STOPPED {res.summary['stopped']}" if res.summary.get("stopped") else ""),
+            n_drones=n,
+        )
 
 
 def bench_aero(quick: bool, repeats: int) -> None:
@@ -440,19 +571,26 @@ def bench_aero(quick: bool, repeats: int) -> None:
     dur = 30.0 if quick else 60.0
     sc = load_scenario("circle").with_overrides(duration=dur)
     for aero in ("paper", "realistic"):
-        run(sc.with_overrides(duration=1.0), progress=False, aero=aero)        # warm-up (JIT cache)
+        run(sc.with_overrides(duration=1.0), progress=False, aero=aero)  # warm-up (JIT cache)
     loop: dict[str, list[float]] = {"paper": [], "realistic": []}
     notes = {}
     for _ in range(repeats):
-        for aero in ("paper", "realistic"):                                   # alternate: same machine load
+        for aero in ("paper", "realistic"):  # alternate: same machine load
             res = run(sc, progress=False, aero=aero)
             loop[aero].append(res.summary["wall_time_s"])
             notes[aero] = res.summary
     p, r = min(loop["paper"]) / dur, min(loop["realistic"]) / dur
     s = notes["realistic"]
-    row("aero", f"realistic vs paper per simulated second, circle (6 drones, {dur:g} s)", r, p, value=r / p,
-        unit="× paper", note=f"paper {1000 * p:.1f} ms, realistic {1000 * r:.1f} ms per sim s (bar 1.3×); "
-                             f"realistic: crashes {s['crashes']}, contacts {s['contacts']}; best of {repeats}")
+    row(
+        "aero",
+        f"realistic vs paper per simulated second, circle (6 drones, {dur:g} s)",
+        r,
+        p,
+        value=r / p,
+        unit="× paper",
+        note=f"paper {1000 * p:.1f} ms, realistic {1000 * r:.1f} ms per sim s (bar 1.3×); "
+        f"realistic: crashes {s['crashes']}, contacts {s['contacts']}; best of {repeats}",
+    )
 
 
 def _load_tool(name: str):
@@ -479,17 +617,28 @@ def extra(quick: bool) -> None:
         if fn is None:
             continue
         for r in fn(quick=quick) or []:
-            row("extra", f"{name}: {r.get('name', '?')}", r.get("ours_s"), r.get("raw_s"), value=r.get("value"),
-                unit=r.get("unit", ""), note=r.get("note", ""))
+            row(
+                "extra",
+                f"{name}: {r.get('name', '?')}",
+                r.get("ours_s"),
+                r.get("raw_s"),
+                value=r.get("value"),
+                unit=r.get("unit", ""),
+                note=r.get("note", ""),
+            )
 
 
 # --------------------------------------------------------------------------- output
 
 
 def markdown(rows: list[dict], mach: dict) -> str:
-    out = [f"Machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
-           f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']} (JIT {'on' if mach['jit'] else 'off'})",
-           "", "| section | figure | value | ours (s) | raw mj_step (s) | × raw | note |", "|---|---|---|---|---|---|---|"]
+    out = [
+        f"Machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
+        f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']} (JIT {'on' if mach['jit'] else 'off'})",
+        "",
+        "| section | figure | value | ours (s) | raw mj_step (s) | × raw | note |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         v = f"{r['value']:,.1f} {r['unit']}" if r["value"] is not None else ""
         o = f"{r['ours_s']:.3f}" if r["ours_s"] is not None else ""
@@ -511,9 +660,11 @@ def main(argv: list[str] | None = None) -> int:
     if repeats < 1 or any(s < 2 for s in args.sizes):
         ap.error("--repeats must be >= 1 and --sizes >= 2")
     mach = machine()
-    print(f"machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
-          f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
-          flush=True)
+    print(
+        f"machine: {mach['cpu']}, {mach['cores']} cores ({mach['usable_cores']} usable), Python {mach['python']}, "
+        f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
+        flush=True,
+    )
     t0 = time.perf_counter()
     for sec in SECTIONS:
         if sec in args.skip:

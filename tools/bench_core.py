@@ -67,9 +67,9 @@ def main(argv: list[str] | None = None) -> int:
             step(U, F)
         return time.perf_counter() - t0
 
-    run_raw(), run_core()                                  # warm-up
+    run_raw(), run_core()  # warm-up
     t_raw, t_core = [], []
-    for _ in range(args.repeats):                          # interleaved: both see the same machine state
+    for _ in range(args.repeats):  # interleaved: both see the same machine state
         t_raw.append(run_raw())
         t_core.append(run_core())
     best_raw, best_core = min(t_raw), min(t_core)
@@ -78,9 +78,11 @@ def main(argv: list[str] | None = None) -> int:
 
     sim_s = n_ctrl * sim.control_period
     rows = [("raw mj_step", best_raw), ("core Sim.step", best_core)]
-    print(f"{n} drones, timestep {model.opt.timestep * 1e3:g} ms, {sim.n_substeps} physics steps per "
-          f"{sim.control_period * 1e3:g}-ms control period; {sim_s:g} s simulated "
-          f"({n_phys} physics steps), best of {args.repeats}")
+    print(
+        f"{n} drones, timestep {model.opt.timestep * 1e3:g} ms, {sim.n_substeps} physics steps per "
+        f"{sim.control_period * 1e3:g}-ms control period; {sim_s:g} s simulated "
+        f"({n_phys} physics steps), best of {args.repeats}"
+    )
     head = ("", "wall (s)", "ctrl steps/s", "phys steps/s", "real-time ×")
     print(f"{head[0]:<15}{head[1]:>10}{head[2]:>14}{head[3]:>14}{head[4]:>13}")
     for name, t in rows:

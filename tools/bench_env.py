@@ -49,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     U_rand = np.empty((K, n, 4))
     U_rand[..., 0] = p.hover_thrust * rng.uniform(0.95, 1.10, (K, n))
     U_rand[..., 1:] = rng.uniform(-0.002, 0.002, (K, n, 3))
-    restarts = dict.fromkeys(("random", "backstepping", "gym", "pz"), 0)   # episodes ended early
+    restarts = dict.fromkeys(("random", "backstepping", "gym", "pz"), 0)  # episodes ended early
 
     model = env.world.model
     raw = mujoco.MjData(model)
@@ -71,7 +71,7 @@ def main(argv: list[str] | None = None) -> int:
         step = env.step
         t0 = time.perf_counter()
         for k in range(K):
-            ts = step(U_rand[k])                  # dm_env: a step after an early LAST restarts
+            ts = step(U_rand[k])  # dm_env: a step after an early LAST restarts
             restarts["random"] += ts.last() and k < K - 1
         return time.perf_counter() - t0
 
@@ -131,17 +131,19 @@ def main(argv: list[str] | None = None) -> int:
         rows["Gymnasium, random U"] = run_gym
         rows["PettingZoo, random U"] = run_pz
 
-    for fn in rows.values():                               # warm-up
+    for fn in rows.values():  # warm-up
         fn()
     best = {name: np.inf for name in rows}
-    for _ in range(args.repeats):                          # interleaved
+    for _ in range(args.repeats):  # interleaved
         for name, fn in rows.items():
             best[name] = min(best[name], fn())
 
     raw_t = best["raw mj_step"]
     best = {(f"raw mj_step ×{n_sub}" if k == "raw mj_step" else k): v for k, v in best.items()}
-    print(f"{sc.name}: {n} drones, {K} env steps = {K * n_sub} mj_step ({n_sub} per env step, "
-          f"dt = {sc.timestep:g} s, T = {sc.control_period:g} s), best of {args.repeats}\n")
+    print(
+        f"{sc.name}: {n} drones, {K} env steps = {K * n_sub} mj_step ({n_sub} per env step, "
+        f"dt = {sc.timestep:g} s, T = {sc.control_period:g} s), best of {args.repeats}\n"
+    )
     print(f"{'':26s}{'env steps/s':>12s}{'µs/env step':>13s}{'× raw':>8s}{'sim s / wall s':>16s}")
     for name, t in best.items():
         print(f"{name:26s}{K / t:12.0f}{1e6 * t / K:13.1f}{t / raw_t:8.2f}{args.seconds / t:16.0f}")

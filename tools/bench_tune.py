@@ -58,8 +58,9 @@ def runner_ise(gains: np.ndarray, settings: StepCostSettings) -> float:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--sample", type=int, default=10, help="candidates evaluated one at a time (default 10)")
-    ap.add_argument("--runner-sample", type=int, default=3,
-                    help="candidates run through runner.run (default 3; 0 to skip)")
+    ap.add_argument(
+        "--runner-sample", type=int, default=3, help="candidates run through runner.run (default 3; 0 to skip)"
+    )
     ap.add_argument("--seed", type=int, default=1, help="FPA seed (default 1)")
     ap.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
     ap.add_argument("--skip-in-process", action="store_true", help="do not time the 1-process tune")
@@ -70,8 +71,8 @@ def main(argv: list[str] | None = None) -> int:
     opts = TuneOptions(seed=args.seed)
     settings = StepCostSettings()
     workers = default_workers() if args.workers is None else args.workers
-    n_eval = opts.population * (opts.iterations + 1) + 1          # + the Table 4 reference
-    table4_ise(settings)                                           # warm-up (JIT kernels, imports)
+    n_eval = opts.population * (opts.iterations + 1) + 1  # + the Table 4 reference
+    table4_ise(settings)  # warm-up (JIT kernels, imports)
 
     rows: list[tuple[str, float]] = []
     in_process_s = float("nan")
@@ -90,11 +91,11 @@ def main(argv: list[str] | None = None) -> int:
 
     rng = np.random.default_rng(12345)
     lower, upper = opts.bounds
-    X = lower + rng.random((args.sample, 12)) * (upper - lower)   # (s, 12) like the initial population
-    batched = evaluate_batch(X, settings)                          # (s,) also warms the 1-drone model
+    X = lower + rng.random((args.sample, 12)) * (upper - lower)  # (s, 12) like the initial population
+    batched = evaluate_batch(X, settings)  # (s,) also warms the 1-drone model
     evaluate_batch(X[:1], settings)
     t0 = time.perf_counter()
-    alone = np.array([evaluate_batch(X[i:i + 1], settings)[0] for i in range(args.sample)])
+    alone = np.array([evaluate_batch(X[i : i + 1], settings)[0] for i in range(args.sample)])
     per_alone = (time.perf_counter() - t0) / args.sample
     rows.append((f"one model per candidate (x{n_eval}, from {args.sample})", per_alone * n_eval))
     fin = np.isfinite(batched)
@@ -105,14 +106,18 @@ def main(argv: list[str] | None = None) -> int:
         via_runner = np.array([runner_ise(X[i], settings) for i in range(k)])
         per_runner = (time.perf_counter() - t0) / k
         rows.append((f"runner.run per candidate (x{n_eval}, from {k})", per_runner * n_eval))
-        plain = step_ise(X[:k], settings)                          # (k,) the plain ISE, not the ranked cost
+        plain = step_ise(X[:k], settings)  # (k,) the plain ISE, not the ranked cost
         fin_r = np.isfinite(plain)
         same_r = np.allclose(via_runner[fin_r], plain[fin_r], rtol=1e-9, atol=0)
 
-    print(f"Full FPA tune: N = {opts.population}, {opts.iterations} iterations, t_sim = {settings.t_sim:g} s, "
-          f"seed {opts.seed}: {n_eval} evaluations; {workers} worker process(es) on {default_workers()} CPU(s)")
-    print(f"  initial best ISE {par.initial_ise:.5f}, final {par.best_ise:.5f} "
-          f"({par.improvement_pct:.1f} %), Table 4 {par.table4_ise:.5f}")
+    print(
+        f"Full FPA tune: N = {opts.population}, {opts.iterations} iterations, t_sim = {settings.t_sim:g} s, "
+        f"seed {opts.seed}: {n_eval} evaluations; {workers} worker process(es) on {default_workers()} CPU(s)"
+    )
+    print(
+        f"  initial best ISE {par.initial_ise:.5f}, final {par.best_ise:.5f} "
+        f"({par.improvement_pct:.1f} %), Table 4 {par.table4_ise:.5f}"
+    )
     ref = rows[-1][1] if args.runner_sample else rows[-1][1]
     base_alone = per_alone * n_eval
     head = ("", "wall (s)", "per eval (ms)", "× vs one model/cand.", "× vs runner.run")
@@ -122,16 +127,22 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{name:<52}{t:>10.2f}{1e3 * t / n_eval:>15.2f}{base_alone / t:>22.1f}{vs_runner}")
     wall = rows[0][1]
     speedup = base_alone / wall
-    print(f"batched == one at a time on the sample (rtol 1e-9): {'yes' if same else 'NO'}"
-          + (f"; == runner.run ISE: {'yes' if same_r else 'NO'}" if args.runner_sample else ""))
+    print(
+        f"batched == one at a time on the sample (rtol 1e-9): {'yes' if same else 'NO'}"
+        + (f"; == runner.run ISE: {'yes' if same_r else 'NO'}" if args.runner_sample else "")
+    )
     print(f"full tune {wall:.1f} s ({'meets' if wall <= GOAL_WALL_S else 'misses'} the goal ≤ {GOAL_WALL_S:g} s)")
     if args.runner_sample:
         vs_run = ref / wall
-        print(f"speed-up over one simulation per candidate through the product's loop (runner.run): {vs_run:.1f}× "
-              f"({'meets' if vs_run >= GOAL_SPEEDUP else 'misses'} the goal ≥ {GOAL_SPEEDUP:g}×)")
-    print(f"speed-up over the tune's own evaluator flying one copy per model: {speedup:.1f}× "
-          f"({'meets' if speedup >= GOAL_SPEEDUP else 'misses'} the goal ≥ {GOAL_SPEEDUP:g}× on this stricter "
-          f"baseline; batching alone, one process: {base_alone / in_process_s:.1f}×)")
+        print(
+            f"speed-up over one simulation per candidate through the product's loop (runner.run): {vs_run:.1f}× "
+            f"({'meets' if vs_run >= GOAL_SPEEDUP else 'misses'} the goal ≥ {GOAL_SPEEDUP:g}×)"
+        )
+    print(
+        f"speed-up over the tune's own evaluator flying one copy per model: {speedup:.1f}× "
+        f"({'meets' if speedup >= GOAL_SPEEDUP else 'misses'} the goal ≥ {GOAL_SPEEDUP:g}× on this stricter "
+        f"baseline; batching alone, one process: {base_alone / in_process_s:.1f}×)"
+    )
     return 0
 
 

@@ -41,8 +41,13 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--frames", type=int, default=40, help="frames timed per size and mode (default 60)")
     ap.add_argument("--sizes", nargs="+", default=["640x480", "1280x720"], help="frame sizes WxH")
     ap.add_argument("--fps", type=float, default=30.0, help="video frame rate (default 30)")
-    ap.add_argument("--quality", nargs="+", default=["high", "fast"], choices=["high", "fast"],
-                    help="render quality presets to time (default: both)")
+    ap.add_argument(
+        "--quality",
+        nargs="+",
+        default=["high", "fast"],
+        choices=["high", "fast"],
+        help="render quality presets to time (default: both)",
+    )
     args = ap.parse_args(argv)
     if args.duration <= 0 or args.frames < 2 or args.fps <= 0:
         ap.error("--duration and --fps must be > 0, --frames >= 2")
@@ -57,13 +62,19 @@ def main(argv: list[str] | None = None) -> int:
     sim_time = float(log.t[-1] - log.t[0])
     steps = len(log.t) - 1
     sim_rtf = sim_time / sim_wall
-    print(f"scenario {args.scenario}, {sim_time:g} s simulated, {len(log.names)} drones, "
-          f"MUJOCO_GL={mujoco_gl_backend()}, {os.cpu_count()} CPUs")
-    print(f"simulation: {sim_wall:6.2f} s wall  {steps / sim_wall:8.0f} control steps/s  "
-          f"{sim_rtf:6.1f}x real time  (includes building the model)")
+    print(
+        f"scenario {args.scenario}, {sim_time:g} s simulated, {len(log.names)} drones, "
+        f"MUJOCO_GL={mujoco_gl_backend()}, {os.cpu_count()} CPUs"
+    )
+    print(
+        f"simulation: {sim_wall:6.2f} s wall  {steps / sim_wall:8.0f} control steps/s  "
+        f"{sim_rtf:6.1f}x real time  (includes building the model)"
+    )
     print()
-    print(f"{'size':>10}  {'quality':<8} {'mode':<14} {'frames/s':>9} {'ms/frame':>9} {'video x real time':>18} "
-          f"{'sim / film':>11}")
+    print(
+        f"{'size':>10}  {'quality':<8} {'mode':<14} {'frames/s':>9} {'ms/frame':>9} {'video x real time':>18} "
+        f"{'sim / film':>11}"
+    )
     for size_text in args.sizes:
         w, h = parse_size(size_text)
         for quality in args.quality:
@@ -71,7 +82,7 @@ def main(argv: list[str] | None = None) -> int:
             # frames spread over the run (trails and framing as in a real video)
             times = np.linspace(float(log.t[0]), float(log.t[-1]), args.frames)
             with Replay(log, width=w, height=h, style=style) as rep:
-                rep.render(float(times[0]))                       # warm-up (shaders, buffers)
+                rep.render(float(times[0]))  # warm-up (shaders, buffers)
                 t1 = time.perf_counter()
                 for t in times:
                     rep.render(float(t))
@@ -89,10 +100,14 @@ def main(argv: list[str] | None = None) -> int:
             fps_video = n / dt_video
             for mode, fps in (("render", fps_render), ("render+encode", fps_video)):
                 film_rtf = fps / args.fps
-                print(f"{w:>5}x{h:<4}  {quality:<8} {mode:<14} {fps:9.1f} {1000 / fps:9.1f} {film_rtf:17.2f}x "
-                      f"{sim_rtf / film_rtf:10.0f}x")
-            print(f"{'':>10}  {'':<8} ({n} frames: {mb:.2f} MB, about {mb / n * args.fps * 60:.0f} MB per video "
-                  f"minute; render+encode includes opening the renderer)")
+                print(
+                    f"{w:>5}x{h:<4}  {quality:<8} {mode:<14} {fps:9.1f} {1000 / fps:9.1f} {film_rtf:17.2f}x "
+                    f"{sim_rtf / film_rtf:10.0f}x"
+                )
+            print(
+                f"{'':>10}  {'':<8} ({n} frames: {mb:.2f} MB, about {mb / n * args.fps * 60:.0f} MB per video "
+                f"minute; render+encode includes opening the renderer)"
+            )
     return 0
 
 

@@ -31,18 +31,25 @@ class PDPolicy:
 
     def __call__(self, obs):
         p = self.p
-        acc = (self.kp * (obs["setpoint"] - obs["pos"]) + self.kd * (obs["setpoint_vel"] - obs["vel"])
-               + obs["setpoint_acc"])                                       # (n, 3) desired acceleration
+        acc = (
+            self.kp * (obs["setpoint"] - obs["pos"])
+            + self.kd * (obs["setpoint_vel"] - obs["vel"])
+            + obs["setpoint_acc"]
+        )  # (n, 3) desired acceleration
         phi, theta, psi = obs["rpy"].T
         c, s = np.cos(psi), np.sin(psi)
-        att_d = np.column_stack([(acc[:, 0] * s - acc[:, 1] * c) / p.g,    # roll
-                                 (acc[:, 0] * c + acc[:, 1] * s) / p.g,    # pitch
-                                 obs["setpoint_yaw"]])
+        att_d = np.column_stack(
+            [
+                (acc[:, 0] * s - acc[:, 1] * c) / p.g,  # roll
+                (acc[:, 0] * c + acc[:, 1] * s) / p.g,  # pitch
+                obs["setpoint_yaw"],
+            ]
+        )
         att_d[:, :2] = np.clip(att_d[:, :2], -self.max_tilt, self.max_tilt)
-        alpha = self.kp_att * (att_d - obs["rpy"]) - self.kd_att * obs["rpy_rate"]   # angular accelerations
+        alpha = self.kp_att * (att_d - obs["rpy"]) - self.kd_att * obs["rpy_rate"]  # angular accelerations
         U = np.empty((len(acc), 4))
         U[:, 0] = p.m * (p.g + acc[:, 2]) / (np.cos(phi) * np.cos(theta))
-        U[:, 1:] = p.inertia * alpha / p.L                                # torques are L·U2..U4
+        U[:, 1:] = p.inertia * alpha / p.L  # torques are L·U2..U4
         return U
 
 
@@ -62,8 +69,14 @@ def episode(env: SwarmEnv, policy, seed: int) -> dict:
     # dm_env: LAST with discount 1 = truncated (the duration); discount 0 = terminated (here, with
     # terminate_on_contact=False, only a divergence: a drone fell, flew away or went NaN)
     ended = "duration" if ts.discount == 1.0 else "diverged"
-    return {"formation err (m)": np.mean(errs), "min sep (m)": min_sep, "contacts": env.sim.contact_events,
-            "return": ret, "t end (s)": float(ts.observation["time"]), "ended": ended}
+    return {
+        "formation err (m)": np.mean(errs),
+        "min sep (m)": min_sep,
+        "contacts": env.sim.contact_events,
+        "return": ret,
+        "t end (s)": float(ts.observation["time"]),
+        "ended": ended,
+    }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -74,7 +87,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     sc = load_scenario(args.scenario).with_overrides(duration=args.duration)
 
-    thrust = SwarmEnv(sc, terminate_on_contact=False)         # count every contact, stop only on divergence
+    thrust = SwarmEnv(sc, terminate_on_contact=False)  # count every contact, stop only on divergence
     setpoint = SwarmEnv(sc, action="setpoint", terminate_on_contact=False)
     rng = np.random.default_rng(args.seed)
     spec = thrust.action_spec()

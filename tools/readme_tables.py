@@ -30,27 +30,35 @@ def reproduction(r: dict) -> str:
     for a, name in (("x", "x"), ("y", "y"), ("z", "z"), ("psi", "ψ")):
         p = st["paper"][a]
         ps = "< 1" if a == "psi" else f(p["settling_s"], "{:.1f}")
-        rows.append(f"| step {name}: overshoot / 2 % settling | 0 % / {ps} s | "
-                    f"{f(ax[a]['overshoot_pct'], '{:.2f}')} % / {f(ax[a]['settling_s'], '{:.2f}')} s | "
-                    f"Table 4 gains, MuJoCo |")
-    rows.append(f"| step: peak \\|roll\\|, \\|pitch\\| | within ±45° | {st['table4']['max_abs_roll_deg']:.1f}°, "
-                f"{st['table4']['max_abs_pitch_deg']:.1f}° | the desired angles are clipped at 45°; the actual pitch overshoots the clip |")
+        rows.append(
+            f"| step {name}: overshoot / 2 % settling | 0 % / {ps} s | "
+            f"{f(ax[a]['overshoot_pct'], '{:.2f}')} % / {f(ax[a]['settling_s'], '{:.2f}')} s | "
+            f"Table 4 gains, MuJoCo |"
+        )
+    rows.append(
+        f"| step: peak \\|roll\\|, \\|pitch\\| | within ±45° | {st['table4']['max_abs_roll_deg']:.1f}°, "
+        f"{st['table4']['max_abs_pitch_deg']:.1f}° | the desired angles are clipped at 45°; the actual pitch overshoots the clip |"
+    )
     t3 = r["table3"]
     paper_imp = [x["improvement_pct"] for x in t3["paper"]]
     ours_imp = [x["improvement_pct"] for x in t3["ours"]]
-    seeds = ', '.join(str(x['seed']) for x in t3['ours'])
+    seeds = ", ".join(str(x["seed"]) for x in t3["ours"])
     met = sum(1 for x in t3["ours"] if x.get("meets_bars"))
-    rows.append(f"| FPA: ISE improvement over 14 iterations | {min(paper_imp):.1f}–{max(paper_imp):.1f} % | "
-                f"{min(ours_imp):.1f}–{max(ours_imp):.1f} % (seeds {seeds}; {met} of {len(t3['ours'])} meet the step bars) | "
-                f"`swarm-mj tune` defaults: step bars as constraints, Table 4 in the initial population; "
-                f"seed-1 gains ISE {r['gains']['fpa_ise']:.3f} vs Table 4's {r['gains']['table4_ise']:.3f} |")
+    rows.append(
+        f"| FPA: ISE improvement over 14 iterations | {min(paper_imp):.1f}–{max(paper_imp):.1f} % | "
+        f"{min(ours_imp):.1f}–{max(ours_imp):.1f} % (seeds {seeds}; {met} of {len(t3['ours'])} meet the step bars) | "
+        f"`swarm-mj tune` defaults: step bars as constraints, Table 4 in the initial population; "
+        f"seed-1 gains ISE {r['gains']['fpa_ise']:.3f} vs Table 4's {r['gains']['table4_ise']:.3f} |"
+    )
     pm = t3.get("ours_paper_mode") or []
     if pm:
         pm_imp = [x["improvement_pct"] for x in pm]
         pm_met = sum(1 for x in pm if x.get("meets_bars"))
-        rows.append(f"| FPA as printed (ISE alone, random start) | {min(paper_imp):.1f}–{max(paper_imp):.1f} % | "
-                    f"{min(pm_imp):.1f}–{max(pm_imp):.1f} % (seeds {seeds}; {pm_met} of {len(pm)} meet the step bars) | "
-                    f"`--constraints none --init random` |")
+        rows.append(
+            f"| FPA as printed (ISE alone, random start) | {min(paper_imp):.1f}–{max(paper_imp):.1f} % | "
+            f"{min(pm_imp):.1f}–{max(pm_imp):.1f} % (seeds {seeds}; {pm_met} of {len(pm)} meet the step bars) | "
+            f"`--constraints none --init random` |"
+        )
     for row in r["table5"]["rows"]:
         if row.get("variant") != "ground" or row["paper"] is None:
             continue
@@ -58,77 +66,104 @@ def reproduction(r: dict) -> str:
             continue
         w, s, p = row["whole"], row["steady"], row["paper"]
         label = f"Table 5 {row['trajectory']}, {'wind' if row['wind'] else 'no wind'}: RMSE x, y (m)"
-        rows.append(f"| {label} | {p['x']:.4f}, {p['y']:.4f} | {w['x']:.4f}, {w['y']:.4f} (from 10 s: "
-                    f"{s['x']:.4f}, {s['y']:.4f}) | whole run from the ground at the origin |")
-        rows.append(f"| Table 5 {row['trajectory']}, {'wind' if row['wind'] else 'no wind'}: RMSE roll, pitch (°) | "
-                    f"{p['roll_deg']:.4f}, {p['pitch_deg']:.4f} | {w['roll_deg']:.3f}, {w['pitch_deg']:.3f} "
-                    f"(from 10 s: {s['roll_deg']:.3f}, {s['pitch_deg']:.3f}) | |")
+        rows.append(
+            f"| {label} | {p['x']:.4f}, {p['y']:.4f} | {w['x']:.4f}, {w['y']:.4f} (from 10 s: "
+            f"{s['x']:.4f}, {s['y']:.4f}) | whole run from the ground at the origin |"
+        )
+        rows.append(
+            f"| Table 5 {row['trajectory']}, {'wind' if row['wind'] else 'no wind'}: RMSE roll, pitch (°) | "
+            f"{p['roll_deg']:.4f}, {p['pitch_deg']:.4f} | {w['roll_deg']:.3f}, {w['pitch_deg']:.3f} "
+            f"(from 10 s: {s['roll_deg']:.3f}, {s['pitch_deg']:.3f}) | |"
+        )
     sw = {x["scenario"]: x for x in r["swarms"]["rows"] if x["rule"] == "layers"}
     settle = [x["settling_s"][0] for x in sw.values()]
-    rows.append(f"| formation settling from the start (swarm scenarios) | ≈ 3 s | "
-                f"{f(min(settle), '{:.2f}')}–{f(max(settle), '{:.2f}')} s | {', '.join(sw)}; every distance within 5 cm of D |")
+    rows.append(
+        f"| formation settling from the start (swarm scenarios) | ≈ 3 s | "
+        f"{f(min(settle), '{:.2f}')}–{f(max(settle), '{:.2f}')} s | {', '.join(sw)}; every distance within 5 cm of D |"
+    )
     vd = r["variable_d"]
-    rows.append(f"| variable D: settling after each change | ≈ 3 s | "
-                f"{', '.join(f(x, '{:.2f}') for x in vd['settling_s'])} s | D = 1, 1.7, 1.2, 2 m at t = 0, 6, 11, 16 s |")
+    rows.append(
+        f"| variable D: settling after each change | ≈ 3 s | "
+        f"{', '.join(f(x, '{:.2f}') for x in vd['settling_s'])} s | D = 1, 1.7, 1.2, 2 m at t = 0, 6, 11, 16 s |"
+    )
     contacts = sum(x["contacts"] for x in r["swarms"]["rows"] if x["rule"] == "layers") + vd["contacts"]
     minsep = min([x["min_separation_m"] for x in sw.values()] + [vd["min_separation_m"]])
-    rows.append(f"| drone–drone contacts in the swarm scenarios | – | {contacts} (min separation {minsep:.2f} m) | counted by MuJoCo |")
+    rows.append(
+        f"| drone–drone contacts in the swarm scenarios | – | {contacts} (min separation {minsep:.2f} m) | counted by MuJoCo |"
+    )
     for key, label in (("wind_lemniscate", "lemniscate"), ("wind_circle", "circle")):
         sw_ = r["sweeps"].get(key)
         if not sw_:
             continue
         stt = sw_["results"][0]["stats"]
         n = len(sw_["seeds"])
-        rows.append(f"| wind robustness, {label}: RMSE x, y over {n} seeds | one run | "
-                    f"x {stt['rmse_x']['mean']:.4f} ± {stt['rmse_x']['std']:.4f} (worst {stt['rmse_x']['worst']:.4f}), "
-                    f"y {stt['rmse_y']['mean']:.4f} ± {stt['rmse_y']['std']:.4f} (worst {stt['rmse_y']['worst']:.4f}) | "
-                    f"mean ± std, whole run |")
+        rows.append(
+            f"| wind robustness, {label}: RMSE x, y over {n} seeds | one run | "
+            f"x {stt['rmse_x']['mean']:.4f} ± {stt['rmse_x']['std']:.4f} (worst {stt['rmse_x']['worst']:.4f}), "
+            f"y {stt['rmse_y']['mean']:.4f} ± {stt['rmse_y']['std']:.4f} (worst {stt['rmse_y']['worst']:.4f}) | "
+            f"mean ± std, whole run |"
+        )
     return "\n".join(rows)
 
 
 def anticollision(r: dict) -> str:
-    rows = ["| scenario | ours (`layers`): contacts / min separation / settling | paper's rule: contacts / min separation | no rule: contacts |",
-            "|---|---|---|---|"]
+    rows = [
+        "| scenario | ours (`layers`): contacts / min separation / settling | paper's rule: contacts / min separation | no rule: contacts |",
+        "|---|---|---|---|",
+    ]
     by = {}
     for x in r["anti_collision"]["rows"]:
         by.setdefault(x["scenario"], {})[x["rule"]] = x
     for sc, d in by.items():
         L, P, N = d.get("layers"), d.get("paper"), d.get("off")
         stop = lambda x: " (diverged)" if x and x.get("stopped") else ""  # noqa: E731
-        rows.append(f"| {sc} | {L['contacts']} / {L['min_separation_m']:.2f} m / {f(L['settling_s'][0], '{:.2f}')} s | "
-                    f"{P['contacts']} / {P['min_separation_m']:.2f} m{stop(P)} | {N['contacts']}{stop(N)} |")
+        rows.append(
+            f"| {sc} | {L['contacts']} / {L['min_separation_m']:.2f} m / {f(L['settling_s'][0], '{:.2f}')} s | "
+            f"{P['contacts']} / {P['min_separation_m']:.2f} m{stop(P)} | {N['contacts']}{stop(N)} |"
+        )
     rc = r["sweeps"].get("random_crossing")
     if rc:
         for res in rc["results"]:
             stt = res["stats"]
-            rows.append(f"| random crossing starts ({len(rc['seeds'])} seeds), rule `{res['value']}` | "
-                        f"contacts mean {stt['contacts']['mean']:.1f}, worst {stt['contacts']['worst']:.0f}; "
-                        f"min separation worst {stt['min_separation_m']['worst']:.2f} m | | |")
+            rows.append(
+                f"| random crossing starts ({len(rc['seeds'])} seeds), rule `{res['value']}` | "
+                f"contacts mean {stt['contacts']['mean']:.1f}, worst {stt['contacts']['worst']:.0f}; "
+                f"min separation worst {stt['min_separation_m']['worst']:.2f} m | | |"
+            )
     return "\n".join(rows)
 
 
 def stress(paths: list[Path]) -> str:
     """The ``swarm-mj stress --json`` tables (random crossing starts, leader flying the circle)."""
-    rows = ["| random starts | rule | starts | starts with a contact | contacts | runs that crashed | "
-            "min separation (airborne) | settling median / worst |", "|---|---|---|---|---|---|---|---|"]
+    rows = [
+        "| random starts | rule | starts | starts with a contact | contacts | runs that crashed | "
+        "min separation (airborne) | settling median / worst |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
     for path in paths:
         if not path.exists():
             continue
         d = json.loads(path.read_text())
         st = d["settings"]
         for rule, r in d["table"].items():
-            rows.append(f"| {st['followers']} followers within {st['radius']:g} m, ≥ {st['min_spacing']:g} m apart | "
-                        f"`{rule}` | {r['starts']} | {r['starts_with_contact']} | {r['contacts']} | "
-                        f"{len(r['stopped'])} | {f(r['min_separation_airborne_m'], '{:.2f}')} m | "
-                        f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |")
+            rows.append(
+                f"| {st['followers']} followers within {st['radius']:g} m, ≥ {st['min_spacing']:g} m apart | "
+                f"`{rule}` | {r['starts']} | {r['starts_with_contact']} | {r['contacts']} | "
+                f"{len(r['stopped'])} | {f(r['min_separation_airborne_m'], '{:.2f}')} m | "
+                f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
+            )
     return "\n".join(rows)
 
 
 def performance(b: dict) -> str:
     m = b["machine"]
-    rows = [f"Measured by `python tools/bench.py` on {m['cpu']}, {m['cores']} cores, Python {m['python']}, "
-            f"MuJoCo {m['mujoco']}, NumPy {m['numpy']}, Numba {m.get('numba', '–')}.", "",
-            "| what | value | time ÷ raw `mj_step` time | note |", "|---|---|---|---|"]
+    rows = [
+        f"Measured by `python tools/bench.py` on {m['cpu']}, {m['cores']} cores, Python {m['python']}, "
+        f"MuJoCo {m['mujoco']}, NumPy {m['numpy']}, Numba {m.get('numba', '–')}.",
+        "",
+        "| what | value | time ÷ raw `mj_step` time | note |",
+        "|---|---|---|---|",
+    ]
     for row in b["rows"]:
         ratio = "–" if row["ratio"] is None else f"{row['ratio']:.2f}"
         val = row["value"]
@@ -147,8 +182,12 @@ def main() -> None:
     b = json.loads(Path(a.bench).read_text())
     text = Path(a.readme).read_text()
     stress_files = [Path(a.results).parent / "stress5.json", Path(a.results).parent / "stress8.json"]
-    for name, body in (("reproduction", reproduction(r)), ("anticollision", anticollision(r)),
-                       ("stress", stress(stress_files)), ("performance", performance(b))):
+    for name, body in (
+        ("reproduction", reproduction(r)),
+        ("anticollision", anticollision(r)),
+        ("stress", stress(stress_files)),
+        ("performance", performance(b)),
+    ):
         pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
         if not pat.search(text):
             raise SystemExit(f"README has no <!-- tables:{name} --> markers")

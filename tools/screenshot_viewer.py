@@ -30,11 +30,18 @@ from pathlib import Path
 
 CHROMIUM = "/usr/bin/chromium"
 # WebGL on the CPU (SwiftShader); no network: the page needs nothing from outside localhost.
-CHROMIUM_ARGS = ["--no-sandbox", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--no-first-run", "--disable-quic"]
-LEADER_RGB = (220, 40, 40)       # recording.LEADER_COLOR
-FOLLOWER_RGB = (40, 110, 220)    # recording.FOLLOWER_COLOR
+CHROMIUM_ARGS = [
+    "--no-sandbox",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--no-first-run",
+    "--disable-quic",
+]
+LEADER_RGB = (220, 40, 40)  # recording.LEADER_COLOR
+FOLLOWER_RGB = (40, 110, 220)  # recording.FOLLOWER_COLOR
 
 _CAPTURE_HANDLE = """
 document.addEventListener("DOMContentLoaded", () => {
@@ -86,26 +93,39 @@ def pixel_stats(png: str | Path, box: tuple[int, int, int, int] | None = None) -
     red = (r > 150) & (g < 90) & (b < 90)
     blue = (b > 150) & (r < 110) & (g < 160) & (b - r > 80)
     flat = img.reshape(-1, 3)
-    return {"shape": list(img.shape[:2]), "grey_std": float(img.mean(axis=2).std()),
-            "distinct_colours": len(np.unique(flat[:, 0] * 65536 + flat[:, 1] * 256 + flat[:, 2])),
-            "leader_red_fraction": float(red.mean()), "follower_blue_fraction": float(blue.mean())}
+    return {
+        "shape": list(img.shape[:2]),
+        "grey_std": float(img.mean(axis=2).std()),
+        "distinct_colours": len(np.unique(flat[:, 0] * 65536 + flat[:, 1] * 256 + flat[:, 2])),
+        "leader_red_fraction": float(red.mean()),
+        "follower_blue_fraction": float(blue.mean()),
+    }
 
 
 def rrd_contents(rrd: str | Path, timeout: float = 60) -> dict:
     """Application ids and entity paths of an .rrd, from ``rerun rrd print`` (bounded in time)."""
     from swarm_mj.viewer import find_rerun
 
-    out = subprocess.run([str(find_rerun()), "rrd", "print", str(rrd)], capture_output=True, text=True,
-                         timeout=timeout, check=False)
+    out = subprocess.run(
+        [str(find_rerun()), "rrd", "print", str(rrd)], capture_output=True, text=True, timeout=timeout, check=False
+    )
     text = out.stdout + out.stderr
     apps = sorted(set(re.findall(r'StoreId\(\s*Recording,\s*"([^"]+)"', text)))
     entities = sorted(set(re.findall(r" - (/[^\s]+) - data columns", text)))
     return {"rc": out.returncode, "application_ids": apps, "entities": entities}
 
 
-def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, expected_bytes: int | None = None,
-          timeout: float = 240, size: tuple[int, int] = (1600, 900), chromium: str = CHROMIUM,
-          settle: float = 60) -> dict:
+def shoot(
+    url: str,
+    png: str | Path,
+    *,
+    page_rrd: str | Path | None = None,
+    expected_bytes: int | None = None,
+    timeout: float = 240,
+    size: tuple[int, int] = (1600, 900),
+    chromium: str = CHROMIUM,
+    settle: float = 60,
+) -> dict:
     """Open ``url`` in headless Chromium, wait (at most ``timeout`` s) for the viewer to hold the
     recording, then (at most ``settle`` s more) for two screenshots 3 s apart to match; save the
     last as ``png``. Returns the timings and, with ``page_rrd``, what the page loaded.
@@ -122,6 +142,7 @@ def shoot(url: str, png: str | Path, *, page_rrd: str | Path | None = None, expe
         browser = p.chromium.launch(executable_path=chromium, args=CHROMIUM_ARGS, timeout=60_000)
         try:
             page = browser.new_page(viewport={"width": size[0], "height": size[1]})
+
             def on_console(m) -> None:  # distinct first lines (offline: fonts and update checks fail)
                 line = m.text.splitlines()[0][:200] if m.text else ""
                 if m.type == "error" and line not in info["console_errors"] and len(info["console_errors"]) < 10:
@@ -199,8 +220,15 @@ def main(argv: list[str] | None = None) -> int:
         info = shoot(a.url, a.output, page_rrd=a.page_rrd, timeout=a.timeout, size=size, chromium=a.chromium)
     else:
         with serve_web(a.rrd, a.port):
-            info = shoot(web_url(a.port), a.output, page_rrd=a.page_rrd, expected_bytes=Path(a.rrd).stat().st_size,
-                         timeout=a.timeout, size=size, chromium=a.chromium)
+            info = shoot(
+                web_url(a.port),
+                a.output,
+                page_rrd=a.page_rrd,
+                expected_bytes=Path(a.rrd).stat().st_size,
+                timeout=a.timeout,
+                size=size,
+                chromium=a.chromium,
+            )
     if "error" not in info:
         info["screenshot"] = pixel_stats(a.output)
         info["region_3d"] = region_3d(*size)
@@ -208,8 +236,9 @@ def main(argv: list[str] | None = None) -> int:
         if a.page_rrd:
             c = rrd_contents(a.page_rrd)
             info["page_application_ids"] = c["application_ids"]
-            info["page_drone_entities"] = [e for e in c["entities"] if e.startswith("/world/drones/")
-                                           and e.count("/") == 3]
+            info["page_drone_entities"] = [
+                e for e in c["entities"] if e.startswith("/world/drones/") and e.count("/") == 3
+            ]
     print(json.dumps(info, indent=1))
     return 1 if "error" in info else 0
 

@@ -72,20 +72,33 @@ def main(argv: list[str] | None = None) -> int:
             self.rollouts.append([])
 
     cb = Returns()
-    model = PPO("MlpPolicy", venv, n_steps=args.n_steps, batch_size=256, n_epochs=4, learning_rate=3e-4,
-                seed=args.seed, verbose=0, device="cpu")
+    model = PPO(
+        "MlpPolicy",
+        venv,
+        n_steps=args.n_steps,
+        batch_size=256,
+        n_epochs=4,
+        learning_rate=3e-4,
+        seed=args.seed,
+        verbose=0,
+        device="cpu",
+    )
     t0 = time.perf_counter()
     model.learn(total_timesteps=args.timesteps, callback=cb)
     wall = time.perf_counter() - t0
     done = [r for r in cb.rollouts if r]
-    print(f"PPO on {args.num_envs} x {sc.name} ({sc.n_drones} drones, {args.episode:g}-s episodes): "
-          f"{model.num_timesteps} env steps in {wall:.1f} s ({model.num_timesteps / wall:,.0f} steps/s, "
-          f"{model.num_timesteps * sc.n_drones / wall:,.0f} drone-steps/s, policy updates included)")
+    print(
+        f"PPO on {args.num_envs} x {sc.name} ({sc.n_drones} drones, {args.episode:g}-s episodes): "
+        f"{model.num_timesteps} env steps in {wall:.1f} s ({model.num_timesteps / wall:,.0f} steps/s, "
+        f"{model.num_timesteps * sc.n_drones / wall:,.0f} drone-steps/s, policy updates included)"
+    )
     for name, r in (("first", done[0] if done else []), ("last", done[-1] if done else [])):
         if r:
             ret, ln = np.mean([x[0] for x in r]), np.mean([x[1] for x in r])
-            print(f"  {name} rollout with finished episodes: {len(r)} episodes, mean return {ret:.1f}, "
-                  f"mean length {ln:.0f} steps")
+            print(
+                f"  {name} rollout with finished episodes: {len(r)} episodes, mean return {ret:.1f}, "
+                f"mean length {ln:.0f} steps"
+            )
     venv.close()
     return 0
 

@@ -30,8 +30,10 @@ ROWS = [  # (label, scenario, trajectory, wind, feedforward)
 KEYS = ("x", "y", "roll_deg", "pitch_deg")
 # docs/interpretations.md §7, independent eq.-(1) model, whole run from the ground at the origin (m).
 INDEPENDENT_MODEL = {
-    "circle_single": {"y": 0.160}, "wind_circle": {"y": 0.160},
-    "lemniscate_single": {"x": 0.0014, "y": 0.0007}, "wind_lemniscate": {"x": 0.0017, "y": 0.0008},
+    "circle_single": {"y": 0.160},
+    "wind_circle": {"y": 0.160},
+    "lemniscate_single": {"x": 0.0014, "y": 0.0007},
+    "wind_lemniscate": {"x": 0.0017, "y": 0.0008},
     "wind_lemniscate_noff": {"x": 0.0335, "y": 0.0108},
 }
 
@@ -47,7 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     out: dict = {}
     for label, name, traj, wind, ff in ROWS:
-        seeds = args.seeds if wind else args.seeds[:1]   # no wind: nothing is random
+        seeds = args.seeds if wind else args.seeds[:1]  # no wind: nothing is random
         per = []
         for s in seeds:
             res = run(name, seed=s, progress=False)
@@ -58,8 +60,10 @@ def main(argv: list[str] | None = None) -> int:
             per.append({"seed": s, "rmse": d["rmse"], "rmse_steady": d["rmse_steady"]})
         out[name] = {"label": label, "trajectory": traj, "wind": wind, "feedforward": ff, "runs": per}
 
-    print("RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on "
-          "(docs/interpretations.md §7)")
+    print(
+        "RMSE (eq. 38): x, y in m; roll, pitch in deg.  whole = whole run; >10s = from t = 10 s on "
+        "(docs/interpretations.md §7)"
+    )
     print(f"seeds: {args.seeds}" + ("  (wind rows: worst seed over the seeds)" if len(args.seeds) > 1 else ""))
     print(f"{'':<26} {'':<6} {'x':>8} {'y':>8} {'roll':>8} {'pitch':>8}")
     for name, o in out.items():
@@ -71,8 +75,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{'':<26} {'paper':<6} {_fmt(paper)}{note}")
         ind = INDEPENDENT_MODEL.get(name)
         if ind:
-            print(f"{'':<26} {'indep.':<6} " + " ".join(f"{ind[k]:>8.4f}" if k in ind else f"{'':>8}"
-                                                        for k in KEYS) + "   (interpretations.md §7 model)")
+            print(
+                f"{'':<26} {'indep.':<6} "
+                + " ".join(f"{ind[k]:>8.4f}" if k in ind else f"{'':>8}" for k in KEYS)
+                + "   (interpretations.md §7 model)"
+            )
         if len(o["runs"]) > 1:
             lo = {k: min(r["rmse"][k] for r in o["runs"]) for k in KEYS}
             print(f"{'':<26} {'min':<6} {_fmt(lo)}   (whole run, best seed)")
@@ -90,9 +97,11 @@ def main(argv: list[str] | None = None) -> int:
         passed = v <= bar
         ok &= passed
         print(f"{'PASS' if passed else 'FAIL'}  {label}: {v:.4f}")
-    print(f"note: circle whole-run y {cir['rmse']['y']:.4f} m vs the paper's 0.0689 m: the drone starts on the "
-          "ground at the origin, 2.5 m from the circle's start, and the whole-run RMSE is that first flight "
-          "(docs/interpretations.md §7; the paper does not say where its drone starts).")
+    print(
+        f"note: circle whole-run y {cir['rmse']['y']:.4f} m vs the paper's 0.0689 m: the drone starts on the "
+        "ground at the origin, 2.5 m from the circle's start, and the whole-run RMSE is that first flight "
+        "(docs/interpretations.md §7; the paper does not say where its drone starts)."
+    )
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(out, fh, indent=2)

@@ -26,7 +26,7 @@ def body_axes(q: np.ndarray, i: int, out: np.ndarray) -> None:
 
 #: Rotor centres F1..F4 in the body frame divided by the arm length L ("+" configuration,
 #: assets/quadrotor.xml): rotor 1 at (0, −L), 2 at (+L, 0), 3 at (0, +L), 4 at (−L, 0).
-ROTOR_DIRS = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])   # (4, 2)
+ROTOR_DIRS = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])  # (4, 2)
 
 
 @jit

@@ -50,8 +50,9 @@ N_ROTORS = 4
 BODY_AREA = 0.12 * 0.12
 
 
-def hover_induced_velocity(thrust, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS,
-                           n_rotors: int = N_ROTORS):
+def hover_induced_velocity(
+    thrust, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS, n_rotors: int = N_ROTORS
+):
     """U_H = sqrt(T / (2 ρ n π R²)) (m/s): momentum theory's induced velocity at thrust T (N)."""
     return np.sqrt(np.maximum(thrust, 0.0) / (2.0 * rho * n_rotors * np.pi * rotor_radius**2))
 
@@ -77,17 +78,29 @@ def jet_speed(s, r, u_h, l, ramp: float = ROTOR_RADIUS):
     return np.where(s > 0.0, u * x * x * (3.0 - 2.0 * x), 0.0)
 
 
-def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSITY,
-                cd: float = DISC_DRAG_COEFFICIENT):
+def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSITY, cd: float = DISC_DRAG_COEFFICIENT):
     """Magnitude (N) of the jet's push on a plate of ``area`` (default: one rotor disc) in a flow of
     speed u (m/s): ½ ρ C_D A u²."""
     return 0.5 * rho * cd * area * np.asarray(u, float) ** 2
 
 
 @jit
-def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, n_per_copy: int, arm: float,
-                    rho: float, rotor_r: float, half_cda: float, half_cda_body: float, ramp: float,
-                    force: np.ndarray, torque: np.ndarray, add_force: np.ndarray, add_torque: np.ndarray) -> None:
+def downwash_kernel(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    rotor_thrust: np.ndarray,
+    n_per_copy: int,
+    arm: float,
+    rho: float,
+    rotor_r: float,
+    half_cda: float,
+    half_cda_body: float,
+    ramp: float,
+    force: np.ndarray,
+    torque: np.ndarray,
+    add_force: np.ndarray,
+    add_torque: np.ndarray,
+) -> None:
     """Set force, torque (N, 3) to the downwash of every drone on every other drone of its copy, and
     add the same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
 
@@ -110,12 +123,12 @@ def downwash_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray,
         if T <= 0.0:
             continue
         u_h = math.sqrt(T / (2.0 * rho * area))
-        dx, dy, dz = -axes[i, 2, 0], -axes[i, 2, 1], -axes[i, 2, 2]      # jet direction: −z of drone i
+        dx, dy, dz = -axes[i, 2, 0], -axes[i, 2, 1], -axes[i, 2, 2]  # jet direction: −z of drone i
         c0 = (i // n_per_copy) * n_per_copy
         for j in range(c0, min(c0 + n_per_copy, N)):
             if j == i:
                 continue
-            for k in range(N_ROTORS + 1):          # the four rotor discs, then the hub
+            for k in range(N_ROTORS + 1):  # the four rotor discs, then the hub
                 if k < N_ROTORS:
                     rotor_offset(axes[j], k, arm, 0.0, off)
                 else:
@@ -157,8 +170,13 @@ class DownwashStage:
 
     name = "downwash"
 
-    def __init__(self, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS,
-                 drag_coefficient: float = DISC_DRAG_COEFFICIENT, body_area: float = BODY_AREA) -> None:
+    def __init__(
+        self,
+        rho: float = AIR_DENSITY,
+        rotor_radius: float = ROTOR_RADIUS,
+        drag_coefficient: float = DISC_DRAG_COEFFICIENT,
+        body_area: float = BODY_AREA,
+    ) -> None:
         self.rho = float(rho)
         self.rotor_radius = float(rotor_radius)
         self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2
@@ -174,6 +192,19 @@ class DownwashStage:
         self.torque = np.zeros((N, 3))
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
-        downwash_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.n_per_copy, self.arm, self.rho,
-                        self.rotor_radius, self.half_cda, self.half_cda_body, self.rotor_radius, self.force,
-                        self.torque, force, torque)
+        downwash_kernel(
+            sim.pos,
+            sim.quat,
+            sim.rotor_thrust,
+            self.n_per_copy,
+            self.arm,
+            self.rho,
+            self.rotor_radius,
+            self.half_cda,
+            self.half_cda_body,
+            self.rotor_radius,
+            self.force,
+            self.torque,
+            force,
+            torque,
+        )

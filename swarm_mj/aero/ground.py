@@ -66,14 +66,14 @@ class GroundContacts:
         self.ground_contacts = 0
         self.crashes = 0
         self.log: list[tuple[float, int, float, float, bool]] = []
-        self.in_contact = self._contacts(sim)               # (N,) touching the floor now
-        self.airborne = np.zeros(N, dtype=bool)             # (N,) taken off since the last contact
-        self.episode = np.zeros(N, dtype=bool)              # (N,) in a counted contact
+        self.in_contact = self._contacts(sim)  # (N,) touching the floor now
+        self.airborne = np.zeros(N, dtype=bool)  # (N,) taken off since the last contact
+        self.episode = np.zeros(N, dtype=bool)  # (N,) in a counted contact
         self.episode_crashed = np.zeros(N, dtype=bool)
         self._all_airborne = False
         self._any_contact = bool(self.in_contact.any())
         self._takeoff_z = REST_HEIGHT + TAKEOFF_CLEARANCE
-        self._vel_before = sim.vel.copy()                   # (N, 3) velocity at the start of the last step
+        self._vel_before = sim.vel.copy()  # (N, 3) velocity at the start of the last step
         self._vel_now = sim.vel.copy()
 
     def _contacts(self, sim) -> np.ndarray:
@@ -81,7 +81,7 @@ class GroundContacts:
         out = np.zeros(sim.pos.shape[0], dtype=bool)
         nc = d.ncon
         if nc and self.floor >= 0:
-            g = d.contact.geom[:nc]                          # (ncon, 2)
+            g = d.contact.geom[:nc]  # (ncon, 2)
             other = np.concatenate([g[g[:, 0] == self.floor, 1], g[g[:, 1] == self.floor, 0]])
             ids = self.geom_drone[other]
             out[ids[ids >= 0]] = True
@@ -116,11 +116,18 @@ class GroundContacts:
             self.episode[i] = True
             self.episode_crashed[i] = crash
         for i in np.flatnonzero(contact & self.episode & ~self.episode_crashed).tolist():
-            if self._tilt_cos(sim, i) < self._cos_tilt:          # tipped over while on the ground
+            if self._tilt_cos(sim, i) < self._cos_tilt:  # tipped over while on the ground
                 self.crashes += 1
                 self.episode_crashed[i] = True
-                self.log.append((sim.time, i, float(np.linalg.norm(sim.vel[i])),
-                                 math.degrees(math.acos(max(-1.0, self._tilt_cos(sim, i)))), True))
+                self.log.append(
+                    (
+                        sim.time,
+                        i,
+                        float(np.linalg.norm(sim.vel[i])),
+                        math.degrees(math.acos(max(-1.0, self._tilt_cos(sim, i)))),
+                        True,
+                    )
+                )
         ended = ~contact & self.episode
         if ended.any():
             self.episode &= ~ended

@@ -32,9 +32,19 @@ def ground_effect_factor(z, rotor_radius: float = ROTOR_RADIUS, clip_fraction: f
 
 
 @jit
-def ground_effect_kernel(pos: np.ndarray, quat: np.ndarray, rotor_thrust: np.ndarray, arm: float, rotor_z: float,
-                         rotor_r: float, z_clip: float, force: np.ndarray, torque: np.ndarray,
-                         add_force: np.ndarray, add_torque: np.ndarray) -> None:
+def ground_effect_kernel(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    rotor_thrust: np.ndarray,
+    arm: float,
+    rotor_z: float,
+    rotor_r: float,
+    z_clip: float,
+    force: np.ndarray,
+    torque: np.ndarray,
+    add_force: np.ndarray,
+    add_torque: np.ndarray,
+) -> None:
     """Set force, torque (N, 3) to the ground-effect gain of every rotor of every drone, and add the
     same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
 
@@ -81,8 +91,9 @@ class GroundEffectStage:
 
     name = "ground_effect"
 
-    def __init__(self, rotor_radius: float = ROTOR_RADIUS, rotor_z: float = ROTOR_PLANE_Z,
-                 clip_fraction: float = Z_CLIP_FRACTION) -> None:
+    def __init__(
+        self, rotor_radius: float = ROTOR_RADIUS, rotor_z: float = ROTOR_PLANE_Z, clip_fraction: float = Z_CLIP_FRACTION
+    ) -> None:
         self.rotor_radius = float(rotor_radius)
         self.rotor_z = float(rotor_z)
         self.z_clip = float(clip_fraction) * self.rotor_radius
@@ -96,5 +107,16 @@ class GroundEffectStage:
         self.torque = np.zeros((N, 3))
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
-        ground_effect_kernel(sim.pos, sim.quat, sim.rotor_thrust, self.arm, self.rotor_z, self.rotor_radius,
-                             self.z_clip, self.force, self.torque, force, torque)
+        ground_effect_kernel(
+            sim.pos,
+            sim.quat,
+            sim.rotor_thrust,
+            self.arm,
+            self.rotor_z,
+            self.rotor_radius,
+            self.z_clip,
+            self.force,
+            self.torque,
+            force,
+            torque,
+        )

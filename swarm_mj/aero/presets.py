@@ -39,7 +39,7 @@ class AeroConfig:
     ground: bool = False
     downwash: bool = False
     ground_effect: bool = False
-    motor_tau: float = 0.0            # s; 0: the rotors produce their command at once (the paper)
+    motor_tau: float = 0.0  # s; 0: the rotors produce their command at once (the paper)
 
     @property
     def is_paper(self) -> bool:
@@ -47,14 +47,20 @@ class AeroConfig:
         return not (self.ground or self.downwash or self.ground_effect or self.motor_tau > 0)
 
     def to_dict(self) -> dict[str, Any]:
-        return {"model": self.model, "ground": self.ground, "downwash": self.downwash,
-                "ground_effect": self.ground_effect, "motor_tau": self.motor_tau}
+        return {
+            "model": self.model,
+            "ground": self.ground,
+            "downwash": self.downwash,
+            "ground_effect": self.ground_effect,
+            "motor_tau": self.motor_tau,
+        }
 
 
 PRESETS: dict[str, AeroConfig] = {
     "paper": AeroConfig(),
-    "realistic": AeroConfig(model="realistic", ground=True, downwash=True, ground_effect=True,
-                            motor_tau=REALISTIC_MOTOR_TAU),
+    "realistic": AeroConfig(
+        model="realistic", ground=True, downwash=True, ground_effect=True, motor_tau=REALISTIC_MOTOR_TAU
+    ),
 }
 PAPER = PRESETS["paper"]
 
@@ -74,8 +80,9 @@ def parse_aero(table: Any, where: str = "aero") -> AeroConfig:
         raise UserError("must be a table", where=where)
     unknown = set(table) - _KEYS
     if unknown:
-        raise UserError(f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(_KEYS))}",
-                        where=where)
+        raise UserError(
+            f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(_KEYS))}", where=where
+        )
     cfg = preset(table.get("model", "paper"), where=f"{where}.model")
     kw: dict[str, Any] = {}
     for key in ("ground", "downwash", "ground_effect"):
@@ -117,7 +124,7 @@ def install(sim, cfg: AeroConfig) -> None:
     if cfg.ground_effect:
         stages.append(GroundEffectStage())
     for st in stages:
-        sim.add_stage(st)              # after drag and wind (docs/design.md, "the step pipeline")
+        sim.add_stage(st)  # after drag and wind (docs/design.md, "the step pipeline")
     if cfg.ground:
         sim.add_monitor(GroundContacts(crash_speed=CRASH_SPEED, crash_tilt_deg=CRASH_TILT_DEG))
 

@@ -11,21 +11,30 @@ from . import AERO_NAMES, RULE_NAMES
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("run", help="fly a scenario and write a Rerun recording (.rrd)",
-                       description="Fly a bundled scenario (see 'swarm-mj list') or a scenario TOML file. "
-                                   "Writes NAME.rrd (open it with: rerun NAME.rrd).")
+    p = sub.add_parser(
+        "run",
+        help="fly a scenario and write a Rerun recording (.rrd)",
+        description="Fly a bundled scenario (see 'swarm-mj list') or a scenario TOML file. "
+        "Writes NAME.rrd (open it with: rerun NAME.rrd).",
+    )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("-o", "--output", help="recording path (default: ./NAME.rrd)")
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
-    p.add_argument("--spawn", action="store_true",
-                   help="also open the desktop Rerun viewer (without a display: a note, the recording kept)")
+    p.add_argument(
+        "--spawn",
+        action="store_true",
+        help="also open the desktop Rerun viewer (without a display: a note, the recording kept)",
+    )
     p.add_argument("--summary", metavar="PATH", help="write the summary as JSON")
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
-    p.add_argument("--aero", choices=AERO_NAMES,
-                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
+    p.add_argument(
+        "--aero",
+        choices=AERO_NAMES,
+        help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
+    )
     p.add_argument("--video", metavar="MP4", help="also render an MP4 video (EGL)")
     p.add_argument("--snapshot", metavar="PNG", help="also render a still image")
     p.add_argument("--snapshot-time", type=float, default=20.0, help="time of the still (s, default 20)")
@@ -33,6 +42,7 @@ def add_parser(sub) -> None:
     p.add_argument("--size", default="1280x720", help="video size WxH (default 1280x720)")
     p.add_argument("--quiet", action="store_true", help="no progress bar and no table")
     from .view import add_web_arguments
+
     add_web_arguments(p)  # --web, --port: serve the recording to a browser after the run
     p.set_defaults(func=main)
 
@@ -61,8 +71,12 @@ def check_args(args: argparse.Namespace, sc) -> None:
         check_output_path(args.output if args.output else f"{sc.name}.rrd", "-o/--output")
     if args.summary:
         check_output_path(args.summary, "--summary", allow_stdout=True)
-    outs = [("-o/--output", None if args.no_record else (args.output or f"{sc.name}.rrd")),
-            ("--summary", args.summary), ("--video", args.video), ("--snapshot", args.snapshot)]
+    outs = [
+        ("-o/--output", None if args.no_record else (args.output or f"{sc.name}.rrd")),
+        ("--summary", args.summary),
+        ("--video", args.video),
+        ("--snapshot", args.snapshot),
+    ]
     seen: dict[str, str] = {}
     for opt, p in outs:
         if p is None or p == "-":
@@ -84,22 +98,30 @@ def main(args: argparse.Namespace) -> int:
     check_args(args, sc)
     gains = load_gains(args.gains) if args.gains else None
     if gains is not None:
-        gains = check_gains(gains, sc.n_drones, where=f"{args.gains}: gains")   # (12,) or one row per drone
+        gains = check_gains(gains, sc.n_drones, where=f"{args.gains}: gains")  # (12,) or one row per drone
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
     if args.seed is not None:
-        sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts, as sweep/stress call seed s
+        sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts, as sweep/stress call seed s
     if args.duration is not None:
         sc = sc.with_overrides(duration=args.duration)
     if args.video or args.snapshot:
         from ..video import check_video_args
+
         check_video_args(args)
     if args.web:
         from ..viewer import check_port
+
         if args.no_record:
             raise UserError("--web serves the recording: it cannot go with --no-record")
         check_port(args.port)  # before flying; checked again when the server starts
-    result = run(sc, anti_collision=args.anti_collision, seed=args.seed, aero=args.aero,
-                 progress=None if not args.quiet else False, duration=args.duration)
+    result = run(
+        sc,
+        anti_collision=args.anti_collision,
+        seed=args.seed,
+        aero=args.aero,
+        progress=None if not args.quiet else False,
+        duration=args.duration,
+    )
     rc = 0
     out = None
     if not args.no_record:
@@ -112,10 +134,11 @@ def main(args: argparse.Namespace) -> int:
             print(f"recording: {out}  (open with: swarm-mj view {out})", file=sys.stderr)
         if args.spawn:  # after the file is complete, so that the recording is kept whatever happens
             from ..viewer import spawn_note
+
             print(spawn_note(out), file=sys.stderr)
     if args.summary:
         write_json_atomic(args.summary, result.summary)
-    if not args.quiet:   # with --summary - the JSON alone goes to standard output
+    if not args.quiet:  # with --summary - the JSON alone goes to standard output
         print(format_summary(result.summary, result.scenario), file=sys.stderr if args.summary == "-" else sys.stdout)
     if result.error is not None:
         kept = "; the recording holds what ran" if not args.no_record else ""
@@ -126,6 +149,7 @@ def main(args: argparse.Namespace) -> int:
         return _serve(args, out, 1)
     if args.video or args.snapshot:
         from ..video import render_outputs
+
         rc = render_outputs(result, args)
     return _serve(args, out, rc)
 
@@ -135,6 +159,7 @@ def _serve(args: argparse.Namespace, out: Path | None, rc: int) -> int:
     if not args.web:
         return rc
     from ..viewer import serve_until_interrupted
+
     try:
         served = serve_until_interrupted(out, args.port)
     except KeyboardInterrupt:

@@ -40,26 +40,38 @@ from . import AERO_NAMES, RULE_NAMES
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("stress", help="fly many seeded random starts and count contacts per rule",
-                       description=__doc__.split("\n\n")[1].replace("\n", " "))
-    p.add_argument("--rule", action="append", choices=RULE_NAMES, help="rule to fly (repeatable; default: layers, paper)")
+    p = sub.add_parser(
+        "stress",
+        help="fly many seeded random starts and count contacts per rule",
+        description=__doc__.split("\n\n")[1].replace("\n", " "),
+    )
+    p.add_argument(
+        "--rule", action="append", choices=RULE_NAMES, help="rule to fly (repeatable; default: layers, paper)"
+    )
     p.add_argument("--starts", type=int, default=100, help="number of seeded starts (default 100)")
     p.add_argument("--followers", type=int, default=5, help="followers per start (default 5)")
     p.add_argument("--radius", type=float, default=3.0, help="starts within this distance of the leader (m, default 3)")
     p.add_argument("--min-spacing", type=float, default=0.6, help="minimum start spacing (m, default 0.6)")
     p.add_argument("--duration", type=float, default=15.0, help="simulated seconds per start (default 15)")
     p.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
-    p.add_argument("--sensing-range", type=float, default=4.0,
-                   help="how far each drone sees the others (m, default 4; the layered rule's speeds "
-                        "are capped so that it can stop within it)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="worker processes (default: the CPUs this process may use)")
-    p.add_argument("--aero", choices=AERO_NAMES,
-                   help="physics preset (default: paper; docs/aero.md)")
+    p.add_argument(
+        "--sensing-range",
+        type=float,
+        default=4.0,
+        help="how far each drone sees the others (m, default 4; the layered rule's speeds "
+        "are capped so that it can stop within it)",
+    )
+    p.add_argument(
+        "--workers", type=int, default=None, help="worker processes (default: the CPUs this process may use)"
+    )
+    p.add_argument("--aero", choices=AERO_NAMES, help="physics preset (default: paper; docs/aero.md)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
-    p.add_argument("--save-scenario", metavar="TOML",
-                   help="write the flown scenario as a file: 'swarm-mj run TOML --seed S --anti-collision RULE' "
-                        "replays start S exactly")
+    p.add_argument(
+        "--save-scenario",
+        metavar="TOML",
+        help="write the flown scenario as a file: 'swarm-mj run TOML --seed S --anti-collision RULE' "
+        "replays start S exactly",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=main)
 
@@ -69,26 +81,55 @@ def main(args: argparse.Namespace) -> int:
     save = getattr(args, "save_scenario", None)
     if args.json:
         from ..atomic import check_output_path
+
         check_output_path(args.json, "--json", allow_stdout=True)
     if save:
         from ..atomic import check_output_path
+
         check_output_path(save, "--save-scenario", (".toml",))
-    table, rows = stress(rules, args.starts, args.followers, args.radius, args.min_spacing, args.duration,
-                         args.seed0, args.workers, args.sensing_range, progress=not args.quiet,
-                         aero=args.aero or "paper")
+    table, rows = stress(
+        rules,
+        args.starts,
+        args.followers,
+        args.radius,
+        args.min_spacing,
+        args.duration,
+        args.seed0,
+        args.workers,
+        args.sensing_range,
+        progress=not args.quiet,
+        aero=args.aero or "paper",
+    )
     if save:
         from ..atomic import write_text_atomic
         from ..scenario import scenario_toml
 
-        case = StressCase(rules[0], args.seed0, args.followers, args.radius, args.min_spacing, args.duration,
-                          args.sensing_range, aero=args.aero or "paper")
-        write_text_atomic(save, "# written by swarm-mj stress; replay start S with rule R:\n"
-                          "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)))
+        case = StressCase(
+            rules[0],
+            args.seed0,
+            args.followers,
+            args.radius,
+            args.min_spacing,
+            args.duration,
+            args.sensing_range,
+            aero=args.aero or "paper",
+        )
+        write_text_atomic(
+            save,
+            "# written by swarm-mj stress; replay start S with rule R:\n"
+            "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)),
+        )
     print(format_table(table, args.followers))
     print("\n".join(replay_lines(table, rows, save)))
     if args.json:
         from ..atomic import write_json_atomic
 
-        write_json_atomic(args.json, {"settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
-                                      "table": table, "starts": rows})
+        write_json_atomic(
+            args.json,
+            {
+                "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
+                "table": table,
+                "starts": rows,
+            },
+        )
     return 0

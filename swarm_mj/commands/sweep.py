@@ -13,28 +13,39 @@ from . import AERO_NAMES
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "sweep", help="many seeded runs of a scenario: mean, std and worst case of the key metrics",
+        "sweep",
+        help="many seeded runs of a scenario: mean, std and worst case of the key metrics",
         description="Fly a scenario once per seed (0..N-1: wind turbulence and random starts) and, with "
-                    "--param, once per value of one scenario field; print the mean, standard deviation and "
-                    "worst case (max for errors and settling, min for separation) of the leader's RMSE "
-                    "(whole run and from t = 10 s), and for swarms the contacts, minimum separation, "
-                    "formation settling and formation distance error. Results do not depend on --workers.",
+        "--param, once per value of one scenario field; print the mean, standard deviation and "
+        "worst case (max for errors and settling, min for separation) of the leader's RMSE "
+        "(whole run and from t = 10 s), and for swarms the contacts, minimum separation, "
+        "formation settling and formation distance error. Results do not depend on --workers.",
         epilog="examples: swarm-mj sweep wind_lemniscate --seeds 20;  "
-               "swarm-mj sweep wind_circle --seeds 10 --param wind.sigma=0.4,0.8,1.2;  "
-               "swarm-mj sweep circle --seeds 1 --param formation.diameter=1,1.5,2")
+        "swarm-mj sweep wind_circle --seeds 10 --param wind.sigma=0.4,0.8,1.2;  "
+        "swarm-mj sweep circle --seeds 1 --param formation.diameter=1,1.5,2",
+    )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("--seeds", type=int, default=20, metavar="N", help="seeds 0..N-1 (default 20)")
-    p.add_argument("--param", metavar="KEY=V1,V2,...",
-                   help="sweep one scenario field (dotted TOML key), e.g. wind.sigma=0.4,0.8,1.2 or "
-                        "formation.diameter=1,1.5,2 or formation.anti_collision=layers,paper,off")
+    p.add_argument(
+        "--param",
+        metavar="KEY=V1,V2,...",
+        help="sweep one scenario field (dotted TOML key), e.g. wind.sigma=0.4,0.8,1.2 or "
+        "formation.diameter=1,1.5,2 or formation.anti_collision=layers,paper,off",
+    )
     p.add_argument("--workers", type=int, metavar="W", help="local worker processes (default: all CPUs)")
-    p.add_argument("--ray", metavar="ADDRESS",
-                   help="run on a Ray cluster ('auto', 'ray://host:port', or 'local'); extra swarm-mj[ray]")
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        help="run on a Ray cluster ('auto', 'ray://host:port', or 'local'); extra swarm-mj[ray]",
+    )
     p.add_argument("--json", metavar="PATH", help="write every run and the statistics as JSON")
     p.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration (s)")
     p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
-    p.add_argument("--aero", choices=AERO_NAMES,
-                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
+    p.add_argument(
+        "--aero",
+        choices=AERO_NAMES,
+        help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=main)
 
@@ -107,18 +118,30 @@ def main(args: argparse.Namespace) -> int:
     sc = load_scenario(args.scenario)
     if args.duration is not None:
         from ..scenario import check_duration
+
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
     if args.json:
         from ..atomic import check_output_path
+
         check_output_path(args.json, "--json", allow_stdout=True)
     if args.gains:
         from ..control.backstepping import load_gains
+
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
     if args.aero:
         from ..aero import with_aero
+
         sc = with_aero(sc, args.aero)
-    res = sweep(sc, args.seeds, param, values, workers=args.workers, ray_address=args.ray,
-                duration=args.duration, progress=not args.quiet)
+    res = sweep(
+        sc,
+        args.seeds,
+        param,
+        values,
+        workers=args.workers,
+        ray_address=args.ray,
+        duration=args.duration,
+        progress=not args.quiet,
+    )
     if args.json:
         write_json_atomic(args.json, res.to_dict(), inf_as_string=True)
     print(format_sweep(res))
@@ -139,8 +162,12 @@ def replay_line(args: argparse.Namespace, res) -> str:
         for r in (r for r in res.runs if r["value_index"] == vi):
             m = r["metrics"]
             sep = m.get("min_separation_m", math.inf)
-            key = (m.get("stopped", 0), m.get("contacts", 0), -sep if math.isfinite(sep) else -math.inf,
-                   m.get("rmse_x", 0) if math.isfinite(m.get("rmse_x", 0)) else math.inf)
+            key = (
+                m.get("stopped", 0),
+                m.get("contacts", 0),
+                -sep if math.isfinite(sep) else -math.inf,
+                m.get("rmse_x", 0) if math.isfinite(m.get("rmse_x", 0)) else math.inf,
+            )
             if best is None or key > best[0]:
                 best = (key, r["seed"], v)
     _, seed, value = best

@@ -25,17 +25,19 @@ from typing import Any
 
 import numpy as np
 
-PAPER_IMPROVEMENT_PCT = (10.67, 35.45)   # paper Table 3, min and max over its runs
+PAPER_IMPROVEMENT_PCT = (10.67, 35.45)  # paper Table 3, min and max over its runs
 
 
 def add_parser(sub) -> None:
     p = sub.add_parser(
-        "tune", help="tune the 12 backstepping gains with the Flower Pollination Algorithm",
+        "tune",
+        help="tune the 12 backstepping gains with the Flower Pollination Algorithm",
         description="Tune α1..α12 with the Flower Pollination Algorithm (paper §3.2, Table 2) on the ISE "
-                    "of eq. (25) over the step (x = y = z = 1 m, ψ = 25°), by default subject to the "
-                    "controller's step bars and starting from the paper's Table 4 gains. Writes a gains TOML file for "
-                    "'swarm-mj run step --gains FILE'. The population is simulated in batched MuJoCo "
-                    "models, split over local worker processes (--workers) or a Ray cluster (--ray).")
+        "of eq. (25) over the step (x = y = z = 1 m, ψ = 25°), by default subject to the "
+        "controller's step bars and starting from the paper's Table 4 gains. Writes a gains TOML file for "
+        "'swarm-mj run step --gains FILE'. The population is simulated in batched MuJoCo "
+        "models, split over local worker processes (--workers) or a Ray cluster (--ray).",
+    )
     p.add_argument("--population", type=int, default=50, help="flowers N (default 50, Table 2)")
     p.add_argument("--iterations", type=int, default=14, help="iterations (default 14, Table 2)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
@@ -44,20 +46,36 @@ def add_parser(sub) -> None:
     p.add_argument("--gamma", type=float, default=0.02, help="global step size γ = c (default 0.02, Table 2)")
     p.add_argument("--lower", type=float, default=0.1, help="lower bound of every gain (default 0.1; > 0)")
     p.add_argument("--upper", type=float, default=12.0, help="upper bound of every gain (default 12)")
-    p.add_argument("--constraints", choices=("step-bars", "none"), default="step-bars",
-                   help="step-bars (default): gains must also meet the step bars (overshoot ≤ 1 %%, 2 %% settling "
-                        "x, y ≤ 2 s, z ≤ 1.5 s, ψ ≤ 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°), ranked by Deb's "
-                        "feasibility rules; none: the ISE of eq. (25) alone, as in the paper")
-    p.add_argument("--init", choices=("table4", "random"), default="table4",
-                   help="table4 (default): the paper's Table 4 gains are one flower of the initial population, "
-                        "the rest uniform; random: all uniform, as in the paper's Fig. 3")
+    p.add_argument(
+        "--constraints",
+        choices=("step-bars", "none"),
+        default="step-bars",
+        help="step-bars (default): gains must also meet the step bars (overshoot ≤ 1 %%, 2 %% settling "
+        "x, y ≤ 2 s, z ≤ 1.5 s, ψ ≤ 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°), ranked by Deb's "
+        "feasibility rules; none: the ISE of eq. (25) alone, as in the paper",
+    )
+    p.add_argument(
+        "--init",
+        choices=("table4", "random"),
+        default="table4",
+        help="table4 (default): the paper's Table 4 gains are one flower of the initial population, "
+        "the rest uniform; random: all uniform, as in the paper's Fig. 3",
+    )
     p.add_argument("-o", "--output", default="tuned_gains.toml", help="gains file (default tuned_gains.toml)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="worker processes (default: one per CPU; 1 = in this process); with --ray: actors "
-                        "(default: one per cluster CPU)")
-    p.add_argument("--ray", metavar="ADDRESS", default=None,
-                   help="evaluate on a Ray cluster: 'local' starts one here, 'auto' or ray://HOST:PORT "
-                        "joins one (needs: pip install 'swarm-mj[ray]')")
+    p.add_argument(
+        "--workers",
+        type=int,
+        default=None,
+        help="worker processes (default: one per CPU; 1 = in this process); with --ray: actors "
+        "(default: one per cluster CPU)",
+    )
+    p.add_argument(
+        "--ray",
+        metavar="ADDRESS",
+        default=None,
+        help="evaluate on a Ray cluster: 'local' starts one here, 'auto' or ray://HOST:PORT "
+        "joins one (needs: pip install 'swarm-mj[ray]')",
+    )
     p.add_argument("--quiet", action="store_true", help="print nothing but errors")
     p.set_defaults(func=main)
 
@@ -71,9 +89,9 @@ def _toml_value(v: Any) -> str:
     if isinstance(v, (int, np.integer)):
         return str(int(v))
     if isinstance(v, (float, np.floating)):
-        return repr(float(v))          # shortest round-trip; inf/nan are valid TOML
+        return repr(float(v))  # shortest round-trip; inf/nan are valid TOML
     if isinstance(v, str):
-        return json.dumps(v)           # a TOML basic string
+        return json.dumps(v)  # a TOML basic string
     if isinstance(v, (list, tuple, np.ndarray)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
@@ -86,49 +104,53 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
     o, s = outcome.options, outcome.settings
     created = created or datetime.now(UTC)
     done = len(outcome.history) - 1
-    lines = [
-        "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
-        "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
-        "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3, §6)"
-        + (", subject to the step bars [bars]." if s.bars is not None else "."),
-        "# Use: swarm-mj run step --gains FILE, or [controller] gains = \"FILE\" in a scenario.",
-        "# nan: no candidate met the bars (yet).",
-        f"gains = {_toml_value([float(g) for g in outcome.best_x])}",
-        f"ise = {_toml_value(outcome.best_ise)}",
-        f"initial_ise = {_toml_value(outcome.initial_ise)}",
-        f"improvement_pct = {_toml_value(outcome.improvement_pct)}",
-        f"table4_ise = {_toml_value(outcome.table4_ise)}",
-        f"beats_table4 = {_toml_value(outcome.beats_table4)}",
-        f"seed = {_toml_value(int(o.seed))}",
-    ] + ([f"meets_bars = {_toml_value(outcome.meets_bars)}"] if outcome.meets_bars is not None else []) + [
-        f"iterations_done = {done}",
-        f"complete = {_toml_value(outcome.complete)}",
-        f"history = {_toml_value([float(h) for h in outcome.history_ise])}",
-        f"wall_time_s = {_toml_value(round(outcome.wall_s, 3))}",
-        f"created = {created.isoformat(timespec='seconds')}",
-        "",
-        "[settings]",
-        f"population = {o.population}",
-        f"iterations = {o.iterations}",
-        f"p = {_toml_value(float(o.p))}",
-        f"gamma = {_toml_value(float(o.gamma))}",
-        f"lower = {_toml_value(float(o.lower))}",
-        f"upper = {_toml_value(float(o.upper))}",
-        f"t_sim = {_toml_value(float(s.t_sim))}",
-        f"control_period = {_toml_value(float(s.control_period))}",
-        f"timestep = {_toml_value(float(s.timestep))}",
-        f"integrator = {_toml_value(s.integrator)}",
-        f"target = {_toml_value(list(s.target))}",
-        f"yaw_deg = {_toml_value(float(s.yaw_deg))}",
-        f"max_tilt_deg = {_toml_value(float(s.max_tilt_deg))}",
-        f"ise_weights = {_toml_value([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])}",
-        f"constraints = {_toml_value('step-bars' if s.bars is not None else 'none')}",
-        f"init = {_toml_value(o.init)}",
-        f"backend = {_toml_value(outcome.backend)}",
-        f"workers = {int(outcome.workers)}",
-        f"swarm_mj_version = {_toml_value(__version__)}",
-        "",
-    ]
+    lines = (
+        [
+            "# Backstepping gains α1..α12 (roll, pitch, yaw, x, y, z pairs; paper Table 4 layout)",
+            "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
+            "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3, §6)"
+            + (", subject to the step bars [bars]." if s.bars is not None else "."),
+            '# Use: swarm-mj run step --gains FILE, or [controller] gains = "FILE" in a scenario.',
+            "# nan: no candidate met the bars (yet).",
+            f"gains = {_toml_value([float(g) for g in outcome.best_x])}",
+            f"ise = {_toml_value(outcome.best_ise)}",
+            f"initial_ise = {_toml_value(outcome.initial_ise)}",
+            f"improvement_pct = {_toml_value(outcome.improvement_pct)}",
+            f"table4_ise = {_toml_value(outcome.table4_ise)}",
+            f"beats_table4 = {_toml_value(outcome.beats_table4)}",
+            f"seed = {_toml_value(int(o.seed))}",
+        ]
+        + ([f"meets_bars = {_toml_value(outcome.meets_bars)}"] if outcome.meets_bars is not None else [])
+        + [
+            f"iterations_done = {done}",
+            f"complete = {_toml_value(outcome.complete)}",
+            f"history = {_toml_value([float(h) for h in outcome.history_ise])}",
+            f"wall_time_s = {_toml_value(round(outcome.wall_s, 3))}",
+            f"created = {created.isoformat(timespec='seconds')}",
+            "",
+            "[settings]",
+            f"population = {o.population}",
+            f"iterations = {o.iterations}",
+            f"p = {_toml_value(float(o.p))}",
+            f"gamma = {_toml_value(float(o.gamma))}",
+            f"lower = {_toml_value(float(o.lower))}",
+            f"upper = {_toml_value(float(o.upper))}",
+            f"t_sim = {_toml_value(float(s.t_sim))}",
+            f"control_period = {_toml_value(float(s.control_period))}",
+            f"timestep = {_toml_value(float(s.timestep))}",
+            f"integrator = {_toml_value(s.integrator)}",
+            f"target = {_toml_value(list(s.target))}",
+            f"yaw_deg = {_toml_value(float(s.yaw_deg))}",
+            f"max_tilt_deg = {_toml_value(float(s.max_tilt_deg))}",
+            f"ise_weights = {_toml_value([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])}",
+            f"constraints = {_toml_value('step-bars' if s.bars is not None else 'none')}",
+            f"init = {_toml_value(o.init)}",
+            f"backend = {_toml_value(outcome.backend)}",
+            f"workers = {int(outcome.workers)}",
+            f"swarm_mj_version = {_toml_value(__version__)}",
+            "",
+        ]
+    )
     if s.bars is not None:
         lines += ["[bars]"] + [f"{k} = {_toml_value(float(v))}" for k, v in s.bars.as_dict().items()] + [""]
     if outcome.check is not None:
@@ -169,23 +191,31 @@ def main(args: argparse.Namespace) -> int:
     from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
     # Validate everything before any worker starts.
-    opts = TuneOptions(population=args.population, iterations=args.iterations, p=args.p, gamma=args.gamma,
-                       lower=args.lower, upper=args.upper, seed=args.seed, init=args.init)
+    opts = TuneOptions(
+        population=args.population,
+        iterations=args.iterations,
+        p=args.p,
+        gamma=args.gamma,
+        lower=args.lower,
+        upper=args.upper,
+        seed=args.seed,
+        init=args.init,
+    )
     if not (math.isfinite(args.t_sim) and args.t_sim > 0):
         raise UserError(f"--t-sim must be a positive number of seconds, got {args.t_sim}")
     from ..scenario import check_duration, check_seed
 
     check_seed(args.seed, "--seed")
     check_duration(args.t_sim, 0.01, max(int(args.population), 1), "--t-sim")
-    settings = StepCostSettings(t_sim=float(args.t_sim),
-                                bars=StepBars() if args.constraints == "step-bars" else None)
+    settings = StepCostSettings(t_sim=float(args.t_sim), bars=StepBars() if args.constraints == "step-bars" else None)
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     if args.ray is not None:
         if not args.ray.strip():
             raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
         from ..parallel import import_ray
-        import_ray()                       # one clear line if Ray is missing
+
+        import_ray()  # one clear line if Ray is missing
     out = Path(args.output)
     _check_output(out)
     quiet = args.quiet
@@ -199,11 +229,19 @@ def main(args: argparse.Namespace) -> int:
     else:
         w = default_workers() if args.workers is None else args.workers
         where = "in this process" if w == 1 else f"{w} worker processes"
-    say(f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
-        f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}")
-    say("  cost: ISE of eq. (25)" + (", subject to the step bars (Deb's rules)" if settings.bars else "")
-        + (f"; initial population: Table 4 gains + {opts.population - 1} uniform" if opts.init == "table4"
-           else "; initial population: uniform"))
+    say(
+        f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
+        f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}"
+    )
+    say(
+        "  cost: ISE of eq. (25)"
+        + (", subject to the step bars (Deb's rules)" if settings.bars else "")
+        + (
+            f"; initial population: Table 4 gains + {opts.population - 1} uniform"
+            if opts.init == "table4"
+            else "; initial population: uniform"
+        )
+    )
     t0 = time.perf_counter()
     last: list = []
     bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
@@ -213,8 +251,11 @@ def main(args: argparse.Namespace) -> int:
         last[:] = [o]
         write_gains_file(out, o)
         it = len(o.history) - 1
-        best = (f"best ISE {o.best_ise:10.5f}" if o.best_feasible or not math.isfinite(o.best_cost)
-                else f"none meets the bars yet (least violation {o.best_cost - INFEASIBLE:.3g})")
+        best = (
+            f"best ISE {o.best_ise:10.5f}"
+            if o.best_feasible or not math.isfinite(o.best_cost)
+            else f"none meets the bars yet (least violation {o.best_cost - INFEASIBLE:.3g})"
+        )
         bar.note("")
         bar.update(it)
         bar.log(f"  iteration {it:3d}/{opts.iterations}  {best}  elapsed {time.perf_counter() - t0:7.1f} s")
@@ -226,8 +267,11 @@ def main(args: argparse.Namespace) -> int:
             bar.close()
     except KeyboardInterrupt:
         if last:
-            print(f"swarm-mj: interrupted after iteration {len(last[0].history) - 1}; best gains so far "
-                  f"(ISE {last[0].best_ise:.5f}) are in {out}", file=sys.stderr)
+            print(
+                f"swarm-mj: interrupted after iteration {len(last[0].history) - 1}; best gains so far "
+                f"(ISE {last[0].best_ise:.5f}) are in {out}",
+                file=sys.stderr,
+            )
         raise
     write_gains_file(out, res)
     if not quiet:
@@ -252,13 +296,16 @@ def format_outcome(res, out: Path | str) -> str:
         verdict += " (the initial population held Table 4; nothing better was found)"
     elif res.options.init == "table4":
         verdict += " (Table 4 was in the initial population)"
-    imp = (f"{res.improvement_pct:9.2f} %" if math.isfinite(res.improvement_pct)
-           else "      n/a  (no initial candidate met the bars)")
+    imp = (
+        f"{res.improvement_pct:9.2f} %"
+        if math.isfinite(res.improvement_pct)
+        else "      n/a  (no initial candidate met the bars)"
+    )
     gains = ", ".join(f"{g:.4f}" for g in res.best_x)
     rows = [
         f"FPA tune finished in {res.wall_s:.1f} s ({res.backend}, {res.workers} worker(s))",
-        f"  initial best ISE   {res.initial_ise:10.5f}" + ("   (best of the initial population meeting the bars)"
-                                                          if bars is not None else ""),
+        f"  initial best ISE   {res.initial_ise:10.5f}"
+        + ("   (best of the initial population meeting the bars)" if bars is not None else ""),
         f"  final ISE          {best:10.5f}",
         f"  improvement        {imp}   (paper Table 3: {lo:.1f}–{hi:.1f} %)",
         f"  Table 4 gains ISE  {t4:10.5f}   (same cost)",
@@ -268,12 +315,16 @@ def format_outcome(res, out: Path | str) -> str:
     if res.check is not None:
         c = res.check
         b = c.bars
-        st = "  ".join(f"{ax} {c.step[ax]['overshoot_pct']:.2f} % / {c.step[ax]['settling_s']:.2f} s"
-                       for ax in ("x", "y", "z", "psi"))
+        st = "  ".join(
+            f"{ax} {c.step[ax]['overshoot_pct']:.2f} % / {c.step[ax]['settling_s']:.2f} s"
+            for ax in ("x", "y", "z", "psi")
+        )
         rows.append(f"  step response      overshoot / 2 % settling: {st}; max tilt {c.max_tilt_deg:.1f}°")
-        rows.append(f"  step bars          {'met' if c.meets_bars else 'MISSED'} (overshoot ≤ {b.overshoot_pct:g} %, "
-                    f"settling ≤ {b.settling_x_s:g} / {b.settling_y_s:g} / {b.settling_z_s:g} / "
-                    f"{b.settling_psi_s:g} s, tilt ≤ {b.max_tilt_deg:g}°)"
-                    + ("" if bars is not None else "; not constraints of this tune (--constraints none)"))
+        rows.append(
+            f"  step bars          {'met' if c.meets_bars else 'MISSED'} (overshoot ≤ {b.overshoot_pct:g} %, "
+            f"settling ≤ {b.settling_x_s:g} / {b.settling_y_s:g} / {b.settling_z_s:g} / "
+            f"{b.settling_psi_s:g} s, tilt ≤ {b.max_tilt_deg:g}°)"
+            + ("" if bars is not None else "; not constraints of this tune (--constraints none)")
+        )
     rows.append(f"written: {out}   (try: swarm-mj run step --gains {out})")
     return "\n".join(rows)

@@ -82,8 +82,9 @@ def check_video_args(args) -> None:
         if ts is None or not math.isfinite(ts) or ts < 0:
             raise UserError(f"--snapshot-time must be a time >= 0 s, got {ts}")
         if duration is not None and ts > duration + 1e-9:
-            raise UserError(f"--snapshot-time {ts:g} s is after the end of the run ({duration:g} s); "
-                            f"lower it or raise --duration")
+            raise UserError(
+                f"--snapshot-time {ts:g} s is after the end of the run ({duration:g} s); lower it or raise --duration"
+            )
     start, end = getattr(args, "start", None), getattr(args, "end", None)
     if start is not None and (not math.isfinite(start) or start < 0):
         raise UserError(f"--start must be a time >= 0 s, got {start}")
@@ -97,17 +98,24 @@ def check_video_args(args) -> None:
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("video", help="fly a scenario and render an MP4 video (headless, EGL)",
-                       description="Fly a bundled scenario (see 'swarm-mj list') or a scenario TOML file, "
-                                   "then replay it from its log into an H.264 MP4 (MuJoCo's renderer through "
-                                   "EGL; no display needed). The camera keeps the whole swarm in view; the "
-                                   "leader's reference path and the last 10 s of each drone's trail are drawn.")
+    p = sub.add_parser(
+        "video",
+        help="fly a scenario and render an MP4 video (headless, EGL)",
+        description="Fly a bundled scenario (see 'swarm-mj list') or a scenario TOML file, "
+        "then replay it from its log into an H.264 MP4 (MuJoCo's renderer through "
+        "EGL; no display needed). The camera keeps the whole swarm in view; the "
+        "leader's reference path and the last 10 s of each drone's trail are drawn.",
+    )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("-o", "--output", metavar="MP4", help="video path (default: ./NAME.mp4)")
     p.add_argument("--fps", type=float, default=30, help="frame rate (default 30)")
     p.add_argument("--size", default="1280x720", help="frame size WxH, even numbers (default 1280x720)")
-    p.add_argument("--quality", choices=["high", "fast"], default="high",
-                   help="high: anti-aliased, with shadows (default); fast: neither, about 2-3x faster")
+    p.add_argument(
+        "--quality",
+        choices=["high", "fast"],
+        default="high",
+        help="high: anti-aliased, with shadows (default); fast: neither, about 2-3x faster",
+    )
     p.add_argument("--start", type=float, help="first second to film (default: the start of the run)")
     p.add_argument("--end", type=float, help="last second to film (default: the end of the run)")
     p.add_argument("--snapshot", metavar="PNG", help="also write a still image")
@@ -117,8 +125,11 @@ def add_parser(sub) -> None:
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
-    p.add_argument("--aero", choices=AERO_NAMES,
-                   help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)")
+    p.add_argument(
+        "--aero",
+        choices=AERO_NAMES,
+        help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=main)
 
@@ -130,6 +141,7 @@ def main(args: argparse.Namespace) -> int:
 
     sc = load_scenario(args.scenario)
     from ..scenario import check_duration, check_seed
+
     if args.duration is not None:
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
     if args.seed is not None:
@@ -144,17 +156,22 @@ def main(args: argparse.Namespace) -> int:
     if gains is not None:
         sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
     if args.seed is not None:
-        sc = sc.with_overrides(seed=args.seed)   # the wind and any random starts (as in 'swarm-mj run')
-    result = run(sc, anti_collision=args.anti_collision, seed=args.seed, aero=args.aero,
-                 progress=None if not args.quiet else False, duration=args.duration)
+        sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts (as in 'swarm-mj run')
+    result = run(
+        sc,
+        anti_collision=args.anti_collision,
+        seed=args.seed,
+        aero=args.aero,
+        progress=None if not args.quiet else False,
+        duration=args.duration,
+    )
     if isinstance(result.error, KeyboardInterrupt):
         print("swarm-mj: interrupted", file=sys.stderr)
         return 130
     if args.record:
         from ..recording import write_recording
 
-        write_recording(result, Path(args.record),
-                        safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
+        write_recording(result, Path(args.record), safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
         if not args.quiet:
             print(f"recording: {args.record}  (open with: rerun {args.record})", file=sys.stderr)
     if result.error is not None:
@@ -193,8 +210,16 @@ def render_outputs(result, args) -> int:
             print(f"snapshot: {out}  (t = {ts:g} s, {size[0]}x{size[1]})", file=sys.stderr)
     if video:
         fps = getattr(args, "fps", DEFAULT_FPS)
-        out = render_video(result, video, fps=fps, size=size, start=getattr(args, "start", None),
-                           end=getattr(args, "end", None), style=style, progress=None if not quiet else False)
+        out = render_video(
+            result,
+            video,
+            fps=fps,
+            size=size,
+            start=getattr(args, "start", None),
+            end=getattr(args, "end", None),
+            style=style,
+            progress=None if not quiet else False,
+        )
         if not quiet:
             print(f"video: {out}  ({fps:g} fps, {size[0]}x{size[1]}, H.264)", file=sys.stderr)
     return 0

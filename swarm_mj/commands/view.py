@@ -8,10 +8,13 @@ from ..viewer import DEFAULT_PORT
 
 
 def add_parser(sub) -> None:
-    p = sub.add_parser("view", help="open a recording (.rrd) in the Rerun viewer, or serve it to a browser",
-                       description="Open a recording in the desktop Rerun viewer (needs a display). With --web, "
-                                   "serve Rerun's web viewer with the recording on 127.0.0.1 and print the URL "
-                                   "(reach it through an SSH tunnel from another machine); Ctrl-C stops it.")
+    p = sub.add_parser(
+        "view",
+        help="open a recording (.rrd) in the Rerun viewer, or serve it to a browser",
+        description="Open a recording in the desktop Rerun viewer (needs a display). With --web, "
+        "serve Rerun's web viewer with the recording on 127.0.0.1 and print the URL "
+        "(reach it through an SSH tunnel from another machine); Ctrl-C stops it.",
+    )
     p.add_argument("file", metavar="FILE.rrd", help="the recording, as written by 'swarm-mj run'")
     add_web_arguments(p)
     p.set_defaults(func=main)
@@ -19,10 +22,17 @@ def add_parser(sub) -> None:
 
 def add_web_arguments(p: argparse.ArgumentParser) -> None:
     """``--web`` and ``--port``, shared with ``swarm-mj run``."""
-    p.add_argument("--web", action="store_true",
-                   help="serve Rerun's web viewer with the recording on localhost and wait for Ctrl-C")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT,
-                   help=f"port of the web page (default {DEFAULT_PORT}); the recording is served on PORT+1")
+    p.add_argument(
+        "--web",
+        action="store_true",
+        help="serve Rerun's web viewer with the recording on localhost and wait for Ctrl-C",
+    )
+    p.add_argument(
+        "--port",
+        type=int,
+        default=DEFAULT_PORT,
+        help=f"port of the web page (default {DEFAULT_PORT}); the recording is served on PORT+1",
+    )
 
 
 def main(args: argparse.Namespace) -> int:

@@ -82,9 +82,16 @@ class Backstepping:
     wind_feedforward: use the wind force F^w in eqs. (23)–(24) (paper default: on).
     """
 
-    def __init__(self, n: int, gains: np.ndarray | None = None, *, params: QuadParams = DEFAULT_PARAMS,
-                 control_period: float = 0.01, wind_feedforward: bool = True,
-                 attitude_map: str = "exact") -> None:
+    def __init__(
+        self,
+        n: int,
+        gains: np.ndarray | None = None,
+        *,
+        params: QuadParams = DEFAULT_PARAMS,
+        control_period: float = 0.01,
+        wind_feedforward: bool = True,
+        attitude_map: str = "exact",
+    ) -> None:
         self.n = n
         self.params = params
         self.T = float(control_period)
@@ -99,8 +106,8 @@ class Backstepping:
         self._a_att, self._b_att = g[:, [0, 2, 4]].copy(), g[:, [1, 3, 5]].copy()
         self._a_pos, self._b_pos = g[:, [6, 8, 10]].copy(), g[:, [7, 9, 11]].copy()
         # v = ẍ_d + (1 − a²)·e1 + (a + b)·e2 is the common part written with fewer operations
-        self._c1_att, self._c2_att = 1.0 - self._a_att ** 2, self._a_att + self._b_att
-        self._c1_pos, self._c2_pos = 1.0 - self._a_pos ** 2, self._a_pos + self._b_pos
+        self._c1_att, self._c2_att = 1.0 - self._a_att**2, self._a_att + self._b_att
+        self._c1_pos, self._c2_pos = 1.0 - self._a_pos**2, self._a_pos + self._b_pos
         self._zeros3 = np.zeros((n, 3))
         self._zeros1 = np.zeros(n)
         p = params
@@ -113,15 +120,25 @@ class Backstepping:
 
     def reset(self) -> None:
         """Forget the finite-difference history of the commanded attitude."""
-        self._prev_att_d: np.ndarray | None = None   # (n, 2) previous (φ_d, θ_d)
-        self.att_d = np.zeros((self.n, 3))           # (n, 3) last commanded (φ_d, θ_d, ψ_d)
-        self.U = np.zeros((self.n, 4))               # (n, 4) last output
+        self._prev_att_d: np.ndarray | None = None  # (n, 2) previous (φ_d, θ_d)
+        self.att_d = np.zeros((self.n, 3))  # (n, 3) last commanded (φ_d, θ_d, ψ_d)
+        self.U = np.zeros((self.n, 4))  # (n, 4) last output
 
-    def compute(self, rpy: np.ndarray, rpy_rate: np.ndarray, pos: np.ndarray, vel: np.ndarray,
-                pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray,
-                yaw_d: np.ndarray | float, yaw_rate_d: np.ndarray | float = 0.0,
-                yaw_acc_d: np.ndarray | float = 0.0,
-                wind_force: np.ndarray | None = None, omega_body: np.ndarray | None = None) -> np.ndarray:
+    def compute(
+        self,
+        rpy: np.ndarray,
+        rpy_rate: np.ndarray,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        pos_d: np.ndarray,
+        vel_d: np.ndarray,
+        acc_d: np.ndarray,
+        yaw_d: np.ndarray | float,
+        yaw_rate_d: np.ndarray | float = 0.0,
+        yaw_acc_d: np.ndarray | float = 0.0,
+        wind_force: np.ndarray | None = None,
+        omega_body: np.ndarray | None = None,
+    ) -> np.ndarray:
         """U1..U4 (n, 4) for all drones (eqs. 17–24).
 
         rpy, rpy_rate: (n, 3) Euler angles (φ, θ, ψ) and their rates; pos, vel: (n, 3) world;
@@ -141,11 +158,39 @@ class Backstepping:
         if first:
             self._prev_att_d = np.zeros((n, 2))
         p = self.params
-        U = backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw, yaw_rate, yaw_acc,
-                                 wind, use_wind, self._a_pos, self._c1_pos, self._c2_pos, self._a_att,
-                                 self._c1_att, self._c2_att, self._drag_over_m, p.m, p.g, self._inertia,
-                                 self._torque_scale, self._cor, p.L, self.T, self._prev_att_d, first, exact,
-                                 self.att_d)
+        U = backstepping_kernel(
+            rpy,
+            rpy_rate,
+            omega,
+            pos,
+            vel,
+            pos_d,
+            vel_d,
+            acc_d,
+            yaw,
+            yaw_rate,
+            yaw_acc,
+            wind,
+            use_wind,
+            self._a_pos,
+            self._c1_pos,
+            self._c2_pos,
+            self._a_att,
+            self._c1_att,
+            self._c2_att,
+            self._drag_over_m,
+            p.m,
+            p.g,
+            self._inertia,
+            self._torque_scale,
+            self._cor,
+            p.L,
+            self.T,
+            self._prev_att_d,
+            first,
+            exact,
+            self.att_d,
+        )
         self.U = U
         return U
 
@@ -166,15 +211,79 @@ def _kernel_samples():
     n = 2
     z1, z3, g = np.zeros(n), np.zeros((n, 3)), np.ones((n, 3))
     rpy = z3.copy()
-    return [(rpy, z3, z3, z3, z3, z3, z3, z3, z1, z1, z1, z3, False, g, g, g, g, g, g, np.ones(3), 0.5, 9.81,
-             np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01, np.zeros((n, 2)), first, exact, np.zeros((n, 3)))
-            for exact in (True, False) for first in (True, False)]
+    return [
+        (
+            rpy,
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z1,
+            z1,
+            z1,
+            z3,
+            False,
+            g,
+            g,
+            g,
+            g,
+            g,
+            g,
+            np.ones(3),
+            0.5,
+            9.81,
+            np.ones(3),
+            np.ones(3),
+            np.ones(3),
+            0.25,
+            0.01,
+            np.zeros((n, 2)),
+            first,
+            exact,
+            np.zeros((n, 3)),
+        )
+        for exact in (True, False)
+        for first in (True, False)
+    ]
 
 
 @jit(samples=_kernel_samples)
-def backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw_d, yaw_rate_d, yaw_acc_d,
-                         wind, use_wind, a_pos, c1_pos, c2_pos, a_att, c1_att, c2_att, drag_over_m, m, g,
-                         inertia, torque_scale, cor, L, T, prev_att_d, first, exact, att_d):
+def backstepping_kernel(
+    rpy,
+    rpy_rate,
+    omega,
+    pos,
+    vel,
+    pos_d,
+    vel_d,
+    acc_d,
+    yaw_d,
+    yaw_rate_d,
+    yaw_acc_d,
+    wind,
+    use_wind,
+    a_pos,
+    c1_pos,
+    c2_pos,
+    a_att,
+    c1_att,
+    c2_att,
+    drag_over_m,
+    m,
+    g,
+    inertia,
+    torque_scale,
+    cor,
+    L,
+    T,
+    prev_att_d,
+    first,
+    exact,
+    att_d,
+):
     """Eqs. (17)–(24) for n drones; see the module docstring. Writes att_d (n, 3), updates prev_att_d.
 
     One drone per iteration, with scalar numpy functions: per element the same operations in
@@ -198,11 +307,11 @@ def backstepping_kernel(rpy, rpy_rate, omega, pos, vel, pos_d, vel_d, acc_d, yaw
                 v[j] = v[j] - wind[i, j] / m
         cphi = np.cos(rpy[i, 0])
         ctheta = np.cos(rpy[i, 1])
-        U1 = np.maximum(m * (v[2] + g) / (cphi * ctheta), U1_FLOOR)             # eq. (18)
+        U1 = np.maximum(m * (v[2] + g) / (cphi * ctheta), U1_FLOOR)  # eq. (18)
         U[i, 0] = U1
         k = m / U1
-        Ux = k * v[0]                                                           # eq. (23)
-        Uy = k * v[1]                                                           # eq. (24)
+        Ux = k * v[0]  # eq. (23)
+        Uy = k * v[1]  # eq. (24)
         # ---- attitude correction: eqs. (21), (22), clipped (docs/interpretations.md §2)
         s = np.sin(yaw_d[i])
         c = np.cos(yaw_d[i])

@@ -3,5 +3,15 @@
 from .anticollision import ANTI_COLLISION_RULES, AntiCollision, LayeredRule, NoRule, PaperRule, Rule, make_rule
 from .slots import DiameterSchedule, polygon_offsets, slot_positions
 
-__all__ = ["ANTI_COLLISION_RULES", "AntiCollision", "LayeredRule", "NoRule", "PaperRule", "Rule", "make_rule",
-           "DiameterSchedule", "polygon_offsets", "slot_positions"]
+__all__ = [
+    "ANTI_COLLISION_RULES",
+    "AntiCollision",
+    "LayeredRule",
+    "NoRule",
+    "PaperRule",
+    "Rule",
+    "make_rule",
+    "DiameterSchedule",
+    "polygon_offsets",
+    "slot_positions",
+]

@@ -91,8 +91,8 @@ class Rule:
     name: str
     n: int
     events: list[dict]
-    vel_d: np.ndarray          # (n, 3) velocity reference of the steered drones
-    acc_d: np.ndarray          # (n, 3) acceleration reference of the steered drones
+    vel_d: np.ndarray  # (n, 3) velocity reference of the steered drones
+    acc_d: np.ndarray  # (n, 3) acceleration reference of the steered drones
 
     def __init__(self, n: int, **params: Any) -> None:
         self.n = n
@@ -101,8 +101,9 @@ class Rule:
         """Start of a run with the drones at positions (n, 3)."""
         raise NotImplementedError
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
-               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Adjusted setpoints pos_d (n, 3) and the drones it steers, steer (n,) bool."""
         raise NotImplementedError
 
@@ -110,8 +111,15 @@ class Rule:
     #: one; see :class:`~swarm_mj.policy.DownwashFeedforward`)
     downwash_feedforward = False
 
-    def references(self, t: float, positions: np.ndarray, pos_d: np.ndarray, vel_d: np.ndarray,
-                   acc_d: np.ndarray, formation_alt: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def references(
+        self,
+        t: float,
+        positions: np.ndarray,
+        pos_d: np.ndarray,
+        vel_d: np.ndarray,
+        acc_d: np.ndarray,
+        formation_alt: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
         the drones the rule steers take its velocity and acceleration references."""
         return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
@@ -131,17 +139,24 @@ class NoRule(Rule):
     def reset(self, positions: np.ndarray) -> None:
         self.events = []
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
-               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
 
 
-def _merged(rule, pos_d: np.ndarray, steer: np.ndarray, vel_d: np.ndarray,
-            acc_d: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _merged(
+    rule, pos_d: np.ndarray, steer: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(pos_d, vel_d, acc_d) with the rows of the steered drones (n,) from rule.vel_d, rule.acc_d."""
-    vel_d, acc_d = merge_rows(steer, rule.vel_d, rule.acc_d, np.ascontiguousarray(vel_d, dtype=np.float64),
-                              np.ascontiguousarray(acc_d, dtype=np.float64))
+    vel_d, acc_d = merge_rows(
+        steer,
+        rule.vel_d,
+        rule.acc_d,
+        np.ascontiguousarray(vel_d, dtype=np.float64),
+        np.ascontiguousarray(acc_d, dtype=np.float64),
+    )
     return pos_d, vel_d, acc_d
 
 
@@ -181,25 +196,26 @@ class PaperRule(Rule):
 
     name = "paper"
 
-    def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 **_: float) -> None:
+    def __init__(
+        self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05, **_: float
+    ) -> None:
         self.n = n
         self.safety = float(safety_distance)
         self.hop = float(hop)
         self.hysteresis = float(hysteresis)
         self._lower = np.tril(np.ones((n, n), dtype=bool), -1)  # [i, j]: j < i, so i yields to j
-        self.vel_d = np.zeros((n, 3))      # (n, 3) velocity reference of steered drones
-        self.acc_d = np.zeros((n, 3))      # (n, 3) acceleration reference of steered drones
+        self.vel_d = np.zeros((n, 3))  # (n, 3) velocity reference of steered drones
+        self.acc_d = np.zeros((n, 3))  # (n, 3) acceleration reference of steered drones
         self.reset(np.zeros((n, 3)))
 
     def reset(self, positions: np.ndarray) -> None:
-        self.offset = np.zeros(self.n)     # (n,) current altitude offset of each drone
+        self.offset = np.zeros(self.n)  # (n,) current altitude offset of each drone
         self.events: list[dict] = []
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
         """Fig. 5: trigger and release the altitude offsets of the drones flagged ``active`` (n,)."""
         if not react_needed(self.offset, h, self.safety):
-            return                     # nobody held, nobody inside D̄: nothing to trigger or release
+            return  # nobody held, nobody inside D̄: nothing to trigger or release
         yields = (h < self.safety) & self._lower & active[:, None] & active[None, :]
         trig = yields.any(axis=1) & (self.offset == 0.0)
         if trig.any():
@@ -216,8 +232,9 @@ class PaperRule(Rule):
                 self.offset[i] = 0.0
                 self.events.append({"t": t, "drone": int(i), "other": -1, "action": "release"})
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
-               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Fig. 5 on every drone: altitude offsets only, (x, y) setpoints unchanged."""
         h = _horizontal_distances(positions)
         self._react(t, positions, h, np.ones(self.n, dtype=bool))
@@ -227,8 +244,8 @@ class PaperRule(Rule):
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
-G = 9.81            # m/s², paper Table 1 (docs/interpretations.md §1)
-HOVER_MIN_M = 0.3   # a waiting follower lifts off the ground to this height when there is room
+G = 9.81  # m/s², paper Table 1 (docs/interpretations.md §1)
+HOVER_MIN_M = 0.3  # a waiting follower lifts off the ground to this height when there is room
 FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (docs/interpretations.md §1), rounded
 
 
@@ -288,12 +305,28 @@ class LayeredRule(PaperRule):
 
     name = "layers"
 
-    def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 arrive: float = 0.2, climb_tolerance: float = 0.35, clearance: float = 0.3,
-                 max_speed: float = 4.0, max_accel: float = 6.0, horizon: float = 1.0,
-                 climb_speed: float = 4.0, climb_accel: float = 8.0, descent_speed: float = 1.5,
-                 descent_accel: float = 5.0, jerk: float = 120.0, velocity_gain: float = 15.0,
-                 max_tilt_deg: float = 30.0, sensing_range: float = 4.0, **_: float) -> None:
+    def __init__(
+        self,
+        n: int,
+        safety_distance: float = 0.8,
+        hop: float = 0.4,
+        hysteresis: float = 0.05,
+        arrive: float = 0.2,
+        climb_tolerance: float = 0.35,
+        clearance: float = 0.3,
+        max_speed: float = 4.0,
+        max_accel: float = 6.0,
+        horizon: float = 1.0,
+        climb_speed: float = 4.0,
+        climb_accel: float = 8.0,
+        descent_speed: float = 1.5,
+        descent_accel: float = 5.0,
+        jerk: float = 120.0,
+        velocity_gain: float = 15.0,
+        max_tilt_deg: float = 30.0,
+        sensing_range: float = 4.0,
+        **_: float,
+    ) -> None:
         self.arrive = float(arrive)
         self.climb_tol = float(climb_tolerance)
         self.clearance = float(clearance)
@@ -311,35 +344,45 @@ class LayeredRule(PaperRule):
         # seen ahead. Braking at a, with the acceleration turning round in ``lag`` s:
         # v²/(2·0.8·a) + v·lag ≤ room.
         ad = self.z_down[1]
-        self.z_up = (min(self.z_up[0], _stoppable_speed(self.sensing_range - float(hop) - 0.2, ad,
-                                                        (self.z_up[1] + ad) / self.jerk + 1.0 / self.k_v)),
-                     self.z_up[1])
+        self.z_up = (
+            min(
+                self.z_up[0],
+                _stoppable_speed(
+                    self.sensing_range - float(hop) - 0.2, ad, (self.z_up[1] + ad) / self.jerk + 1.0 / self.k_v
+                ),
+            ),
+            self.z_up[1],
+        )
         a_h = min(self.a_max, G * self.tan_tilt)
-        self.v_max = min(self.v_max, _stoppable_speed(self.sensing_range - float(safety_distance) - 0.2, a_h,
-                                                      2.0 * self.a_max / self.jerk + 1.0 / self.k_v))
+        self.v_max = min(
+            self.v_max,
+            _stoppable_speed(
+                self.sensing_range - float(safety_distance) - 0.2, a_h, 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
+            ),
+        )
         super().__init__(n, safety_distance, hop, hysteresis)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
         n = self.n
         self.phase = np.full(n, CLIMB, dtype=np.int64)
-        self.phase[0] = FORMED                      # the leader flies its own trajectory
-        self._all_formed = bool((self.phase == FORMED).all())   # phases change only in update()
-        self.start_xy = positions[:, :2].copy()     # (n, 2) where each follower climbs in place
-        self.path_p = positions[:, :2].copy()       # (n, 2) crossing path: position
-        self.path_v = np.zeros((n, 2))              # (n, 2) crossing path: velocity
-        self.path_a = np.zeros((n, 2))              # (n, 2) crossing path: acceleration
-        self.blocked = np.zeros(n, dtype=bool)      # (n,) braking for another drone
-        self.asides = np.zeros(n, dtype=np.int64)   # (n,) times stepped out from under a drone
+        self.phase[0] = FORMED  # the leader flies its own trajectory
+        self._all_formed = bool((self.phase == FORMED).all())  # phases change only in update()
+        self.start_xy = positions[:, :2].copy()  # (n, 2) where each follower climbs in place
+        self.path_p = positions[:, :2].copy()  # (n, 2) crossing path: position
+        self.path_v = np.zeros((n, 2))  # (n, 2) crossing path: velocity
+        self.path_a = np.zeros((n, 2))  # (n, 2) crossing path: acceleration
+        self.blocked = np.zeros(n, dtype=bool)  # (n,) braking for another drone
+        self.asides = np.zeros(n, dtype=np.int64)  # (n,) times stepped out from under a drone
         self.layer_index = np.arange(n, dtype=float)
-        self.zp = positions[:, 2].copy()            # (n,) altitude path: position
-        self.zv = np.zeros(n)                       # (n,) altitude path: velocity
-        self.za = np.zeros(n)                       # (n,) altitude path: acceleration
-        self._prev_pos = np.array(positions, dtype=float)   # (n, 3) updated in place
+        self.zp = positions[:, 2].copy()  # (n,) altitude path: position
+        self.zv = np.zeros(n)  # (n,) altitude path: velocity
+        self.za = np.zeros(n)  # (n,) altitude path: acceleration
+        self._prev_pos = np.array(positions, dtype=float)  # (n, 3) updated in place
         self._prev_t: float | None = None
-        self.vel = np.zeros((n, 3))                 # (n, 3) velocities estimated from positions
-        self._all = np.ones(n, dtype=bool)          # (n,) every drone (read-only)
-        self._followers = np.ones(n, dtype=bool)    # (n,) the drones the rule steers (read-only)
+        self.vel = np.zeros((n, 3))  # (n, 3) velocities estimated from positions
+        self._all = np.ones(n, dtype=bool)  # (n,) every drone (read-only)
+        self._followers = np.ones(n, dtype=bool)  # (n,) the drones the rule steers (read-only)
         self._followers[0] = False
 
     # ------------------------------------------------------------------ helpers
@@ -347,8 +390,8 @@ class LayeredRule(PaperRule):
         """(n, n) smallest horizontal distance of each pair over the next ``horizon`` s,
         predicting the relative motion as a straight line (velocities estimated from
         positions); +inf on the diagonal."""
-        d = positions[None, :, :2] - positions[:, None, :2]               # (n, n, 2) j − i
-        dv = self.vel[None, :, :2] - self.vel[:, None, :2]                # (n, n, 2)
+        d = positions[None, :, :2] - positions[:, None, :2]  # (n, n, 2) j − i
+        dv = self.vel[None, :, :2] - self.vel[:, None, :2]  # (n, n, 2)
         vv = np.einsum("ijk,ijk->ij", dv, dv)
         tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon)
         m = d + tc[:, :, None] * dv
@@ -370,10 +413,22 @@ class LayeredRule(PaperRule):
         if dt <= 0.0:
             self.path_a[:] = 0.0
             return
-        advance_paths_kernel(float(dt), np.ascontiguousarray(goal, dtype=np.float64),
-                             np.ascontiguousarray(goal_vel, dtype=np.float64), self.path_p, self.path_v,
-                             self.path_a, self.blocked, self.za, self.a_max, self.jerk, self.k_v, self.v_max,
-                             self.tan_tilt, G)
+        advance_paths_kernel(
+            float(dt),
+            np.ascontiguousarray(goal, dtype=np.float64),
+            np.ascontiguousarray(goal_vel, dtype=np.float64),
+            self.path_p,
+            self.path_v,
+            self.path_a,
+            self.blocked,
+            self.za,
+            self.a_max,
+            self.jerk,
+            self.k_v,
+            self.v_max,
+            self.tan_tilt,
+            G,
+        )
 
     def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
         """Move the altitude paths (n,) towards ``target`` (n,) (moving at ``target_vel`` (n,)).
@@ -389,17 +444,30 @@ class LayeredRule(PaperRule):
             self.za[:] = 0.0
             return
         (vu, au), (vd, ad) = self.z_up, self.z_down
-        advance_altitude_kernel(float(dt), np.ascontiguousarray(target, dtype=np.float64),
-                                np.ascontiguousarray(target_vel, dtype=np.float64), self.zp, self.zv, self.za,
-                                vu, au, vd, ad, self.jerk, self.k_v)
+        advance_altitude_kernel(
+            float(dt),
+            np.ascontiguousarray(target, dtype=np.float64),
+            np.ascontiguousarray(target_vel, dtype=np.float64),
+            self.zp,
+            self.zv,
+            self.za,
+            vu,
+            au,
+            vd,
+            ad,
+            self.jerk,
+            self.k_v,
+        )
 
     # ------------------------------------------------------------------ the rule
-    def _update_formed(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float,
-                       dt: float) -> tuple[np.ndarray, np.ndarray]:
+    def _update_formed(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         return _update_formed_impl(self, t, positions, pos_d, formation_alt, dt)
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
-               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
@@ -414,24 +482,24 @@ class LayeredRule(PaperRule):
         z = positions[:, 2]
         pos_d = pos_d.copy()
         steer = np.ones(n, dtype=bool)
-        steer[0] = False                                                    # the leader: its trajectory
+        steer[0] = False  # the leader: its trajectory
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
-        layer = formation_alt + self.hop * self.layer_index                # (n,)
-        z_target = layer.copy()                                             # (n,)
-        z_target_vel = np.full(n, float(self.vel[0, 2]))                   # (n,) layers move with the leader
-        lead_v = self.vel[0]                                                # (3,) the slots' velocity
+        layer = formation_alt + self.hop * self.layer_index  # (n,)
+        z_target = layer.copy()  # (n,)
+        z_target_vel = np.full(n, float(self.vel[0, 2]))  # (n,) layers move with the leader
+        lead_v = self.vel[0]  # (3,) the slots' velocity
         idx = np.arange(n)
         # decentralised: drone i sees drone j only within the sensing range (the leader's
         # position it always has: the slots are built from it)
         in_transit = bool((self.phase != FORMED).any())
-        if in_transit:   # once every follower is formed, only the reactive rule and the paths run
+        if in_transit:  # once every follower is formed, only the reactive rule and the paths run
             rel = positions[None, :, :] - positions[:, None, :]
-            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
+            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range**2  # (n, n)
             seen[:, 0] = True
             np.fill_diagonal(seen, False)
             soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-            vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
+            vband = self._vertical_overlap(z, self.horizon) & seen  # (n, n)
 
         # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
@@ -445,21 +513,21 @@ class LayeredRule(PaperRule):
             # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
             # hover (a drone climbing in place passes a hovering one that close unharmed);
             # the leader, which yields to nobody, also when about level with it
-            hovering = _rownorm(self.vel[:, :2]) < 0.5               # (n,)
-            hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
+            hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
+            hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
             radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
             vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
-            vertical[:, 0] |= z[0] > z - self.clearance                          # the leader: level counts
+            vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
             above = (soon < radius) & vertical
             above &= climbing[:, None]
-            zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
+            zmin = np.where(above, z[None, :], np.inf).min(axis=1)  # (n,) lowest such drone
             # below it: wait (brake as hard as it can) no higher than now — it does not chase a
             # climbing drone from below — and hop under it, or on the ground. About level with
             # it already: climb over it, unless it is straight above (footprints overlap).
             z_wait = np.maximum(np.minimum(np.maximum(self.zp, HOVER_MIN_M), zmin - self.hop), 0.0)
             overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
             vz = np.maximum(self.zv, 0.0)
-            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])                 # where it could stop
+            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
             late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
             over = np.isfinite(zmin) & late & ~overhead
             wait = np.isfinite(zmin) & ~over
@@ -468,7 +536,7 @@ class LayeredRule(PaperRule):
             z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
             # waiting, airborne, under a drone that hovers there (the leader hovering, or a
             # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-            slow = _rownorm(self.vel[:, :2]) < 0.5                   # (n,), the leader too
+            slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
             stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
             there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
             aside = stuck.any(axis=1) & there & wait
@@ -483,14 +551,14 @@ class LayeredRule(PaperRule):
         # 2. cross on the layer along a limited path, braking for drones it gives way to
         climbing = self.phase == CLIMB
         crossing = self.phase == CROSS
-        goal = pos_d[:, :2].copy()                                          # (n, 2) slots
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()               # (n, 2) their velocity
+        goal = pos_d[:, :2].copy()  # (n, 2) slots
+        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()  # (n, 2) their velocity
         goal[climbing] = self.start_xy[climbing]
         goal_vel[climbing] = 0.0
         self.blocked &= crossing
         if crossing.any():
             speed = _rownorm(self.vel[:, :2])
-            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
+            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
             d = positions[None, :, :2] - positions[:, None, :2]
             dv = self.vel[None, :, :2] - self.vel[:, None, :2]
             vv = np.einsum("ijk,ijk->ij", dv, dv)
@@ -504,8 +572,11 @@ class LayeredRule(PaperRule):
                 self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
             self.blocked = blocked
             # 3. drop once over the slot, if no drone still in transit is (or will be) under it
-            there = crossing & (_rownorm(positions[:, :2] - goal) < self.arrive) \
+            there = (
+                crossing
+                & (_rownorm(positions[:, :2] - goal) < self.arrive)
                 & (_rownorm(self.path_p - goal) < self.arrive)
+            )
             for i in np.flatnonzero(there):
                 under = (soon[i] < self.safety) & (self.phase != FORMED) & (z < z[i] + self.clearance)
                 if not under.any():
@@ -521,10 +592,17 @@ class LayeredRule(PaperRule):
         z_target[formed] = formation_alt + self.offset[formed]
         # a formed drone still descending never descends onto a drone in transit within D̄
         # (now or soon) below it: it waits hop above it (docs/interpretations.md §4's failure case)
-        below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
-            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance) if in_transit else None
+        below = (
+            (soon < self.safety)
+            & formed[:, None]
+            & (self.phase[None, :] != FORMED)
+            & (z[None, :] < z[:, None])
+            & (z[None, :] > z_target[:, None] - self.clearance)
+            if in_transit
+            else None
+        )
         if below is not None and below.any():
-            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)           # (n,) highest such drone
+            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
             z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
         # every follower flies limited paths: horizontal (to its start while climbing, to its
@@ -539,7 +617,6 @@ class LayeredRule(PaperRule):
         self.acc_d[1:, 2] = self.za[1:]
         self._all_formed = bool((self.phase == FORMED).all())
         return pos_d, steer
-
 
 
 def jet_clearance(dz: np.ndarray, margin: float = 0.0) -> np.ndarray:
@@ -607,11 +684,21 @@ class ClearanceRule(LayeredRule):
     name = "clearance"
     downwash_feedforward = True
 
-    def __init__(self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05,
-                 jet_margin: float = 0.1, jet_depth: float = 0.5, max_tilt_deg: float = 25.0,
-                 descent_accel: float = 5.0, **kw: float) -> None:
-        super().__init__(n, safety_distance, hop, hysteresis, max_tilt_deg=max_tilt_deg,
-                         descent_accel=descent_accel, **kw)
+    def __init__(
+        self,
+        n: int,
+        safety_distance: float = 0.8,
+        hop: float = 0.4,
+        hysteresis: float = 0.05,
+        jet_margin: float = 0.1,
+        jet_depth: float = 0.5,
+        max_tilt_deg: float = 25.0,
+        descent_accel: float = 5.0,
+        **kw: float,
+    ) -> None:
+        super().__init__(
+            n, safety_distance, hop, hysteresis, max_tilt_deg=max_tilt_deg, descent_accel=descent_accel, **kw
+        )
         self.jet_margin = float(jet_margin)
         self.jet_depth = float(jet_depth)
 
@@ -620,8 +707,9 @@ class ClearanceRule(LayeredRule):
         self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground (1.)
         self.side = np.zeros(self.n, dtype=np.int64)  # (n,) side it goes round a hovering drone (+1: left)
 
-    def _go_round(self, positions: np.ndarray, goal: np.ndarray, movers: np.ndarray, obstacle: np.ndarray,
-                  radius: np.ndarray) -> np.ndarray:
+    def _go_round(
+        self, positions: np.ndarray, goal: np.ndarray, movers: np.ndarray, obstacle: np.ndarray, radius: np.ndarray
+    ) -> np.ndarray:
         """Goals (n, 2): for each of ``movers`` (n,) whose straight line to ``goal`` (n, 2) passes
         within ``radius`` (n, n) of a drone flagged ``obstacle`` (n, n), a point at least 1 m along
         the way to the side point of the nearest such drone (``radius`` + 0.1 m out from it, square
@@ -635,9 +723,9 @@ class ClearanceRule(LayeredRule):
                 self.side[i] = 0
                 continue
             u = e / L
-            d = positions[:, :2] - p                                                  # (n, 2)
+            d = positions[:, :2] - p  # (n, 2)
             along = d @ u
-            perp = d[:, 0] * u[1] - d[:, 1] * u[0]                                  # > 0: right of the line
+            perp = d[:, 0] * u[1] - d[:, 1] * u[0]  # > 0: right of the line
             rad = radius[i] + 0.1
             block = obstacle[i] & (along > -0.1) & (along < L + 0.1) & (np.abs(perp) < rad)
             if not block.any():
@@ -645,15 +733,16 @@ class ClearanceRule(LayeredRule):
                 continue
             j = int(np.argmin(np.where(block, along, np.inf)))
             if self.side[i] == 0:
-                self.side[i] = 1 if perp[j] < 0.0 else -1                             # pass on the far side
+                self.side[i] = 1 if perp[j] < 0.0 else -1  # pass on the far side
                 self.events.append({"t": self._prev_t, "drone": int(i), "other": j, "action": "round"})
-            normal = np.array([-u[1], u[0]]) * self.side[i]                         # left (+1) or right (−1)
+            normal = np.array([-u[1], u[0]]) * self.side[i]  # left (+1) or right (−1)
             aim = positions[j, :2] + normal * rad[j] - p
             out[i] = p + aim / max(float(np.hypot(*aim)), 1e-9) * max(float(np.hypot(*aim)), 1.0)
         return out
 
-    def update(self, t: float, positions: np.ndarray, pos_d: np.ndarray,
-               formation_alt: float) -> tuple[np.ndarray, np.ndarray]:
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
         """The layered rule's climb / cross / drop, kept out of the jets where that costs no time
         (1.–3. of the class docstring), Fig. 5 once formed."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
@@ -669,29 +758,30 @@ class ClearanceRule(LayeredRule):
         z = positions[:, 2]
         pos_d = pos_d.copy()
         steer = np.ones(n, dtype=bool)
-        steer[0] = False                                                    # the leader: its trajectory
+        steer[0] = False  # the leader: its trajectory
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
-        layer = formation_alt + self.hop * self.layer_index                # (n,)
-        z_target = layer.copy()                                             # (n,)
-        z_target_vel = np.full(n, float(self.vel[0, 2]))                   # (n,) layers move with the leader
-        lead_v = self.vel[0]                                                # (3,) the slots' velocity
+        layer = formation_alt + self.hop * self.layer_index  # (n,)
+        z_target = layer.copy()  # (n,)
+        z_target_vel = np.full(n, float(self.vel[0, 2]))  # (n,) layers move with the leader
+        lead_v = self.vel[0]  # (3,) the slots' velocity
         idx = np.arange(n)
         # decentralised: drone i sees drone j only within the sensing range (the leader's
         # position it always has: the slots are built from it)
         in_transit = bool((self.phase != FORMED).any())
-        if in_transit:   # once every follower is formed, only the reactive rule and the paths run
+        if in_transit:  # once every follower is formed, only the reactive rule and the paths run
             rel = positions[None, :, :] - positions[:, None, :]
-            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range ** 2     # (n, n)
+            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range**2  # (n, n)
             seen[:, 0] = True
             np.fill_diagonal(seen, False)
             soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-            vband = self._vertical_overlap(z, self.horizon) & seen                          # (n, n)
-            dz = z[None, :] - z[:, None]                                                    # (n, n) z_j − z_i
-            jet = jet_clearance(dz, self.jet_margin)                                        # (n, n)
+            vband = self._vertical_overlap(z, self.horizon) & seen  # (n, n)
+            dz = z[None, :] - z[:, None]  # (n, n) z_j − z_i
+            jet = jet_clearance(dz, self.jet_margin)  # (n, n)
             slot_gap = _rownorm((pos_d[None, :, :2] - pos_d[:, None, :2]).reshape(-1, 2)).reshape(n, n)
-            jet_c = np.where((self.phase == FORMED)[None, :] | (idx[None, :] == 0),
-                             np.minimum(jet, slot_gap - 0.05), jet)                          # (n, n)
+            jet_c = np.where(
+                (self.phase == FORMED)[None, :] | (idx[None, :] == 0), np.minimum(jet, slot_gap - 0.05), jet
+            )  # (n, n)
 
         # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
         climbing = self.phase == CLIMB
@@ -707,21 +797,21 @@ class ClearanceRule(LayeredRule):
             # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
             # hover (a drone climbing in place passes a hovering one that close unharmed);
             # the leader, which yields to nobody, also when about level with it
-            hovering = _rownorm(self.vel[:, :2]) < 0.5               # (n,)
-            hovering[0] = False      # the leader may set off any time: always D̄ + 0.2 m
+            hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
+            hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
             radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
             vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
-            vertical[:, 0] |= z[0] > z - self.clearance                          # the leader: level counts
+            vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
             above = (soon < radius) & vertical
             above &= climbing[:, None]
-            zmin = np.where(above, z[None, :], np.inf).min(axis=1)             # (n,) lowest such drone
+            zmin = np.where(above, z[None, :], np.inf).min(axis=1)  # (n,) lowest such drone
             # below it: wait (brake as hard as it can) no higher than now — it does not chase a
             # climbing drone from below — and hop under it, or on the ground. About level with
             # it already: climb over it, unless it is straight above (footprints overlap).
-            z_wait = np.maximum(np.minimum(self.zp, zmin - self.hop), 0.0)     # ours: no higher than now
+            z_wait = np.maximum(np.minimum(self.zp, zmin - self.hop), 0.0)  # ours: no higher than now
             overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
             vz = np.maximum(self.zv, 0.0)
-            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])                 # where it could stop
+            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
             late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
             over = np.isfinite(zmin) & late & ~overhead
             wait = np.isfinite(zmin) & ~over
@@ -730,7 +820,7 @@ class ClearanceRule(LayeredRule):
             z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
             # waiting, airborne, under a drone that hovers there (the leader hovering, or a
             # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-            slow = _rownorm(self.vel[:, :2]) < 0.5                   # (n,), the leader too
+            slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
             stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
             stuck &= ~((self.phase == FORMED) & ~slow)[None, :]
             there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
@@ -749,8 +839,13 @@ class ClearanceRule(LayeredRule):
             ground = (self.phase == CLIMB) & (z < HOVER_MIN_M)
             # (not for a formed drone hovering there: it would wait for ever; airborne, it steps aside)
             staying = (self.phase == FORMED) & (_rownorm(self.vel[:, :2]) < 0.5)
-            overhead = seen & (soon < jet) & (dz > 0.05) & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0)) \
+            overhead = (
+                seen
+                & (soon < jet)
+                & (dz > 0.05)
+                & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
                 & ~staying[None, :]
+            )
             hold = ground & overhead.any(axis=1)
             z_target[hold] = np.minimum(z_target[hold], 0.0)
             z_target_vel[hold] = 0.0
@@ -761,14 +856,14 @@ class ClearanceRule(LayeredRule):
         # 2. cross on the layer along a limited path, braking for drones it gives way to
         climbing = self.phase == CLIMB
         crossing = self.phase == CROSS
-        goal = pos_d[:, :2].copy()                                          # (n, 2) slots
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()               # (n, 2) their velocity
+        goal = pos_d[:, :2].copy()  # (n, 2) slots
+        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()  # (n, 2) their velocity
         goal[climbing] = self.start_xy[climbing]
         goal_vel[climbing] = 0.0
         self.blocked &= crossing
         if crossing.any():
             speed = _rownorm(self.vel[:, :2])
-            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)            # (n,) time to stop + reaction
+            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
             d = positions[None, :, :2] - positions[:, None, :2]
             dv = self.vel[None, :, :2] - self.vel[:, None, :2]
             vv = np.einsum("ijk,ijk->ij", dv, dv)
@@ -779,20 +874,25 @@ class ClearanceRule(LayeredRule):
             gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
             # ours: also for a drone crossing on a layer up to jet_depth above or below, within the
             # jet clearance (the near jet of a drone 0.4 m up tips the one below over)
-            hover = _rownorm(self.vel[:, :2]) < 0.5                                         # (n,)
-            near_jet = (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS) \
-                & ~hover[None, :]
+            hover = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
+            near_jet = (
+                (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS) & ~hover[None, :]
+            )
             conflict = ((near & vband) | near_jet) & gives_way
             blocked = crossing & conflict.any(axis=1)
             for i in np.flatnonzero(blocked & ~self.blocked):
                 self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
             self.blocked = blocked
             # 3. drop once over the slot, if no drone still in transit is (or will be) under it
-            there = crossing & (_rownorm(positions[:, :2] - goal) < self.arrive) \
+            there = (
+                crossing
+                & (_rownorm(positions[:, :2] - goal) < self.arrive)
                 & (_rownorm(self.path_p - goal) < self.arrive)
+            )
             for i in np.flatnonzero(there):
-                under = (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance) \
-                    & (z > HOVER_MIN_M)            # one on the ground is held by it (and waits for this one)
+                under = (
+                    (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance) & (z > HOVER_MIN_M)
+                )  # one on the ground is held by it (and waits for this one)
                 if not under.any():
                     self.phase[i] = FORMED
                     self.blocked[i] = False
@@ -814,10 +914,17 @@ class ClearanceRule(LayeredRule):
         z_target[formed] = formation_alt + self.offset[formed]
         # a formed drone still descending never descends onto a drone in transit within D̄
         # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
-        below = (soon < self.safety) & formed[:, None] & (self.phase[None, :] != FORMED) \
-            & (z[None, :] < z[:, None]) & (z[None, :] > z_target[:, None] - self.clearance) if in_transit else None
+        below = (
+            (soon < self.safety)
+            & formed[:, None]
+            & (self.phase[None, :] != FORMED)
+            & (z[None, :] < z[:, None])
+            & (z[None, :] > z_target[:, None] - self.clearance)
+            if in_transit
+            else None
+        )
         if below is not None and below.any():
-            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)           # (n,) highest such drone
+            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
             z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
         # every follower flies limited paths: horizontal (to its start while climbing, to its
@@ -834,24 +941,46 @@ class ClearanceRule(LayeredRule):
         return pos_d, steer
 
 
-def _update_formed_impl(rule: "LayeredRule", t: float, positions: np.ndarray, pos_d: np.ndarray,
-                        formation_alt: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def _update_formed_impl(
+    rule: LayeredRule, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
+) -> tuple[np.ndarray, np.ndarray]:
     """:meth:`LayeredRule.update` once every follower is formed (nobody in transit): the same
     steps with the climb / cross / drop parts, which then do nothing, left out — the reactive
     rule (Fig. 5, among all drones), then the horizontal and altitude paths towards the slots
     and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.formation.layered.formed_step_kernel`)."""
     n = rule.n
     h = _horizontal_distances(positions)
-    rule._react(t, positions, h, rule._all)                            # 4. Fig. 5 among all drones
+    rule._react(t, positions, h, rule._all)  # 4. Fig. 5 among all drones
     (vu, au), (vd, ad) = rule.z_up, rule.z_down
     out = np.empty((n, 3))
-    formed_step_kernel(dt, np.ascontiguousarray(pos_d, dtype=np.float64), float(formation_alt), rule.offset,
-                       rule.vel[0], rule.path_p, rule.path_v, rule.path_a, rule.blocked, rule.zp, rule.zv, rule.za,
-                       rule.a_max, rule.jerk, rule.k_v, rule.v_max, rule.tan_tilt, G, vu, au, vd, ad,
-                       out, rule.vel_d, rule.acc_d)
+    formed_step_kernel(
+        dt,
+        np.ascontiguousarray(pos_d, dtype=np.float64),
+        float(formation_alt),
+        rule.offset,
+        rule.vel[0],
+        rule.path_p,
+        rule.path_v,
+        rule.path_a,
+        rule.blocked,
+        rule.zp,
+        rule.zv,
+        rule.za,
+        rule.a_max,
+        rule.jerk,
+        rule.k_v,
+        rule.v_max,
+        rule.tan_tilt,
+        G,
+        vu,
+        au,
+        vd,
+        ad,
+        out,
+        rule.vel_d,
+        rule.acc_d,
+    )
     return out, rule._followers
-
-
 
 
 class CompensatedRule(LayeredRule):
@@ -864,12 +993,17 @@ class CompensatedRule(LayeredRule):
     downwash_feedforward = True
 
 
-ANTI_COLLISION_RULES: dict[str, type[Rule]] = {"layers": LayeredRule, "paper": PaperRule, "off": NoRule,
-                                               "clearance": ClearanceRule, "compensated": CompensatedRule}
+ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
+    "layers": LayeredRule,
+    "paper": PaperRule,
+    "off": NoRule,
+    "clearance": ClearanceRule,
+    "compensated": CompensatedRule,
+}
 AntiCollision = LayeredRule | PaperRule | NoRule | ClearanceRule | CompensatedRule
 
 
-_Rule = Rule   # the former name
+_Rule = Rule  # the former name
 
 
 def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:

@@ -17,15 +17,58 @@ def _formed_samples():
     n = 2
     z1, z2, z3 = np.zeros(n), np.zeros((n, 2)), np.zeros((n, 3))
     b = np.zeros(n, dtype=np.bool_)
-    return [(0.01, z3, 1.0, z1, np.zeros(3), z2, z2.copy(), z2.copy(), b, z1.copy(), z1.copy(), z1.copy(), 6.0,
-             120.0, 15.0, 4.0, 0.5, 9.81, 4.0, 8.0, 1.5, 5.0, z3.copy(), z3.copy(), z3.copy())]
+    return [
+        (
+            0.01,
+            z3,
+            1.0,
+            z1,
+            np.zeros(3),
+            z2,
+            z2.copy(),
+            z2.copy(),
+            b,
+            z1.copy(),
+            z1.copy(),
+            z1.copy(),
+            6.0,
+            120.0,
+            15.0,
+            4.0,
+            0.5,
+            9.81,
+            4.0,
+            8.0,
+            1.5,
+            5.0,
+            z3.copy(),
+            z3.copy(),
+            z3.copy(),
+        )
+    ]
 
 
 def _paths_samples():
     n = 2
     z1, z2 = np.zeros(n), np.zeros((n, 2))
-    return [(0.01, z2, z2.copy(), z2.copy(), z2.copy(), z2.copy(), np.zeros(n, dtype=np.bool_), z1, 6.0, 120.0,
-             15.0, 4.0, 0.5, 9.81)]
+    return [
+        (
+            0.01,
+            z2,
+            z2.copy(),
+            z2.copy(),
+            z2.copy(),
+            z2.copy(),
+            np.zeros(n, dtype=np.bool_),
+            z1,
+            6.0,
+            120.0,
+            15.0,
+            4.0,
+            0.5,
+            9.81,
+        )
+    ]
 
 
 def _altitude_samples():
@@ -34,9 +77,22 @@ def _altitude_samples():
 
 
 @jit(samples=_paths_samples)
-def advance_paths_kernel(dt: float, goal: np.ndarray, goal_vel: np.ndarray, p: np.ndarray, v: np.ndarray,
-                         a: np.ndarray, blocked: np.ndarray, za: np.ndarray, a_max: float, jerk: float,
-                         k_v: float, v_max: float, tan_tilt: float, g: float) -> None:
+def advance_paths_kernel(
+    dt: float,
+    goal: np.ndarray,
+    goal_vel: np.ndarray,
+    p: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    blocked: np.ndarray,
+    za: np.ndarray,
+    a_max: float,
+    jerk: float,
+    k_v: float,
+    v_max: float,
+    tan_tilt: float,
+    g: float,
+) -> None:
     """One step of the layered rule's horizontal paths (see LayeredRule._advance_paths), in place:
     p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2)."""
     n = p.shape[0]
@@ -76,9 +132,20 @@ def advance_paths_kernel(dt: float, goal: np.ndarray, goal_vel: np.ndarray, p: n
 
 
 @jit(samples=_altitude_samples)
-def advance_altitude_kernel(dt: float, target: np.ndarray, target_vel: np.ndarray, zp: np.ndarray, zv: np.ndarray,
-                            za: np.ndarray, vu: float, au: float, vd: float, ad: float, jerk: float,
-                            k_v: float) -> None:
+def advance_altitude_kernel(
+    dt: float,
+    target: np.ndarray,
+    target_vel: np.ndarray,
+    zp: np.ndarray,
+    zv: np.ndarray,
+    za: np.ndarray,
+    vu: float,
+    au: float,
+    vd: float,
+    ad: float,
+    jerk: float,
+    k_v: float,
+) -> None:
     """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place."""
     n = zp.shape[0]
     lag = (au + ad) / jerk + 1.0 / k_v
@@ -97,11 +164,33 @@ def advance_altitude_kernel(dt: float, target: np.ndarray, target_vel: np.ndarra
 
 
 @jit(samples=_formed_samples)
-def formed_step_kernel(dt: float, pos_d: np.ndarray, formation_alt: float, offset: np.ndarray,
-                       lead_vel: np.ndarray, p: np.ndarray, v: np.ndarray, a: np.ndarray, blocked: np.ndarray,
-                       zp: np.ndarray, zv: np.ndarray, za: np.ndarray, a_max: float, jerk: float, k_v: float,
-                       v_max: float, tan_tilt: float, g: float, vu: float, au: float, vd: float, ad: float,
-                       out_pos: np.ndarray, out_vel: np.ndarray, out_acc: np.ndarray) -> None:
+def formed_step_kernel(
+    dt: float,
+    pos_d: np.ndarray,
+    formation_alt: float,
+    offset: np.ndarray,
+    lead_vel: np.ndarray,
+    p: np.ndarray,
+    v: np.ndarray,
+    a: np.ndarray,
+    blocked: np.ndarray,
+    zp: np.ndarray,
+    zv: np.ndarray,
+    za: np.ndarray,
+    a_max: float,
+    jerk: float,
+    k_v: float,
+    v_max: float,
+    tan_tilt: float,
+    g: float,
+    vu: float,
+    au: float,
+    vd: float,
+    ad: float,
+    out_pos: np.ndarray,
+    out_vel: np.ndarray,
+    out_acc: np.ndarray,
+) -> None:
     """The layered rule once every follower is formed (LayeredRule._update_formed), after the
     reactive rule has set the altitude offsets (n,): the horizontal paths p, v, a (n, 2) follow
     the slots pos_d[:, :2] moving at the leader's velocity lead_vel (3,), the altitude paths

@@ -30,9 +30,19 @@ def _setpoint_samples():
 
 
 @jit(samples=_setpoint_samples)
-def setpoints_kernel(k: int, T: float, leader: np.ndarray, prev_leader: np.ndarray, leader_vel: np.ndarray,
-                     ref_pos: np.ndarray, ref_vel: np.ndarray, ref_acc: np.ndarray, ref_yaw: float, D: float,
-                     unit_offsets: np.ndarray):
+def setpoints_kernel(
+    k: int,
+    T: float,
+    leader: np.ndarray,
+    prev_leader: np.ndarray,
+    leader_vel: np.ndarray,
+    ref_pos: np.ndarray,
+    ref_vel: np.ndarray,
+    ref_acc: np.ndarray,
+    ref_yaw: float,
+    D: float,
+    unit_offsets: np.ndarray,
+):
     """The references of the observation (paper §4): the leader's (n = 0) from its trajectory,
     each follower's slot leader + D·offset_k (unit_offsets (n−1, 3)) moving with the leader's
     velocity, estimated as (leader − prev_leader)/T (updated in place in leader_vel (3,), and

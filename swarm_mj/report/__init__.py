@@ -43,7 +43,29 @@ from .plan import (
 )
 from .tables import load_results, render_markdown
 
-__all__ = ["ALL_FIGURES", "GAINS_FILE", "INTERPRETATIONS", "PAPER_STEP_MAX_ANGLE_DEG", "PAPER_TABLE3", "FpaGains",
-           "IseJob", "JobList", "JobResults", "Plan", "RunJob", "TuneJob", "assemble", "build_report", "do_job",
-           "draw_all", "draw_snapshot", "jsonable", "load_fpa_gains", "load_results", "plan_jobs",
-           "random_crossing", "render_markdown", "run_jobs"]
+__all__ = [
+    "ALL_FIGURES",
+    "GAINS_FILE",
+    "INTERPRETATIONS",
+    "PAPER_STEP_MAX_ANGLE_DEG",
+    "PAPER_TABLE3",
+    "FpaGains",
+    "IseJob",
+    "JobList",
+    "JobResults",
+    "Plan",
+    "RunJob",
+    "TuneJob",
+    "assemble",
+    "build_report",
+    "do_job",
+    "draw_all",
+    "draw_snapshot",
+    "jsonable",
+    "load_fpa_gains",
+    "load_results",
+    "plan_jobs",
+    "random_crossing",
+    "render_markdown",
+    "run_jobs",
+]

@@ -19,8 +19,14 @@ from .tables import render_markdown
 SNAPSHOT_KEY = "snapshot/scenario1"
 
 
-def build_report(out_dir: str | Path = "report", *, plan: Plan | None = None, quick: bool = False,
-                 workers: int | None = None, progress: bool = False) -> dict:
+def build_report(
+    out_dir: str | Path = "report",
+    *,
+    plan: Plan | None = None,
+    quick: bool = False,
+    workers: int | None = None,
+    progress: bool = False,
+) -> dict:
     """Run every experiment, write ``out_dir``/README.md, results.json and the PNGs; return the results.
 
     ``progress``: one line per completed job on stderr, under a progress bar when it is a terminal.
@@ -50,8 +56,10 @@ def build_report(out_dir: str | Path = "report", *, plan: Plan | None = None, qu
     R["meta"]["cpu_s_in_runs"] = float(sum(r.get("wall_s", 0.0) for r in res.by_index if isinstance(r, dict)))
 
     data = _write(out, R)
-    tell(f"wrote {out / 'README.md'}, {out / 'results.json'} and {len(R['figures'])} figure(s) in "
-         f"{R['meta']['wall_s']:.0f} s")
+    tell(
+        f"wrote {out / 'README.md'}, {out / 'results.json'} and {len(R['figures'])} figure(s) in "
+        f"{R['meta']['wall_s']:.0f} s"
+    )
     return data
 
 

@@ -21,8 +21,16 @@ def _plt():
     matplotlib.use("Agg", force=True)
     import matplotlib.pyplot as plt
 
-    plt.rcParams.update({"figure.dpi": 100, "savefig.dpi": 110, "font.size": 9, "axes.grid": True,
-                         "grid.alpha": 0.3, "legend.fontsize": 7})
+    plt.rcParams.update(
+        {
+            "figure.dpi": 100,
+            "savefig.dpi": 110,
+            "font.size": 9,
+            "axes.grid": True,
+            "grid.alpha": 0.3,
+            "legend.fontsize": 7,
+        }
+    )
     return plt
 
 
@@ -39,8 +47,18 @@ def _save(fig, out: Path, name: str, caption: str, figures: list) -> None:
 def draw_all(out: Path, R: dict, logs: dict[str, dict]) -> list[dict]:
     """Every figure of the report; returns [{file, caption}]. A figure whose data is missing is skipped."""
     figures: list[dict] = []
-    for fn in (_fig_step, _fig_rotors, _fig_lemniscate, _fig_wind, _fig_swarms, _fig_variable_d,
-               _fig_anticollision, _fig_wind_robustness, _fig_sigma, _fig_fpa):
+    for fn in (
+        _fig_step,
+        _fig_rotors,
+        _fig_lemniscate,
+        _fig_wind,
+        _fig_swarms,
+        _fig_variable_d,
+        _fig_anticollision,
+        _fig_wind_robustness,
+        _fig_sigma,
+        _fig_fpa,
+    ):
         fn(out, R, logs, figures)
     return figures
 
@@ -53,8 +71,11 @@ def _fig_step(out, R, logs, figures):
     t = lg["t"]
     fig, axs = plt.subplots(2, 3, figsize=(12, 6.2))
     target = lg["pos_d"][-1, 0]
-    others = [(k, lab, ls) for k, lab, ls in (("step/fpa", "FPA gains", "--"),
-                                                ("step/paper_map", "eq. (1) attitude map", ":")) if k in logs]
+    others = [
+        (k, lab, ls)
+        for k, lab, ls in (("step/fpa", "FPA gains", "--"), ("step/paper_map", "eq. (1) attitude map", ":"))
+        if k in logs
+    ]
     paper_settle = {"x": 1.5, "y": 1.5, "z": 1.0, "psi": 1.0}
     for j, (ax, nm) in enumerate(zip(axs.flat[:4], ("x", "y", "z", "psi"))):
         if nm == "psi":
@@ -88,15 +109,27 @@ def _fig_step(out, R, logs, figures):
     st = R["step"]["table4"]["axes"]
     rows = [["axis", "overshoot %", "settling s", "paper s"]]
     for nm in ("x", "y", "z", "psi"):
-        rows.append([nm, f"{st[nm]['overshoot_pct']:.3f}", fmt_cell(st[nm]["settling_s"], "{:.2f}"),
-                     "< 1" if nm == "psi" else f"{paper_settle[nm]:.1f}"])
+        rows.append(
+            [
+                nm,
+                f"{st[nm]['overshoot_pct']:.3f}",
+                fmt_cell(st[nm]["settling_s"], "{:.2f}"),
+                "< 1" if nm == "psi" else f"{paper_settle[nm]:.1f}",
+            ]
+        )
     ax.axis("off")
     tb = ax.table(cellText=rows, loc="center")
     tb.scale(1, 1.5)
     fig.suptitle("Step response to x = y = z = 1 m, ψ = 25° (paper Fig. 7)")
     fig.tight_layout()
-    _save(fig, out, "fig07_step.png", "Step response (paper Fig. 7): (a) x, y, z, ψ; (b) roll and pitch with "
-          "their commanded values; red dotted: the paper's settling times and ±45°", figures)
+    _save(
+        fig,
+        out,
+        "fig07_step.png",
+        "Step response (paper Fig. 7): (a) x, y, z, ψ; (b) roll and pitch with "
+        "their commanded values; red dotted: the paper's settling times and ±45°",
+        figures,
+    )
 
 
 def _fig_rotors(out, R, logs, figures):
@@ -149,8 +182,13 @@ def _fig_lemniscate(out, R, logs, figures):
     ax.legend()
     fig.suptitle("Lemniscate (eq. 30), single drone, no wind (paper Fig. 9)")
     fig.tight_layout()
-    _save(fig, out, "fig09_lemniscate.png", "Lemniscate tracking without wind (paper Fig. 9): x and y with the "
-          "error (red, right axis, mm) and the 3D path", figures)
+    _save(
+        fig,
+        out,
+        "fig09_lemniscate.png",
+        "Lemniscate tracking without wind (paper Fig. 9): x and y with the error (red, right axis, mm) and the 3D path",
+        figures,
+    )
 
 
 def _fig_wind(out, R, logs, figures):
@@ -177,13 +215,22 @@ def _fig_wind(out, R, logs, figures):
             a.axvline(50, color="gray", ls=":", lw=0.8)
     fig.suptitle("Lemniscate under the paper's wind (Fx from 20 s, Fx + Fy from 50 s), seed 0 (paper Fig. 15)")
     fig.tight_layout()
-    _save(fig, out, "fig15_wind.png", "Tracking under wind (paper Fig. 15): x, y, their errors, the wind speeds "
-          "Vx, Vy (eq. 35) and the forces Fx, Fy (eq. 37) on the drone", figures)
+    _save(
+        fig,
+        out,
+        "fig15_wind.png",
+        "Tracking under wind (paper Fig. 15): x, y, their errors, the wind speeds "
+        "Vx, Vy (eq. 35) and the forces Fx, Fy (eq. 37) on the drone",
+        figures,
+    )
 
 
 def _fig_swarms(out, R, logs, figures):
-    names = [n for n in ("circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3")
-             if f"swarm/{n}" in logs]
+    names = [
+        n
+        for n in ("circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3")
+        if f"swarm/{n}" in logs
+    ]
     if not names:
         return
     plt = _plt()
@@ -205,8 +252,9 @@ def _fig_swarms(out, R, logs, figures):
             ax.legend(loc="upper left", fontsize=6)
     fig.suptitle("Swarm paths in 3D (paper Figs. 10–13): o start, ^ end; red = leader")
     fig.tight_layout()
-    _save(fig, out, "swarm_paths_3d.png", "3D paths of the six drones in the swarm scenarios (paper Figs. 10–13)",
-          figures)
+    _save(
+        fig, out, "swarm_paths_3d.png", "3D paths of the six drones in the swarm scenarios (paper Figs. 10–13)", figures
+    )
 
 
 def _fig_variable_d(out, R, logs, figures):
@@ -238,8 +286,13 @@ def _fig_variable_d(out, R, logs, figures):
         a.set_xlabel("t (s)")
     fig.suptitle("Variable D of eq. (34): 1, 1.7, 1.2, 2 m at t = 0, 6, 11, 16 s (paper Fig. 14)")
     fig.tight_layout()
-    _save(fig, out, "fig14_variable_d.png", "Distances with a variable D (paper Fig. 14): leader–follower (left), "
-          "follower–follower (right)", figures)
+    _save(
+        fig,
+        out,
+        "fig14_variable_d.png",
+        "Distances with a variable D (paper Fig. 14): leader–follower (left), follower–follower (right)",
+        figures,
+    )
 
 
 def _fig_anticollision(out, R, logs, figures):
@@ -267,8 +320,9 @@ def _fig_anticollision(out, R, logs, figures):
         ax.plot(t, dh, lw=0.8, alpha=0.7, label="min horizontal distance")
         ax.axhline(0.8, color="gray", ls="--", lw=0.8, label="safety distance 0.8 m")
         ax.axhline(0.68, color="r", ls=":", lw=0.8, label="0.68 m (rotor tips can touch)")
-        row = next((r for r in R["anti_collision"]["rows"] if r["scenario"] == "anti_collision" and r["rule"] == rule),
-                   None)
+        row = next(
+            (r for r in R["anti_collision"]["rows"] if r["scenario"] == "anti_collision" and r["rule"] == rule), None
+        )
         if row:
             ax.set_title(f"'{rule}': {row['contacts']} contacts, min {row['min_separation_m']:.2f} m")
         ax.set_ylim(0, 3)
@@ -277,8 +331,14 @@ def _fig_anticollision(out, R, logs, figures):
             ax.legend(fontsize=6)
     fig.suptitle("Anti-collision: followers crossing past the hovering leader (paper Fig. 16b)")
     fig.tight_layout()
-    _save(fig, out, "fig16_anticollision.png", "Anti-collision (paper Fig. 16b): altitudes and minimum pairwise "
-          "distances with our layered rule, the paper's rule and none", figures)
+    _save(
+        fig,
+        out,
+        "fig16_anticollision.png",
+        "Anti-collision (paper Fig. 16b): altitudes and minimum pairwise "
+        "distances with our layered rule, the paper's rule and none",
+        figures,
+    )
 
 
 def _fig_wind_robustness(out, R, logs, figures):
@@ -305,8 +365,14 @@ def _fig_wind_robustness(out, R, logs, figures):
         a.set_title(f"{traj} under wind: RMSE (m), one dot per seed")
         a.legend()
     fig.tight_layout()
-    _save(fig, out, "wind_robustness.png", "Wind robustness: leader RMSE per seed (whole run and t ≥ 10 s), with "
-          "and without wind feedforward, beside the paper's Table 5", figures)
+    _save(
+        fig,
+        out,
+        "wind_robustness.png",
+        "Wind robustness: leader RMSE per seed (whole run and t ≥ 10 s), with "
+        "and without wind feedforward, beside the paper's Table 5",
+        figures,
+    )
 
 
 def _fig_sigma(out, R, logs, figures):
@@ -324,16 +390,22 @@ def _fig_sigma(out, R, logs, figures):
             std = [as_number(r["stats"][mk]["std"]) for r in s["results"]]
             worst = [as_number(r["stats"][mk]["worst"]) for r in s["results"]]
             lab = "no FF" if "noff" in key else "FF"
-            a.errorbar(v + off * 0.01, mean, yerr=std, marker="o", capsize=3, color=f"C{off}",
-                       label=f"{lab} mean ± std")
+            a.errorbar(
+                v + off * 0.01, mean, yerr=std, marker="o", capsize=3, color=f"C{off}", label=f"{lab} mean ± std"
+            )
             a.plot(v, worst, "x", color=f"C{off}", label=f"{lab} worst")
             a.set_xlabel("σ (m/s)")
             a.set_title(f"lemniscate under wind: {mk.replace('rmse_steady_', '')} RMSE, t ≥ 10 s (m)")
             a.set_yscale("log")
     axs[0].legend()
     fig.tight_layout()
-    _save(fig, out, "wind_sigma.png", "Steady RMSE against the turbulence intensity σ (mean ± std and worst over "
-          "the seeds)", figures)
+    _save(
+        fig,
+        out,
+        "wind_sigma.png",
+        "Steady RMSE against the turbulence intensity σ (mean ± std and worst over the seeds)",
+        figures,
+    )
 
 
 def _fig_fpa(out, R, logs, figures):
@@ -344,13 +416,20 @@ def _fig_fpa(out, R, logs, figures):
     fig, ax = plt.subplots(figsize=(6.5, 3.8))
     for o in ours:
         h = [as_number(x) for x in o["history"]]
-        line, = ax.plot(range(len(h)), h, marker="o", ms=3,
-                        label=f"seed {o['seed']} ({fmt_cell(o['improvement_pct'], '{:.1f}')} %)")
+        (line,) = ax.plot(
+            range(len(h)), h, marker="o", ms=3, label=f"seed {o['seed']} ({fmt_cell(o['improvement_pct'], '{:.1f}')} %)"
+        )
         for q in R["table3"].get("ours_paper_mode") or []:
             if q["seed"] == o["seed"]:
                 hq = [as_number(x) for x in q["history"]]
-                ax.plot(range(len(hq)), hq, ls=":", color=line.get_color(), lw=1,
-                        label=f"seed {q['seed']}, paper mode ({fmt_cell(q['improvement_pct'], '{:.1f}')} %)")
+                ax.plot(
+                    range(len(hq)),
+                    hq,
+                    ls=":",
+                    color=line.get_color(),
+                    lw=1,
+                    label=f"seed {q['seed']}, paper mode ({fmt_cell(q['improvement_pct'], '{:.1f}')} %)",
+                )
     ax.axhline(R["gains"]["table4_ise"], color="k", ls="--", lw=0.8, label="paper Table 4 gains")
     if R["gains"].get("fpa_ise") is not None:
         ax.axhline(R["gains"]["fpa_ise"], color="r", ls=":", lw=0.8, label="fpa_seed1.toml")

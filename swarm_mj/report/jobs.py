@@ -26,8 +26,8 @@ class RunJob:
     scenario: Scenario
     seed: int | None = None
     duration: float | None = None
-    keep: tuple[str, ...] = ()       # RunLog fields to send back ("*" = the whole RunLog)
-    every: int = 1                   # keep every n-th sample
+    keep: tuple[str, ...] = ()  # RunLog fields to send back ("*" = the whole RunLog)
+    every: int = 1  # keep every n-th sample
 
 
 @dataclass(frozen=True)
@@ -36,7 +36,7 @@ class TuneJob:
     seed: int
     population: int
     iterations: int
-    mode: str = "bars"          # "bars": swarm-mj tune's defaults; "paper": ISE alone, random init
+    mode: str = "bars"  # "bars": swarm-mj tune's defaults; "paper": ISE alone, random init
 
 
 @dataclass(frozen=True)
@@ -64,17 +64,34 @@ def do_job(job: Any) -> Any:
         from ..tuning.cost import StepCostSettings, TuneOptions, tune_gains
 
         paper = job.mode == "paper"
-        tuned = tune_gains(TuneOptions(population=job.population, iterations=job.iterations, seed=job.seed,
-                                       init="random" if paper else "table4"),
-                           StepCostSettings(bars=None) if paper else StepCostSettings(), workers=1)
+        tuned = tune_gains(
+            TuneOptions(
+                population=job.population,
+                iterations=job.iterations,
+                seed=job.seed,
+                init="random" if paper else "table4",
+            ),
+            StepCostSettings(bars=None) if paper else StepCostSettings(),
+            workers=1,
+        )
         c = tuned.check
-        assert c is not None                    # tune_gains always checks its best gains
-        return {"seed": job.seed, "mode": job.mode, "initial_ise": tuned.initial_ise, "final_ise": tuned.best_ise,
-                "improvement_pct": tuned.improvement_pct, "table4_ise": tuned.table4_ise,
-                "history": [float(h) for h in tuned.history_ise], "best_gains": [float(g) for g in tuned.best_x],
-                "meets_bars": bool(c.meets_bars), "max_tilt_deg": c.max_tilt_deg,
-                "step": {ax: dict(m) for ax, m in c.step.items()},
-                "population": job.population, "iterations": job.iterations, "wall_s": tuned.wall_s}
+        assert c is not None  # tune_gains always checks its best gains
+        return {
+            "seed": job.seed,
+            "mode": job.mode,
+            "initial_ise": tuned.initial_ise,
+            "final_ise": tuned.best_ise,
+            "improvement_pct": tuned.improvement_pct,
+            "table4_ise": tuned.table4_ise,
+            "history": [float(h) for h in tuned.history_ise],
+            "best_gains": [float(g) for g in tuned.best_x],
+            "meets_bars": bool(c.meets_bars),
+            "max_tilt_deg": c.max_tilt_deg,
+            "step": {ax: dict(m) for ax, m in c.step.items()},
+            "population": job.population,
+            "iterations": job.iterations,
+            "wall_s": tuned.wall_s,
+        }
     if isinstance(job, IseJob):
         from ..tuning.cost import step_ise
 
@@ -87,7 +104,7 @@ def do_job(job: Any) -> Any:
         out["log"] = res.log
     elif job.keep:
         log = res.log
-        out["log"] = {f: np.ascontiguousarray(getattr(log, f)[::job.every]) for f in ("t",) + job.keep}
+        out["log"] = {f: np.ascontiguousarray(getattr(log, f)[:: job.every]) for f in ("t",) + job.keep}
         out["log"]["names"] = list(log.names)
     return out
 
@@ -106,13 +123,18 @@ def describe_job(group: str, job: Any, sweeps: dict[str, dict[str, Any]]) -> str
     what = getattr(job, "key", None)
     if what is not None:
         return what
-    sw = sweeps[group[6:]]                       # a sweep run: group "sweep:KEY"
+    sw = sweeps[group[6:]]  # a sweep run: group "sweep:KEY"
     val = f" {sw['param']}={sw['values'][job.value_index]}" if sw["param"] else ""
     return f"sweep {group[6:]}{val} seed {job.seed}"
 
 
-def run_jobs(jobs: list[tuple[str, Any]], sweeps: dict[str, dict[str, Any]], workers: int,
-             bar: Progress | None = None, say: Callable[[str], None] | None = None) -> JobResults:
+def run_jobs(
+    jobs: list[tuple[str, Any]],
+    sweeps: dict[str, dict[str, Any]],
+    workers: int,
+    bar: Progress | None = None,
+    say: Callable[[str], None] | None = None,
+) -> JobResults:
     """Run every (group, job), longest first, on ``workers`` processes; results in plan order.
 
     ``say(line)`` gets one line per completed job (its key, wall time and the elapsed time).
@@ -128,8 +150,11 @@ def run_jobs(jobs: list[tuple[str, Any]], sweeps: dict[str, dict[str, Any]], wor
             return
         group, job = jobs[order[j]]
         wall = r.get("wall_s") if isinstance(r, dict) else None
-        say(f"[{done[0]:>{len(str(total))}}/{total}] {describe_job(group, job, sweeps)}"
-            + (f" ({wall:.1f} s)" if wall else "") + f"  {time.perf_counter() - t0:5.0f} s elapsed")
+        say(
+            f"[{done[0]:>{len(str(total))}}/{total}] {describe_job(group, job, sweeps)}"
+            + (f" ({wall:.1f} s)" if wall else "")
+            + f"  {time.perf_counter() - t0:5.0f} s elapsed"
+        )
 
     ordered = map_ordered(do_job, [jobs[i][1] for i in order], workers=workers, progress=bar, on_result=on_result)
     by_index: list[Any] = [None] * len(jobs)

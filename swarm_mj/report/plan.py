@@ -15,25 +15,37 @@ from typing import Any
 
 import numpy as np
 
+from ..paper import PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3  # noqa: F401 (re-exported)
 from ..scenario import Scenario, load_scenario, parse_scenario
 from ..sweep import SweepTask, apply_param
 from .jobs import IseJob, RunJob, TuneJob
 
 GAINS_FILE = Path("scenarios/gains/fpa_seed1.toml")
-ALL_FIGURES = {"fig07_step.png", "fig08_rotors.png", "fig09_lemniscate.png", "fig15_wind.png", "swarm_paths_3d.png",
-               "fig14_variable_d.png", "fig16_anticollision.png", "wind_robustness.png", "wind_sigma.png",
-               "fpa_convergence.png", "snapshot_scenario1.png"}
-
-from ..paper import PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3  # noqa: F401 (re-exported)
+ALL_FIGURES = {
+    "fig07_step.png",
+    "fig08_rotors.png",
+    "fig09_lemniscate.png",
+    "fig15_wind.png",
+    "swarm_paths_3d.png",
+    "fig14_variable_d.png",
+    "fig16_anticollision.png",
+    "wind_robustness.png",
+    "wind_sigma.png",
+    "fpa_convergence.png",
+    "snapshot_scenario1.png",
+}
 
 #: Table 5's scenarios (single drone; each flown from the ground, on its path and with the FPA gains).
 TABLE5_SCENARIOS = ["circle_single", "wind_circle", "lemniscate_single", "wind_lemniscate"]
 #: Table 5's wind scenarios without the wind feedforward (ground start only).
 TABLE5_NOFF = ["wind_circle_noff", "wind_lemniscate_noff"]
 #: RunLog fields kept for the figures, per Table 5 scenario.
-TABLE5_KEEP = {"lemniscate_single": ("pos", "pos_d"), "circle_single": ("pos", "pos_d"),
-               "wind_lemniscate": ("pos", "pos_d", "wind_speed", "wind_force"),
-               "wind_circle": ("pos", "pos_d", "wind_speed", "wind_force")}
+TABLE5_KEEP = {
+    "lemniscate_single": ("pos", "pos_d"),
+    "circle_single": ("pos", "pos_d"),
+    "wind_lemniscate": ("pos", "pos_d", "wind_speed", "wind_force"),
+    "wind_circle": ("pos", "pos_d", "wind_speed", "wind_force"),
+}
 SWARMS = ["circle", "lemniscate", "ascending_orbit", "scenario1", "scenario2", "scenario3"]
 RULES = ("layers", "paper", "off")
 ANTI_COLLISION_SCENARIOS = ("anti_collision", "scenario1", "scenario2", "scenario3")
@@ -45,14 +57,14 @@ class Plan:
     """Durations (None = the scenario's own) and seed counts of a report."""
 
     name: str = "full"
-    table5_s: float | None = None          # 180 s
-    swarm_s: float | None = None           # 180 s (circle, lemniscate, ascending orbit), 60 s (scenario1..3)
-    variable_d_s: float | None = None      # 30 s
-    anti_s: float | None = None            # 20 s
+    table5_s: float | None = None  # 180 s
+    swarm_s: float | None = None  # 180 s (circle, lemniscate, ascending orbit), 60 s (scenario1..3)
+    variable_d_s: float | None = None  # 30 s
+    anti_s: float | None = None  # 20 s
     wind_seeds: int = 20
-    wind_s: float | None = None            # 180 s
+    wind_s: float | None = None  # 180 s
     swarm_wind_seeds: int = 10
-    swarm_wind_s: float | None = None      # 180 s
+    swarm_wind_s: float | None = None  # 180 s
     sigma_values: tuple[float, ...] = (0.4, 0.8, 1.2)
     sigma_seeds: int = 10
     crossing_seeds: int = 20
@@ -68,10 +80,22 @@ class Plan:
 
     @classmethod
     def quick(cls) -> Plan:
-        return cls(name="quick", table5_s=30.0, swarm_s=15.0, wind_seeds=3, wind_s=30.0, swarm_wind_seeds=2,
-                   swarm_wind_s=15.0, sigma_seeds=2, crossing_seeds=3, crossing_s=10.0, fpa_seeds=(1,),
-                   fpa_population=8, fpa_iterations=2, snapshot=False)
-
+        return cls(
+            name="quick",
+            table5_s=30.0,
+            swarm_s=15.0,
+            wind_seeds=3,
+            wind_s=30.0,
+            swarm_wind_seeds=2,
+            swarm_wind_s=15.0,
+            sigma_seeds=2,
+            crossing_seeds=3,
+            crossing_s=10.0,
+            fpa_seeds=(1,),
+            fpa_population=8,
+            fpa_iterations=2,
+            snapshot=False,
+        )
 
 
 @dataclass
@@ -93,8 +117,15 @@ class JobList:
     def add(self, group: str, job: Any) -> None:
         self.jobs.append((group, job))
 
-    def add_sweep(self, key: str, sc: Scenario, seeds: int, duration: float | None, param: str | None = None,
-                  values: tuple = (None,)) -> None:
+    def add_sweep(
+        self,
+        key: str,
+        sc: Scenario,
+        seeds: int,
+        duration: float | None,
+        param: str | None = None,
+        values: tuple = (None,),
+    ) -> None:
         """One seeded sweep: a :class:`~swarm_mj.sweep.SweepTask` per (value, seed)."""
         variants = [sc] if param is None else [apply_param(sc, param, v) for v in values]
         idx = []
@@ -102,16 +133,24 @@ class JobList:
             for s in range(seeds):
                 idx.append(len(self.jobs))
                 self.add(f"sweep:{key}", SweepTask(v, s, vi, duration))
-        self.sweeps[key] = {"scenario": sc.name, "param": param, "values": list(values),
-                            "seeds": list(range(seeds)),
-                            "duration_s": float(duration if duration is not None else sc.duration), "jobs": idx}
+        self.sweeps[key] = {
+            "scenario": sc.name,
+            "param": param,
+            "values": list(values),
+            "seeds": list(range(seeds)),
+            "duration_s": float(duration if duration is not None else sc.duration),
+            "jobs": idx,
+        }
 
 
 def _find_gains_file() -> Path | None:
     from ..resources import SCENARIOS_DIR
 
-    for p in (Path.cwd() / GAINS_FILE, Path(SCENARIOS_DIR) / "gains" / GAINS_FILE.name,
-              Path(__file__).resolve().parents[2] / GAINS_FILE):
+    for p in (
+        Path.cwd() / GAINS_FILE,
+        Path(SCENARIOS_DIR) / "gains" / GAINS_FILE.name,
+        Path(__file__).resolve().parents[2] / GAINS_FILE,
+    ):
         if p.is_file():
             return p
     return None
@@ -133,8 +172,6 @@ def random_crossing(duration: float) -> Scenario:
     return parse_scenario(data, base.path, name="random_crossing")
 
 
-
-
 def load_fpa_gains() -> FpaGains:
     """The FPA gains of ``GAINS_FILE`` and the metadata written beside them by ``swarm-mj tune``."""
     from ..control.backstepping import load_gains
@@ -145,8 +182,20 @@ def load_fpa_gains() -> FpaGains:
     gains = load_gains(path)
     try:
         meta = tomllib.loads(path.read_text())
-        meta = {k: meta[k] for k in ("ise", "initial_ise", "improvement_pct", "table4_ise", "seed",
-                                     "iterations_done", "complete", "created") if k in meta}
+        meta = {
+            k: meta[k]
+            for k in (
+                "ise",
+                "initial_ise",
+                "improvement_pct",
+                "table4_ise",
+                "seed",
+                "iterations_done",
+                "complete",
+                "created",
+            )
+            if k in meta
+        }
     except Exception:  # noqa: BLE001 - metadata is optional
         meta = {}
     return FpaGains(path, gains, meta)
@@ -168,8 +217,10 @@ def _step_jobs(jl: JobList, fpa: FpaGains) -> None:
     jl.add("step", RunJob("step/table4", step, keep=STEP_KEEP))
     jl.add("step", RunJob("step/paper_map", step.with_overrides(attitude_map="paper"), keep=("pos", "rpy")))
     if fpa.gains is not None:
-        jl.add("step", RunJob("step/fpa", step.with_overrides(gains=fpa.gains, gains_source=str(fpa.path)),
-                              keep=("pos", "rpy")))
+        jl.add(
+            "step",
+            RunJob("step/fpa", step.with_overrides(gains=fpa.gains, gains_source=str(fpa.path)), keep=("pos", "rpy")),
+        )
 
 
 def _table5_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:
@@ -178,8 +229,12 @@ def _table5_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:
         jl.add("t5", RunJob(f"t5/{name}/ground", sc, duration=plan.table5_s, keep=TABLE5_KEEP[name], every=2))
         jl.add("t5", RunJob(f"t5/{name}/on_path", _on_path(sc), duration=plan.table5_s))
         if fpa.gains is not None:
-            jl.add("t5", RunJob(f"t5/{name}/fpa", sc.with_overrides(gains=fpa.gains, gains_source="fpa"),
-                                duration=plan.table5_s))
+            jl.add(
+                "t5",
+                RunJob(
+                    f"t5/{name}/fpa", sc.with_overrides(gains=fpa.gains, gains_source="fpa"), duration=plan.table5_s
+                ),
+            )
     for name in TABLE5_NOFF:
         jl.add("t5", RunJob(f"t5/{name}/ground", load_scenario(name), duration=plan.table5_s))
 
@@ -187,19 +242,24 @@ def _table5_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:
 def _swarm_jobs(jl: JobList, plan: Plan) -> None:
     for name in SWARMS:
         jl.add("swarm", RunJob(f"swarm/{name}", load_scenario(name), duration=plan.swarm_s, keep=("pos",), every=10))
-    jl.add("vd", RunJob("variable_d", load_scenario("variable_diameter"), duration=plan.variable_d_s,
-                        keep=("pos", "D")))
+    jl.add(
+        "vd", RunJob("variable_d", load_scenario("variable_diameter"), duration=plan.variable_d_s, keep=("pos", "D"))
+    )
     for name in ANTI_COLLISION_SCENARIOS:
         sc = load_scenario(name)
         for rule in RULES:
             if name != "anti_collision" and rule == sc.anti_collision:
-                continue        # the swarm run above
+                continue  # the swarm run above
             dur = plan.anti_s if name == "anti_collision" else plan.swarm_s
             keep = ("pos", "pos_d") if name == "anti_collision" else ()
             jl.add("ac", RunJob(f"ac/{name}/{rule}", sc.with_overrides(anti_collision=rule), duration=dur, keep=keep))
     if plan.snapshot:
-        jl.add("snap", RunJob("snapshot/scenario1", load_scenario("scenario1"),
-                              duration=min(25.0, plan.swarm_s or 60.0), keep=("*",)))
+        jl.add(
+            "snap",
+            RunJob(
+                "snapshot/scenario1", load_scenario("scenario1"), duration=min(25.0, plan.swarm_s or 60.0), keep=("*",)
+            ),
+        )
 
 
 def _sweep_jobs(jl: JobList, plan: Plan) -> None:
@@ -207,10 +267,17 @@ def _sweep_jobs(jl: JobList, plan: Plan) -> None:
         jl.add_sweep(name, load_scenario(name), plan.wind_seeds, plan.wind_s)
     jl.add_sweep("wind_swarm", load_scenario("wind_swarm"), plan.swarm_wind_seeds, plan.swarm_wind_s)
     for name in ("wind_lemniscate", "wind_lemniscate_noff"):
-        jl.add_sweep(f"sigma/{name}", load_scenario(name), plan.sigma_seeds, plan.wind_s, "wind.sigma",
-                     tuple(plan.sigma_values))
-    jl.add_sweep("random_crossing", random_crossing(plan.crossing_s), plan.crossing_seeds, None,
-                 "formation.anti_collision", RULES)
+        jl.add_sweep(
+            f"sigma/{name}", load_scenario(name), plan.sigma_seeds, plan.wind_s, "wind.sigma", tuple(plan.sigma_values)
+        )
+    jl.add_sweep(
+        "random_crossing",
+        random_crossing(plan.crossing_s),
+        plan.crossing_seeds,
+        None,
+        "formation.anti_collision",
+        RULES,
+    )
 
 
 def _fpa_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:

@@ -9,6 +9,21 @@ from .driver import TuneOptions, TuneOutcome, tune_gains
 from .evaluator import BatchEvaluator, StepCheck, StepCostSettings, evaluate_batch, step_check, step_ise, table4_ise
 from .fpa import FPAResult, fpa, levy_steps, random_search
 
-__all__ = ["FPAResult", "fpa", "levy_steps", "random_search",
-           "BatchEvaluator", "StepBars", "StepCheck", "StepCostSettings", "TuneOptions", "TuneOutcome",
-           "evaluate_batch", "make_population_cost", "step_check", "step_ise", "table4_ise", "tune_gains"]
+__all__ = [
+    "FPAResult",
+    "fpa",
+    "levy_steps",
+    "random_search",
+    "BatchEvaluator",
+    "StepBars",
+    "StepCheck",
+    "StepCostSettings",
+    "TuneOptions",
+    "TuneOutcome",
+    "evaluate_batch",
+    "make_population_cost",
+    "step_check",
+    "step_ise",
+    "table4_ise",
+    "tune_gains",
+]

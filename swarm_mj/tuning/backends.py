@@ -21,9 +21,15 @@ from ..errors import UserError
 from ..parallel import RAY_INSTALL_HINT, default_workers, import_ray, init_ray
 from .evaluator import StepCostSettings, evaluate_batch
 
-__all__ = ["InProcessCost", "PopulationCost", "ProcessPoolCost", "RAY_INSTALL_HINT", "RayCost", "default_workers",
-           "make_population_cost"]
-
+__all__ = [
+    "InProcessCost",
+    "PopulationCost",
+    "ProcessPoolCost",
+    "RAY_INSTALL_HINT",
+    "RayCost",
+    "default_workers",
+    "make_population_cost",
+]
 
 
 class PopulationCost(Protocol):
@@ -100,7 +106,8 @@ class ProcessPoolCost(_Closing):
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
         self._pool: ProcessPoolExecutor | None = ProcessPoolExecutor(
-            self.workers, mp_context=_pool_context(), initializer=_worker_init)
+            self.workers, mp_context=_pool_context(), initializer=_worker_init
+        )
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         if self._pool is None:
@@ -108,8 +115,8 @@ class ProcessPoolCost(_Closing):
         X = np.asarray(X, dtype=float)
         futures = [self._pool.submit(_worker_eval, (self.settings, c)) for c in _chunks(X, self.workers)]
         results = []
-        for f in futures:                 # in chunk order: the same result whatever the timing
-            while True:                   # a timed wait keeps Ctrl-C responsive in the parent
+        for f in futures:  # in chunk order: the same result whatever the timing
+            while True:  # a timed wait keeps Ctrl-C responsive in the parent
                 try:
                     results.append(f.result(timeout=0.5))
                     break
@@ -123,7 +130,7 @@ class ProcessPoolCost(_Closing):
             return
         procs = list((getattr(pool, "_processes", None) or {}).values())
         pool.shutdown(wait=False, cancel_futures=True)
-        for proc in procs:                # do not wait for chunks still running (Ctrl-C)
+        for proc in procs:  # do not wait for chunks still running (Ctrl-C)
             if proc.is_alive():
                 proc.terminate()
         for proc in procs:
@@ -150,8 +157,9 @@ class RayCost(_Closing):
 
     backend = "ray"
 
-    def __init__(self, settings: StepCostSettings = StepCostSettings(), address: str = "local",
-                 workers: int | None = None) -> None:
+    def __init__(
+        self, settings: StepCostSettings = StepCostSettings(), address: str = "local", workers: int | None = None
+    ) -> None:
         ray = import_ray()
         self._ray = ray
         self.settings = settings
@@ -183,16 +191,16 @@ class RayCost(_Closing):
             self._started = False
 
 
-def make_population_cost(settings: StepCostSettings = StepCostSettings(), *, workers: int | None = None,
-                         ray_address: str | None = None) -> InProcessCost | ProcessPoolCost | RayCost:
+def make_population_cost(
+    settings: StepCostSettings = StepCostSettings(), *, workers: int | None = None, ray_address: str | None = None
+) -> InProcessCost | ProcessPoolCost | RayCost:
     """The batched eq.-(25) cost for :func:`~swarm_mj.tuning.fpa`, on the chosen backend.
 
     ray_address given: Ray (``workers`` actors, default one per cluster CPU);
     else ``workers`` local processes (default: the CPUs available), ``workers=1`` in-process.
     Use it as a context manager (or call ``close()``) to stop the workers.
     """
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer))
-                                or workers < 1):
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
         raise UserError(f"workers must be an integer >= 1, got {workers!r}")
     if ray_address is not None:
         return RayCost(settings, ray_address, workers)

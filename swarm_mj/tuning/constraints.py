@@ -46,7 +46,7 @@ class StepBars:
     settling_y_s: float = 2.0
     settling_z_s: float = 1.5
     settling_psi_s: float = 2.0
-    steady_state_error: float = 1.0e-3      # m for x, y, z; rad for ψ
+    steady_state_error: float = 1.0e-3  # m for x, y, z; rad for ψ
     max_tilt_deg: float = 55.0
 
     def __post_init__(self) -> None:
@@ -61,8 +61,9 @@ class StepBars:
         return asdict(self)
 
 
-def step_violation(step: dict[str, dict[str, np.ndarray]], max_tilt_deg: np.ndarray, bars: StepBars,
-                   t_end: float) -> np.ndarray:
+def step_violation(
+    step: dict[str, dict[str, np.ndarray]], max_tilt_deg: np.ndarray, bars: StepBars, t_end: float
+) -> np.ndarray:
     """Total normalised violation (m,) of the bars; 0 exactly where every bar is met.
 
     step: ``{axis: {"overshoot_pct", "settling_s", "steady_state_error"}}`` with (m,) arrays

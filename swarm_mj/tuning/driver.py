@@ -20,7 +20,6 @@ from .fpa import FPAResult, fpa
 __all__ = ["INITS", "TuneCallback", "TuneOptions", "TuneOutcome", "tune_gains"]
 
 
-
 INITS = ("table4", "random")
 
 
@@ -54,8 +53,7 @@ class TuneOptions:
         if not (_finite(self.lower) and _finite(self.upper)):
             raise UserError(f"bounds must be finite numbers, got lower={self.lower!r}, upper={self.upper!r}")
         if self.lower <= 0.0:
-            raise UserError(f"lower bound must be > 0 (the gains must be positive, paper: α_s > 0), "
-                            f"got {self.lower!r}")
+            raise UserError(f"lower bound must be > 0 (the gains must be positive, paper: α_s > 0), got {self.lower!r}")
         if self.lower >= self.upper:
             raise UserError(f"bounds inverted: lower {self.lower!r} must be below upper {self.upper!r}")
         if isinstance(self.seed, bool) or not isinstance(self.seed, (int, np.integer)) or self.seed < 0:
@@ -63,9 +61,11 @@ class TuneOptions:
         if self.init not in INITS:
             raise UserError(f"init must be one of {', '.join(INITS)}, got {self.init!r}")
         if self.init == "table4" and not (self.lower <= TABLE4_GAINS.min() and TABLE4_GAINS.max() <= self.upper):
-            raise UserError(f"init table4 needs bounds that hold the Table 4 gains "
-                            f"[{TABLE4_GAINS.min():g}, {TABLE4_GAINS.max():g}], got [{self.lower:g}, {self.upper:g}]; "
-                            f"widen them or use init random")
+            raise UserError(
+                f"init table4 needs bounds that hold the Table 4 gains "
+                f"[{TABLE4_GAINS.min():g}, {TABLE4_GAINS.max():g}], got [{self.lower:g}, {self.upper:g}]; "
+                f"widen them or use init random"
+            )
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
@@ -90,19 +90,19 @@ class TuneOutcome:
     ISE where the bars are met (or without bars), else ``INFEASIBLE + violation``.
     """
 
-    result: FPAResult | None          # the FPA result at the end; None in per-iteration snapshots
-    best_x: np.ndarray                # (12,) best gains found
-    best_cost: float                  # its ranked cost
-    initial_cost: float               # ranked cost of the initial population's best
-    table4_ise: float                 # ISE of paper Table 4 gains, same cost
-    history: np.ndarray               # (iterations done + 1,) ranked best cost after each iteration
+    result: FPAResult | None  # the FPA result at the end; None in per-iteration snapshots
+    best_x: np.ndarray  # (12,) best gains found
+    best_cost: float  # its ranked cost
+    initial_cost: float  # ranked cost of the initial population's best
+    table4_ise: float  # ISE of paper Table 4 gains, same cost
+    history: np.ndarray  # (iterations done + 1,) ranked best cost after each iteration
     options: TuneOptions
     settings: StepCostSettings
     backend: str
     workers: int
     wall_s: float
     complete: bool
-    check: StepCheck | None = None    # at the end: best_x flown through the step (ISE, metrics, bars)
+    check: StepCheck | None = None  # at the end: best_x flown through the step (ISE, metrics, bars)
 
     def _decode(self, cost: float) -> tuple[bool, float]:
         """(feasible, ISE or violation) of a ranked cost; without bars every finite cost is an ISE."""
@@ -164,9 +164,14 @@ class TuneOutcome:
 TuneCallback = Callable[["TuneOutcome"], None]
 
 
-def tune_gains(options: TuneOptions = TuneOptions(), settings: StepCostSettings = StepCostSettings(), *,
-               workers: int | None = None, ray_address: str | None = None,
-               on_iteration: TuneCallback | None = None) -> TuneOutcome:
+def tune_gains(
+    options: TuneOptions = TuneOptions(),
+    settings: StepCostSettings = StepCostSettings(),
+    *,
+    workers: int | None = None,
+    ray_address: str | None = None,
+    on_iteration: TuneCallback | None = None,
+) -> TuneOutcome:
     """Tune α1..α12 by FPA (paper §3.2, Fig. 3, Table 2) on the ISE of eq. (25) over the step,
     subject to ``settings.bars`` (Deb's feasibility rules, :mod:`.constraints`) when set.
 
@@ -179,16 +184,53 @@ def tune_gains(options: TuneOptions = TuneOptions(), settings: StepCostSettings 
     import time
 
     t0 = time.perf_counter()
-    t4 = table4_ise(settings)      # in-process: same cost, bitwise, whatever the backend
+    t4 = table4_ise(settings)  # in-process: same cost, bitwise, whatever the backend
     with make_population_cost(settings, workers=workers, ray_address=ray_address) as cost:
+
         def progress(iteration: int, best_x: np.ndarray, best_cost: float, history: np.ndarray) -> None:
             if on_iteration is not None:
-                on_iteration(TuneOutcome(None, best_x, float(best_cost), float(history[0]), t4, history, options,
-                                         settings, cost.backend, cost.workers, time.perf_counter() - t0, False))
+                on_iteration(
+                    TuneOutcome(
+                        None,
+                        best_x,
+                        float(best_cost),
+                        float(history[0]),
+                        t4,
+                        history,
+                        options,
+                        settings,
+                        cost.backend,
+                        cost.workers,
+                        time.perf_counter() - t0,
+                        False,
+                    )
+                )
 
-        res = fpa(cost, options.bounds, population=options.population, iterations=options.iterations,
-                  p=options.p, gamma=options.gamma, seed=options.seed, x0=options.x0, callback=progress)
+        res = fpa(
+            cost,
+            options.bounds,
+            population=options.population,
+            iterations=options.iterations,
+            p=options.p,
+            gamma=options.gamma,
+            seed=options.seed,
+            x0=options.x0,
+            callback=progress,
+        )
         backend, n_workers = cost.backend, cost.workers
     check = step_check(res.best_x, settings)
-    return TuneOutcome(res, res.best_x, float(res.best_cost), float(res.initial_best_cost), t4, res.history,
-                       options, settings, backend, n_workers, time.perf_counter() - t0, True, check)
+    return TuneOutcome(
+        res,
+        res.best_x,
+        float(res.best_cost),
+        float(res.initial_best_cost),
+        t4,
+        res.history,
+        options,
+        settings,
+        backend,
+        n_workers,
+        time.perf_counter() - t0,
+        True,
+        check,
+    )

@@ -63,8 +63,16 @@ from ..sim import Sim
 from ..world import INTEGRATORS, build_world
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
-__all__ = ["DEFAULT_BLOCK", "BatchEvaluator", "StepCheck", "StepCostSettings", "evaluate_batch", "step_check",
-           "step_ise", "table4_ise"]
+__all__ = [
+    "DEFAULT_BLOCK",
+    "BatchEvaluator",
+    "StepCheck",
+    "StepCostSettings",
+    "evaluate_batch",
+    "step_check",
+    "step_ise",
+    "table4_ise",
+]
 
 
 # --------------------------------------------------------------------------- settings
@@ -112,8 +120,10 @@ class StepCostSettings:
         if self.bars is not None:
             longest = max(self.bars.settling(ax) for ax in AXES)
             if self.t_sim < longest:
-                raise UserError(f"t-sim {self.t_sim:g} s is shorter than the longest settling bar ({longest:g} s): "
-                                f"no candidate could meet the step bars; give a longer t-sim or --constraints none")
+                raise UserError(
+                    f"t-sim {self.t_sim:g} s is shorter than the longest settling bar ({longest:g} s): "
+                    f"no candidate could meet the step bars; give a longer t-sim or --constraints none"
+                )
 
     @property
     def n_samples(self) -> int:
@@ -153,7 +163,7 @@ def record_kernel(qpos: np.ndarray, rpy: np.ndarray, k: int, track: np.ndarray, 
             track[k, i, j] = qpos[i, j]
         track[k, i, 3] = rpy[i, 2]
         t = max(abs(rpy[i, 0]), abs(rpy[i, 1]))
-        if not t <= tilt[i]:              # NaN propagates, like np.maximum
+        if not t <= tilt[i]:  # NaN propagates, like np.maximum
             tilt[i] = t
 
 
@@ -163,8 +173,16 @@ def _error_samples():
 
 
 @jit(samples=_error_samples)
-def error_kernel(pos_d: np.ndarray, qpos: np.ndarray, att_d: np.ndarray, rpy: np.ndarray, yaw_d: np.ndarray,
-                  U: np.ndarray, e: np.ndarray, bad: np.ndarray) -> None:
+def error_kernel(
+    pos_d: np.ndarray,
+    qpos: np.ndarray,
+    att_d: np.ndarray,
+    rpy: np.ndarray,
+    yaw_d: np.ndarray,
+    U: np.ndarray,
+    e: np.ndarray,
+    bad: np.ndarray,
+) -> None:
     """The errors of eq. (25) at one sample, e (m, 6) = (p_d − p, φ_d − φ, θ_d − θ, wrap(ψ_d − ψ));
     marks copies with a non-finite input U (m, 4) as bad (m,)."""
     for i in range(qpos.shape[0]):
@@ -172,7 +190,7 @@ def error_kernel(pos_d: np.ndarray, qpos: np.ndarray, att_d: np.ndarray, rpy: np
             e[i, j] = pos_d[i, j] - qpos[i, j]
         e[i, 3] = att_d[i, 0] - rpy[i, 0]
         e[i, 4] = att_d[i, 1] - rpy[i, 1]
-        e[i, 5] = (yaw_d[i] - rpy[i, 2] + np.pi) % (2.0 * np.pi) - np.pi     # wrap to [−π, π)
+        e[i, 5] = (yaw_d[i] - rpy[i, 2] + np.pi) % (2.0 * np.pi) - np.pi  # wrap to [−π, π)
         for j in range(4):
             if not np.isfinite(U[i, j]):
                 bad[i] = True
@@ -191,8 +209,7 @@ class BatchEvaluator:
     at most per model (see :data:`DEFAULT_BLOCK`); ``block >= m`` gives one model for all.
     """
 
-    def __init__(self, m: int, settings: StepCostSettings = StepCostSettings(), *,
-                 block: int = DEFAULT_BLOCK) -> None:
+    def __init__(self, m: int, settings: StepCostSettings = StepCostSettings(), *, block: int = DEFAULT_BLOCK) -> None:
         if not isinstance(m, (int, np.integer)) or m < 1:
             raise UserError(f"batch size must be an integer >= 1, got {m!r}")
         if not isinstance(block, (int, np.integer)) or block < 1:
@@ -208,24 +225,39 @@ class BatchEvaluator:
         self.sims: list[Sim] = []
         for b in sizes:
             if b not in worlds:
-                starts = np.tile(np.asarray(s.start, float), (b, 1))        # (b, 3) all at the same point
+                starts = np.tile(np.asarray(s.start, float), (b, 1))  # (b, 3) all at the same point
                 # collisions=False: contacts are off, so the overlapping copies never touch.
-                worlds[b] = build_world(b, positions=starts, collisions=False, floor=False, params=s.params,
-                                        timestep=s.timestep, integrator=s.integrator)
-            self.sims.append(Sim(worlds[b], s.control_period, n_copies=b, floor_z=s.floor_z,
-                                 max_distance=s.max_distance, max_tilt=np.deg2rad(s.max_tilt_deg)))
+                worlds[b] = build_world(
+                    b,
+                    positions=starts,
+                    collisions=False,
+                    floor=False,
+                    params=s.params,
+                    timestep=s.timestep,
+                    integrator=s.integrator,
+                )
+            self.sims.append(
+                Sim(
+                    worlds[b],
+                    s.control_period,
+                    n_copies=b,
+                    floor_z=s.floor_z,
+                    max_distance=s.max_distance,
+                    max_tilt=np.deg2rad(s.max_tilt_deg),
+                )
+            )
         self.K = s.n_samples
-        self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))   # (m, 3) step set-point
-        self._zero3 = np.zeros((self.m, 3))                                # (m, 3) v_d = a_d = 0
-        self._yaw_d = np.full(self.m, np.deg2rad(s.yaw_deg))               # (m,)
-        self._qpos = np.empty((self.m, 7))                                 # (m, 7) gathered state
-        self._qvel = np.empty((self.m, 6))                                 # (m, 6)
-        self._codes = np.zeros(self.m, dtype=np.int8)                      # (m,) the health mask
-        self._errors = np.empty((self.K, self.m, 6))                       # (K, m, 6) e_x..e_ψ
-        self._track = np.zeros((self.K + 1, self.m, 4))                    # (K+1, m, 4) x, y, z, ψ
-        self._t = np.arange(self.K + 1) * s.control_period                 # (K+1,) sample times
-        self.max_tilt_deg = np.zeros(self.m)                               # (m,) of the last batch
-        self.violation = np.zeros(self.m)                                  # (m,) of the last batch
+        self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))  # (m, 3) step set-point
+        self._zero3 = np.zeros((self.m, 3))  # (m, 3) v_d = a_d = 0
+        self._yaw_d = np.full(self.m, np.deg2rad(s.yaw_deg))  # (m,)
+        self._qpos = np.empty((self.m, 7))  # (m, 7) gathered state
+        self._qvel = np.empty((self.m, 6))  # (m, 6)
+        self._codes = np.zeros(self.m, dtype=np.int8)  # (m,) the health mask
+        self._errors = np.empty((self.K, self.m, 6))  # (K, m, 6) e_x..e_ψ
+        self._track = np.zeros((self.K + 1, self.m, 4))  # (K+1, m, 4) x, y, z, ψ
+        self._t = np.arange(self.K + 1) * s.control_period  # (K+1,) sample times
+        self.max_tilt_deg = np.zeros(self.m)  # (m,) of the last batch
+        self.violation = np.zeros(self.m)  # (m,) of the last batch
         self.step: dict[str, dict[str, np.ndarray]] = {}
         #: (m,) control period at which each copy of the last batch diverged (-1: never).
         self.diverged_at = np.full(self.m, -1, dtype=np.int64)
@@ -261,19 +293,18 @@ class BatchEvaluator:
         if g.shape != (self.m, 12):
             raise UserError(f"gains must have shape ({self.m}, 12), got {g.shape}")
         m, s = self.m, self.settings
-        alive = np.isfinite(g).all(axis=1) & (g > 0).all(axis=1)          # (m,)
+        alive = np.isfinite(g).all(axis=1) & (g > 0).all(axis=1)  # (m,)
         self.diverged_at[:] = -1
         self.diverged_at[~alive] = 0
-        g = np.where(alive[:, None], g, TABLE4_GAINS)                     # placeholders for the dead
-        ctl = Backstepping(m, g, params=s.params, control_period=s.control_period,
-                           attitude_map=s.attitude_map)
+        g = np.where(alive[:, None], g, TABLE4_GAINS)  # placeholders for the dead
+        ctl = Backstepping(m, g, params=s.params, control_period=s.control_period, attitude_map=s.attitude_map)
         for sim in self.sims:
             sim.reset()
         pos_d, zero3, yaw_d = self._pos_d, self._zero3, self._yaw_d
         errors, track = self._errors, self._track
-        tilt = np.zeros(m)                                                 # (m,) max |roll|, |pitch| (rad)
+        tilt = np.zeros(m)  # (m,) max |roll|, |pitch| (rad)
         blocks = list(zip(self.sims, self.slices))
-        must_park = not alive.all()                                        # invalid gains: parked from the start
+        must_park = not alive.all()  # invalid gains: parked from the start
         with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
             for k in range(self.K + 1):
                 qpos, qvel = self._gather()
@@ -291,21 +322,25 @@ class BatchEvaluator:
                 if self._kill(alive, bad, k) or must_park:
                     if not alive.any():
                         break
-                    for sim, sl in blocks:                                 # no input, held at the start
+                    for sim, sl in blocks:  # no input, held at the start
                         if not alive[sl].all():
                             sim.park(~alive[sl])
                     must_park = False
                 for sim, sl in blocks:
                     sim.step(U[sl])
-        cost = ise(errors, s.control_period)                               # (m,) eq. (25)
+        cost = ise(errors, s.control_period)  # (m,) eq. (25)
         cost[~alive] = np.inf
         cost[~np.isfinite(cost)] = np.inf
         self.max_tilt_deg = np.where(alive, np.rad2deg(tilt), np.inf)
         with np.errstate(invalid="ignore", over="ignore"):
             target = (*s.target, np.deg2rad(s.yaw_deg))
-            self.step = {ax: {key: np.where(alive, v, np.nan) for key, v in
-                              step_metrics_batch(self._t, track[:, :, i], target[i], track[0, :, i]).items()}
-                         for i, ax in enumerate(AXES)}
+            self.step = {
+                ax: {
+                    key: np.where(alive, v, np.nan)
+                    for key, v in step_metrics_batch(self._t, track[:, :, i], target[i], track[0, :, i]).items()
+                }
+                for i, ax in enumerate(AXES)
+            }
             bars = s.bars if s.bars is not None else StepBars()
             self.violation = np.where(alive, step_violation(self.step, self.max_tilt_deg, bars, s.t_sim), np.inf)
         return cost
@@ -324,7 +359,7 @@ def _evaluator(m: int, settings: StepCostSettings) -> BatchEvaluator:
     key = (settings, m)
     ev = _EVALUATORS.get(key)
     if ev is None:
-        if len(_EVALUATORS) >= 8:   # bounded: a few chunk sizes per tune
+        if len(_EVALUATORS) >= 8:  # bounded: a few chunk sizes per tune
             _EVALUATORS.pop(next(iter(_EVALUATORS)))
         ev = _EVALUATORS[key] = BatchEvaluator(m, settings)
     return ev
@@ -360,9 +395,9 @@ class StepCheck:
     """One gain set flown through the step: its ISE, step metrics and the bars' verdict."""
 
     ise: float
-    step: dict[str, dict[str, float]]      # axis -> overshoot_pct, settling_s, steady_state_error
+    step: dict[str, dict[str, float]]  # axis -> overshoot_pct, settling_s, steady_state_error
     max_tilt_deg: float
-    violation: float                       # 0: every bar met (against ``bars``)
+    violation: float  # 0: every bar met (against ``bars``)
     bars: StepBars
 
     @property
@@ -377,8 +412,13 @@ def step_check(gains: np.ndarray, settings: StepCostSettings = StepCostSettings(
     ev = _evaluator(1, settings)
     cost = float(ev.evaluate(g)[0])
     step = {ax: {k: float(v[0]) for k, v in ev.step[ax].items()} for ax in AXES}
-    return StepCheck(cost, step, float(ev.max_tilt_deg[0]), float(ev.violation[0]),
-                     settings.bars if settings.bars is not None else StepBars())
+    return StepCheck(
+        cost,
+        step,
+        float(ev.max_tilt_deg[0]),
+        float(ev.violation[0]),
+        settings.bars if settings.bars is not None else StepBars(),
+    )
 
 
 def table4_ise(settings: StepCostSettings = StepCostSettings()) -> float:

@@ -112,8 +112,7 @@ def validate_bounds(bounds: Bounds) -> tuple[np.ndarray, np.ndarray]:
     if bad.size:
         i = int(bad[0])
         raise UserError(
-            f"bounds need lower < upper in every dimension; dimension {i} has "
-            f"lower={lower[i]!r} >= upper={upper[i]!r}"
+            f"bounds need lower < upper in every dimension; dimension {i} has lower={lower[i]!r} >= upper={upper[i]!r}"
         )
     return lower, upper
 
@@ -150,8 +149,7 @@ def _evaluate(cost: CostFn, X: np.ndarray) -> np.ndarray:
         raw = raw.reshape(-1) if raw.size == X.shape[0] else raw
     if raw.shape != (X.shape[0],):
         raise UserError(
-            f"cost function must return one cost per candidate, shape ({X.shape[0]},), "
-            f"got shape {np.shape(raw)}"
+            f"cost function must return one cost per candidate, shape ({X.shape[0]},), got shape {np.shape(raw)}"
         )
     return np.where(np.isnan(raw), np.inf, raw)
 
@@ -232,9 +230,7 @@ def fpa(
     if not (isinstance(p, (int, float, np.floating, np.integer)) and 0.0 <= float(p) <= 1.0):
         raise UserError(f"switch probability p must be in [0, 1], got {p!r}")
     if not (
-        isinstance(gamma, (int, float, np.floating, np.integer))
-        and math.isfinite(float(gamma))
-        and float(gamma) > 0.0
+        isinstance(gamma, (int, float, np.floating, np.integer)) and math.isfinite(float(gamma)) and float(gamma) > 0.0
     ):
         raise UserError(f"step size gamma must be a finite number > 0, got {gamma!r}")
     p, gamma = float(p), float(gamma)

@@ -43,10 +43,25 @@ import importlib
 from typing import Any
 
 _WHERE = {
-    "swarm_mj.video.style": ["DEFAULT_FPS", "DEFAULT_SIZE", "DEFAULT_SNAPSHOT_TIME", "MAX_SIZE", "LEADER_RGB",
-                             "FOLLOWER_RGB", "REFERENCE_RGBA", "VideoStyle"],
-    "swarm_mj.video.gl": ["EGL_PACKAGES", "HEADLESS_BACKENDS", "describe_gl_failure", "import_mujoco",
-                          "libegl_loadable", "mujoco_gl_backend", "open_renderer"],
+    "swarm_mj.video.style": [
+        "DEFAULT_FPS",
+        "DEFAULT_SIZE",
+        "DEFAULT_SNAPSHOT_TIME",
+        "MAX_SIZE",
+        "LEADER_RGB",
+        "FOLLOWER_RGB",
+        "REFERENCE_RGBA",
+        "VideoStyle",
+    ],
+    "swarm_mj.video.gl": [
+        "EGL_PACKAGES",
+        "HEADLESS_BACKENDS",
+        "describe_gl_failure",
+        "import_mujoco",
+        "libegl_loadable",
+        "mujoco_gl_backend",
+        "open_renderer",
+    ],
     "swarm_mj.video.camera": ["CameraPath", "camera_axes", "nearest_index", "project_points"],
     "swarm_mj.video.replay": ["Replay"],
     "swarm_mj.video.encode": ["frame_times", "render_snapshot", "render_video"],

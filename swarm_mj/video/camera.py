@@ -68,9 +68,9 @@ class CameraPath:
         pos = np.asarray(pos, float)
         k = len(t)
         dt = float(np.median(np.diff(t))) if k > 1 else 0.01
-        good = np.isfinite(pos).all(axis=2)                           # (k, n)
+        good = np.isfinite(pos).all(axis=2)  # (k, n)
         p = np.where(good[..., None], pos, np.nan)
-        lo, hi = np.nanmin(p, axis=1), np.nanmax(p, axis=1)           # (k, 3)
+        lo, hi = np.nanmin(p, axis=1), np.nanmax(p, axis=1)  # (k, 3)
         centre = 0.5 * (lo + hi)
         centre = np.where(np.isfinite(centre), centre, 0.0)
         lookat = _ema_zero_phase(centre, dt, style.smooth_s)

@@ -40,9 +40,19 @@ def _title(result_or_log) -> str | None:
     return getattr(sc, "name", None)
 
 
-def render_video(result, path: str | Path, *, fps: float = DEFAULT_FPS, size: tuple[int, int] = DEFAULT_SIZE,
-                 start: float | None = None, end: float | None = None, style: VideoStyle | None = None,
-                 progress: bool | None = None, world=None, crf: int = 20) -> Path:
+def render_video(
+    result,
+    path: str | Path,
+    *,
+    fps: float = DEFAULT_FPS,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    start: float | None = None,
+    end: float | None = None,
+    style: VideoStyle | None = None,
+    progress: bool | None = None,
+    world=None,
+    crf: int = 20,
+) -> Path:
     """Write an H.264 MP4 of a run (``RunResult`` or ``RunLog``) replayed at ``fps``.
 
     Frames: :func:`frame_times` over [start, end] (default: the whole run). The file is
@@ -72,10 +82,17 @@ def render_video(result, path: str | Path, *, fps: float = DEFAULT_FPS, size: tu
             rep.title = _title(result)
             # macro_block_size=2: yuv420p needs even sizes, and nothing else is resized
             # (1280x720, 1920x1080 and 320x240 go through untouched).
-            writer = iio2.get_writer(str(tmp), format="FFMPEG", mode="I", fps=float(fps), codec="libx264",
-                                     pixelformat="yuv420p", macro_block_size=2, quality=None,
-                                     output_params=["-crf", str(int(crf)), "-preset", "veryfast",
-                                                    "-movflags", "+faststart"])
+            writer = iio2.get_writer(
+                str(tmp),
+                format="FFMPEG",
+                mode="I",
+                fps=float(fps),
+                codec="libx264",
+                pixelformat="yuv420p",
+                macro_block_size=2,
+                quality=None,
+                output_params=["-crf", str(int(crf)), "-preset", "veryfast", "-movflags", "+faststart"],
+            )
             for i, t in enumerate(times):
                 writer.append_data(rep.render(float(t)))
                 bar.update(i + 1)
@@ -98,8 +115,15 @@ def render_video(result, path: str | Path, *, fps: float = DEFAULT_FPS, size: tu
     return path
 
 
-def render_snapshot(result, path: str | Path, *, time: float = DEFAULT_SNAPSHOT_TIME,
-                    size: tuple[int, int] = DEFAULT_SIZE, style: VideoStyle | None = None, world=None) -> Path:
+def render_snapshot(
+    result,
+    path: str | Path,
+    *,
+    time: float = DEFAULT_SNAPSHOT_TIME,
+    size: tuple[int, int] = DEFAULT_SIZE,
+    style: VideoStyle | None = None,
+    world=None,
+) -> Path:
     """Write a PNG still of a run at ``time`` (the nearest log sample), with the video's camera."""
     import imageio.v3 as iio
 

@@ -32,7 +32,6 @@ if TYPE_CHECKING:
 EGL_PACKAGES = "libegl1 libegl-mesa0 libgl1-mesa-dri libopengl0"
 
 
-
 #: (MUJOCO_GL value, exception) when MuJoCo could not be imported with the backend the user chose.
 IMPORT_FAILURE: tuple[str, BaseException] | None = None
 
@@ -48,14 +47,15 @@ def import_mujoco() -> None:
         return
     try:
         import mujoco  # noqa: F401
+
         return
     except Exception as exc:  # noqa: BLE001 - e.g. AttributeError from PyOpenGL without libOSMesa
         backend = os.environ.get("MUJOCO_GL", "").strip().lower()
         if backend in ("", "disable", "disabled", "off", "false", "0"):
-            raise                                   # not a rendering backend problem
+            raise  # not a rendering backend problem
         IMPORT_FAILURE = (backend, exc)
     for name in [m for m in sys.modules if m.split(".")[0] in ("mujoco", "OpenGL")]:
-        del sys.modules[name]                       # the half-imported backend
+        del sys.modules[name]  # the half-imported backend
     os.environ["MUJOCO_GL"] = "disable"
     os.environ.pop("PYOPENGL_PLATFORM", None)
     import mujoco  # noqa: F401,F811
@@ -69,8 +69,10 @@ def describe_import_failure() -> str:
     head = f"cannot render: MuJoCo could not load MUJOCO_GL={backend} ({type(exc).__name__}: {text})"
     if backend == "egl":
         return f"{head}; fix: apt-get install {EGL_PACKAGES} (Debian/Ubuntu) or install a GPU driver with EGL"
-    hint = {"osmesa": "its library libOSMesa is not installed (apt-get install libosmesa6)",
-            "glfw": "GLFW needs a display"}.get(backend, "it did not load")
+    hint = {
+        "osmesa": "its library libOSMesa is not installed (apt-get install libosmesa6)",
+        "glfw": "GLFW needs a display",
+    }.get(backend, "it did not load")
     return f"{head}: {hint}; for headless rendering set MUJOCO_GL=egl (apt-get install {EGL_PACKAGES})"
 
 
@@ -104,16 +106,22 @@ def describe_gl_failure(exc: BaseException) -> str:
     text = " ".join(str(a) for a in getattr(exc, "args", ()) if a) or type(exc).__name__
     text = re.sub(r"\s+", " ", text).strip()
     low = text.lower()
-    fix = (f"fix: apt-get install {EGL_PACKAGES} (Debian/Ubuntu; Mesa renders on the CPU) "
-           f"or install a GPU driver with EGL")
+    fix = (
+        f"fix: apt-get install {EGL_PACKAGES} (Debian/Ubuntu; Mesa renders on the CPU) or install a GPU driver with EGL"
+    )
     head = "headless rendering needs EGL (MUJOCO_GL=egl) and it failed"
-    if sys.platform.startswith("linux") and backend in HEADLESS_BACKENDS and (
-            "unable to load egl library" in low or not libegl_loadable()):
+    if (
+        sys.platform.startswith("linux")
+        and backend in HEADLESS_BACKENDS
+        and ("unable to load egl library" in low or not libegl_loadable())
+    ):
         return f"{head}: the EGL library libEGL.so.1 is not installed; {fix}"
     if backend != "egl":
-        return (f"cannot render: MuJoCo was imported with MUJOCO_GL={backend or '(unset)'} and that failed "
-                f"({type(exc).__name__}: {text}); for headless rendering set MUJOCO_GL=egl before anything "
-                f"imports mujoco (or import swarm_mj first), and {fix}")
+        return (
+            f"cannot render: MuJoCo was imported with MUJOCO_GL={backend or '(unset)'} and that failed "
+            f"({type(exc).__name__}: {text}); for headless rendering set MUJOCO_GL=egl before anything "
+            f"imports mujoco (or import swarm_mj first), and {fix}"
+        )
     if "egl device display" in low or "eglquerydevicesext" in low or "eglgetplatformdisplayext" in low:
         cause = "EGL found no driver that can render (Mesa's EGL and DRI drivers, or a GPU driver)"
     elif "pyopengl" in low or "no module named 'opengl'" in low:

@@ -34,8 +34,15 @@ class Replay:
     r: image = r.render(20.0)``.
     """
 
-    def __init__(self, log, world=None, *, width: int = DEFAULT_SIZE[0], height: int = DEFAULT_SIZE[1],
-                 style: VideoStyle | None = None) -> None:
+    def __init__(
+        self,
+        log,
+        world=None,
+        *,
+        width: int = DEFAULT_SIZE[0],
+        height: int = DEFAULT_SIZE[1],
+        style: VideoStyle | None = None,
+    ) -> None:
         from ..world import build_world
 
         if len(log.t) < 1:
@@ -64,7 +71,7 @@ class Replay:
         self._colors = [LEADER_RGB if i == 0 else FOLLOWER_RGB for i in range(n)]
         self._ref = self._reference_vertices()
         self._caption_font: Any = None
-        self.title: str | None = None           # drawn in the caption when set
+        self.title: str | None = None  # drawn in the caption when set
         self.last_index = -1
 
     # -- model look -----------------------------------------------------------------
@@ -76,7 +83,7 @@ class Replay:
         model.stat.extent = max(float(model.stat.extent), 10.0)
         model.vis.map.znear = 0.005
         model.vis.map.zfar = 30.0
-        model.vis.map.shadowclip = 1.0          # shadow map covers +-extent around the (moving) sun
+        model.vis.map.shadowclip = 1.0  # shadow map covers +-extent around the (moving) sun
         model.vis.quality.offsamples = max(0, int(st.samples))
         # Softer headlight, a darker floor: the default look is washed out in a still.
         model.vis.headlight.ambient[:] = 0.32
@@ -103,7 +110,7 @@ class Replay:
                     model.geom_rgba[g] = (*rgb, 0.6)
                 elif name.endswith("hub"):
                     model.geom_rgba[g] = (*rgb, 1.0)
-                elif name.endswith("nose"):      # heading marker: white, so red means "leader" only
+                elif name.endswith("nose"):  # heading marker: white, so red means "leader" only
                     model.geom_rgba[g] = (0.97, 0.97, 0.97, 1.0)
 
     def _reference_vertices(self) -> np.ndarray:
@@ -151,8 +158,14 @@ class Replay:
         if scn.ngeom >= scn.maxgeom or not np.isfinite(centre).all():
             return
         g = scn.geoms[scn.ngeom]
-        mujoco.mjv_initGeom(g, mujoco.mjtGeom.mjGEOM_CYLINDER, np.array([radius, 0.003, 0.0]),
-                            np.asarray(centre, float), self._eye9, rgba)
+        mujoco.mjv_initGeom(
+            g,
+            mujoco.mjtGeom.mjGEOM_CYLINDER,
+            np.array([radius, 0.003, 0.0]),
+            np.asarray(centre, float),
+            self._eye9,
+            rgba,
+        )
         g.category = mujoco.mjtCatBit.mjCAT_DECOR
         g.castshadow = False
         scn.ngeom += 1
@@ -193,8 +206,7 @@ class Replay:
                         self._add_line(scn, pts[s], pts[s + 1], w, _rgba(rgb, float(alpha[s])))
         if st.markers:
             for i in range(self.n):
-                self._add_disc(scn, log.pos[j, i] + np.array([0.0, 0.0, -0.03]), 0.16,
-                               _rgba(self._colors[i], 0.9))
+                self._add_disc(scn, log.pos[j, i] + np.array([0.0, 0.0, -0.03]), 0.16, _rgba(self._colors[i], 0.9))
 
     def _caption(self, image: np.ndarray, j: int) -> np.ndarray:
         try:
@@ -216,16 +228,22 @@ class Replay:
         name = getattr(self, "title", None)
         if name:
             text = f"{name}   {text}"
-        items: list[tuple[Any, str]] = [(LEADER_RGB, "leader"), (FOLLOWER_RGB, "followers"),
-                                        (REFERENCE_RGBA[:3], "reference path")]
+        items: list[tuple[Any, str]] = [
+            (LEADER_RGB, "leader"),
+            (FOLLOWER_RGB, "followers"),
+            (REFERENCE_RGBA[:3], "reference path"),
+        ]
         if self.style.trails:
             items.append((None, f"trails: last {self.style.trail_s:g} s"))
-        widths = [int(draw.textlength(label, font=font)) + int(size * (1.3 if rgb else 0) + size * 1.2)
-                  for rgb, label in items]
+        widths = [
+            int(draw.textlength(label, font=font)) + int(size * (1.3 if rgb else 0) + size * 1.2)
+            for rgb, label in items
+        ]
         box_w = max(int(draw.textlength(text, font=font)), sum(widths) - int(size * 1.2)) + 2 * pad
         box_h = int(size * 2.6) + 2 * pad
-        draw.rounded_rectangle([pad // 2, pad // 2, pad // 2 + box_w, pad // 2 + box_h], radius=pad,
-                               fill=(255, 255, 255, 170))
+        draw.rounded_rectangle(
+            [pad // 2, pad // 2, pad // 2 + box_w, pad // 2 + box_h], radius=pad, fill=(255, 255, 255, 170)
+        )
         ink = (20, 20, 30, 255)
         draw.text((pad, pad), text, fill=ink, font=font)
         y = pad + int(size * 1.4)

@@ -28,7 +28,6 @@ def __getattr__(name: str):
         module = importlib.import_module(_WHERE[name], __name__)
     except ModuleNotFoundError as exc:
         if exc.name in ("gymnasium", "pettingzoo"):
-            raise ModuleNotFoundError(f"{name} needs {exc.name}: pip install 'swarm-mj[gym]'",
-                                      name=exc.name) from exc
+            raise ModuleNotFoundError(f"{name} needs {exc.name}: pip install 'swarm-mj[gym]'", name=exc.name) from exc
         raise
     return getattr(module, name)

@@ -59,8 +59,9 @@ def _box(spec: specs.Array, low: Any = -np.inf, high: Any = np.inf) -> spaces.Bo
 
 def observation_space(env: SwarmEnv) -> spaces.Dict:
     """The SwarmEnv observation spec as a ``spaces.Dict`` of float64 Box."""
-    return spaces.Dict({key: _box(spec, *_BOUNDS.get(key, (-np.inf, np.inf)))
-                        for key, spec in env.observation_spec().items()})
+    return spaces.Dict(
+        {key: _box(spec, *_BOUNDS.get(key, (-np.inf, np.inf))) for key, spec in env.observation_spec().items()}
+    )
 
 
 def action_space(env: SwarmEnv) -> spaces.Box:
@@ -79,8 +80,9 @@ def fresh_observation(obs: dict) -> dict[str, np.ndarray]:
     return {key: np.array(value, dtype=np.float64) for key, value in obs.items()}
 
 
-def step_info(env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool,
-              pairs: tuple[np.ndarray, np.ndarray]) -> dict[str, Any]:
+def step_info(
+    env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool, pairs: tuple[np.ndarray, np.ndarray]
+) -> dict[str, Any]:
     """The info dict of a step: time, contacts, separation and why an episode terminated.
 
     ``pairs`` is ``np.triu_indices(n, 1)`` (precomputed: this runs every step).
@@ -92,8 +94,12 @@ def step_info(env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool,
         min_sep = float(np.sqrt(np.einsum("ij,ij->i", d, d).min()))
     else:
         min_sep = float("inf")
-    info: dict[str, Any] = {"time": float(obs["time"]), "contacts": contacts,
-                            "new_contacts": contacts - contacts_before, "min_separation": min_sep}
+    info: dict[str, Any] = {
+        "time": float(obs["time"]),
+        "contacts": contacts,
+        "new_contacts": contacts - contacts_before,
+        "min_separation": min_sep,
+    }
     if terminated:
         try:
             env.sim.check()
@@ -117,16 +123,24 @@ class SwarmGymEnv(gymnasium.Env):
 
     metadata = {"render_modes": []}
 
-    def __init__(self, scenario: Scenario | str | SwarmEnv = "circle", *, action: str = "thrust",
-                 flatten: bool = False, terminate_on_contact: bool = True, render_mode: str | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str | SwarmEnv = "circle",
+        *,
+        action: str = "thrust",
+        flatten: bool = False,
+        terminate_on_contact: bool = True,
+        render_mode: str | None = None,
+    ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
         self.env = as_swarm_env(scenario, action, terminate_on_contact)
         self.flatten = bool(flatten)
         self.dict_observation_space = observation_space(self.env)
-        self.observation_space = (spaces.flatten_space(self.dict_observation_space) if self.flatten
-                                  else self.dict_observation_space)
+        self.observation_space = (
+            spaces.flatten_space(self.dict_observation_space) if self.flatten else self.dict_observation_space
+        )
         self.action_space = action_space(self.env)
         self.wind_seed: int | None = None
         self._done = True

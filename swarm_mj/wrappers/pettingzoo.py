@@ -63,9 +63,23 @@ def _one_drone(box: Any) -> spaces.Box:
     """The Box of one drone's row of a per-drone Box (n, ...)."""
     return spaces.Box(box.low[0], box.high[0], shape=box.shape[1:], dtype=np.float64)
 
+
 # SwarmEnv observation keys with a drone axis first (sliced per agent); the rest are shared.
-_PER_DRONE = ("pos", "vel", "quat", "rpy", "rpy_rate", "body_rates", "setpoint", "setpoint_vel",
-              "setpoint_acc", "setpoint_yaw", "neighbours", "neighbour_mask", "wind_force")
+_PER_DRONE = (
+    "pos",
+    "vel",
+    "quat",
+    "rpy",
+    "rpy_rate",
+    "body_rates",
+    "setpoint",
+    "setpoint_vel",
+    "setpoint_acc",
+    "setpoint_yaw",
+    "neighbours",
+    "neighbour_mask",
+    "wind_force",
+)
 
 
 class SwarmParallelEnv(ParallelEnv):
@@ -76,8 +90,14 @@ class SwarmParallelEnv(ParallelEnv):
 
     metadata = {"name": "swarm_mj_v0", "render_modes": [], "is_parallelizable": True}
 
-    def __init__(self, scenario: Scenario | str | SwarmEnv = "circle", *, action: str = "thrust",
-                 terminate_on_contact: bool = True, render_mode: str | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str | SwarmEnv = "circle",
+        *,
+        action: str = "thrust",
+        terminate_on_contact: bool = True,
+        render_mode: str | None = None,
+    ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
@@ -88,13 +108,16 @@ class SwarmParallelEnv(ParallelEnv):
         full = observation_space(env)
         self._full_space = full
         self.state_space = spaces.flatten_space(full)
-        self._obs_space = spaces.Dict({key: _one_drone(box) if key in _PER_DRONE else box
-                                       for key, box in full.spaces.items()})
+        self._obs_space = spaces.Dict(
+            {key: _one_drone(box) if key in _PER_DRONE else box for key, box in full.spaces.items()}
+        )
         spec = env.action_spec()
         lo = np.broadcast_to(spec.minimum, spec.shape)
         hi = np.broadcast_to(spec.maximum, spec.shape)
-        self._act_spaces = {name: spaces.Box(lo[i].astype(np.float64), hi[i].astype(np.float64), dtype=np.float64)
-                            for name, i in self._index.items()}
+        self._act_spaces = {
+            name: spaces.Box(lo[i].astype(np.float64), hi[i].astype(np.float64), dtype=np.float64)
+            for name, i in self._index.items()
+        }
         self._width = spec.shape[1]
         self._pairs = np.triu_indices(env.n, 1)
         self._rng: np.random.Generator | None = None
@@ -151,8 +174,13 @@ class SwarmParallelEnv(ParallelEnv):
         self._last = ts.observation
         agents = self.agents
         reward = float(ts.reward)
-        out = (self._split(ts.observation), {a: reward for a in agents}, {a: terminated for a in agents},
-               {a: truncated for a in agents}, {a: dict(info) for a in agents})
+        out = (
+            self._split(ts.observation),
+            {a: reward for a in agents},
+            {a: terminated for a in agents},
+            {a: truncated for a in agents},
+            {a: dict(info) for a in agents},
+        )
         if terminated or truncated:
             self.agents = []
         return out
@@ -175,6 +203,6 @@ class SwarmParallelEnv(ParallelEnv):
         for name in self.agents:
             i = self._index[name]
             o = {key: np.array(value, dtype=np.float64) for key, value in shared.items()}
-            o.update({key: value[i, ...] for key, value in rows.items()})   # [i, ...]: 0-d arrays, not scalars
+            o.update({key: value[i, ...] for key, value in rows.items()})  # [i, ...]: 0-d arrays, not scalars
             out[name] = o
         return out

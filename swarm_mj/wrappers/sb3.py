@@ -55,16 +55,23 @@ def hover_centred(env: SwarmVectorEnv, span: float = 0.5) -> tuple[spaces.Box, C
 class SB3VecEnv(VecEnv):
     """stable-baselines3's ``VecEnv`` over a :class:`SwarmVectorEnv` (same-step auto-reset, flat observation)."""
 
-    def __init__(self, env: SwarmVectorEnv, action_space: spaces.Box | None = None,
-                 action_map: Callable[[np.ndarray], np.ndarray] | None = None) -> None:
+    def __init__(
+        self,
+        env: SwarmVectorEnv,
+        action_space: spaces.Box | None = None,
+        action_map: Callable[[np.ndarray], np.ndarray] | None = None,
+    ) -> None:
         if env.autoreset_mode != AutoresetMode.SAME_STEP:
             raise UserError("SB3VecEnv needs SwarmVectorEnv(..., autoreset_mode=AutoresetMode.SAME_STEP)")
         if not env.flatten:
             raise UserError("SB3VecEnv needs SwarmVectorEnv(..., flatten=True)")
         self.env = env
         self.action_map = action_map
-        super().__init__(env.num_envs, env.single_observation_space,
-                         action_space if action_space is not None else env.single_action_space)
+        super().__init__(
+            env.num_envs,
+            env.single_observation_space,
+            action_space if action_space is not None else env.single_action_space,
+        )
         self._actions: np.ndarray | None = None
 
     def reset(self):

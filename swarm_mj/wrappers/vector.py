@@ -88,8 +88,23 @@ __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
 BLOCK_DRONES = 48
 
 #: The observation keys in the order :func:`observe_copies_kernel` knows them (offs[i] is key i's offset).
-OBS_KEYS = ("time", "pos", "vel", "quat", "rpy", "rpy_rate", "body_rates", "setpoint", "setpoint_vel",
-            "setpoint_acc", "setpoint_yaw", "leader_pos", "neighbours", "neighbour_mask", "wind_force")
+OBS_KEYS = (
+    "time",
+    "pos",
+    "vel",
+    "quat",
+    "rpy",
+    "rpy_rate",
+    "body_rates",
+    "setpoint",
+    "setpoint_vel",
+    "setpoint_acc",
+    "setpoint_yaw",
+    "leader_pos",
+    "neighbours",
+    "neighbour_mask",
+    "wind_force",
+)
 
 
 def _observe_samples():
@@ -97,19 +112,61 @@ def _observe_samples():
     qpos = np.zeros((m * n, 7))
     qpos[:, 3] = 1.0
     sizes = [1, 3 * n, 3 * n, 4 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, n, 3, 3 * n * n, n * n, 3 * n]
-    offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)      # OBS_KEYS order
+    offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)  # OBS_KEYS order
     z = np.zeros((K, 3))
-    return [(qpos, np.zeros((m * n, 6)), n, 2.0, np.arange(m, dtype=np.int64), 0, np.zeros(m, np.int64), 0.01,
-             z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3)), np.zeros((m, 3)), np.zeros((m, 3)),
-             np.zeros((m, n, 3)), offs, np.zeros((m, sum(sizes))), np.zeros(m, np.int64), np.zeros(m), np.zeros(m))]
+    return [
+        (
+            qpos,
+            np.zeros((m * n, 6)),
+            n,
+            2.0,
+            np.arange(m, dtype=np.int64),
+            0,
+            np.zeros(m, np.int64),
+            0.01,
+            z,
+            z,
+            z,
+            np.zeros(K),
+            np.ones(K),
+            np.zeros((n - 1, 3)),
+            np.zeros((m, 3)),
+            np.zeros((m, 3)),
+            np.zeros((m, n, 3)),
+            offs,
+            np.zeros((m, sum(sizes))),
+            np.zeros(m, np.int64),
+            np.zeros(m),
+            np.zeros(m),
+        )
+    ]
 
 
 @jit(samples=_observe_samples)
-def observe_copies_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, sensing_range: float, copies: np.ndarray,
-                          c0: int, ks: np.ndarray, T: float, ref_pos: np.ndarray, ref_vel: np.ndarray,
-                          ref_acc: np.ndarray, ref_yaw: np.ndarray, D: np.ndarray, unit_offsets: np.ndarray,
-                          prev_leader: np.ndarray, leader_vel: np.ndarray, wind_obs: np.ndarray, offs: np.ndarray,
-                          out: np.ndarray, new_contacts: np.ndarray, reward: np.ndarray, min_sep: np.ndarray) -> None:
+def observe_copies_kernel(
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    n: int,
+    sensing_range: float,
+    copies: np.ndarray,
+    c0: int,
+    ks: np.ndarray,
+    T: float,
+    ref_pos: np.ndarray,
+    ref_vel: np.ndarray,
+    ref_acc: np.ndarray,
+    ref_yaw: np.ndarray,
+    D: np.ndarray,
+    unit_offsets: np.ndarray,
+    prev_leader: np.ndarray,
+    leader_vel: np.ndarray,
+    wind_obs: np.ndarray,
+    offs: np.ndarray,
+    out: np.ndarray,
+    new_contacts: np.ndarray,
+    reward: np.ndarray,
+    min_sep: np.ndarray,
+) -> None:
     """SwarmEnv's observation, reward and minimum separation for the given copies (global indices;
     copy c's drones are rows (c − c0)·n .. of this block's qpos (b·n, 7), qvel (b·n, 6)), each
     at its own sample ks[c] of the leader reference ref_* (K+1, ...) and D (K+1,): the same
@@ -120,8 +177,8 @@ def observe_copies_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, sensing_ra
     for idx in range(copies.shape[0]):
         c = copies[idx]
         r0 = (c - c0) * n
-        q = qpos[r0:r0 + n]
-        v = qvel[r0:r0 + n]
+        q = qpos[r0 : r0 + n]
+        v = qvel[r0 : r0 + n]
         finite = True
         for i in range(n):
             for j in range(7):
@@ -134,8 +191,19 @@ def observe_copies_kernel(qpos: np.ndarray, qvel: np.ndarray, n: int, sensing_ra
             continue
         k = ks[c]
         pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(q, v, sensing_range)
-        sp, sp_vel, sp_acc, yaw = setpoints_kernel(k, T, pos[0], prev_leader[c], leader_vel[c], ref_pos[k],
-                                                   ref_vel[k], ref_acc[k], ref_yaw[k], D[k], unit_offsets)
+        sp, sp_vel, sp_acc, yaw = setpoints_kernel(
+            k,
+            T,
+            pos[0],
+            prev_leader[c],
+            leader_vel[c],
+            ref_pos[k],
+            ref_vel[k],
+            ref_acc[k],
+            ref_yaw[k],
+            D[k],
+            unit_offsets,
+        )
         o = out[c]
         o[offs[0]] = k * T
         for i in range(n):
@@ -179,9 +247,9 @@ class _Block:
 
     def __init__(self, sim: Sim, c0: int, b: int, n: int) -> None:
         self.sim, self.c0, self.b = sim, c0, b
-        self.copies = slice(c0, c0 + b)            # in (m, ...) arrays
-        self.rows = slice(c0 * n, (c0 + b) * n)    # in (m·n, ...) arrays
-        self.n_log = 0                             # contact_log entries already counted
+        self.copies = slice(c0, c0 + b)  # in (m, ...) arrays
+        self.rows = slice(c0 * n, (c0 + b) * n)  # in (m·n, ...) arrays
+        self.n_log = 0  # contact_log entries already counted
 
 
 def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarray) -> None:
@@ -192,8 +260,9 @@ def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarr
 
 def _prune(info: dict[str, Any]) -> dict[str, Any]:
     """Without the keys no copy has (as Gymnasium's vector envs leave them out)."""
-    return {key: v for key, v in info.items()
-            if (key.removeprefix("_")) not in info or info["_" + key.lstrip("_")].any()}
+    return {
+        key: v for key, v in info.items() if (key.removeprefix("_")) not in info or info["_" + key.lstrip("_")].any()
+    }
 
 
 class SwarmVectorEnv(VectorEnv):
@@ -206,9 +275,17 @@ class SwarmVectorEnv(VectorEnv):
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
 
-    def __init__(self, scenario: Scenario | str = "circle", num_envs: int = 8, *, flatten: bool = False,
-                 terminate_on_contact: bool = True, block: int | None = None,
-                 autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP, render_mode: str | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Scenario | str = "circle",
+        num_envs: int = 8,
+        *,
+        flatten: bool = False,
+        terminate_on_contact: bool = True,
+        block: int | None = None,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        render_mode: str | None = None,
+    ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
@@ -230,29 +307,32 @@ class SwarmVectorEnv(VectorEnv):
         self.T = T = sc.control_period
         self.n_steps = round(sc.duration / T)
         # the leader's reference and D at every control instant (SwarmEnv's)
-        self.times = np.arange(self.n_steps + 1) * T                           # (K+1,)
+        self.times = np.arange(self.n_steps + 1) * T  # (K+1,)
         ref = sc.make_trajectory()(self.times)
-        self._ref_pos = np.ascontiguousarray(ref.pos, dtype=np.float64)        # (K+1, 3)
+        self._ref_pos = np.ascontiguousarray(ref.pos, dtype=np.float64)  # (K+1, 3)
         self._ref_vel = np.ascontiguousarray(ref.vel, dtype=np.float64)
         self._ref_acc = np.ascontiguousarray(ref.acc, dtype=np.float64)
-        self._ref_yaw = np.ascontiguousarray(ref.yaw, dtype=np.float64)        # (K+1,)
+        self._ref_yaw = np.ascontiguousarray(ref.yaw, dtype=np.float64)  # (K+1,)
         self._D = np.ascontiguousarray(DiameterSchedule(sc.diameter)(self.times), dtype=np.float64)
         self._unit_offsets = np.ascontiguousarray(polygon_offsets(n - 1, 1.0), dtype=np.float64).reshape(n - 1, 3)
         self._random_starts = sc.n_followers > 0 and sc.follower_starts is None
-        self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]    # (n,)
+        self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
         self._relative_wind = bool(sc.wind.enabled and getattr(sc.wind, "relative_airspeed", False))
         self._wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
 
         # spaces: SwarmGymEnv's, per copy
-        shape_only = types.SimpleNamespace(n=n)                     # SwarmEnv's spec needs only n
+        shape_only = types.SimpleNamespace(n=n)  # SwarmEnv's spec needs only n
         shape_only.observation_spec = lambda: SwarmEnv.observation_spec(shape_only)  # type: ignore[arg-type]
         self.single_dict_observation_space = observation_space(shape_only)  # type: ignore[arg-type]
-        self.single_observation_space = (spaces.flatten_space(self.single_dict_observation_space) if self.flatten
-                                         else self.single_dict_observation_space)
+        self.single_observation_space = (
+            spaces.flatten_space(self.single_dict_observation_space)
+            if self.flatten
+            else self.single_dict_observation_space
+        )
         self.observation_space = batch_space(self.single_observation_space, m)
 
         # the flat layout (the Dict's key order, as spaces.flatten writes it)
-        self._slots: dict[str, tuple[int, int, tuple[int, ...]]] = {}   # key: offset, size, shape
+        self._slots: dict[str, tuple[int, int, tuple[int, ...]]] = {}  # key: offset, size, shape
         off = 0
         for key, space in self.single_dict_observation_space.spaces.items():
             size = int(np.prod(space.shape, dtype=np.int64))
@@ -272,10 +352,15 @@ class SwarmVectorEnv(VectorEnv):
         for c0 in range(0, m, per):
             b = min(per, m - c0)
             if b not in worlds:
-                worlds[b] = build_world(b * n, positions=start[: b * n],
-                                        names=[f"c{c}_{name}" for c in range(b) for name in sc.names],
-                                        yaws=np.tile(self._yaws, b), timestep=sc.timestep, integrator=sc.integrator,
-                                        contact_groups=b)
+                worlds[b] = build_world(
+                    b * n,
+                    positions=start[: b * n],
+                    names=[f"c{c}_{name}" for c in range(b) for name in sc.names],
+                    yaws=np.tile(self._yaws, b),
+                    timestep=sc.timestep,
+                    integrator=sc.integrator,
+                    contact_groups=b,
+                )
             self._blocks.append(_Block(Sim(worlds[b], T, n_copies=b), c0, b, n))
         self.params = self._blocks[0].sim.params
         f = self.params.f_max
@@ -286,15 +371,15 @@ class SwarmVectorEnv(VectorEnv):
 
         # per-copy state
         N = m * n
-        self.k = np.zeros(m, dtype=np.int64)                   # control periods flown this episode
+        self.k = np.zeros(m, dtype=np.int64)  # control periods flown this episode
         self._starts = np.tile(sc.initial_positions(), (m, 1))  # (N, 3)
-        self._yaw_all = np.tile(self._yaws, m)                  # (N,)
+        self._yaw_all = np.tile(self._yaws, m)  # (N,)
         self._prev_leader = np.zeros((m, 3))
         self._leader_vel = np.zeros((m, 3))
         self._contacts = np.zeros(m, dtype=np.int64)
         self._new_contacts = np.zeros(m, dtype=np.int64)
-        self._wind = np.zeros((m, self.n_steps + 1, 3))        # (m, K+1, 3) wind force series (uniform wind)
-        self._wind_series: list[Any] = [None] * m              # per copy (relative airspeed only)
+        self._wind = np.zeros((m, self.n_steps + 1, 3))  # (m, K+1, 3) wind force series (uniform wind)
+        self._wind_series: list[Any] = [None] * m  # per copy (relative airspeed only)
         self._wind_obs = np.zeros((m, n, 3))
         self._wind_now = np.zeros((N, 3))
         self.wind_seed = np.zeros(m, dtype=np.int64)
@@ -321,8 +406,9 @@ class SwarmVectorEnv(VectorEnv):
             self.wind_seed[c] = seed
             if self._random_starts:
                 rs = replace(sc.random_start, seed=seed)
-                self._starts[c * n:(c + 1) * n] = np.vstack([sc.leader_start, random_follower_starts(
-                    sc.leader_start, sc.n_followers, rs, where=sc.path)])
+                self._starts[c * n : (c + 1) * n] = np.vstack(
+                    [sc.leader_start, random_follower_starts(sc.leader_start, sc.n_followers, rs, where=sc.path)]
+                )
             series = WindField(sc.wind, dt=self.T, seed=seed).sample(self.times)
             self._wind_series[c] = series
             if not self._relative_wind:
@@ -344,7 +430,7 @@ class SwarmVectorEnv(VectorEnv):
         _wind_obs (m, n, 3) (the observation's feedforward)."""
         n, m = self.n, self.num_envs
         if not self._relative_wind:
-            f = self._wind[self._all, np.minimum(self.k, self.n_steps)]      # (m, 3)
+            f = self._wind[self._all, np.minimum(self.k, self.n_steps)]  # (m, 3)
             if which == "now":
                 self._wind_now.reshape(m, n, 3)[:] = f[:, None, :]
             elif self._wind_known:
@@ -355,9 +441,9 @@ class SwarmVectorEnv(VectorEnv):
             for c in range(blk.c0, blk.c0 + blk.b):
                 k = min(int(self.k[c]), self.n_steps)
                 r = (c - blk.c0) * n
-                force = self._wind_series[c].drone_forces(k, vel[r:r + n])
+                force = self._wind_series[c].drone_forces(k, vel[r : r + n])
                 if which == "now":
-                    self._wind_now[c * n:(c + 1) * n] = force
+                    self._wind_now[c * n : (c + 1) * n] = force
                 elif self._wind_known:
                     self._wind_obs[c] = force
 
@@ -367,18 +453,37 @@ class SwarmVectorEnv(VectorEnv):
         for blk in self._blocks:
             cs = copies[(copies >= blk.c0) & (copies < blk.c0 + blk.b)]
             if len(cs):
-                observe_copies_kernel(blk.sim.qpos, blk.sim.qvel, self.n, self.scenario.sensing_range, cs, blk.c0,
-                                      self.k, self.T, self._ref_pos, self._ref_vel, self._ref_acc, self._ref_yaw,
-                                      self._D, self._unit_offsets, self._prev_leader, self._leader_vel,
-                                      self._wind_obs, self._offs, self._obs, self._new_contacts, self._reward,
-                                      self._min_sep)
+                observe_copies_kernel(
+                    blk.sim.qpos,
+                    blk.sim.qvel,
+                    self.n,
+                    self.scenario.sensing_range,
+                    cs,
+                    blk.c0,
+                    self.k,
+                    self.T,
+                    self._ref_pos,
+                    self._ref_vel,
+                    self._ref_acc,
+                    self._ref_yaw,
+                    self._D,
+                    self._unit_offsets,
+                    self._prev_leader,
+                    self._leader_vel,
+                    self._wind_obs,
+                    self._offs,
+                    self._obs,
+                    self._new_contacts,
+                    self._reward,
+                    self._min_sep,
+                )
 
     def _observation(self, flat: np.ndarray):
         """The batched observation of a fresh copy of the flat buffer (m, dim)."""
         if self.flatten:
             return flat
         m = flat.shape[0]
-        return {key: flat[:, off:off + size].reshape((m, *shape)) for key, (off, size, shape) in self._slots.items()}
+        return {key: flat[:, off : off + size].reshape((m, *shape)) for key, (off, size, shape) in self._slots.items()}
 
     # ------------------------------------------------------------------ VectorEnv API
     def reset(self, *, seed: int | Sequence[int] | None = None, options: dict | None = None):
@@ -435,11 +540,11 @@ class SwarmVectorEnv(VectorEnv):
             health[blk.copies] = sim.health()
             log = sim.contact_log
             if len(log) > blk.n_log:
-                for _, i, _ in log[blk.n_log:]:
+                for _, i, _ in log[blk.n_log :]:
                     self._new_contacts[blk.c0 + i // n] += 1
                 blk.n_log = len(log)
             if (health[blk.copies] == MUJOCO_WARNING).any():
-                sim.data.warning.number[:] = 0     # reported now; the block's copies all terminate
+                sim.data.warning.number[:] = 0  # reported now; the block's copies all terminate
         self.k += 1
         if resetting.any():
             self._put_back(resetting)
@@ -459,7 +564,7 @@ class SwarmVectorEnv(VectorEnv):
         truncated[resetting] = False
         info = self._step_info(~resetting, terminated, diverged, health)
         if resetting.any():
-            info["_time"][:] = True                # a reset copy's info is its reset info: time 0, its seed
+            info["_time"][:] = True  # a reset copy's info is its reset info: time 0, its seed
             _info_add(info, "wind_seed", self.wind_seed.copy(), resetting)
         done = terminated | truncated
         obs_flat = self._obs.copy()
@@ -487,8 +592,9 @@ class SwarmVectorEnv(VectorEnv):
             _info_add(info, "wind_seed", self.wind_seed.copy(), done | resetting)
         return self._observation(obs_flat), rewards, terminated, truncated, _prune(info)
 
-    def _step_info(self, stepped: np.ndarray, terminated: np.ndarray, diverged: np.ndarray,
-                   health: np.ndarray) -> dict[str, Any]:
+    def _step_info(
+        self, stepped: np.ndarray, terminated: np.ndarray, diverged: np.ndarray, health: np.ndarray
+    ) -> dict[str, Any]:
         info: dict[str, Any] = {}
         _info_add(info, "time", self.k * self.T, stepped.copy())
         _info_add(info, "contacts", self._contacts.copy(), stepped.copy())
