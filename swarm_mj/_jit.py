@@ -91,7 +91,8 @@ def uncached() -> list[str]:
         if samples is None or not AVAILABLE:
             continue
         try:
-            if not kernel._cache._cache_file._load_index():
+            dispatcher: Any = kernel  # a numba Dispatcher (AVAILABLE); its cache is untyped internals
+            if not dispatcher._cache._cache_file._load_index():
                 out.append(name)
         except Exception:  # noqa: BLE001, S112 - numba internals changed: say nothing
             continue

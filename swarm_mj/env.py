@@ -260,12 +260,16 @@ class SwarmEnv(dm_env.Environment):
         t = self.k * self.T
         self.sim.step(U, force)
         sim = self.sim
+        pos_d, vel_d, acc_d, att_d = refs if refs is not None else (None, None, None, None)
         self.last_applied = StepRecord(
-            t,
-            sim.ctrl.copy(),
-            sim.rotor_thrust.copy(),
-            force,
-            *(refs if refs is not None else (None, None, None, None)),
+            time=t,
+            U=sim.ctrl.copy(),
+            rotor_thrust=sim.rotor_thrust.copy(),
+            wind_force=force,
+            pos_d=pos_d,
+            vel_d=vel_d,
+            acc_d=acc_d,
+            att_d=att_d,
             aero_forces=sim.stage_forces(),
         )
         self.k += 1

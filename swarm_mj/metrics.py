@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import cast
+
 import numpy as np
 
 #: Weights of eq. (25) on e_x, e_y, e_z, e_φ, e_θ, e_ψ.
@@ -211,8 +213,8 @@ def downwash_dip(
         return empty
     z = pos[:, :, 2]  # (k, n)
     up = np.maximum.accumulate(z > airborne, axis=0)  # (k, n) taken off by then
-    jet = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]  # (k, i, j)
-    below = jet.any(axis=1)  # (k, n) j in some jet
+    in_jets = in_jet(pos, quat, **jet) & (z > airborne)[:, :, None] & up[:, None, :]  # (k, i, j)
+    below = cast(np.ndarray, in_jets.any(axis=1))  # (k, n) j in some jet (numpy's stubs allow a scalar)
     e = np.maximum(0.0, np.asarray(pos_d, dtype=float)[:, :, 2] - z)  # (k, n)
     start = below & ~np.vstack([np.zeros((1, n), dtype=bool), below[:-1]])  # (k, n) a stretch begins
     stretch = np.cumsum(start, axis=0)  # (k, n) stretch number (per drone)
@@ -229,7 +231,7 @@ def downwash_dip(
     out["below_ref_worst_m"] = float(np.where(below, e, 0.0).max())
     if not (dips > 0.0).any():
         return out
-    kk, j = np.unravel_index(int(np.argmax(dips)), dips.shape)
-    i = int(np.argmax(jet[kk, :, j]))
-    out.update(worst_m=float(dips[kk, j]), drone=int(j), above=i if jet[kk, i, j] else -1, t_s=float(t[kk]))
+    kk, j = map(int, np.unravel_index(int(np.argmax(dips)), dips.shape))
+    i = int(np.argmax(in_jets[kk, :, j]))
+    out.update(worst_m=float(dips[kk, j]), drone=int(j), above=i if in_jets[kk, i, j] else -1, t_s=float(t[kk]))
     return out

@@ -73,8 +73,9 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
 
 
 def _drone_shape(L: float, color: list[int]) -> tuple[rr.LineStrips3D, rr.Ellipsoids3D]:
+    strips: list[list[list[float]]] = [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.15, 0, 0]]]
     arms = rr.LineStrips3D(
-        [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.15, 0, 0]]],
+        strips,
         colors=[color, color, [255, 140, 0]],
         radii=[0.012, 0.012, 0.015],
     )

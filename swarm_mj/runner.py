@@ -108,8 +108,10 @@ class RunLog:
         self.wind_force[k] = rec.wind_force
         if rec.aero_forces:
             if "downwash" in rec.aero_forces:
+                assert self.downwash is not None  # allocated by RunLog.allocate
                 self.downwash[k] = rec.aero_forces["downwash"]
             if "ground_effect" in rec.aero_forces:
+                assert self.ground_effect is not None  # allocated by RunLog.allocate
                 self.ground_effect[k] = rec.aero_forces["ground_effect"]
 
     def truncated(self, k: int) -> RunLog:
@@ -189,6 +191,7 @@ def run(
     policy = BacksteppingPolicy(sc, env.params)
     K = env.n_steps
     log = RunLog.allocate(env.names, K + 1)
+    assert log.downwash is not None and log.ground_effect is not None  # allocate fills every field
     log.downwash[:] = 0.0  # zero under the paper's model (no such stage)
     log.ground_effect[:] = 0.0
     bar = Progress(K, sc.name, progress)

@@ -112,6 +112,7 @@ class Scenario:
             return self.leader_start[None, :].copy()
         if self.follower_starts is not None:
             return np.vstack([self.leader_start, self.follower_starts])
+        assert self.random_start is not None  # followers without explicit starts have random_start (load_scenario)
         return np.vstack(
             [
                 self.leader_start,
@@ -310,9 +311,9 @@ def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> Non
         )
     d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)  # (n, n)
     d[np.diag_indices(len(starts))] = np.inf
-    i, j = np.unravel_index(np.argmin(d), d.shape)
+    i, j = map(int, np.unravel_index(np.argmin(d), d.shape))
     if d[i, j] < START_CLEARANCE_M:
-        i, j = sorted((int(i), int(j)))
+        i, j = sorted((i, j))
         raise UserError(
             f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
             f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)",

@@ -55,7 +55,7 @@ def find_rerun() -> Path:
     """
     candidates: list[Path] = []
     with contextlib.suppress(ImportError):
-        import rerun_cli
+        import rerun_cli  # type: ignore[import-untyped]  # the package ships no py.typed marker
 
         exe = "rerun.exe" if sys.platform.startswith("win") else "rerun"
         candidates.append(Path(rerun_cli.__file__).with_name(exe))

@@ -127,7 +127,7 @@ def _pair(name: str, v: Any) -> tuple[float, float]:
 
 
 def _sinusoids(name: str, v: Any) -> tuple[Sinusoid, ...]:
-    out = []
+    out: list[Sinusoid] = []
     for i, item in enumerate(_seq(name, v)):
         where = f"{name}[{i}]"
         if _is_number(item):
@@ -135,8 +135,9 @@ def _sinusoids(name: str, v: Any) -> tuple[Sinusoid, ...]:
         triple = _seq(where, item)
         if len(triple) != 3:
             raise _FieldError(where, f"must be [amplitude, omega, phase], got {item!r}")
-        out.append(tuple(_number(where, t) for t in triple))
-    return tuple(out)  # type: ignore[return-value,arg-type]
+        amplitude, omega, phase = (_number(where, t) for t in triple)
+        out.append((amplitude, omega, phase))
+    return tuple(out)
 
 
 def _schedule(name: str, v: Any) -> tuple[Window, ...]:

@@ -326,6 +326,7 @@ def build_world(
 
     xml = arena.to_xml_string()
     if colliders:
+        assert contact_groups is not None  # colliders are only collected with contact_groups
         # written into the XML directly: PyMJCF's own pair elements cost O(pairs · geoms) to resolve
         size = n_drones // contact_groups
         pairs = [

@@ -731,7 +731,7 @@ detection runs once per physics step (measured below). Euler (semi-implicit in M
 implicitfast are first order throughout: their error falls only in proportion to h, which the
 table shows for contrast.
 
-`tests/test_physics_step.py` checks this on a drone tumbling about all three axes under drag and a
+`tests/unit/test_physics_step.py` checks this on a drone tumbling about all three axes under drag and a
 constant wind force, with no controller, for 2 s: at 10 ms it stays within 1 mm of the 1-ms run
 (0.86 mm after an 18-m drift), the difference is the drag hold predicted as
 (Δh/2)·(K/m)·(x − x₀ − v₀t) to within 12 µm, and without the drag RK4's error is 4 µm and falls

@@ -155,6 +155,56 @@ def stress(paths: list[Path]) -> str:
     return "\n".join(rows)
 
 
+def aero(compare: Path, stress_paths: list[Path]) -> str:
+    """The paper's physics beside the realistic one (docs/aero.md): per rule, seeded random starts
+    (``tools/aero_compare.py``, 20 starts; then the full ``swarm-mj stress --aero realistic`` runs)
+    and the paper's three starts: contacts, crashes, the worst downwash dip and settling."""
+    rows = [
+        "| starts | physics | rule | starts with a contact | contacts | ground crashes | runs stopped | "
+        "worst downwash dip | settling median / worst |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
+    if compare.exists():
+        d = json.loads(compare.read_text())
+        for r in d["rows"]:
+            if r["part"] != "stress":
+                continue
+            rows.append(
+                f"| {r['starts']} random, 5 followers | {r['aero']} | `{r['rule']}` | {r['starts_with_contact']} | "
+                f"{r['contacts']} | {r['crashes']} | {r['diverged']} | {f(r['downwash_dip_worst_m'], '{:.3f}')} m | "
+                f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
+            )
+    for path in stress_paths:
+        if not path.exists():
+            continue
+        d = json.loads(path.read_text())
+        st = d["settings"]
+        for rule, r in d["table"].items():
+            rows.append(
+                f"| {r['starts']} random, {st['followers']} followers | {st.get('aero') or 'paper'} | `{rule}` | "
+                f"{r['starts_with_contact']} | {r['contacts']} | {r.get('crashes', 0)} | {len(r['stopped'])} | "
+                f"{f(r.get('downwash_dip_worst_m'), '{:.3f}')} m | "
+                f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
+            )
+    if compare.exists():
+        d = json.loads(compare.read_text())
+        for r in d["rows"]:
+            if (
+                r["part"] != "scenario"
+                or r["rule"] == "clearance"
+                and r["scenario"] not in ("anti_collision", "scenario1", "scenario2", "scenario3")
+            ):
+                continue
+            stop = "1" if r.get("stopped") else "0"
+            settle = r["settling_s"]
+            rows.append(
+                f"| `{r['scenario']}` | {r['aero']} | `{r['rule']}` | {int(r['contacts'] > 0)} | {r['contacts']} | "
+                f"{r['crashes']} | {stop} | {f(r['downwash_dip_worst_m'], '{:.3f}')} m | "
+                f"{f(settle, '{:.2f}')} s |"
+            )
+    return "\n".join(rows)
+
+
 def performance(b: dict) -> str:
     m = b["machine"]
     rows = [
@@ -182,10 +232,20 @@ def main() -> None:
     b = json.loads(Path(a.bench).read_text())
     text = Path(a.readme).read_text()
     stress_files = [Path(a.results).parent / "stress5.json", Path(a.results).parent / "stress8.json"]
+    aero_files = [
+        Path(a.results).parent / name
+        for name in (
+            "stress5_realistic_layers.json",
+            "stress8_realistic_layers.json",
+            "stress5_realistic.json",
+            "stress8_realistic.json",
+        )
+    ]
     for name, body in (
         ("reproduction", reproduction(r)),
         ("anticollision", anticollision(r)),
         ("stress", stress(stress_files)),
+        ("aero", aero(Path(a.results).parent / "aero_compare.json", aero_files)),
         ("performance", performance(b)),
     ):
         pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)

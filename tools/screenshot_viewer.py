@@ -15,7 +15,7 @@ text to search, so this is the page's own account of what it loaded.
 
 Prints one JSON object: the timings, what the page loaded, and pixel statistics of the whole
 screenshot and of the 3D view's region (the left 3/5 of the viewport, recording.blueprint).
-``tests/test_view.py`` imports :func:`shoot` and :func:`pixel_stats`.
+``tests/integration/test_view.py`` imports :func:`shoot` and :func:`pixel_stats`.
 """
 
 from __future__ import annotations

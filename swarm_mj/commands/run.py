@@ -158,6 +158,7 @@ def _serve(args: argparse.Namespace, out: Path | None, rc: int) -> int:
     """``--web``: serve the recording until Ctrl-C (exit 130), or ``rc`` when the run failed."""
     if not args.web:
         return rc
+    assert out is not None  # --web cannot go with --no-record (main checks), so the recording exists
     from ..viewer import serve_until_interrupted
 
     try:

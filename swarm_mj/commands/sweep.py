@@ -170,6 +170,7 @@ def replay_line(args: argparse.Namespace, res) -> str:
             )
             if best is None or key > best[0]:
                 best = (key, r["seed"], v)
+    assert best is not None, "a sweep has at least one run"
     _, seed, value = best
     cmd = ["swarm-mj", "run", args.scenario, "--seed", str(seed)]
     if args.duration is not None:

@@ -27,6 +27,7 @@ from gymnasium.vector import AutoresetMode
 from stable_baselines3.common.vec_env.base_vec_env import (
     VecEnv,
     VecEnvIndices,
+    VecEnvObs,
     VecEnvStepReturn,
 )
 
@@ -40,7 +41,9 @@ def hover_centred(env: SwarmVectorEnv, span: float = 0.5) -> tuple[spaces.Box, C
     """A [−1, 1] action space and its map to U1..U4: 0 is hover (U1 = m·g, no torque), ±1 is
     ``span`` times the distance from hover to the bound, per component. Returns (space, map)."""
     p = env.params
-    low, high = env.single_action_space.low, env.single_action_space.high
+    space = env.single_action_space
+    assert isinstance(space, spaces.Box)  # SwarmVectorEnv's action space is a flat Box (4n,)
+    low, high = space.low, space.high
     hover = np.tile([p.m * p.g, 0.0, 0.0, 0.0], env.n)
     up, down = span * (high - hover), span * (hover - low)
 
@@ -48,7 +51,7 @@ def hover_centred(env: SwarmVectorEnv, span: float = 0.5) -> tuple[spaces.Box, C
         a = np.clip(np.asarray(a, dtype=np.float64), -1.0, 1.0)
         return hover + np.where(a >= 0.0, a * up, a * down)
 
-    n = env.single_action_space.shape[0]
+    n = space.shape[0]
     return spaces.Box(-1.0, 1.0, shape=(n,), dtype=np.float32), action_map
 
 
@@ -74,7 +77,7 @@ class SB3VecEnv(VecEnv):
         )
         self._actions: np.ndarray | None = None
 
-    def reset(self):
+    def reset(self) -> VecEnvObs:
         seeds: Sequence[int] | None = None
         if any(s is not None for s in self._seeds):
             rng = np.random.default_rng()
@@ -88,7 +91,9 @@ class SB3VecEnv(VecEnv):
         self._actions = np.asarray(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
-        a = self._actions if self.action_map is None else self.action_map(self._actions)
+        actions = self._actions
+        assert actions is not None, "step_async comes first"
+        a = actions if self.action_map is None else self.action_map(actions)
         obs, reward, terminated, truncated, info = self.env.step(a)
         dones = terminated | truncated
         infos: list[dict[str, Any]] = [{} for _ in range(self.num_envs)]

@@ -335,6 +335,7 @@ class SwarmVectorEnv(VectorEnv):
         self._slots: dict[str, tuple[int, int, tuple[int, ...]]] = {}  # key: offset, size, shape
         off = 0
         for key, space in self.single_dict_observation_space.spaces.items():
+            assert space.shape is not None  # every observation entry is a Box
             size = int(np.prod(space.shape, dtype=np.int64))
             self._slots[key] = (off, size, space.shape)
             off += size
@@ -402,9 +403,10 @@ class SwarmVectorEnv(VectorEnv):
         """New episodes for the copies of mask (m,): seeds (per copy, or drawn), starts, wind."""
         n, sc = self.n, self.scenario
         for c in np.flatnonzero(mask):
-            seed = int(seeds[c]) if seeds is not None else self._copy_seed(int(c))
+            seed = int(seeds[int(c)]) if seeds is not None else self._copy_seed(int(c))
             self.wind_seed[c] = seed
             if self._random_starts:
+                assert sc.random_start is not None  # followers without explicit starts have random_start
                 rs = replace(sc.random_start, seed=seed)
                 self._starts[c * n : (c + 1) * n] = np.vstack(
                     [sc.leader_start, random_follower_starts(sc.leader_start, sc.n_followers, rs, where=sc.path)]

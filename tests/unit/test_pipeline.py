@@ -26,7 +26,7 @@ from swarm_mj.policy import BacksteppingPolicy
 from swarm_mj.sim import BELOW_FLOOR, HEALTHY, MUJOCO_WARNING, NON_FINITE, TILTED, DragStage, Sim, WindStage
 from swarm_mj.world import build_world
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
 RERUN = Path(sys.executable).with_name("rerun")
 

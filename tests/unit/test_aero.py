@@ -41,7 +41,7 @@ from swarm_mj.scenario import load_scenario, parse_scenario
 from swarm_mj.sim import Sim
 from swarm_mj.world import build_world
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 R = ROTOR_RADIUS
 L = P.L
 

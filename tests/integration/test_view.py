@@ -24,7 +24,7 @@ import pytest
 
 from swarm_mj import viewer
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
 CHROMIUM = Path("/usr/bin/chromium")
 HANG_GUARD_S = 120  # subprocess timeouts: a hang fails the test instead of blocking CI

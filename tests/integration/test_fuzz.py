@@ -450,7 +450,7 @@ def test_fuzz_scenarios_in_a_subprocess(files, table):
     scen.write_text(toml_text(table))
     out = files / "sub.json"
     out.unlink(missing_ok=True)
-    root = str(Path(__file__).resolve().parents[1])
+    root = str(Path(__file__).resolve().parents[2])
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([root, os.environ.get("PYTHONPATH", "")])}
     p = subprocess.run(
         [sys.executable, "-m", "swarm_mj.cli", "run", str(scen), "--no-record", "--quiet", "--summary", str(out)],

@@ -36,7 +36,7 @@ from swarm_mj.params import DEFAULT_PARAMS, QuadParams
 from swarm_mj.sim import Sim
 from swarm_mj.world import build_world
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 T = 0.01  # control period (s)
 DURATION = 2.0  # s
 U_HELD = np.array([[6.0, 0.3, -0.2, 0.25]])  # (1, 4) U1 (N), U2..U4 (N; torque = L·U)

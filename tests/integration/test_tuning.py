@@ -21,7 +21,7 @@ from swarm_mj.tuning import BatchEvaluator, StepBars, StepCostSettings, TuneOpti
 from swarm_mj.tuning import cost as cost_mod
 from swarm_mj.tuning import evaluator as evaluator_mod
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 SEED1_FILE = REPO / "scenarios" / "gains" / "fpa_seed1.toml"
 SHORT = StepCostSettings(t_sim=2.0)
 HAS_RAY = importlib.util.find_spec("ray") is not None

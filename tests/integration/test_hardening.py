@@ -410,7 +410,7 @@ def test_reproducers_in_a_subprocess_leave_nothing(tmp_path):
     """Two of the issue's reproducers as a user types them: one line, exit 2, nothing written."""
     env = {
         **os.environ,
-        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[1]), os.environ.get("PYTHONPATH", "")]),
+        "PYTHONPATH": os.pathsep.join([str(Path(__file__).resolve().parents[2]), os.environ.get("PYTHONPATH", "")]),
     }
     for argv in (["run", "circle", "--duration", "inf"], ["run", "circle", "-o", "nodir/x.rrd"]):
         p = subprocess.run(
