@@ -1,4 +1,4 @@
-"""Rerun recordings (``.rrd``) of a run, logged in batches with ``send_columns`` (DESIGN "recording").
+"""Rerun recordings (``.rrd``) of a run, logged in batches with ``send_columns`` (docs/design.md, "the rooms").
 
 Entities, on the ``sim_time`` timeline:
 

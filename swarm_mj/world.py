@@ -1,8 +1,8 @@
-"""MJCF composition of the swarm with dm_control's PyMJCF (DESIGN "world").
+"""MJCF composition of the swarm with dm_control's PyMJCF (docs/design.md, "the rooms").
 
 PyMJCF is used only to build XML: the XML is compiled with ``mujoco.MjModel``
 directly, because ``dm_control.mjcf.Physics`` is broken with mujoco 4
-(PLATFORM.md). Each drone is ``assets/quadrotor.xml`` attached under its own
+(docs/platform.md). Each drone is ``assets/quadrotor.xml`` attached under its own
 namespace (``leader/``, ``follower1/``, ...), so names come out scoped
 (``leader/U1``, ``follower3/body``).
 """
@@ -286,7 +286,7 @@ def build_world(
             "geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid", contype=4, conaffinity=0, group=0
         )
     elif floor:
-        # The floor is seen but never touched: contacts are drone-drone only (SPEC §1),
+        # The floor is seen but never touched: contacts are drone-drone only (docs/interpretations.md §1),
         # and a drone below the floor is reported as a divergence by the simulator.
         arena.worldbody.add(
             "geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid", contype=0, conaffinity=0, group=0

@@ -913,7 +913,7 @@ class ClearanceRule(LayeredRule):
         formed[0] = False
         z_target[formed] = formation_alt + self.offset[formed]
         # a formed drone still descending never descends onto a drone in transit within D̄
-        # (now or soon) below it: it waits hop above it (SPEC §4's failure case)
+        # (now or soon) below it: it waits hop above it (docs/interpretations.md §4's failure case)
         below = (
             (soon < self.safety)
             & formed[:, None]

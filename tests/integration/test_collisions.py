@@ -1,4 +1,4 @@
-"""Collisions counted by MuJoCo (issue 11, SPEC §4): drone–drone contacts between different
+"""Collisions counted by MuJoCo (issue 11, docs/interpretations.md §4): drone–drone contacts between different
 drones' geoms, from the swarm runner, never from our own distance checks.
 
 * the default rule ("layers") flies seeded random crossing starts and the paper's three
@@ -28,7 +28,7 @@ pytestmark = pytest.mark.slow
 
 SETTLE_LIMIT_S = 4.0  # issue 11: the paper's starts settle in at most 4 s (paper ≈ 3 s)
 REFORM_LIMIT_S = 3.0  # issue 11 / paper Fig. 14: re-forming after a change of D within 3 s
-TOL_M = 0.05  # "settled": every leader–follower distance within 5 cm of D (SPEC §7)
+TOL_M = 0.05  # "settled": every leader–follower distance within 5 cm of D (docs/interpretations.md §7)
 
 
 def _fly(sc, rule: str | None = None):
@@ -53,7 +53,7 @@ def test_default_rule_eight_followers_without_contact():
 
 
 def test_paper_rule_touches_where_the_layered_rule_does_not():
-    # eq. (31) starts, leader on the circle: the printed rule lets drones meet (SPEC §4)
+    # eq. (31) starts, leader on the circle: the printed rule lets drones meet (docs/interpretations.md §4)
     sc = load_scenario("circle").with_overrides(duration=3.0)
     paper = run(sc, anti_collision="paper", progress=False)
     assert paper.summary["contacts"] > 0

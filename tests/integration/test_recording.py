@@ -24,7 +24,7 @@ RERUN = Path(sys.executable).with_name("rerun")
 
 
 def read_rrd(path: Path):
-    """All columns of a recording on the sim_time index, as a pandas DataFrame (PLATFORM.md)."""
+    """All columns of a recording on the sim_time index, as a pandas DataFrame (docs/platform.md)."""
     with rr.server.Server(datasets={"ds": [str(path)]}) as server:
         client = server.client()  # keep every object alive until the query has run
         dataset = client.get_dataset("ds")
@@ -94,7 +94,7 @@ def test_logged_poses_equal_the_simulated_ones(circle):
         np.testing.assert_allclose(q, log.quat[:, i][:, [1, 2, 3, 0]], atol=1e-6, err_msg=name)
         trail = col(df, f"/world/trails/{name}:Points3D:positions")[:, 0]
         np.testing.assert_allclose(trail, log.pos[:, i], rtol=2e-7, atol=1e-6, err_msg=name)
-    # the leader really flew the circle of SPEC §3 (not just "whatever the log says")
+    # the leader really flew the circle of docs/interpretations.md §3 (not just "whatever the log says")
     t = log.t
     late = t >= 10.0
     leader = col(df, "/world/drones/leader:Transform3D:translation")[:, 0]
@@ -139,7 +139,7 @@ def test_slots_reference_and_safety_circles(circle):
     slots = col(df, "/world/slots:Points3D:positions")
     assert slots.shape == (len(log.t), 5, 3)
     np.testing.assert_allclose(slots, log.slot[:, 1:], rtol=2e-7, atol=1e-6)
-    # slots: a pentagon of circumradius D = 1 around the leader's position (SPEC §4)
+    # slots: a pentagon of circumradius D = 1 around the leader's position (docs/interpretations.md §4)
     r = np.linalg.norm(slots[:, :, :2] - log.pos[:, None, 0, :2], axis=-1)
     np.testing.assert_allclose(r, 1.0, atol=1e-5)
     strips = df["/world/reference:LineStrips3D:strips"].dropna().iloc[-1]

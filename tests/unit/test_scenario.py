@@ -16,7 +16,7 @@ from swarm_mj.scenario import bundled_scenarios, load_scenario, parse_scenario
 
 BUNDLED = bundled_scenarios()
 
-# The scenarios the issues and SPEC name; more may be bundled.
+# The scenarios the issues and docs/interpretations.md name; more may be bundled.
 REQUIRED = {
     "step",
     "lemniscate_single",
@@ -102,7 +102,9 @@ def _with(**changes) -> dict:
 
 def test_defaults_of_a_minimal_scenario():
     sc = parse_scenario(MINIMAL, "x.toml")
-    assert sc.control_period == 0.01 and sc.timestep == 0.005 and sc.integrator == "RK4"  # SPEC §1, §2
+    assert (
+        sc.control_period == 0.01 and sc.timestep == 0.005 and sc.integrator == "RK4"
+    )  # docs/interpretations.md §1, §2
     np.testing.assert_array_equal(sc.gains, TABLE4_GAINS)
     np.testing.assert_allclose(
         TABLE4_GAINS, [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141, 4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]
