@@ -178,30 +178,32 @@ def run(
         sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
     if anti_collision is not None:
         sc = sc.with_overrides(anti_collision=anti_collision)
-    announced: list[str] = []  # the first run's notice, printed before compiling
-
-    def announce(msg: str) -> None:
-        announced.append(msg)
-        print(msg, file=sys.stderr, flush=True)
-
-    compile_s = warm_up(announce=None if progress is False else announce)
-    if announced:
-        print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
-    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
-    policy = BacksteppingPolicy(sc, env.params)
-    K = env.n_steps
-    log = RunLog.allocate(env.names, K + 1)
-    assert log.downwash is not None and log.ground_effect is not None  # allocate fills every field
-    log.downwash[:] = 0.0  # zero under the paper's model (no such stage)
-    log.ground_effect[:] = 0.0
-    bar = Progress(K, sc.name, progress)
-    error: BaseException | None = None
-    wall0 = _time.perf_counter()
-    ts = env.reset()
-    obs = ts.observation
-    k = 0
-    wind_speed = env.wind.speed
+    # Ctrl-C from here on (compiling, building the world, flying) stops the run cleanly: the loop
+    # returns what ran (at least the start) and the CLI writes its recording (exit 130).
     with _CooperativeInterrupt() as interrupt:
+        announced: list[str] = []  # the first run's notice, printed before compiling
+
+        def announce(msg: str) -> None:
+            announced.append(msg)
+            print(msg, file=sys.stderr, flush=True)
+
+        compile_s = warm_up(announce=None if progress is False else announce)
+        if announced:
+            print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
+        policy = BacksteppingPolicy(sc, env.params)
+        K = env.n_steps
+        log = RunLog.allocate(env.names, K + 1)
+        assert log.downwash is not None and log.ground_effect is not None  # allocate fills every field
+        log.downwash[:] = 0.0  # zero under the paper's model (no such stage)
+        log.ground_effect[:] = 0.0
+        bar = Progress(K, sc.name, progress)
+        error: BaseException | None = None
+        wall0 = _time.perf_counter()
+        ts = env.reset()
+        obs = ts.observation
+        k = 0
+        wind_speed = env.wind.speed
         try:
             while True:
                 cmd = policy.command(obs)
