@@ -8,8 +8,11 @@ and exits 2; a divergence or missing renderer prints one line and exits 1; Ctrl-
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
+import signal
 import sys
+from collections.abc import Iterator
 
 from . import __version__
 from .errors import SwarmError
@@ -36,20 +39,39 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+@contextlib.contextmanager
+def _sigint_deferred() -> Iterator[None]:
+    """Ctrl-C while modules load (C extensions such as MuJoCo's must not be interrupted half-way)
+    is held until the block ends, then raised as KeyboardInterrupt."""
+    if signal.getsignal(signal.SIGINT) is not signal.default_int_handler:
+        yield  # ignored (a worker) or handled by someone else
+        return
+    caught: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+    if caught:
+        raise KeyboardInterrupt
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
-        parser = build_parser()
-    except KeyboardInterrupt:  # Ctrl-C while the subcommands are imported
+        with _sigint_deferred():
+            parser = build_parser()
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help()
+            return 0
+        with _sigint_deferred():
+            from .video.gl import import_mujoco
+
+            import_mujoco()  # a MUJOCO_GL backend that cannot load: fly anyway, fail rendering in one line
+    except KeyboardInterrupt:  # Ctrl-C while the program loads
         print("swarm-mj: interrupted", file=sys.stderr)
         return 130
-    args = parser.parse_args(argv)
-    if not getattr(args, "func", None):
-        parser.print_help()
-        return 0
     try:
-        from .video.gl import import_mujoco
-
-        import_mujoco()  # a MUJOCO_GL backend that cannot load: fly anyway, fail rendering in one line
         return int(args.func(args) or 0)
     except SwarmError as exc:
         print(f"swarm-mj: error: {exc}", file=sys.stderr)
