@@ -29,6 +29,7 @@ its altitude (a formed drone flies at the formation altitude).
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -249,6 +250,31 @@ HOVER_MIN_M = 0.3  # a waiting follower lifts off the ground to this height when
 FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (docs/interpretations.md §1), rounded
 
 
+@dataclass
+class _Step:
+    """What one step of the layered rule's transition (:meth:`LayeredRule.update`) works from and
+    on, shared by its steps (n drones; index 0 is the leader)."""
+
+    t: float
+    positions: np.ndarray  # (n, 3)
+    pos_d: np.ndarray  # (n, 3) the setpoints, a copy the steps adjust
+    formation_alt: float
+    dt: float
+    steer: np.ndarray  # (n,) the drones the rule steers: every follower
+    h: np.ndarray  # (n, n) horizontal distances
+    z: np.ndarray  # (n,) altitudes
+    layer: np.ndarray  # (n,) each follower's layer
+    z_target: np.ndarray  # (n,) altitude target of the altitude paths
+    z_target_vel: np.ndarray  # (n,) its velocity
+    idx: np.ndarray  # (n,) drone indices (the priority: higher index yields)
+    in_transit: bool  # some follower is not formed yet
+    seen: np.ndarray  # (n, n) drone i sees drone j (within sensing_range; the leader always)
+    soon: np.ndarray  # (n, n) smallest horizontal distance over the horizon, +inf if unseen
+    vband: np.ndarray  # (n, n) swept altitude bands overlap, and seen
+    goal: np.ndarray = field(init=False)  # (n, 2) horizontal goals, set by the cross step
+    goal_vel: np.ndarray = field(init=False)  # (n, 2) their velocity
+
+
 class LayeredRule(PaperRule):
     """Ours (the default, ``anti_collision = "layers"``): altitude layers for the transition
     from the start to the slot, then the paper's rule.
@@ -463,152 +489,228 @@ class LayeredRule(PaperRule):
     def _update_formed(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
+        """4. *formed* for the whole swarm (every follower formed, nobody in transit): the paper's
+        reactive rule (Fig. 5) and the paths to the slots, in one compiled kernel."""
         return _update_formed_impl(self, t, positions, pos_d, formation_alt, dt)
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
+        dt = self._estimate_velocities(t, positions)
+        if self._all_formed:
+            return self._update_formed(t, positions, pos_d, formation_alt, dt)
+        s = self._sense(t, positions, pos_d, formation_alt, dt)
+        self._climb(s)
+        self._cross(s)
+        self._drop(s)
+        self._formed(s)
+        return self._fly_paths(s)
+
+    # ------------------------------------------------------------------ its steps
+    def _estimate_velocities(self, t: float, positions: np.ndarray) -> float:
+        """The step dt since the last update and every drone's velocity estimated from its
+        successive positions (decentralised: no drone reads another's velocity)."""
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
             np.subtract(positions, self._prev_pos, out=self.vel)
             self.vel /= dt
         self._prev_t = float(t)
         self._prev_pos[:] = positions
-        if self._all_formed:
-            return self._update_formed(t, positions, pos_d, formation_alt, dt)
+        return dt
+
+    def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> _Step:
+        """What this step of the transition works from (ours): each follower's layer and altitude
+        target, and who sees whom within ``sensing_range`` (the leader's position it always has:
+        the slots are built from it), with the predicted approaches and the swept altitude bands."""
         n = self.n
-        h = _horizontal_distances(positions)
         z = positions[:, 2]
-        pos_d = pos_d.copy()
+        layer = formation_alt + self.hop * self.layer_index  # (n,)
         steer = np.ones(n, dtype=bool)
         steer[0] = False  # the leader: its trajectory
         self.vel_d[:] = 0.0
         self.acc_d[:] = 0.0
-        layer = formation_alt + self.hop * self.layer_index  # (n,)
-        z_target = layer.copy()  # (n,)
-        z_target_vel = np.full(n, float(self.vel[0, 2]))  # (n,) layers move with the leader
-        lead_v = self.vel[0]  # (3,) the slots' velocity
-        idx = np.arange(n)
-        # decentralised: drone i sees drone j only within the sensing range (the leader's
-        # position it always has: the slots are built from it)
-        in_transit = bool((self.phase != FORMED).any())
-        if in_transit:  # once every follower is formed, only the reactive rule and the paths run
-            rel = positions[None, :, :] - positions[:, None, :]
-            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range**2  # (n, n)
-            seen[:, 0] = True
-            np.fill_diagonal(seen, False)
-            soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-            vband = self._vertical_overlap(z, self.horizon) & seen  # (n, n)
+        # (computed even when nobody is in transit, which cannot happen here: every step that reads
+        # these then does nothing, as before)
+        rel = positions[None, :, :] - positions[:, None, :]
+        seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range**2  # (n, n)
+        seen[:, 0] = True
+        np.fill_diagonal(seen, False)
+        soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
+        return _Step(
+            t=t,
+            positions=positions,
+            pos_d=pos_d.copy(),
+            formation_alt=formation_alt,
+            dt=dt,
+            steer=steer,
+            h=_horizontal_distances(positions),
+            z=z,
+            layer=layer,
+            z_target=layer.copy(),
+            z_target_vel=np.full(n, float(self.vel[0, 2])),  # layers move with the leader
+            idx=np.arange(n),
+            in_transit=bool((self.phase != FORMED).any()),
+            seen=seen,
+            soon=soon,
+            vband=self._vertical_overlap(z, self.horizon) & seen,
+        )
 
-        # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
+    def _ready_to_cross(self, s: _Step, climbing: np.ndarray) -> np.ndarray:
+        """(n,) climbing followers within ``climb_tolerance`` of their layer (ours)."""
+        return climbing & (s.z >= s.layer - self.climb_tol)
+
+    def _wait_floor(self) -> np.ndarray:
+        """(n,) the highest a follower waiting under a drone waits at (ours): where it is, lifting
+        off the ground to ``HOVER_MIN_M``."""
+        return np.maximum(self.zp, HOVER_MIN_M)
+
+    def _stuck_under(self, stuck: np.ndarray, slow: np.ndarray) -> np.ndarray:
+        """(n, n) the drones a waiting follower steps aside from (ours): every one it is stuck under."""
+        return stuck
+
+    def _climb(self, s: _Step) -> None:
+        """1. *climb* (ours): in place to its layer; never through a drone within D̄ above (it waits
+        ``hop`` below, climbs over when too late to stop, steps aside from one that hovers there).
+        Followers that reach their layer switch to the crossing."""
+        z, h, layer = s.z, s.h, s.layer
         climbing = self.phase == CLIMB
-        ready = climbing & (z >= layer - self.climb_tol)
+        ready = self._ready_to_cross(s, climbing)
         for i in np.flatnonzero(ready):
             self.phase[i] = CROSS
-            self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
+            self.events.append({"t": s.t, "drone": int(i), "other": -1, "action": "cross"})
         climbing = self.phase == CLIMB
-        if climbing.any():
-            # drones it must not climb into: above it (up to its layer) and, horizontally,
-            # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
-            # hover (a drone climbing in place passes a hovering one that close unharmed);
-            # the leader, which yields to nobody, also when about level with it
-            hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
-            hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
-            radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
-            vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
-            vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
-            above = (soon < radius) & vertical
-            above &= climbing[:, None]
-            zmin = np.where(above, z[None, :], np.inf).min(axis=1)  # (n,) lowest such drone
-            # below it: wait (brake as hard as it can) no higher than now — it does not chase a
-            # climbing drone from below — and hop under it, or on the ground. About level with
-            # it already: climb over it, unless it is straight above (footprints overlap).
-            z_wait = np.maximum(np.minimum(np.maximum(self.zp, HOVER_MIN_M), zmin - self.hop), 0.0)
-            overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
-            vz = np.maximum(self.zv, 0.0)
-            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
-            late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
-            over = np.isfinite(zmin) & late & ~overhead
-            wait = np.isfinite(zmin) & ~over
-            z_target[wait] = np.minimum(layer[wait], z_wait[wait])
-            z_target_vel[wait] = 0.0
-            z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
-            # waiting, airborne, under a drone that hovers there (the leader hovering, or a
-            # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-            slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
-            stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
-            there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
-            aside = stuck.any(axis=1) & there & wait
-            for i in np.flatnonzero(aside):
-                j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
-                away = positions[i, :2] - positions[j, :2]
-                away /= max(float(np.linalg.norm(away)), 1e-9)
-                self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
-                self.asides[i] += 1
-                self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
+        if not climbing.any():
+            return
+        # drones it must not climb into: above it (up to its layer) and, horizontally,
+        # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
+        # hover (a drone climbing in place passes a hovering one that close unharmed);
+        # the leader, which yields to nobody, also when about level with it
+        hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
+        hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
+        radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
+        vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
+        vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
+        above = (s.soon < radius) & vertical
+        above &= climbing[:, None]
+        zmin = np.where(above, z[None, :], np.inf).min(axis=1)  # (n,) lowest such drone
+        # below it: wait (brake as hard as it can) no higher than now — it does not chase a
+        # climbing drone from below — and hop under it, or on the ground. About level with
+        # it already: climb over it, unless it is straight above (footprints overlap).
+        z_wait = np.maximum(np.minimum(self._wait_floor(), zmin - self.hop), 0.0)
+        overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
+        vz = np.maximum(self.zv, 0.0)
+        z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
+        late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
+        over = np.isfinite(zmin) & late & ~overhead
+        wait = np.isfinite(zmin) & ~over
+        s.z_target[wait] = np.minimum(layer[wait], z_wait[wait])
+        s.z_target_vel[wait] = 0.0
+        s.z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
+        # waiting, airborne, under a drone that hovers there (the leader hovering, or a
+        # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
+        slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
+        stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
+        stuck = self._stuck_under(stuck, slow)
+        positions = s.positions
+        there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
+        aside = stuck.any(axis=1) & there & wait
+        for i in np.flatnonzero(aside):
+            j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
+            away = positions[i, :2] - positions[j, :2]
+            away /= max(float(np.linalg.norm(away)), 1e-9)
+            self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
+            self.asides[i] += 1
+            self.events.append({"t": s.t, "drone": int(i), "other": j, "action": "aside"})
 
-        # 2. cross on the layer along a limited path, braking for drones it gives way to
+    def _conflicts(self, s: _Step, gap: np.ndarray, near: np.ndarray, gives_way: np.ndarray) -> np.ndarray:
+        """(n, n) the drones a crossing follower brakes for (ours): one it gives way to, predicted
+        within D̄ (``near``) in an altitude band it sweeps."""
+        return near & s.vband & gives_way
+
+    def _cross(self, s: _Step) -> None:
+        """2. *cross* (ours): the horizontal goals — its start while climbing, its slot (moving with
+        the leader) after — and, crossing on the layer, braking to rest (``blocked``) while a drone
+        it gives way to (the leader, a lower index, any drone not crossing) is in conflict."""
+        n = self.n
+        positions = s.positions
         climbing = self.phase == CLIMB
         crossing = self.phase == CROSS
-        goal = pos_d[:, :2].copy()  # (n, 2) slots
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()  # (n, 2) their velocity
-        goal[climbing] = self.start_xy[climbing]
-        goal_vel[climbing] = 0.0
+        s.goal = s.pos_d[:, :2].copy()  # (n, 2) slots
+        s.goal_vel = np.broadcast_to(self.vel[0, :2], (n, 2)).copy()  # (n, 2) their velocity
+        s.goal[climbing] = self.start_xy[climbing]
+        s.goal_vel[climbing] = 0.0
         self.blocked &= crossing
-        if crossing.any():
-            speed = _rownorm(self.vel[:, :2])
-            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
-            d = positions[None, :, :2] - positions[:, None, :2]
-            dv = self.vel[None, :, :2] - self.vel[:, None, :2]
-            vv = np.einsum("ijk,ijk->ij", dv, dv)
-            tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
-            m = d + tc[:, :, None] * dv
-            near = (np.sqrt(np.einsum("ijk,ijk->ij", m, m)) < self.safety) & seen
-            gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
-            conflict = near & vband & gives_way
-            blocked = crossing & conflict.any(axis=1)
-            for i in np.flatnonzero(blocked & ~self.blocked):
-                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
-            self.blocked = blocked
-            # 3. drop once over the slot, if no drone still in transit is (or will be) under it
-            there = (
-                crossing
-                & (_rownorm(positions[:, :2] - goal) < self.arrive)
-                & (_rownorm(self.path_p - goal) < self.arrive)
-            )
-            for i in np.flatnonzero(there):
-                under = (soon[i] < self.safety) & (self.phase != FORMED) & (z < z[i] + self.clearance)
-                if not under.any():
-                    self.phase[i] = FORMED
-                    self.blocked[i] = False
-                    self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
+        if not crossing.any():
+            return
+        speed = _rownorm(self.vel[:, :2])
+        horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
+        d = positions[None, :, :2] - positions[:, None, :2]
+        dv = self.vel[None, :, :2] - self.vel[:, None, :2]
+        vv = np.einsum("ijk,ijk->ij", dv, dv)
+        tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
+        m = d + tc[:, :, None] * dv
+        gap = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
+        near = (gap < self.safety) & s.seen
+        gives_way = (s.idx[None, :] < s.idx[:, None]) | (self.phase[None, :] != CROSS)
+        conflict = self._conflicts(s, gap, near, gives_way)
+        blocked = crossing & conflict.any(axis=1)
+        for i in np.flatnonzero(blocked & ~self.blocked):
+            self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
+        self.blocked = blocked
 
-        # 4. formed: slot (x, y) with the leader's velocity; the paper's reactive rule among
-        #    formed drones and the leader sets the altitude offset
+    def _under(self, s: _Step, i: int) -> np.ndarray:
+        """(n,) the drones that keep follower ``i`` from dropping (ours): still in transit and (now
+        or soon) within D̄ under it."""
+        return (s.soon[i] < self.safety) & (self.phase != FORMED) & (s.z < s.z[i] + self.clearance)
+
+    def _drop(self, s: _Step) -> None:
+        """3. *drop* (ours): a crossing follower within ``arrive`` of its slot (and its path too)
+        joins the formation — and so descends to the formation altitude — when nothing is under it."""
+        crossing = self.phase == CROSS
+        if not crossing.any():
+            return
+        there = (
+            crossing
+            & (_rownorm(s.positions[:, :2] - s.goal) < self.arrive)
+            & (_rownorm(self.path_p - s.goal) < self.arrive)
+        )
+        for i in np.flatnonzero(there):
+            if not self._under(s, int(i)).any():
+                self.phase[i] = FORMED
+                self.blocked[i] = False
+                self.events.append({"t": s.t, "drone": int(i), "other": -1, "action": "drop"})
+
+    def _formed(self, s: _Step) -> None:
+        """4. *formed* (the paper's, Fig. 5): the reactive rule among formed drones and the leader
+        sets the altitude offset of each formed follower; ours: one still descending never descends
+        onto a drone in transit within D̄ (now or soon) below it, it waits ``hop`` above it
+        (docs/interpretations.md §4's failure case)."""
+        z = s.z
         formed = self.phase == FORMED
-        self._react(t, positions, h, formed)
+        self._react(s.t, s.positions, s.h, formed)
         formed[0] = False
-        z_target[formed] = formation_alt + self.offset[formed]
-        # a formed drone still descending never descends onto a drone in transit within D̄
-        # (now or soon) below it: it waits hop above it (docs/interpretations.md §4's failure case)
+        s.z_target[formed] = s.formation_alt + self.offset[formed]
+        if not s.in_transit:
+            return
         below = (
-            (soon < self.safety)
+            (s.soon < self.safety)
             & formed[:, None]
             & (self.phase[None, :] != FORMED)
             & (z[None, :] < z[:, None])
-            & (z[None, :] > z_target[:, None] - self.clearance)
-            if in_transit
-            else None
+            & (z[None, :] > s.z_target[:, None] - self.clearance)
         )
-        if below is not None and below.any():
+        if below.any():
             zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
-            z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
+            s.z_target = np.where(np.isfinite(zmax), np.maximum(s.z_target, zmax + self.hop), s.z_target)
 
-        # every follower flies limited paths: horizontal (to its start while climbing, to its
-        # slot after) and vertical (see _advance_paths, _advance_altitude)
-        self._advance_paths(dt, goal, goal_vel)
-        self._advance_altitude(dt, z_target, z_target_vel)
+    def _fly_paths(self, s: _Step) -> tuple[np.ndarray, np.ndarray]:
+        """Every follower flies limited paths (ours): horizontal, to ``goal``, and vertical, to
+        ``z_target`` (see :meth:`_advance_paths`, :meth:`_advance_altitude`); their position,
+        velocity and acceleration are the controller's references."""
+        self._advance_paths(s.dt, s.goal, s.goal_vel)
+        self._advance_altitude(s.dt, s.z_target, s.z_target_vel)
+        pos_d = s.pos_d
         pos_d[1:, :2] = self.path_p[1:]
         self.vel_d[1:, :2] = self.path_v[1:]
         self.acc_d[1:, :2] = self.path_a[1:]
@@ -616,7 +718,7 @@ class LayeredRule(PaperRule):
         self.vel_d[1:, 2] = self.zv[1:]
         self.acc_d[1:, 2] = self.za[1:]
         self._all_formed = bool((self.phase == FORMED).all())
-        return pos_d, steer
+        return pos_d, s.steer
 
 
 def jet_clearance(dz: np.ndarray, margin: float = 0.0) -> np.ndarray:
@@ -740,205 +842,99 @@ class ClearanceRule(LayeredRule):
             out[i] = p + aim / max(float(np.hypot(*aim)), 1e-9) * max(float(np.hypot(*aim)), 1.0)
         return out
 
-    def update(
-        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The layered rule's climb / cross / drop, kept out of the jets where that costs no time
-        (1.–3. of the class docstring), Fig. 5 once formed."""
-        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
-        if dt > 0.0:
-            np.subtract(positions, self._prev_pos, out=self.vel)
-            self.vel /= dt
-        self._prev_t = float(t)
-        self._prev_pos[:] = positions
-        if self._all_formed:
-            return self._update_formed(t, positions, pos_d, formation_alt, dt)
-        n = self.n
-        h = _horizontal_distances(positions)
-        z = positions[:, 2]
-        pos_d = pos_d.copy()
-        steer = np.ones(n, dtype=bool)
-        steer[0] = False  # the leader: its trajectory
-        self.vel_d[:] = 0.0
-        self.acc_d[:] = 0.0
-        layer = formation_alt + self.hop * self.layer_index  # (n,)
-        z_target = layer.copy()  # (n,)
-        z_target_vel = np.full(n, float(self.vel[0, 2]))  # (n,) layers move with the leader
-        lead_v = self.vel[0]  # (3,) the slots' velocity
-        idx = np.arange(n)
-        # decentralised: drone i sees drone j only within the sensing range (the leader's
-        # position it always has: the slots are built from it)
-        in_transit = bool((self.phase != FORMED).any())
-        if in_transit:  # once every follower is formed, only the reactive rule and the paths run
-            rel = positions[None, :, :] - positions[:, None, :]
-            seen = np.einsum("ijk,ijk->ij", rel, rel) < self.sensing_range**2  # (n, n)
-            seen[:, 0] = True
-            np.fill_diagonal(seen, False)
-            soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-            vband = self._vertical_overlap(z, self.horizon) & seen  # (n, n)
-            dz = z[None, :] - z[:, None]  # (n, n) z_j − z_i
-            jet = jet_clearance(dz, self.jet_margin)  # (n, n)
-            slot_gap = _rownorm((pos_d[None, :, :2] - pos_d[:, None, :2]).reshape(-1, 2)).reshape(n, n)
-            jet_c = np.where(
-                (self.phase == FORMED)[None, :] | (idx[None, :] == 0), np.minimum(jet, slot_gap - 0.05), jet
-            )  # (n, n)
+    # ------------------------------------------------------------------ its steps (the layered rule's, adjusted)
+    def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> _Step:
+        """The layered rule's, plus (ours) the vertical separations and the jet clearance of every
+        pair: towards a formed drone or the leader capped just short of the distance between their
+        slots (4. of the class docstring)."""
+        s = super()._sense(t, positions, pos_d, formation_alt, dt)
+        n, z, idx = self.n, s.z, s.idx
+        self._dz = z[None, :] - z[:, None]  # (n, n) z_j − z_i
+        self._jet = jet_clearance(self._dz, self.jet_margin)  # (n, n)
+        slot_gap = _rownorm((s.pos_d[None, :, :2] - s.pos_d[:, None, :2]).reshape(-1, 2)).reshape(n, n)
+        self._jet_c = np.where(
+            (self.phase == FORMED)[None, :] | (idx[None, :] == 0), np.minimum(self._jet, slot_gap - 0.05), self._jet
+        )  # (n, n)
+        return s
 
-        # 1. climb in place to the layer; never through a drone within D̄ above (wait hop below)
-        climbing = self.phase == CLIMB
-        # ours: and only once its climb has slowed (|ż| < 1 m/s): braking a climb takes the thrust
-        # down to m·(g − 5 m/s²), and tilting then for the crossing, with the rotors' lag, flipped drones
-        ready = climbing & (z >= layer - self.climb_tol) & (np.abs(self.zv) < 1.0)
-        for i in np.flatnonzero(ready):
-            self.phase[i] = CROSS
-            self.events.append({"t": t, "drone": int(i), "other": -1, "action": "cross"})
-        climbing = self.phase == CLIMB
-        if climbing.any():
-            # drones it must not climb into: above it (up to its layer) and, horizontally,
-            # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
-            # hover (a drone climbing in place passes a hovering one that close unharmed);
-            # the leader, which yields to nobody, also when about level with it
-            hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
-            hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
-            radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
-            vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
-            vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
-            above = (soon < radius) & vertical
-            above &= climbing[:, None]
-            zmin = np.where(above, z[None, :], np.inf).min(axis=1)  # (n,) lowest such drone
-            # below it: wait (brake as hard as it can) no higher than now — it does not chase a
-            # climbing drone from below — and hop under it, or on the ground. About level with
-            # it already: climb over it, unless it is straight above (footprints overlap).
-            z_wait = np.maximum(np.minimum(self.zp, zmin - self.hop), 0.0)  # ours: no higher than now
-            overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
-            vz = np.maximum(self.zv, 0.0)
-            z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
-            late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
-            over = np.isfinite(zmin) & late & ~overhead
-            wait = np.isfinite(zmin) & ~over
-            z_target[wait] = np.minimum(layer[wait], z_wait[wait])
-            z_target_vel[wait] = 0.0
-            z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
-            # waiting, airborne, under a drone that hovers there (the leader hovering, or a
-            # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-            slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
-            stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
-            stuck &= ~((self.phase == FORMED) & ~slow)[None, :]
-            there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
-            aside = stuck.any(axis=1) & there & wait
-            for i in np.flatnonzero(aside):
-                j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
-                away = positions[i, :2] - positions[j, :2]
-                away /= max(float(np.linalg.norm(away)), 1e-9)
-                self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
-                self.asides[i] += 1
-                self.events.append({"t": t, "drone": int(i), "other": j, "action": "aside"})
+    def _ready_to_cross(self, s: _Step, climbing: np.ndarray) -> np.ndarray:
+        """The layered rule's, and (ours) only once its climb has slowed (|ż| < 1 m/s): braking a
+        climb takes the thrust down to m·(g − 5 m/s²), and tilting then for the crossing, with the
+        rotors' lag, flipped drones."""
+        return super()._ready_to_cross(s, climbing) & (np.abs(self.zv) < 1.0)
 
-        # ours: a follower still on the ground stays there while a drone it gives way to is (or is
-        # predicted to be) above its start within the jet clearance (the leader setting off overhead)
-        if in_transit:
-            ground = (self.phase == CLIMB) & (z < HOVER_MIN_M)
-            # (not for a formed drone hovering there: it would wait for ever; airborne, it steps aside)
-            staying = (self.phase == FORMED) & (_rownorm(self.vel[:, :2]) < 0.5)
-            overhead = (
-                seen
-                & (soon < jet)
-                & (dz > 0.05)
-                & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
-                & ~staying[None, :]
-            )
-            hold = ground & overhead.any(axis=1)
-            z_target[hold] = np.minimum(z_target[hold], 0.0)
-            z_target_vel[hold] = 0.0
-            for i in np.flatnonzero(hold & ~self.holding):
-                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(overhead[i])), "action": "wait"})
-            self.holding = hold
+    def _wait_floor(self) -> np.ndarray:
+        """(n,) ours (2. of the class docstring): a waiting follower waits no higher than it is (the
+        layered rule lifted it off the ground, into the jet of the drone above)."""
+        return self.zp
 
-        # 2. cross on the layer along a limited path, braking for drones it gives way to
-        climbing = self.phase == CLIMB
-        crossing = self.phase == CROSS
-        goal = pos_d[:, :2].copy()  # (n, 2) slots
-        goal_vel = np.broadcast_to(lead_v[:2], (n, 2)).copy()  # (n, 2) their velocity
-        goal[climbing] = self.start_xy[climbing]
-        goal_vel[climbing] = 0.0
-        self.blocked &= crossing
-        if crossing.any():
-            speed = _rownorm(self.vel[:, :2])
-            horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
-            d = positions[None, :, :2] - positions[:, None, :2]
-            dv = self.vel[None, :, :2] - self.vel[:, None, :2]
-            vv = np.einsum("ijk,ijk->ij", dv, dv)
-            tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
-            m = d + tc[:, :, None] * dv
-            gap = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
-            near = (gap < self.safety) & seen
-            gives_way = (idx[None, :] < idx[:, None]) | (self.phase[None, :] != CROSS)
-            # ours: also for a drone crossing on a layer up to jet_depth above or below, within the
-            # jet clearance (the near jet of a drone 0.4 m up tips the one below over)
-            hover = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
-            near_jet = (
-                (gap < jet_c) & seen & (np.abs(dz) < self.jet_depth) & (self.phase[None, :] == CROSS) & ~hover[None, :]
-            )
-            conflict = ((near & vband) | near_jet) & gives_way
-            blocked = crossing & conflict.any(axis=1)
-            for i in np.flatnonzero(blocked & ~self.blocked):
-                self.events.append({"t": t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
-            self.blocked = blocked
-            # 3. drop once over the slot, if no drone still in transit is (or will be) under it
-            there = (
-                crossing
-                & (_rownorm(positions[:, :2] - goal) < self.arrive)
-                & (_rownorm(self.path_p - goal) < self.arrive)
-            )
-            for i in np.flatnonzero(there):
-                under = (
-                    (soon[i] < np.maximum(self.safety, jet_c[i])) & (z < z[i] + self.clearance) & (z > HOVER_MIN_M)
-                )  # one on the ground is held by it (and waits for this one)
-                if not under.any():
-                    self.phase[i] = FORMED
-                    self.blocked[i] = False
-                    self.events.append({"t": t, "drone": int(i), "other": -1, "action": "drop"})
+    def _stuck_under(self, stuck: np.ndarray, slow: np.ndarray) -> np.ndarray:
+        """The layered rule's, less formed drones that move (ours)."""
+        return stuck & ~((self.phase == FORMED) & ~slow)[None, :]
 
-        # ours: crossing, it goes round a drone that hovers on the next layer (braking, or waiting to
-        # drop) within the jet clearance of its line to the slot
+    def _climb(self, s: _Step) -> None:
+        """1.–2. of the class docstring: the layered rule's climb (with the steps above), then the
+        take-off hold (:meth:`_take_off`)."""
+        super()._climb(s)
+        self._take_off(s)
+
+    def _take_off(self, s: _Step) -> None:
+        """1. *take off* (ours): a follower still on the ground stays there while a drone it gives way
+        to is (or is predicted to be) above its start within the jet clearance (the leader setting
+        off overhead); not for a formed drone hovering there: it would wait for ever (airborne, the
+        follower steps aside)."""
+        if not s.in_transit:
+            return
+        idx = s.idx
+        ground = (self.phase == CLIMB) & (s.z < HOVER_MIN_M)
+        staying = (self.phase == FORMED) & (_rownorm(self.vel[:, :2]) < 0.5)
+        overhead = (
+            s.seen
+            & (s.soon < self._jet)
+            & (self._dz > 0.05)
+            & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
+            & ~staying[None, :]
+        )
+        hold = ground & overhead.any(axis=1)
+        s.z_target[hold] = np.minimum(s.z_target[hold], 0.0)
+        s.z_target_vel[hold] = 0.0
+        for i in np.flatnonzero(hold & ~self.holding):
+            self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(overhead[i])), "action": "wait"})
+        self.holding = hold
+
+    def _conflicts(self, s: _Step, gap: np.ndarray, near: np.ndarray, gives_way: np.ndarray) -> np.ndarray:
+        """3. *cross*: the layered rule's conflicts, and (ours) a drone crossing on a layer up to
+        ``jet_depth`` above or below that moves, within the jet clearance (the near jet of a drone
+        0.4 m up tips the one below over)."""
+        hover = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
+        near_jet = (
+            (gap < self._jet_c)
+            & s.seen
+            & (np.abs(self._dz) < self.jet_depth)
+            & (self.phase[None, :] == CROSS)
+            & ~hover[None, :]
+        )
+        return ((near & s.vband) | near_jet) & gives_way
+
+    def _under(self, s: _Step, i: int) -> np.ndarray:
+        """4. *drop* (ours): any airborne drone, formed or not, (now or soon) within the jet
+        clearance (at least D̄) under it; one on the ground is held by it (and waits for this one)."""
+        return (
+            (s.soon[i] < np.maximum(self.safety, self._jet_c[i]))
+            & (s.z < s.z[i] + self.clearance)
+            & (s.z > HOVER_MIN_M)
+        )
+
+    def _drop(self, s: _Step) -> None:
+        """4. *drop* (the layered rule's, with :meth:`_under`), then 3.'s going round (ours): a
+        crossing follower goes round a drone that hovers on the next layer (braking, or waiting to
+        drop) within the jet clearance of its line to the slot (:meth:`_go_round`)."""
+        super()._drop(s)
         crossing = self.phase == CROSS
         if crossing.any():
             hover = _rownorm(self.vel[:, :2]) < 0.5
-            obstacle = seen & (hover & (self.phase == CROSS))[None, :] & (np.abs(dz) < self.jet_depth)
-            goal = self._go_round(positions, goal, crossing, obstacle, jet_c)
-
-        # 4. formed: slot (x, y) with the leader's velocity; the paper's reactive rule among
-        #    formed drones and the leader sets the altitude offset
-        formed = self.phase == FORMED
-        self._react(t, positions, h, formed)
-        formed[0] = False
-        z_target[formed] = formation_alt + self.offset[formed]
-        # a formed drone still descending never descends onto a drone in transit within D̄
-        # (now or soon) below it: it waits hop above it (docs/interpretations.md §4's failure case)
-        below = (
-            (soon < self.safety)
-            & formed[:, None]
-            & (self.phase[None, :] != FORMED)
-            & (z[None, :] < z[:, None])
-            & (z[None, :] > z_target[:, None] - self.clearance)
-            if in_transit
-            else None
-        )
-        if below is not None and below.any():
-            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
-            z_target = np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
-
-        # every follower flies limited paths: horizontal (to its start while climbing, to its
-        # slot after) and vertical (see _advance_paths, _advance_altitude)
-        self._advance_paths(dt, goal, goal_vel)
-        self._advance_altitude(dt, z_target, z_target_vel)
-        pos_d[1:, :2] = self.path_p[1:]
-        self.vel_d[1:, :2] = self.path_v[1:]
-        self.acc_d[1:, :2] = self.path_a[1:]
-        pos_d[1:, 2] = self.zp[1:]
-        self.vel_d[1:, 2] = self.zv[1:]
-        self.acc_d[1:, 2] = self.za[1:]
-        self._all_formed = bool((self.phase == FORMED).all())
-        return pos_d, steer
+            obstacle = s.seen & (hover & (self.phase == CROSS))[None, :] & (np.abs(self._dz) < self.jet_depth)
+            s.goal = self._go_round(s.positions, s.goal, crossing, obstacle, self._jet_c)
 
 
 def _update_formed_impl(
