@@ -26,7 +26,7 @@ import pytest
 
 from swarm_mj.cli import main as cli_main
 from swarm_mj.errors import UserError
-from swarm_mj.parallel import backend_name, map_ordered, resolve_workers
+from swarm_mj.parallel import Executor, backend_name, map_ordered, resolve_workers
 from swarm_mj.progress import Progress
 
 # --------------------------------------------------------------------------- the executor
@@ -46,6 +46,17 @@ def test_map_ordered_equals_serial_in_item_order():
 def test_workers_ignore_sigint_and_the_parent_does_not():
     assert map_ordered(signal.getsignal, [signal.SIGINT] * 2, workers=2) == [signal.SIG_IGN] * 2
     assert signal.getsignal(signal.SIGINT) is not signal.SIG_IGN
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self"), reason="needs /proc/self to name the worker's pid")
+def test_executor_keeps_its_workers_across_calls():
+    with Executor(2) as ex:  # os.readlink("/proc/self") is the pid of the process that runs it
+        pids = {pid for _ in range(4) for pid in ex.map(os.readlink, ["/proc/self"] * 4)}
+        assert ex.map(math.factorial, [5, 3]) == [120, 6] and ex.backend == "processes"
+    # the same (at most) two workers every call; a pool per call would show at least one new pid per call
+    assert 1 <= len(pids) <= 2 and str(os.getpid()) not in pids
+    with pytest.raises(RuntimeError, match="closed"):
+        ex.map(math.factorial, [1])
 
 
 def test_worker_count_checks():
