@@ -11,13 +11,10 @@ a flag, checked once per control period, so that it never lands inside a compile
 
 from __future__ import annotations
 
-import signal
 import sys
-import threading
 import time as _time
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 
@@ -25,6 +22,7 @@ from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
+from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
@@ -162,6 +160,7 @@ def run(
     duration: float | None = None,
     aero: str | None = None,
     force_stages: Sequence[ForceStage] = (),
+    interrupt: CooperativeInterrupt | None = None,
 ) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
@@ -169,6 +168,9 @@ def run(
     ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator (after drag and wind;
     the preset's aerodynamic stages come after them).
     Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
+    ``interrupt``: a :class:`~swarm_mj.interrupt.CooperativeInterrupt` the caller entered earlier
+    (``swarm-mj run`` does, before it loads anything), so that a Ctrl-C during its own set-up stops
+    this run at its start, with a recording of it.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sc = with_aero(sc, aero)
@@ -180,7 +182,7 @@ def run(
         sc = sc.with_overrides(anti_collision=anti_collision)
     # Ctrl-C from here on (compiling, building the world, flying) stops the run cleanly: the loop
     # returns what ran (at least the start) and the CLI writes its recording (exit 130).
-    with _CooperativeInterrupt() as interrupt:
+    with interrupt or CooperativeInterrupt() as interrupt:
         announced: list[str] = []  # the first run's notice, printed before compiling
 
         def announce(msg: str) -> None:
@@ -240,30 +242,7 @@ def run(
     return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error)
 
 
-class _CooperativeInterrupt:
-    """While active (main thread, SIGINT at Python's default handler), SIGINT sets ``requested``
-    instead of raising KeyboardInterrupt wherever the interpreter happens to be (inside a compiled
-    kernel it surfaces as a SystemError and loses the run); the previous handler is restored on exit."""
-
-    def __init__(self) -> None:
-        self.requested = False
-        self._previous: Any = None
-
-    def _handler(self, signum, frame) -> None:
-        self.requested = True
-
-    def __enter__(self) -> _CooperativeInterrupt:
-        if (
-            threading.current_thread() is threading.main_thread()
-            and signal.getsignal(signal.SIGINT) is signal.default_int_handler
-        ):
-            self._previous = signal.signal(signal.SIGINT, self._handler)
-        return self
-
-    def __exit__(self, *exc) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-            self._previous = None
+_CooperativeInterrupt = CooperativeInterrupt  # the former name
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:

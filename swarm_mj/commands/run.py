@@ -7,6 +7,7 @@ import os
 import sys
 from pathlib import Path
 
+from ..interrupt import CooperativeInterrupt
 from . import AERO_NAMES, RULE_NAMES
 
 
@@ -88,6 +89,17 @@ def check_args(args: argparse.Namespace, sc) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
+    # Ctrl-C from here until the run ends stops the run at its start or where it is (exit 130, the
+    # recording of what ran written); afterwards (writing files, serving, video) it interrupts as usual.
+    interrupt = CooperativeInterrupt()
+    interrupt.__enter__()
+    try:
+        return _main(args, interrupt)
+    finally:
+        interrupt.__exit__()
+
+
+def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     from ..control.backstepping import check_gains, load_gains
     from ..errors import UserError
     from ..report_table import format_summary
@@ -121,7 +133,9 @@ def main(args: argparse.Namespace) -> int:
         aero=args.aero,
         progress=None if not args.quiet else False,
         duration=args.duration,
+        interrupt=interrupt,
     )
+    interrupt.__exit__()  # the run is over: Ctrl-C interrupts writing, serving and rendering as usual
     rc = 0
     out = None
     if not args.no_record:
