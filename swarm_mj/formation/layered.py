@@ -1,4 +1,4 @@
-"""The layered rule's limited paths (:class:`~swarm_mj.formation.layered_rule.LayeredRule`), compiled.
+"""The layered rule's limited paths (:class:`~swarm_mj.formation.anticollision.LayeredRule`), compiled.
 
 Each follower the rule steers flies a horizontal path (p, v, a (n, 2)) and an altitude path
 (zp, zv, za (n,)) whose position, velocity and acceleration go to the controller; the paths
