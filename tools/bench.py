@@ -50,10 +50,11 @@ import tempfile
 import time
 from pathlib import Path
 
+# isort: off
+import swarm_mj  # noqa: F401  (first: it sets MUJOCO_GL before mujoco is imported)
 import mujoco
 import numpy as np
-
-import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
+# isort: on
 
 SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero")
 ROWS: list[dict] = []
