@@ -238,7 +238,8 @@ def test_interrupted_run_exits_130_with_a_readable_recording(tmp_path):
         cwd=tmp_path,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
-        stderr=slave,
+        stderr=slave,  # SIGINT at its default in the child (a shell's background job starts with it ignored)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     os.close(slave)
     err = b""

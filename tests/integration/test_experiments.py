@@ -77,6 +77,7 @@ def test_ctrl_c_during_a_sweep_exits_130_in_one_line(tmp_path):
         stderr=subprocess.PIPE,
         text=True,
         start_new_session=True,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),  # not ignored, even from a background job
     )
     try:
         first = p.stderr.readline()  # a run has completed: the workers are busy with the next ones

@@ -73,8 +73,19 @@ def rerun_servers(port: int) -> list[int]:
 
 def start_cli(args: list[str], env: dict | None = None, cwd: Path | None = None) -> subprocess.Popen:
     return subprocess.Popen(
-        CLI + args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env or headless_env(), cwd=cwd
+        CLI + args,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env=env or headless_env(),
+        cwd=cwd,
+        preexec_fn=_default_sigint,  # Ctrl-C reaches the CLI even if this test runs in a background job
     )
+
+
+def _default_sigint() -> None:
+    """In the child: SIGINT at its default (a shell's background job starts with it ignored)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def wait_for_url(proc: subprocess.Popen, timeout: float = HANG_GUARD_S) -> str:

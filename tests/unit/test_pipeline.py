@@ -244,7 +244,8 @@ def _interrupt_once(tmp_path: Path, delay: float) -> tuple[int, str]:
         cwd=tmp_path,
         stdin=subprocess.DEVNULL,
         stdout=subprocess.DEVNULL,
-        stderr=slave,
+        stderr=slave,  # SIGINT at its default in the child (a shell's background job starts with it ignored)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     os.close(slave)
     err = b""
