@@ -24,16 +24,12 @@ from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
-from .paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from .policy import BacksteppingPolicy
 from .progress import Progress
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage
 
 __all__ = [
-    "PAPER_FORMATION_SETTLING_S",
-    "PAPER_STEP",
-    "PAPER_TABLE5",
     "Progress",
     "RunLog",
     "RunResult",
@@ -240,9 +236,6 @@ def run(
     if error is not None:
         summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
     return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error)
-
-
-_CooperativeInterrupt = CooperativeInterrupt  # the former name
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:

@@ -1025,8 +1025,6 @@ __all__ = [
     "react_needed",
 ]
 
-_Rule = Rule  # the former name
-
 
 def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:
     """Build an anti-collision rule by name (``layers`` default, ``paper``, ``off``, ``clearance``,
