@@ -25,6 +25,10 @@ UNMIX_T = np.ascontiguousarray(UNMIX.T)
 MIX_T = np.ascontiguousarray(MIX.T)
 
 
+#: The controller's ``[controller] mixer`` choices (:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
+MIXERS = ("auto", "clip", "attitude_priority")
+
+
 def u_to_rotor(U: np.ndarray) -> np.ndarray:
     """Rotor thrusts F1..F4 (…, 4) that produce U1..U4 (…, 4): inverse of eqs. (26)–(29)."""
     return U @ UNMIX_T
@@ -76,3 +80,23 @@ def saturate(U: np.ndarray, f_min: float, f_max: float) -> tuple[np.ndarray, np.
     U_out, F = np.empty_like(U), np.empty_like(U)
     saturate_kernel(U, UNMIX_T, MIX_T, float(f_min), float(f_max), U_out, F)
     return U_out, F
+
+
+def attitude_priority(U: np.ndarray, f_min: float, f_max: float) -> np.ndarray:
+    """U1..U4 (n, 4) with the collective thrust U1 moved, as little as needed, so that the torques
+    U2..U4 fit the rotors' range [f_min, f_max] (as far as they can): when a rotor would be
+    clipped at f_min the other three are raised with it, when one would pass f_max all four are
+    lowered. Ours (docs/interpretations.md §1; the "air mode" / desaturation of flight
+    controllers such as PX4 and Betaflight); the paper clips each rotor on its own (eqs. 26–29),
+    which at low thrust also clips the torque the attitude loop asked for. Rotors are still
+    clipped afterwards by the simulator (:func:`saturate`)."""
+    F = np.asarray(U, dtype=np.float64) @ UNMIX_T  # (n, 4)
+    lo, hi = F.min(axis=1), F.max(axis=1)
+    raise_by = np.minimum(f_min - lo, np.maximum(f_max - hi, 0.0))  # > 0 only when lo < f_min
+    lower_by = np.minimum(hi - f_max, np.maximum(lo - f_min, 0.0))  # > 0 only when hi > f_max
+    shift = np.where(lo < f_min, raise_by, np.where(hi > f_max, -lower_by, 0.0))
+    out = np.array(U, dtype=np.float64)  # rows that need no shift pass unchanged, bit for bit
+    moved = shift != 0.0
+    if moved.any():
+        out[moved] = (F[moved] + shift[moved, None]) @ MIX_T
+    return out

@@ -13,8 +13,10 @@ from typing import Any
 import numpy as np
 
 from .control.backstepping import Backstepping
+from .control.lag import AttitudePredictor
 from .env import Command
-from .formation.anticollision import make_rule
+from .formation.anticollision import make_rule, resolve_rule
+from .mixing import attitude_priority
 from .params import DEFAULT_PARAMS, QuadParams
 from .scenario import Scenario
 
@@ -82,7 +84,13 @@ class BacksteppingPolicy:
             attitude_map=sc.attitude_map,
         )
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
-        self.rule = make_rule(anti_collision or sc.anti_collision, self.n, **rule_params)
+        name = resolve_rule(anti_collision, sc.aero.downwash) if anti_collision else sc.rule
+        self.rule = make_rule(name, self.n, **rule_params)
+        # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1)
+        self.attitude_priority = sc.attitude_priority_on
+        # the attitude fed back predicted over the rotors' lag (ours, docs/interpretations.md §2)
+        lag = sc.lag_horizons
+        self.predictor = None if lag is None else AttitudePredictor(self.n, lag[0], lag[1], sc.control_period)
         # the rule may ask the controller to compensate the downwash, when the physics has one
         self.downwash_ff = (
             DownwashFeedforward(self.n, params)
@@ -94,6 +102,8 @@ class BacksteppingPolicy:
 
     def reset(self) -> None:
         self.controller.reset()
+        if self.predictor is not None:
+            self.predictor.reset()
         self._started = False
         self._ff_started = False
 
@@ -119,9 +129,12 @@ class BacksteppingPolicy:
             thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)
             ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
             self._ff_started = True
+        rpy, rpy_rate, body_rates = obs["rpy"], obs["rpy_rate"], obs["body_rates"]
+        if self.predictor is not None:
+            rpy, rpy_rate, body_rates = self.predictor(rpy, rpy_rate, body_rates)
         U = ctl.compute(
-            obs["rpy"],
-            obs["rpy_rate"],
+            rpy,
+            rpy_rate,
             obs["pos"],
             obs["vel"],
             pos_d,
@@ -129,8 +142,11 @@ class BacksteppingPolicy:
             acc_d,
             obs["setpoint_yaw"],
             wind_force=ext,
-            omega_body=obs["body_rates"],
+            omega_body=body_rates,
         )
+        if self.attitude_priority:
+            U = attitude_priority(U, ctl.params.f_min, ctl.params.f_max)
+            ctl.U = U
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
 
     def __call__(self, obs: dict) -> np.ndarray:

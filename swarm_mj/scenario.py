@@ -23,11 +23,15 @@ import numpy as np
 from .aero.presets import PAPER, AeroConfig, parse_aero
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
-from .formation.anticollision import ANTI_COLLISION_RULES
+from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.slots import DiameterSchedule
+from .mixing import MIXERS
 from .resources import SCENARIOS_DIR
 from .trajectories import TRAJECTORIES, make_trajectory
 from .wind import WindConfig
+
+#: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
+LAG_COMPENSATION = ("auto", "on", "off")
 
 _TOP_KEYS = {
     "name",
@@ -49,7 +53,7 @@ _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
 _FORMATION_KEYS = {"diameter", "anti_collision", "safety_distance", "hop", "hysteresis", "arrive", "sensing_range"}
-_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map"}
+_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation"}
 
 
 @dataclass(frozen=True)
@@ -91,6 +95,32 @@ class Scenario:
     path: str = ""
     raw: dict = field(default_factory=dict, repr=False, compare=False)
     aero: AeroConfig = PAPER  # physics preset (docs/aero.md); the paper's model by default
+    mixer: str = "auto"  # "auto" | "clip" | "attitude_priority" (see attitude_priority_on)
+    lag_compensation: str = "auto"  # "auto" | "on" | "off" (see lag_horizons)
+
+    @property
+    def rule(self) -> str:
+        """The anti-collision rule flown: ``anti_collision`` with ``"auto"`` resolved for the physics
+        (:func:`~swarm_mj.formation.anticollision.resolve_rule`)."""
+        return resolve_rule(self.anti_collision, self.aero.downwash)
+
+    @property
+    def attitude_priority_on(self) -> bool:
+        """Whether the controller desaturates its rotor commands with attitude priority
+        (:func:`~swarm_mj.mixing.attitude_priority`): ``mixer = "auto"`` does wherever the rotors
+        have lag (``--aero realistic``), and clips each rotor as the paper does otherwise."""
+        return self.mixer == "attitude_priority" or (self.mixer == "auto" and self.aero.motor_tau > 0)
+
+    @property
+    def lag_horizons(self) -> tuple[float, float] | None:
+        """(d_att, d_rate) s of the controller's rotor-lag compensation
+        (:class:`~swarm_mj.control.lag.AttitudePredictor`: the rotors' time constant plus the control
+        period, and the time constant), or None: ``lag_compensation = "auto"`` compensates wherever
+        the rotors have lag (``--aero realistic``) and not under the paper's physics."""
+        on = self.lag_compensation == "on" or (self.lag_compensation == "auto" and self.aero.motor_tau > 0)
+        if not on:
+            return None
+        return (self.aero.motor_tau + self.control_period, self.aero.motor_tau)
 
     @property
     def n_drones(self) -> int:
@@ -524,10 +554,10 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             f"must be a number or a list of [time, D] pairs, got {diameter!r}", where=f"{w}formation.diameter"
         )
     DiameterSchedule(diameter, where=f"{w}formation.diameter")
-    rule = form.get("anti_collision", "layers")
-    if not isinstance(rule, str) or rule not in ANTI_COLLISION_RULES:
+    rule = form.get("anti_collision", AUTO)
+    if not isinstance(rule, str) or (rule not in ANTI_COLLISION_RULES and rule != AUTO):
         raise UserError(
-            f"unknown rule {rule!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}",
+            f"unknown rule {rule!r}; choose one of {AUTO}, {', '.join(ANTI_COLLISION_RULES)}",
             where=f"{w}formation.anti_collision",
         )
     wf = f"{w}formation."
@@ -558,6 +588,14 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     amap = ctl.get("attitude_map", "exact")
     if not isinstance(amap, str) or amap not in ("exact", "paper"):
         raise UserError(f"must be 'exact' or 'paper', got {amap!r}", where=f"{w}controller.attitude_map")
+    mixer = ctl.get("mixer", "auto")
+    if not isinstance(mixer, str) or mixer not in MIXERS:
+        raise UserError(f"must be one of {', '.join(MIXERS)}, got {mixer!r}", where=f"{w}controller.mixer")
+    lagc = ctl.get("lag_compensation", "auto")
+    if not isinstance(lagc, str) or lagc not in LAG_COMPENSATION:
+        raise UserError(
+            f"must be one of {', '.join(LAG_COMPENSATION)}, got {lagc!r}", where=f"{w}controller.lag_compensation"
+        )
 
     wind_table = data.get("wind", {"enabled": False})
     if not isinstance(wind_table, dict):
@@ -607,6 +645,8 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         gains_source=source,
         wind_feedforward=ff,
         attitude_map=amap,
+        mixer=mixer,
+        lag_compensation=lagc,
         wind=wind,
         path=path,
         raw=data,

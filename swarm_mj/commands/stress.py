@@ -46,7 +46,11 @@ def add_parser(sub) -> None:
         description=__doc__.split("\n\n")[1].replace("\n", " "),
     )
     p.add_argument(
-        "--rule", action="append", choices=RULE_NAMES, help="rule to fly (repeatable; default: layers, paper)"
+        "--rule",
+        action="append",
+        choices=RULE_NAMES,
+        help="rule to fly (repeatable; default: auto, paper; auto is jet-aware under "
+        "--aero realistic, layers under the paper's physics)",
     )
     p.add_argument("--starts", type=int, default=100, help="number of seeded starts (default 100)")
     p.add_argument("--followers", type=int, default=5, help="followers per start (default 5)")
@@ -77,7 +81,10 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    rules = list(dict.fromkeys(args.rule or ["layers", "paper"]))
+    from ..formation.anticollision import resolve_rule
+
+    downwash = (args.aero or "paper") == "realistic"
+    rules = list(dict.fromkeys(resolve_rule(r, downwash) for r in (args.rule or ["auto", "paper"])))
     save = getattr(args, "save_scenario", None)
     if args.json:
         from ..atomic import check_output_path

@@ -1,7 +1,9 @@
-"""The downwash-aware default anti-collision (``clearance``, issue 15) against today's layered rule.
+"""The downwash-aware rules (issue 15): the default under downwash (``auto`` → ``jet-aware``) and
+``clearance``, against the layered rule as it flew before this round.
 
-* in MuJoCo under ``--aero realistic``: on a known random start the layered rule lets a drone sink
-  in another's jet by more than the 0.10 m bar (the measurement sees it), the default does not;
+* in MuJoCo under ``--aero realistic``: on a known random start the layered rule with the paper's
+  per-rotor clipping (``mixer = "clip"``) lets a drone sink in another's jet by more than the
+  0.10 m bar (the measurement sees it), the default does not;
 * the default on a bundled swarm scenario under ``realistic``: no contact, no crash, no dip;
 * kinematic checks of the rule: its interface, that it decides from the drones it sees only,
   that a follower stays on the ground while the leader passes over it, and that it does not drop
@@ -39,28 +41,30 @@ T = 0.01
 
 
 @pytest.mark.slow
-def test_layers_sinks_past_the_bar_on_a_known_start_where_clearance_does_not():
+def test_layers_sinks_past_the_bar_on_a_known_start_where_the_default_does_not():
     # stress seed 0 (five followers within 3 m, the leader on the circle), 5 s under realistic:
     # under the layered rule a follower crossing on its layer passes over another
     case = StressCase("layers", 0, 5, 3.0, 0.6, 5.0, aero="realistic")
-    layers = run(stress_scenario(case), progress=False).summary
+    before = stress_scenario(case).with_overrides(mixer="clip")  # the controller before this round
+    layers = run(before, progress=False).summary
+    assert layers["anti_collision_rule"] == "layers"
     assert layers["downwash_dip_worst_m"] > DIP_BAR_M, layers["downwash_dip"]
-    clear = run(stress_scenario(StressCase("clearance", 0, 5, 3.0, 0.6, 5.0, aero="realistic")), progress=False).summary
-    assert clear["anti_collision_rule"] == "clearance"
-    assert clear["downwash_dip_worst_m"] <= DIP_BAR_M, clear["downwash_dip"]
-    assert clear["contacts"] == 0 and clear["crashes"] == 0
+    default = run(stress_scenario(StressCase("auto", 0, 5, 3.0, 0.6, 5.0, aero="realistic")), progress=False).summary
+    assert default["anti_collision_rule"] == "jet-aware"
+    assert default["downwash_dip_worst_m"] <= DIP_BAR_M, default["downwash_dip"]
+    assert default["contacts"] == 0 and default["crashes"] == 0
 
 
 @pytest.mark.slow
-def test_clearance_on_a_swarm_scenario_under_realistic_physics():
-    sc = with_aero(load_scenario("scenario2").with_overrides(duration=8.0, anti_collision="clearance"), "realistic")
-    assert sc.anti_collision == "clearance" and sc.aero.downwash
+def test_the_default_on_a_swarm_scenario_under_realistic_physics():
+    sc = with_aero(load_scenario("scenario2").with_overrides(duration=8.0), "realistic")
+    assert sc.rule == "jet-aware" and sc.aero.downwash and sc.attitude_priority_on
     res = run(sc, progress=False)
     s = res.summary
     assert res.error is None, s.get("stopped")
     assert s["contacts"] == 0 and s["crashes"] == 0, (res.contact_log[:3], s["crashes"])
     assert s["downwash_dip_worst_m"] <= DIP_BAR_M, s["downwash_dip"]
-    assert s["formation"]["settling_s"][0] < 8.0  # formed up (6.2 s, tools/aero_compare.py)
+    assert s["formation"]["settling_s"][0] < 8.0  # formed up (5.5 s over 15 s)
 
 
 # --------------------------------------------------------------------------- the feedforward switch

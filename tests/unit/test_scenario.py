@@ -10,6 +10,7 @@ import tomllib
 import numpy as np
 import pytest
 
+from swarm_mj.aero.presets import preset
 from swarm_mj.control.backstepping import TABLE4_GAINS
 from swarm_mj.errors import UserError
 from swarm_mj.scenario import bundled_scenarios, load_scenario, parse_scenario
@@ -110,7 +111,12 @@ def test_defaults_of_a_minimal_scenario():
         TABLE4_GAINS, [4.4025, 9.3048, 6.4184, 5.0494, 7.6955, 2.2141, 4.8548, 7.0579, 4.4025, 6.6385, 6.1893, 3.5344]
     )
     assert sc.wind_feedforward is True and not sc.wind.enabled
-    assert sc.anti_collision == "layers"
+    # the rule and the mixer follow the physics (docs/interpretations.md §1, §4)
+    assert sc.anti_collision == "auto" and sc.rule == "layers" and not sc.attitude_priority_on
+    real = sc.with_overrides(aero=preset("realistic"))
+    assert real.rule == "jet-aware" and real.attitude_priority_on
+    assert sc.with_overrides(mixer="attitude_priority").attitude_priority_on
+    assert not real.with_overrides(mixer="clip").attitude_priority_on
     assert sc.anti_collision_params["safety_distance"] == 0.8 and sc.anti_collision_params["hop"] == 0.4
     assert sc.n_drones == 1 and sc.names == ["leader"]
     assert sc.steady_after == 10.0
@@ -215,8 +221,8 @@ def test_cli_rule_and_aero_names_are_the_registries():
     rules of ANTI_COLLISION_RULES (the default first) and the presets of AERO_MODELS."""
     from swarm_mj.aero.presets import AERO_MODELS
     from swarm_mj.commands import AERO_NAMES, RULE_NAMES
-    from swarm_mj.formation.anticollision import ANTI_COLLISION_RULES
+    from swarm_mj.formation.anticollision import ANTI_COLLISION_RULES, AUTO
 
-    assert tuple(ANTI_COLLISION_RULES) == RULE_NAMES
+    assert (AUTO, *ANTI_COLLISION_RULES) == RULE_NAMES
     assert tuple(AERO_MODELS) == AERO_NAMES
-    assert RULE_NAMES[0] == "layers"  # the default of a scenario (test_defaults_of_a_minimal_scenario)
+    assert RULE_NAMES[0] == "auto"  # the default of a scenario (test_defaults_of_a_minimal_scenario)

@@ -1,0 +1,121 @@
+"""The default rule under downwash (``jet-aware``, docs/interpretations.md §4) and the controller's
+attitude-priority desaturation (docs/interpretations.md §1): kinematic checks against a hand
+calculation, no MuJoCo."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarm_mj.formation.anticollision import (
+    FORMED,
+    OVERLAP_M,
+    JetAwareRule,
+    PaperRule,
+    make_rule,
+    resolve_rule,
+)
+from swarm_mj.mixing import MIX, attitude_priority
+
+HOP = 0.4
+
+
+def _h(p: np.ndarray) -> np.ndarray:
+    d = np.linalg.norm(p[:, None, :2] - p[None, :, :2], axis=-1)
+    np.fill_diagonal(d, np.inf)
+    return d
+
+
+def test_auto_is_jet_aware_under_downwash_and_layers_otherwise():
+    assert resolve_rule("auto", downwash=True) == "jet-aware"
+    assert resolve_rule("auto", downwash=False) == "layers"
+    assert resolve_rule("paper", downwash=True) == "paper"
+    assert isinstance(make_rule("jet-aware", 3), JetAwareRule)
+    assert JetAwareRule.downwash_feedforward
+
+
+def test_two_drones_yielding_to_the_leader_do_not_end_at_the_same_altitude():
+    # leader at the origin, followers 0.5 m from it and 0.71 m from each other, all level:
+    # as printed both yield upwards to the leader, to the same altitude, within D̄ of each other
+    p = np.array([[0.0, 0.0, 2.0], [0.5, 0.0, 2.0], [0.0, 0.5, 2.0]])
+    paper = PaperRule(3)
+    paper._react(0.0, p, _h(p), np.ones(3, dtype=bool))
+    np.testing.assert_array_equal(paper.offset, [0.0, HOP, HOP])
+    rule = JetAwareRule(3)
+    rule.reset(p)
+    rule._slot_h = np.full((3, 3), np.inf)  # slots far apart: only the measured distances count
+    rule._react(0.0, p, _h(p), np.ones(3, dtype=bool))
+    # follower 1: +hop (the printed rule); follower 2: at least hop from 0 (leader) and +hop
+    # (follower 1): nearest the formation altitude is −hop
+    np.testing.assert_array_equal(rule.offset, [0.0, HOP, -HOP])
+    # one drone to yield to, at the formation altitude: the printed rule's hop
+    q = np.array([[0.0, 0.0, 2.0], [0.5, 0.0, 2.0], [3.0, 0.0, 2.0]])
+    rule.reset(q)
+    rule._slot_h = np.full((3, 3), np.inf)
+    rule._react(0.0, q, _h(q), np.ones(3, dtype=bool))
+    np.testing.assert_array_equal(rule.offset, [0.0, HOP, 0.0])
+    # released once beyond D̄ + hysteresis
+    q[1, 0] = 0.86
+    rule._react(0.1, q, _h(q), np.ones(3, dtype=bool))
+    np.testing.assert_array_equal(rule.offset, [0.0, 0.0, 0.0])
+
+
+def test_followers_whose_slots_are_within_the_safety_distance_yield_before_they_meet():
+    # eight followers at D = 1 m: neighbours' slots 0.77 m apart; drones still 3 m apart
+    rule = JetAwareRule(3)
+    p = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 2.0], [-3.0, 0.0, 2.0]])
+    rule.reset(p)
+    slots = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 2.0], [0.7071, 0.7071, 2.0]])
+    rule._slot_h = _h(slots)
+    rule._react(0.0, p, _h(p), np.ones(3, dtype=bool))
+    np.testing.assert_array_equal(rule.offset, [0.0, 0.0, HOP])  # follower 2 yields to follower 1
+    rule._react(0.1, p, _h(p), np.ones(3, dtype=bool))  # kept, not released by the distance
+    np.testing.assert_array_equal(rule.offset, [0.0, 0.0, HOP])
+
+
+def test_a_formed_follower_never_changes_altitude_through_a_drone_under_it():
+    rule = JetAwareRule(3)
+    p = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 3.0], [0.3, 1.0, 2.5]])  # follower 2 0.3 m aside, 0.5 m under 1
+    rule.reset(p)
+    rule.phase[:] = FORMED
+    soon = _h(p)
+    formed = np.array([False, True, True])
+    z_t = rule._through(p, np.array([2.0, 2.0, 2.0]), formed, soon)
+    # follower 1 (above) is held hop above follower 2, follower 2 (below) hop under follower 1
+    np.testing.assert_allclose(z_t, [2.0, 2.5 + HOP, 2.0])
+    # beside it (outlines clear in plan view): free to descend
+    p[2, 0] = OVERLAP_M + 0.05
+    np.testing.assert_allclose(rule._through(p, np.array([2.0, 2.0, 2.0]), formed, _h(p)), [2.0, 2.0, 2.0])
+
+
+# --------------------------------------------------------------------------- the mixer
+
+
+def _rotors(U: np.ndarray) -> np.ndarray:
+    """F1..F4 from U1..U4 by solving eqs. (26)–(29) directly (independent of the product's UNMIX)."""
+    return np.linalg.solve(MIX, U.T).T
+
+
+def test_attitude_priority_leaves_a_feasible_command_alone():
+    U = np.array([[4.9, 0.2, -0.1, 0.05]])
+    np.testing.assert_array_equal(attitude_priority(U, 0.0, 4.5), U)
+
+
+@pytest.mark.parametrize(
+    "U",
+    [
+        [0.8, 1.2, -0.3, 0.1],  # low thrust, a large roll torque: F1 would be negative
+        [17.0, -1.5, 0.4, 0.2],  # high thrust: F1 would pass f_max
+    ],
+)
+def test_attitude_priority_keeps_the_torques_and_moves_the_thrust_just_enough(U):
+    U = np.array([U])
+    F = _rotors(U)
+    assert F.min() < 0.0 or F.max() > 4.5  # the paper's per-rotor clip would change the torques
+    out = attitude_priority(U, 0.0, 4.5)
+    Fo = _rotors(out)
+    np.testing.assert_allclose(out[0, 1:], U[0, 1:], atol=1e-12)  # U2..U4 kept
+    assert Fo.min() >= -1e-12 and Fo.max() <= 4.5 + 1e-12
+    # the collective moved by exactly the deficit (or the excess) of the worst rotor, times four
+    shift = -F.min() if F.min() < 0.0 else 4.5 - F.max()
+    np.testing.assert_allclose(out[0, 0], U[0, 0] + 4.0 * shift, atol=1e-12)
