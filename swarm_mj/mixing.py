@@ -82,6 +82,43 @@ def saturate(U: np.ndarray, f_min: float, f_max: float) -> tuple[np.ndarray, np.
     return U_out, F
 
 
+def _priority_samples():
+    return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
+
+
+@jit(samples=_priority_samples)
+def attitude_priority_kernel(
+    U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float, out: np.ndarray
+) -> None:
+    """:func:`attitude_priority` for U (n, 4) into out (n, 4): rows that need no shift are copied."""
+    n = U.shape[0]
+    F = np.empty(4)
+    for i in range(n):
+        lo = np.inf
+        hi = -np.inf
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F[r] = f
+            lo = min(lo, f)
+            hi = max(hi, f)
+        shift = 0.0
+        if lo < f_min:
+            shift = min(f_min - lo, max(f_max - hi, 0.0))
+        elif hi > f_max:
+            shift = -min(hi - f_max, max(lo - f_min, 0.0))
+        if shift == 0.0:
+            for c in range(4):
+                out[i, c] = U[i, c]
+            continue
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += (F[c] + shift) * mix_t[c, r]
+            out[i, r] = u
+
+
 def attitude_priority(U: np.ndarray, f_min: float, f_max: float) -> np.ndarray:
     """U1..U4 (n, 4) with the collective thrust U1 moved, as little as needed, so that the torques
     U2..U4 fit the rotors' range [f_min, f_max] (as far as they can): when a rotor would be
@@ -89,14 +126,9 @@ def attitude_priority(U: np.ndarray, f_min: float, f_max: float) -> np.ndarray:
     lowered. Ours (docs/interpretations.md §1; the "air mode" / desaturation of flight
     controllers such as PX4 and Betaflight); the paper clips each rotor on its own (eqs. 26–29),
     which at low thrust also clips the torque the attitude loop asked for. Rotors are still
-    clipped afterwards by the simulator (:func:`saturate`)."""
-    F = np.asarray(U, dtype=np.float64) @ UNMIX_T  # (n, 4)
-    lo, hi = F.min(axis=1), F.max(axis=1)
-    raise_by = np.minimum(f_min - lo, np.maximum(f_max - hi, 0.0))  # > 0 only when lo < f_min
-    lower_by = np.minimum(hi - f_max, np.maximum(lo - f_min, 0.0))  # > 0 only when hi > f_max
-    shift = np.where(lo < f_min, raise_by, np.where(hi > f_max, -lower_by, 0.0))
-    out = np.array(U, dtype=np.float64)  # rows that need no shift pass unchanged, bit for bit
-    moved = shift != 0.0
-    if moved.any():
-        out[moved] = (F[moved] + shift[moved, None]) @ MIX_T
+    clipped afterwards by the simulator (:func:`saturate`). The arithmetic is
+    :func:`attitude_priority_kernel`."""
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    out = np.empty_like(U)
+    attitude_priority_kernel(U, UNMIX_T, MIX_T, float(f_min), float(f_max), out)
     return out

@@ -1,6 +1,7 @@
 """The paper's physics beside the realistic one (issue 15): contacts, crashes, the worst downwash dip
-and settling, for the default rule (``clearance``), today's layered rule before it became
-downwash-aware (``layers``) and the paper's rule as printed (``paper``).
+and settling, for the default rule under downwash (``jet-aware``, what ``auto`` flies under
+``--aero realistic``), the layered rule it was built from (``layers``, the default under the
+paper's physics) and the paper's rule as printed (``paper``).
 
     .venv/bin/python tools/aero_compare.py [--starts 20] [--workers 2] [--json report/aero_compare.json]
 
@@ -30,7 +31,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-RULES = ("clearance", "layers", "paper")
+RULES = ("jet-aware", "layers", "paper")
 AEROS = ("paper", "realistic")
 SWARM_SCENARIOS = (
     "circle",
@@ -69,7 +70,8 @@ def fly_scenario(job: tuple[str, str, str, float | None]) -> dict:
     return {
         "part": "scenario",
         "scenario": name,
-        "rule": rule,
+        "rule": s.get("anti_collision_rule", rule),  # "auto" resolved for the physics
+        "default": rule == "auto",
         "aero": aero,
         "duration_s": sc.duration,
         "contacts": int(s["contacts"]),
@@ -124,14 +126,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-stress", action="store_true", help="only the bundled scenarios")
     args = ap.parse_args(argv)
     rows = [] if args.skip_stress else stress_rows(args.starts, args.workers)
-    jobs = [(name, "clearance", aero, args.duration) for aero in AEROS for name in SWARM_SCENARIOS]
-    jobs += [
-        (name, rule, aero, args.duration)
-        for aero in AEROS
-        for rule in RULES
-        if rule != "clearance"
-        for name in RULE_SCENARIOS
-    ]
+    jobs = [(name, "auto", aero, args.duration) for aero in AEROS for name in SWARM_SCENARIOS]
+    jobs += [(name, rule, aero, args.duration) for aero in AEROS for rule in RULES for name in RULE_SCENARIOS]
     with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
         rows += list(pool.map(fly_scenario, jobs))
     print(

@@ -582,6 +582,35 @@ def bench_aero(quick: bool, repeats: int) -> None:
             notes[aero] = res.summary
     p, r = min(loop["paper"]) / dur, min(loop["realistic"]) / dur
     s = notes["realistic"]
+    # the physics alone: Sim.step (saturation, force stages, mj_step, contacts, monitors) of the same
+    # model under each preset, the drones hovering at constant commands, no controller or rule
+    from swarm_mj.aero.presets import with_aero
+    from swarm_mj.env import SwarmEnv
+
+    steps = int(round(dur / sc.control_period))
+    phys: dict[str, list[float]] = {"paper": [], "realistic": []}
+    envs = {aero: SwarmEnv(with_aero(sc, aero)) for aero in ("paper", "realistic")}
+    for _ in range(repeats):
+        for aero, env in envs.items():
+            env.reset()
+            sim = env.sim
+            U = np.zeros((sim.pos.shape[0], 4))
+            U[:, 0] = env.params.m * env.params.g
+            t0 = time.perf_counter()
+            for _ in range(steps):
+                sim.step(U)
+            phys[aero].append(time.perf_counter() - t0)
+    pp, pr = min(phys["paper"]) / dur, min(phys["realistic"]) / dur
+    row(
+        "aero",
+        f"realistic vs paper physics alone (Sim.step, 6 drones hovering, {dur:g} s)",
+        pr,
+        pp,
+        value=pr / pp,
+        unit="× paper",
+        note=f"paper {1000 * pp:.1f} ms, realistic {1000 * pr:.1f} ms per sim s: ground contacts, downwash, "
+        f"ground effect, rotor lag; best of {repeats}",
+    )
     row(
         "aero",
         f"realistic vs paper per simulated second, circle (6 drones, {dur:g} s)",

@@ -167,8 +167,8 @@ def aero(compare: Path, stress_paths: list[Path]) -> str:
     if compare.exists():
         d = json.loads(compare.read_text())
         for r in d["rows"]:
-            if r["part"] != "stress" or r["aero"] != "paper":
-                continue  # realistic rows: the stress files below (flown with this round's controller)
+            if r["part"] != "stress":
+                continue
             rows.append(
                 f"| {r['starts']} random, 5 followers | {r['aero']} | `{r['rule']}` | {r['starts_with_contact']} | "
                 f"{r['contacts']} | {r['crashes']} | {r['diverged']} | {f(r['downwash_dip_worst_m'], '{:.3f}')} m | "
@@ -191,9 +191,8 @@ def aero(compare: Path, stress_paths: list[Path]) -> str:
         for r in d["rows"]:
             if (
                 r["part"] != "scenario"
-                or r["aero"] != "paper"
-                or r["rule"] == "clearance"
-                and r["scenario"] not in ("anti_collision", "scenario1", "scenario2", "scenario3")
+                or r.get("default")
+                and r["scenario"] in ("anti_collision", "scenario1", "scenario2", "scenario3")
             ):
                 continue
             stop = "1" if r.get("stopped") else "0"
