@@ -45,7 +45,7 @@ def test_layers_sinks_past_the_bar_on_a_known_start_where_the_default_does_not()
     # stress seed 0 (five followers within 3 m, the leader on the circle), 5 s under realistic:
     # under the layered rule a follower crossing on its layer passes over another
     case = StressCase("layers", 0, 5, 3.0, 0.6, 5.0, aero="realistic")
-    before = stress_scenario(case).with_overrides(mixer="clip")  # the controller before this round
+    before = stress_scenario(case).with_overrides(mixer="clip", lag_compensation="off")  # the controller before
     layers = run(before, progress=False).summary
     assert layers["anti_collision_rule"] == "layers"
     assert layers["downwash_dip_worst_m"] > DIP_BAR_M, layers["downwash_dip"]
@@ -76,7 +76,8 @@ def test_the_feedforward_is_the_rules_and_only_under_downwash():
     assert BacksteppingPolicy(sc).downwash_ff is None  # paper physics
     real = with_aero(sc, "realistic")
     assert BacksteppingPolicy(real, anti_collision="clearance").downwash_ff is not None
-    assert BacksteppingPolicy(real).downwash_ff is None  # the default (layers): none
+    assert BacksteppingPolicy(real, anti_collision="layers").downwash_ff is None  # the layered rule: none
+    assert BacksteppingPolicy(real).downwash_ff is not None  # the default under downwash: jet-aware
 
 
 def test_feedforward_predicts_a_push_down_under_a_drone_and_none_beside_it():
