@@ -32,33 +32,31 @@ class DownwashFeedforward:
     the prediction lags the drones' attitude by a control period and the rotors' by their lag)."""
 
     def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
-        from types import SimpleNamespace
-
         from .aero.downwash import DownwashStage
 
         self.n = n
-        self._stage = DownwashStage()
-        self._view = SimpleNamespace(
-            pos=np.zeros((n, 3)),
-            quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
-            rotor_thrust=np.zeros((n, 4)),
-            n=n,
-            params=params,
-            time=0.0,
-        )
-        self._stage.reset(self._view)
+        st = DownwashStage()  # its coefficients; the kernel is called directly (one call per step)
+        self._args = (n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, st.rotor_radius)
+        self._pos = np.zeros((n, 3))
+        self._quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+        self._rotor = np.zeros((n, 4))
         self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
         self._torque = np.zeros((n, 3))
+        self._sum_force = np.zeros((n, 3))
+        self._sum_torque = np.zeros((n, 3))
 
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
         """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
-        v = self._view
-        v.pos[:] = pos
-        v.quat[:] = quat
-        v.rotor_thrust[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
-        self.force[:] = 0.0
-        self._torque[:] = 0.0
-        self._stage.apply(v, self.force, self._torque)
+        from .aero.downwash import downwash_kernel
+
+        self._pos[:] = pos
+        self._quat[:] = quat
+        self._rotor[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
+        self._sum_force[:] = 0.0
+        self._sum_torque[:] = 0.0
+        downwash_kernel(
+            self._pos, self._quat, self._rotor, *self._args, self.force, self._torque, self._sum_force, self._sum_torque
+        )
         return self.force
 
 

@@ -26,7 +26,41 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["AttitudePredictor"]
+from .._jit import jit
+
+__all__ = ["AttitudePredictor", "predict_kernel"]
+
+
+def _predict_samples():
+    z = np.zeros((2, 3))
+    return [(z, z.copy(), z.copy(), z.copy(), z.copy(), 0.025, 1.5, z.copy(), z.copy(), z.copy())]
+
+
+@jit(samples=_predict_samples)
+def predict_kernel(
+    rpy: np.ndarray,
+    rate: np.ndarray,
+    body: np.ndarray,
+    prev_rate: np.ndarray,
+    prev_body: np.ndarray,
+    d_att: float,
+    k_rate: float,
+    rpy_p: np.ndarray,
+    rate_p: np.ndarray,
+    body_p: np.ndarray,
+) -> None:
+    """The module docstring's prediction for (n, 3) arrays: rpy_p = rpy + d_att·rate,
+    rate_p = rate + k_rate·(rate − prev_rate), body_p = body + k_rate·(body − prev_body) (k_rate =
+    d_rate / T); then prev_rate, prev_body take rate, body."""
+    for i in range(rpy.shape[0]):
+        for c in range(3):
+            r = rate[i, c]
+            b = body[i, c]
+            rpy_p[i, c] = rpy[i, c] + d_att * r
+            rate_p[i, c] = r + k_rate * (r - prev_rate[i, c])
+            body_p[i, c] = b + k_rate * (b - prev_body[i, c])
+            prev_rate[i, c] = r
+            prev_body[i, c] = b
 
 
 class AttitudePredictor:
@@ -44,20 +78,23 @@ class AttitudePredictor:
 
     def reset(self) -> None:
         """Forget the previous rates (the first call predicts the rates as constant)."""
-        self._prev_rate: np.ndarray | None = None  # (n, 3)
-        self._prev_body: np.ndarray | None = None  # (n, 3)
+        self._first = True
+        self._prev_rate = np.zeros((self.n, 3))
+        self._prev_body = np.zeros((self.n, 3))
 
     def __call__(
         self, rpy: np.ndarray, rpy_rate: np.ndarray, body_rates: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(η_p, η̇_p, ω_p) (n, 3) from η, η̇ and ω (n, 3)."""
-        rpy_rate = np.asarray(rpy_rate, dtype=np.float64)
-        body_rates = np.asarray(body_rates, dtype=np.float64)
-        prev_rate = rpy_rate if self._prev_rate is None else self._prev_rate
-        prev_body = body_rates if self._prev_body is None else self._prev_body
-        rpy_p = rpy + self.d_att * rpy_rate
-        rate_p = rpy_rate + self.k_rate * (rpy_rate - prev_rate)
-        body_p = body_rates + self.k_rate * (body_rates - prev_body)
-        self._prev_rate = rpy_rate.copy()
-        self._prev_body = body_rates.copy()
-        return rpy_p, rate_p, body_p
+        """(η_p, η̇_p, ω_p) (n, 3), new arrays, from η, η̇ and ω (n, 3) (:func:`predict_kernel`)."""
+        rpy = np.ascontiguousarray(rpy, dtype=np.float64)
+        rpy_rate = np.ascontiguousarray(rpy_rate, dtype=np.float64)
+        body_rates = np.ascontiguousarray(body_rates, dtype=np.float64)
+        if self._first:
+            self._prev_rate[:] = rpy_rate
+            self._prev_body[:] = body_rates
+            self._first = False
+        out = np.empty((3, self.n, 3))
+        predict_kernel(
+            rpy, rpy_rate, body_rates, self._prev_rate, self._prev_body, self.d_att, self.k_rate, out[0], out[1], out[2]
+        )
+        return out[0], out[1], out[2]

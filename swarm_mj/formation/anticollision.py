@@ -57,6 +57,16 @@ def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:
     return False
 
 
+@jit(samples=lambda: [(np.full((2, 2), np.inf), 0.8)])
+def any_below(h: np.ndarray, limit: float) -> bool:
+    """Some pair (i, j), j < i, of the distances h (n, n) is below ``limit``."""
+    for i in range(h.shape[0]):
+        for j in range(i):
+            if h[i, j] < limit:
+                return True
+    return False
+
+
 @jit(samples=lambda: [(np.ones(2, dtype=np.bool_), *([np.zeros((2, 3))] * 4))])
 def merge_rows(steer: np.ndarray, rule_vel: np.ndarray, rule_acc: np.ndarray, vel: np.ndarray, acc: np.ndarray):
     """Copies of vel, acc (n, 3) whose rows where steer (n,) is set come from rule_vel, rule_acc."""
@@ -1020,19 +1030,26 @@ class JetAwareRule(LayeredRule):
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
         self._slot_h = np.full((self.n, self.n), np.inf)  # (n, n) horizontal distances of the setpoints
+        self._slot_yield = False
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        self._slot_h = _horizontal_distances(pos_d)  # row 0: the leader's reference
+        self.set_slots(pos_d)
         return super().update(t, positions, pos_d, formation_alt)
+
+    def set_slots(self, pos_d: np.ndarray) -> None:
+        """The setpoints (n, 3) whose horizontal distances 2. of the class docstring reads (row 0:
+        the leader's reference); :meth:`update` sets them every step."""
+        self._slot_h = _horizontal_distances(pos_d)
+        self._slot_yield = any_below(self._slot_h, self.safety)  # some slots within D̄ of each other
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
         """2.–3. of the class docstring, in index order (a drone's offset depends on those of the
         drones it yields to, which have lower indices)."""
-        slot = (self._slot_h < self.safety) & self._lower  # (n, n) [i, j]: i yields to j by the slots
-        if not slot.any() and not react_needed(self.offset, h, self.safety):
+        if not self._slot_yield and not react_needed(self.offset, h, self.safety):
             return
+        slot = (self._slot_h < self.safety) & self._lower  # (n, n) [i, j]: i yields to j by the slots
         hop = self.hop
         cands = (0.0, hop, -hop, 2.0 * hop, -2.0 * hop, 3.0 * hop)
         for i in range(1, self.n):

@@ -18,6 +18,7 @@ from swarm_mj.formation.anticollision import (
 from swarm_mj.mixing import MIX, attitude_priority
 
 HOP = 0.4
+FAR = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.0], [0.0, 10.0, 2.0]])  # setpoints far apart
 
 
 def _h(p: np.ndarray) -> np.ndarray:
@@ -43,7 +44,7 @@ def test_two_drones_yielding_to_the_leader_do_not_end_at_the_same_altitude():
     np.testing.assert_array_equal(paper.offset, [0.0, HOP, HOP])
     rule = JetAwareRule(3)
     rule.reset(p)
-    rule._slot_h = np.full((3, 3), np.inf)  # slots far apart: only the measured distances count
+    rule.set_slots(FAR)  # slots far apart: only the measured distances count
     rule._react(0.0, p, _h(p), np.ones(3, dtype=bool))
     # follower 1: +hop (the printed rule); follower 2: at least hop from 0 (leader) and +hop
     # (follower 1): nearest the formation altitude is −hop
@@ -51,7 +52,7 @@ def test_two_drones_yielding_to_the_leader_do_not_end_at_the_same_altitude():
     # one drone to yield to, at the formation altitude: the printed rule's hop
     q = np.array([[0.0, 0.0, 2.0], [0.5, 0.0, 2.0], [3.0, 0.0, 2.0]])
     rule.reset(q)
-    rule._slot_h = np.full((3, 3), np.inf)
+    rule.set_slots(FAR)
     rule._react(0.0, q, _h(q), np.ones(3, dtype=bool))
     np.testing.assert_array_equal(rule.offset, [0.0, HOP, 0.0])
     # released once beyond D̄ + hysteresis
@@ -66,7 +67,7 @@ def test_followers_whose_slots_are_within_the_safety_distance_yield_before_they_
     p = np.array([[0.0, 0.0, 2.0], [3.0, 0.0, 2.0], [-3.0, 0.0, 2.0]])
     rule.reset(p)
     slots = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 2.0], [0.7071, 0.7071, 2.0]])
-    rule._slot_h = _h(slots)
+    rule.set_slots(slots)
     rule._react(0.0, p, _h(p), np.ones(3, dtype=bool))
     np.testing.assert_array_equal(rule.offset, [0.0, 0.0, HOP])  # follower 2 yields to follower 1
     rule._react(0.1, p, _h(p), np.ones(3, dtype=bool))  # kept, not released by the distance
