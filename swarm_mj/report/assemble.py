@@ -85,7 +85,8 @@ INTERPRETATIONS = [
     (
         "Layered anti-collision",
         "The paper's rule as printed (trigger at 0.8 m horizontal, one 0.4 m hop) lets "
-        'drones closing at 2–4 m/s pass within centimetres (docs/interpretations.md §4). Our default, "layers", '
+        "drones closing at 2–4 m/s pass within centimetres (docs/interpretations.md §4). Our default under "
+        'the paper\'s physics, "layers", '
         "has each follower k "
         "climb in place to its own layer (formation altitude + 0.4·k m), cross on it, and drop to the formation "
         "altitude only when no nearby drone is between its layer and that altitude; the reactive rule stays on "
