@@ -110,6 +110,23 @@ def format_summary(summary: dict, scenario) -> str:
             )
         a = s["anti_collision"]
         lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields")
+    aero = s.get("aero") or {}
+    if aero.get("model", "paper") != "paper" or aero.get("ground") or aero.get("motor_tau"):
+        ctl = s.get("controller") or {}
+        lag = ctl.get("lag_compensation_s")
+        lines.append(
+            f"physics '{aero.get('model')}': ground {'on' if aero.get('ground') else 'off'}, downwash "
+            f"{'on' if aero.get('downwash') else 'off'}, ground effect {'on' if aero.get('ground_effect') else 'off'}, "
+            f"rotor lag {1000 * float(aero.get('motor_tau') or 0):g} ms; controller: "
+            f"{'attitude-priority' if ctl.get('mixer') == 'attitude_priority' else 'per-rotor clip'} mixing, "
+            + (f"attitude predicted {1000 * lag[0]:g} ms ahead" if lag else "no lag compensation")
+            + " (docs/aero.md)"
+        )
+        if aero.get("ground"):
+            lines.append(
+                f"ground contacts: {s.get('ground_contacts', 0)}, crashes: {s.get('crashes', 0)} "
+                "(touchdown > 1 m/s or tilt > 30°)"
+            )
     if s.get("stopped"):
         lines.append("")
         lines.append(f"STOPPED EARLY: {s['stopped']}")

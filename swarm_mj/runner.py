@@ -282,6 +282,12 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     # Ground contacts and crashes (docs/aero.md); 0 when the preset has no solid ground.
     ground = next((m for m in getattr(env.sim, "monitors", []) if getattr(m, "name", "") == "ground"), None)
     out["aero"] = sc.aero.to_dict()
+    # what the controller adds where the rotors lag (docs/interpretations.md §1, §2)
+    lag = sc.lag_horizons
+    out["controller"] = {
+        "mixer": "attitude_priority" if policy.attitude_priority else "clip",
+        "lag_compensation_s": list(lag) if lag is not None else None,
+    }
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
     if log.downwash is not None and len(t):

@@ -64,3 +64,17 @@ def test_lag_compensation_damps_the_swarms_attitude_ringing():
     assert on < 0.25 * off, (on, off)
     assert on < 2.0
     assert s_on["contacts"] == 0 and s_on["crashes"] == 0
+
+
+def test_the_summary_says_what_the_physics_and_the_controller_were():
+    from swarm_mj.report_table import format_summary
+
+    sc = with_aero(load_scenario("circle").with_overrides(duration=0.5), "realistic")
+    s = run(sc, progress=False).summary
+    assert s["controller"] == {"mixer": "attitude_priority", "lag_compensation_s": [pytest.approx(0.025), 0.015]}
+    text = format_summary(s, sc)
+    assert "physics 'realistic'" in text and "attitude predicted 25 ms ahead" in text
+    assert "ground contacts: 0, crashes: 0" in text
+    paper = run(load_scenario("circle").with_overrides(duration=0.5), progress=False).summary
+    assert paper["controller"] == {"mixer": "clip", "lag_compensation_s": None}
+    assert "physics '" not in format_summary(paper, load_scenario("circle"))
