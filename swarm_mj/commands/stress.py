@@ -126,17 +126,19 @@ def main(args: argparse.Namespace) -> int:
             "# written by swarm-mj stress; replay start S with rule R:\n"
             "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)),
         )
-    print(format_table(table, args.followers))
-    print("\n".join(replay_lines(table, rows, save)))
-    if args.json:
+    doc = {
+        "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
+        "table": table,
+        "starts": rows,
+    }
+    if args.json and args.json != "-":
         from ..atomic import write_json_atomic
 
-        write_json_atomic(
-            args.json,
-            {
-                "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
-                "table": table,
-                "starts": rows,
-            },
-        )
+        write_json_atomic(args.json, doc)  # first: a reader that stops reading the table (| head) loses nothing
+    print(format_table(table, args.followers))
+    print("\n".join(replay_lines(table, rows, save)))
+    if args.json == "-":
+        from ..atomic import write_json_atomic
+
+        write_json_atomic(args.json, doc)
     return 0

@@ -994,8 +994,8 @@ class JetAwareRule(LayeredRule):
     controller: :func:`~swarm_mj.mixing.attitude_priority`, and the rotor-lag compensation of
     :mod:`swarm_mj.control.lag`). What is left is the rule's: with that controller, over the same
     100 starts, ``layers`` still had a start with a contact and a worst dip of 0.136 m (a follower
-    crossing 0.4 m over another), this rule none and 0.021 m (median settling 4.49 s; eight
-    followers: 0 contacts, 0 crashes, 0.026 m, 7.21 s; ``report/stress*_realistic*.json``).
+    crossing 0.4 m over another), this rule none and 0.023 m (median settling 4.72 s; eight
+    followers: 1 start with a contact, 0 crashes, 0.026 m, 8.89 s; ``report/stress*_realistic*.json``).
 
     **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
     follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
@@ -1022,10 +1022,20 @@ class JetAwareRule(LayeredRule):
     4. *never through* — a formed follower never changes altitude through a drone whose outline
        overlaps its own in plan view (now or predicted over ``horizon``): it holds ``hop`` above
        or below it until they are apart.
+    5. *gentler crossings* — speed ≤ ``max_speed`` = 3 m/s and acceleration ≤ ``max_accel`` =
+       4 m/s² on the layers (the layered rule's 4 and 6): with the rotors' lag a drone braking
+       for another overshoots the path's tilt (43–57° measured at the contacts), its rotors then
+       reach 0.25 m up or down, and two drones crossing on neighbouring layers, 0.4 m apart,
+       touched. Measured over 400 random starts under ``--aero realistic`` (five followers, seeds
+       0–99 and 200–399; eight, seeds 0–99): 3 starts with a contact, against 10 at 4 m/s and
+       6 m/s², for 0.2–0.4 s more settling with five followers.
     """
 
     name = "jet-aware"
     downwash_feedforward = True
+
+    def __init__(self, n: int, max_speed: float = 3.0, max_accel: float = 4.0, **kw: float) -> None:
+        super().__init__(n, max_speed=max_speed, max_accel=max_accel, **kw)
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
