@@ -1080,7 +1080,8 @@ class JetAwareRule(LayeredRule):
             j = int(js[np.argmin(h[i, js])])
             up = positions[i, 2] >= positions[j, 2]
             order = sorted(cands, key=lambda o: (abs(o), (o < 0.0) if up else (o > 0.0)))
-            new = next(o for o in order if bool(np.all(np.abs(o - others) >= hop - 1e-9)))
+            # (every candidate taken, when it yields to six or more drones at once: above them all)
+            new = next((o for o in order if bool(np.all(np.abs(o - others) >= hop - 1e-9))), float(others.max()) + hop)
             if new != cur:
                 self.offset[i] = new
                 self.events.append({"t": t, "drone": i, "other": j, "action": "up" if new > cur else "down"})

@@ -120,3 +120,17 @@ def test_attitude_priority_keeps_the_torques_and_moves_the_thrust_just_enough(U)
     # the collective moved by exactly the deficit (or the excess) of the worst rotor, times four
     shift = -F.min() if F.min() < 0.0 else 4.5 - F.max()
     np.testing.assert_allclose(out[0, 0], U[0, 0] + 4.0 * shift, atol=1e-12)
+
+
+def test_a_drone_yielding_to_every_altitude_goes_above_them_all():
+    rule = JetAwareRule(8)
+    p = np.zeros((8, 3))
+    p[:, 2] = 2.0
+    p[:, 0] = np.arange(8) * 0.05  # all within D̄ of each other
+    rule.reset(p)
+    rule.set_slots(np.column_stack([np.arange(8) * 10.0, np.zeros(8), np.full(8, 2.0)]))
+    rule.offset[:7] = [0.0, 0.4, -0.4, 0.8, -0.8, 1.2, 0.0]
+    rule._react(0.0, p, _h(p), np.ones(8, dtype=bool))
+    # followers 1..5 keep theirs; 6 (at the leader's 0) finds 0, ±0.4, ±0.8, 1.2 taken: above them
+    # all, 1.6; then 7 finds 1.6 taken too: 2.0
+    np.testing.assert_allclose(rule.offset, [0.0, 0.4, -0.4, 0.8, -0.8, 1.2, 1.6, 2.0])
