@@ -976,6 +976,9 @@ class CompensatedRule(LayeredRule):
     downwash_feedforward = True
 
 
+#: Lowest altitude (m) a yielding follower of :class:`JetAwareRule` is sent to (above the floor's
+#: ground effect and a hop clear of a drone taking off under it).
+FLOOR_CLEARANCE_M = 0.5
 #: Centre distance (m) under which two drones' outlines (rotor tip to rotor tip, 2·FOOTPRINT_M)
 #: overlap in plan view, with 2 cm to spare: a drone never changes altitude through one that close.
 OVERLAP_M = 2.0 * FOOTPRINT_M + 0.02
@@ -1017,8 +1020,9 @@ class JetAwareRule(LayeredRule):
     3. *stacked offsets* — a yielding drone takes the altitude offset nearest the formation
        altitude that is at least ``hop`` from the offset of every drone it yields to (up first when
        it is above the other: the printed rule's ±``hop`` when it yields to one drone at the
-       formation altitude). As printed, two drones that both yield upwards to a third end at the
-       same altitude, within D̄ of each other (measured: a contact).
+       formation altitude), never one lower than ``FLOOR_CLEARANCE_M`` above the floor. As
+       printed, two drones that both yield upwards to a third end at the same altitude, within D̄
+       of each other (measured: a contact).
     4. *never through* — a formed follower never changes altitude through a drone whose outline
        overlaps its own in plan view (now or predicted over ``horizon``): it holds ``hop`` above
        or below it until they are apart.
@@ -1041,11 +1045,13 @@ class JetAwareRule(LayeredRule):
         super().reset(positions)
         self._slot_h = np.full((self.n, self.n), np.inf)  # (n, n) horizontal distances of the setpoints
         self._slot_yield = False
+        self._formation_alt = np.inf  # (set by update) offsets are kept FLOOR_CLEARANCE_M above the floor
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         self.set_slots(pos_d)
+        self._formation_alt = float(formation_alt)
         return super().update(t, positions, pos_d, formation_alt)
 
     def set_slots(self, pos_d: np.ndarray) -> None:
@@ -1061,7 +1067,9 @@ class JetAwareRule(LayeredRule):
             return
         slot = (self._slot_h < self.safety) & self._lower  # (n, n) [i, j]: i yields to j by the slots
         hop = self.hop
-        cands = (0.0, hop, -hop, 2.0 * hop, -2.0 * hop, 3.0 * hop)
+        # candidate offsets, none that would put the drone within FLOOR_CLEARANCE_M of the floor
+        low = FLOOR_CLEARANCE_M - self._formation_alt
+        cands = tuple(o for o in (0.0, hop, -hop, 2.0 * hop, -2.0 * hop, 3.0 * hop) if o >= low or o == 0.0)
         for i in range(1, self.n):
             if not active[i]:
                 continue
@@ -1175,6 +1183,7 @@ __all__ = [
     "CROSS",
     "FOOTPRINT_M",
     "FORMED",
+    "FLOOR_CLEARANCE_M",
     "OVERLAP_M",
     "G",
     "HOVER_MIN_M",

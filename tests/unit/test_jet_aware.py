@@ -134,3 +134,15 @@ def test_a_drone_yielding_to_every_altitude_goes_above_them_all():
     # followers 1..5 keep theirs; 6 (at the leader's 0) finds 0, ±0.4, ±0.8, 1.2 taken: above them
     # all, 1.6; then 7 finds 1.6 taken too: 2.0
     np.testing.assert_allclose(rule.offset, [0.0, 0.4, -0.4, 0.8, -0.8, 1.2, 1.6, 2.0])
+
+
+def test_no_offset_takes_a_follower_near_the_floor():
+    # formation altitude 1 m, follower 3 below the others: with 0 and ±0.4 taken it would go down to
+    # −0.8, 0.2 m above the floor; it goes up to +0.8 instead
+    rule = JetAwareRule(4)
+    p = np.array([[0.0, 0.0, 1.0], [0.2, 0.0, 1.4], [0.0, 0.2, 0.6], [0.1, 0.1, 0.9]])  # 3 below the leader
+    rule.reset(p)
+    rule.update(0.0, p, np.column_stack([np.arange(4) * 10.0, np.zeros(4), np.ones(4)]), 1.0)
+    rule.offset[:3] = [0.0, 0.4, -0.4]
+    rule._react(0.0, p, _h(p), np.ones(4, dtype=bool))
+    assert rule.offset[3] == pytest.approx(0.8)
