@@ -18,13 +18,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .aero.presets import preset
 from .errors import UserError
-from .formation.anticollision import ANTI_COLLISION_RULES
+from .formation.anticollision import ANTI_COLLISION_RULES, resolve_rule
 from .parallel import map_ordered
 from .progress import Progress
 from .scenario import RandomStart, check_random_start_feasible
 
-RULES = tuple(ANTI_COLLISION_RULES)  # layers (default), paper, off, clearance, compensated
+RULES = tuple(ANTI_COLLISION_RULES)  # layers, paper, off, clearance, compensated, jet-aware ("auto" picks one)
 
 
 @dataclass(frozen=True)
@@ -140,6 +141,8 @@ def stress(
     if workers is not None and workers < 1:
         raise UserError("--workers must be at least 1")
     check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
+    # "auto" flies, and is reported as, the rule it stands for under this physics
+    rules = list(dict.fromkeys(resolve_rule(r, preset(aero).downwash) for r in rules))
     cases = [
         StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
         for rule in rules

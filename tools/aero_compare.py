@@ -33,17 +33,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 RULES = ("jet-aware", "layers", "paper")
 AEROS = ("paper", "realistic")
-SWARM_SCENARIOS = (
-    "circle",
-    "lemniscate",
-    "ascending_orbit",
-    "scenario1",
-    "scenario2",
-    "scenario3",
-    "variable_diameter",
-    "anti_collision",
-    "wind_swarm",
-)
+
+
+def swarm_scenarios() -> list[str]:
+    """Every bundled scenario with followers (a new one is compared without editing this tool)."""
+    from swarm_mj.scenario import bundled_scenarios, load_scenario
+
+    return [name for name in bundled_scenarios() if load_scenario(name).n_followers > 0]
+
+
 RULE_SCENARIOS = ("anti_collision", "scenario1", "scenario2", "scenario3")
 
 
@@ -126,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--skip-stress", action="store_true", help="only the bundled scenarios")
     args = ap.parse_args(argv)
     rows = [] if args.skip_stress else stress_rows(args.starts, args.workers)
-    jobs = [(name, "auto", aero, args.duration) for aero in AEROS for name in SWARM_SCENARIOS]
+    jobs = [(name, "auto", aero, args.duration) for aero in AEROS for name in swarm_scenarios()]
     jobs += [(name, rule, aero, args.duration) for aero in AEROS for rule in RULES for name in RULE_SCENARIOS]
     with ProcessPoolExecutor(max_workers=max(1, args.workers)) as pool:
         rows += list(pool.map(fly_scenario, jobs))

@@ -12,6 +12,7 @@ import argparse
 import json
 import math
 import re
+from collections.abc import Iterator
 from pathlib import Path
 
 
@@ -133,6 +134,15 @@ def anticollision(r: dict) -> str:
     return "\n".join(rows)
 
 
+def _stress_tables(paths: list[Path]) -> Iterator[tuple[dict, str, dict]]:
+    """(settings, rule, table row) of every rule of every ``swarm-mj stress --json`` file that exists."""
+    for path in paths:
+        if path.exists():
+            d = json.loads(path.read_text())
+            for rule, r in d["table"].items():
+                yield d["settings"], rule, r
+
+
 def stress(paths: list[Path]) -> str:
     """The ``swarm-mj stress --json`` tables (random crossing starts, leader flying the circle)."""
     rows = [
@@ -140,18 +150,13 @@ def stress(paths: list[Path]) -> str:
         "min separation (airborne) | settling median / worst |",
         "|---|---|---|---|---|---|---|---|",
     ]
-    for path in paths:
-        if not path.exists():
-            continue
-        d = json.loads(path.read_text())
-        st = d["settings"]
-        for rule, r in d["table"].items():
-            rows.append(
-                f"| {st['followers']} followers within {st['radius']:g} m, ≥ {st['min_spacing']:g} m apart | "
-                f"`{rule}` | {r['starts']} | {r['starts_with_contact']} | {r['contacts']} | "
-                f"{len(r['stopped'])} | {f(r['min_separation_airborne_m'], '{:.2f}')} m | "
-                f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
-            )
+    for st, rule, r in _stress_tables(paths):
+        rows.append(
+            f"| {st['followers']} followers within {st['radius']:g} m, ≥ {st['min_spacing']:g} m apart | "
+            f"`{rule}` | {r['starts']} | {r['starts_with_contact']} | {r['contacts']} | "
+            f"{len(r['stopped'])} | {f(r['min_separation_airborne_m'], '{:.2f}')} m | "
+            f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
+        )
     return "\n".join(rows)
 
 
@@ -174,18 +179,13 @@ def aero(compare: Path, stress_paths: list[Path]) -> str:
                 f"{r['contacts']} | {r['crashes']} | {r['diverged']} | {f(r['downwash_dip_worst_m'], '{:.3f}')} m | "
                 f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
             )
-    for path in stress_paths:
-        if not path.exists():
-            continue
-        d = json.loads(path.read_text())
-        st = d["settings"]
-        for rule, r in d["table"].items():
-            rows.append(
-                f"| {r['starts']} random, {st['followers']} followers | {st.get('aero') or 'paper'} | `{rule}` | "
-                f"{r['starts_with_contact']} | {r['contacts']} | {r.get('crashes', 0)} | {len(r['stopped'])} | "
-                f"{f(r.get('downwash_dip_worst_m'), '{:.3f}')} m | "
-                f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
-            )
+    for st, rule, r in _stress_tables(stress_paths):
+        rows.append(
+            f"| {r['starts']} random, {st['followers']} followers | {st.get('aero') or 'paper'} | `{rule}` | "
+            f"{r['starts_with_contact']} | {r['contacts']} | {r.get('crashes', 0)} | {len(r['stopped'])} | "
+            f"{f(r.get('downwash_dip_worst_m'), '{:.3f}')} m | "
+            f"{f(r['settling_median_s'], '{:.2f}')} / {f(r['settling_worst_s'], '{:.2f}')} s |"
+        )
     if compare.exists():
         d = json.loads(compare.read_text())
         for r in d["rows"]:

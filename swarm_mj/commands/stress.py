@@ -81,10 +81,7 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..formation.anticollision import resolve_rule
-
-    downwash = (args.aero or "paper") == "realistic"
-    rules = list(dict.fromkeys(resolve_rule(r, downwash) for r in (args.rule or ["auto", "paper"])))
+    rules = args.rule or ["auto", "paper"]  # stress() resolves "auto" for the physics
     save = getattr(args, "save_scenario", None)
     if args.json:
         from ..atomic import check_output_path

@@ -81,11 +81,13 @@ class AttitudePredictor:
         self._first = True
         self._prev_rate = np.zeros((self.n, 3))
         self._prev_body = np.zeros((self.n, 3))
+        self._out = np.empty((3, self.n, 3))  # (η_p, η̇_p, ω_p), rewritten by every call
 
     def __call__(
         self, rpy: np.ndarray, rpy_rate: np.ndarray, body_rates: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(η_p, η̇_p, ω_p) (n, 3), new arrays, from η, η̇ and ω (n, 3) (:func:`predict_kernel`)."""
+        """(η_p, η̇_p, ω_p) (n, 3) from η, η̇ and ω (n, 3) (:func:`predict_kernel`); views of one
+        buffer that the next call overwrites."""
         rpy = np.ascontiguousarray(rpy, dtype=np.float64)
         rpy_rate = np.ascontiguousarray(rpy_rate, dtype=np.float64)
         body_rates = np.ascontiguousarray(body_rates, dtype=np.float64)
@@ -93,7 +95,7 @@ class AttitudePredictor:
             self._prev_rate[:] = rpy_rate
             self._prev_body[:] = body_rates
             self._first = False
-        out = np.empty((3, self.n, 3))
+        out = self._out
         predict_kernel(
             rpy, rpy_rate, body_rates, self._prev_rate, self._prev_body, self.d_att, self.k_rate, out[0], out[1], out[2]
         )

@@ -984,7 +984,7 @@ FLOOR_CLEARANCE_M = 0.5
 OVERLAP_M = 2.0 * FOOTPRINT_M + 0.02
 
 
-class JetAwareRule(LayeredRule):
+class JetAwareRule(CompensatedRule):
     """``anti_collision = "jet-aware"``, the default wherever the physics has downwash
     (``--aero realistic``; ``"auto"`` picks it, docs/interpretations.md §4): the layered rule made
     downwash-aware and its formed phase made to settle.
@@ -1009,7 +1009,7 @@ class JetAwareRule(LayeredRule):
 
     **What is new here** (ours):
 
-    1. *feedforward* — crossing on the layers passes over lower drones, so the controller
+    1. *feedforward* (:class:`CompensatedRule`'s) — crossing on the layers passes over lower drones, so the controller
        compensates the downwash force it predicts from the drones' positions, attitudes and thrust
        commands (:class:`~swarm_mj.policy.DownwashFeedforward`: the simulator's jet model, as
        Bauersfeld et al. compensate it in their §VI), the way it compensates the wind (eqs. 23–24).
@@ -1036,7 +1036,6 @@ class JetAwareRule(LayeredRule):
     """
 
     name = "jet-aware"
-    downwash_feedforward = True
 
     def __init__(self, n: int, max_speed: float = 3.0, max_accel: float = 4.0, **kw: float) -> None:
         super().__init__(n, max_speed=max_speed, max_accel=max_accel, **kw)
