@@ -40,6 +40,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.control.backstepping",
     "swarm_mj.control.lag",
     "swarm_mj.env",
+    "swarm_mj.fused",
 )
 
 Samples = Callable[[], Iterable[tuple[Any, ...]]]
@@ -64,19 +65,47 @@ except ImportError:  # pragma: no cover
     AVAILABLE = False
 
 
-def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None):
+def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None, deferred: bool = False):
     """Compile ``fn`` with numba.njit (cached, no fastmath: results match numpy) and register it.
 
     ``@jit`` or ``@jit(samples=lambda: [(arg, ...), ...])``: the argument tuples :func:`warm_up`
     calls the kernel with (a kernel only called from another kernel needs none).
+    ``deferred``: :func:`warm_up` leaves it alone (a large kernel its caller compiles when it
+    chooses, see :mod:`swarm_mj.fused`); :func:`compile_samples` compiles it.
     """
 
     def register(f: Callable[..., Any]) -> Callable[..., Any]:
         compiled = _compile(f)
-        REGISTRY[f"{f.__module__}.{f.__qualname__}"] = (compiled, samples)
+        name = f"{f.__module__}.{f.__qualname__}"
+        if deferred:
+            DEFERRED[name] = (compiled, samples)
+        else:
+            REGISTRY[name] = (compiled, samples)
         return compiled
 
     return register if fn is None else register(fn)
+
+
+#: name -> (kernel, samples): the kernels declared with ``@jit(deferred=True)``.
+DEFERRED: dict[str, tuple[Callable[..., Any], Samples | None]] = {}
+
+
+def is_cached(kernel: Callable[..., Any]) -> bool:
+    """Numba's on-disk cache holds ``kernel`` for its current source (False without Numba, or
+    when Numba's internals surprise us: then the caller compiles)."""
+    if not AVAILABLE:
+        return False
+    try:
+        dispatcher: Any = kernel
+        return bool(dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals changed
+        return False
+
+
+def compile_samples(kernel: Callable[..., Any], samples: Samples | None) -> None:
+    """Compile (or load from the cache) ``kernel`` for each of its sample argument tuples."""
+    for args in samples() if samples is not None else ():
+        kernel(*args)
 
 
 #: Rough compile time per kernel on an unloaded development machine (s), for the first-run notice.
@@ -123,7 +152,5 @@ def warm_up(announce: Callable[[str], None] | None = None) -> float:
                 f" s)…"
             )
     for kernel, samples in list(REGISTRY.values()):
-        if samples is not None:
-            for args in samples():
-                kernel(*args)
+        compile_samples(kernel, samples)
     return time.perf_counter() - t0

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from . import __version__
 from .errors import SwarmError
 
-COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report", "view"]
+COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report", "view", "warm-up"]
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -30,9 +30,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
         try:
-            mod = importlib.import_module(f".commands.{name}", __package__)
+            mod = importlib.import_module(f".commands.{name.replace('-', '_')}", __package__)
         except ModuleNotFoundError as exc:
-            if exc.name and exc.name.endswith(f"commands.{name}"):
+            if exc.name and exc.name.endswith(f"commands.{name.replace('-', '_')}"):
                 continue  # subcommand not shipped in this build
             raise
         mod.add_parser(sub)

@@ -360,9 +360,31 @@ class SwarmEnv(dm_env.Environment):
             wf = self.wind.drone_forces(k, vel)
         else:
             wf = np.zeros((n, 3))
+        return self._observation(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, sp_vel, sp_acc, yaw, wf)
+
+    def _observation(
+        self,
+        pos: np.ndarray,
+        vel: np.ndarray,
+        quat: np.ndarray,
+        omega: np.ndarray,
+        rpy: np.ndarray,
+        rpy_rate: np.ndarray,
+        rel: np.ndarray,
+        mask: np.ndarray,
+        dist: np.ndarray,
+        sp: np.ndarray,
+        sp_vel: np.ndarray,
+        sp_acc: np.ndarray,
+        yaw: np.ndarray,
+        wf: np.ndarray,
+    ) -> dict:
+        """The observation dict of period ``self.k`` from its arrays (see :meth:`observation_spec`);
+        ``dist`` (n, n) is kept for the reward. Also what the fused path (:mod:`swarm_mj.fused`)
+        hands back after a chunk."""
         self._dist = dist
         return {
-            "time": np.float64(k * self.T),
+            "time": np.float64(self.k * self.T),
             "pos": pos,
             "vel": vel,
             "quat": quat,

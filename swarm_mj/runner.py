@@ -22,6 +22,7 @@ from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
+from .fused import CHUNK, DONE, FusedLoop
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .policy import BacksteppingPolicy
@@ -157,6 +158,7 @@ def run(
     aero: str | None = None,
     force_stages: Sequence[ForceStage] = (),
     interrupt: CooperativeInterrupt | None = None,
+    fused: bool | None = None,
 ) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
@@ -167,6 +169,9 @@ def run(
     ``interrupt``: a :class:`~swarm_mj.interrupt.CooperativeInterrupt` the caller entered earlier
     (``swarm-mj run`` does, before it loads anything), so that a Ctrl-C during its own set-up stops
     this run at its start, with a recording of it.
+    ``fused``: fly formed flight through the fused built-in path where the run qualifies
+    (:mod:`swarm_mj.fused`; the same results bit for bit): None when it is compiled (else it is
+    compiled in the background for later runs), True compiling it first if needed, False never.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sc = with_aero(sc, aero)
@@ -202,8 +207,23 @@ def run(
         obs = ts.observation
         k = 0
         wind_speed = env.wind.speed
+        # the fused built-in path (swarm_mj/fused.py) flies chunks of formed flight, when it can
+        fast = (
+            FusedLoop.build(env, policy, log, compile=bool(fused), announce=None if progress is False else announce)
+            if fused is not False
+            else None
+        )
         try:
             while True:
+                if fast is not None and k < K and fast.ready():
+                    k = fast.run(min(K, k + CHUNK))
+                    fast.raise_if_stopped()
+                    obs = env._obs
+                    bar.update(k)
+                    if interrupt.requested:
+                        raise KeyboardInterrupt
+                    if fast.status == DONE:
+                        continue
                 cmd = policy.command(obs)
                 log.observe(k, obs, cmd, wind_speed[k], env.D[k])
                 if k >= K:
@@ -235,7 +255,8 @@ def run(
     summary = summarize(sc, log, env, policy, wall)
     if error is not None:
         summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
-    return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error)
+    extra = {"fused_periods": fast.periods if fast is not None else 0}  # of the K flown (swarm_mj/fused.py)
+    return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error, extra)
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:

@@ -65,7 +65,9 @@ DIVERGENCE_WARNINGS = (
     mujoco.mjtWarning.mjWARN_BADQVEL,
     mujoco.mjtWarning.mjWARN_BADCTRL,
 )
-_W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = (int(w) for w in DIVERGENCE_WARNINGS)
+#: Their indices in ``MjData.warning`` (what a compiled kernel reads).
+DIVERGENCE_WARNING_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
+_W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = DIVERGENCE_WARNING_IDS
 
 
 class Monitor(Protocol):
@@ -469,6 +471,14 @@ class Sim:
                 self._count_contacts()
             for mon in monitors:
                 mon.after_step(self)
+
+    def after_physics_step(self) -> None:
+        """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
+        monitors (the fused path, swarm_mj/fused.py, hands each step with a contact back to this)."""
+        if self.data.ncon or self._pairs_in_contact:
+            self._count_contacts()
+        for mon in self.monitors:
+            mon.after_step(self)
 
     def _substeps(self) -> None:
         """Every stage adds its force and torque, the sums go to xfrc_applied, then mj_step and contacts."""

@@ -9,7 +9,8 @@ each row gives our time and the raw time for the same simulated work and their r
 * core: ``Sim.step`` (saturation, drag, external force, contacts) on 6 drones;
 * runs: real-time factor of ``runner.run`` for ``lemniscate_single`` and ``circle`` (180 s;
   30 s with --quick), without and with recording (``recording.write_recording`` to a temp
-  file; overhead in %);
+  file; overhead in %), and step by step (``fused=False``: the ordinary path the fused one,
+  swarm_mj/fused.py, is compared with; the bench compiles the fused path before it starts);
 * env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
 * vector: ``SwarmVectorEnv`` with 64 copies of the six-drone circle, random U near hover, in
   drone-steps per second, against raw mj_step on the same batched models (its blocks), beside
@@ -17,7 +18,8 @@ each row gives our time and the raw time for the same simulated work and their r
 * startup: wall time of ``python -m swarm_mj.cli run circle`` in a fresh process: start-up
   (``--duration 0.1 --no-record``; baseline: a process that only imports mujoco and numpy), the
   whole 180-s run with recording with a warm Numba cache, and the same with an EMPTY Numba
-  cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory: every kernel compiles);
+  cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory: every kernel compiles; the
+  fused path compiles in a background process, whose time is reported, and the run after it);
 * tuning: ``tuning.cost.tune_gains`` (paper Table 2: population 50, 14 iterations) on one
   worker and on all CPUs (speed-up); baseline: raw mj_step on a 10-copy model (the cost's
   block size) for the same drone-seconds;
@@ -179,11 +181,15 @@ def bench_runs(quick: bool, repeats: int) -> None:
         warm = run(sc.with_overrides(duration=1.0), progress=False)  # warm-up (JIT cache, imports,
         with tempfile.TemporaryDirectory() as tmp:  # the recorder's start-up)
             write_recording(warm, Path(tmp) / "warm.rrd")
-        t_run, t_rec, t_raw = [], [], []
+        t_run, t_rec, t_raw, t_step = [], [], [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
             res = run(sc, progress=False)
             t_run.append(time.perf_counter() - t0)
+            fused_share = res.extra.get("fused_periods", 0) / max(len(res.log.t) - 1, 1)
+            t0 = time.perf_counter()
+            run(sc, progress=False, fused=False)
+            t_step.append(time.perf_counter() - t0)
             with tempfile.TemporaryDirectory() as tmp:
                 t0 = time.perf_counter()
                 write_recording(res, Path(tmp) / f"{name}.rrd")
@@ -195,7 +201,7 @@ def bench_runs(quick: bool, repeats: int) -> None:
             )
             n_phys = int(round(dur / sc.timestep))
             t_raw.append(raw_seconds(w, n_phys))
-        a, r, raw = min(t_run), min(t_rec), min(t_raw)
+        a, r, raw, st = min(t_run), min(t_rec), min(t_raw), min(t_step)
         label = f"{name} ({sc.n_drones} drone{'s' if sc.n_drones > 1 else ''}, {dur:g} s)"
         row(
             "runs",
@@ -204,7 +210,17 @@ def bench_runs(quick: bool, repeats: int) -> None:
             raw,
             value=dur / a,
             unit="× real time",
-            note=f"raw mj_step {dur / raw:,.0f}× real time",
+            note=f"raw mj_step {dur / raw:,.0f}× real time; {100 * fused_share:.0f} % of the periods fused; "
+            f"best of {repeats}",
+        )
+        row(
+            "runs",
+            f"runner.run {label}, step by step (fused=False)",
+            st,
+            raw,
+            value=dur / st,
+            unit="× real time",
+            note=f"the ordinary path; the fused one is {st / a:.2f}× faster",
         )
         row(
             "runs",
@@ -357,11 +373,14 @@ def bench_startup(quick: bool, repeats: int) -> None:
         )
         full = cli + ([] if not quick else ["--duration", "30"])
         t_warm = min(_wall(full + ["-o", str(Path(tmp) / "w.rrd")], base, tmp) for _ in range(repeats))
-        cold = []
+        cold, background, second = [], [], []
         for i in range(max(1, min(repeats, 2))):
             cache = Path(tmp) / f"numba{i}"
             cache.mkdir()
-            cold.append(_wall(full + ["-o", str(Path(tmp) / "c.rrd")], {**base, "NUMBA_CACHE_DIR": str(cache)}, tmp))
+            env = {**base, "NUMBA_CACHE_DIR": str(cache)}
+            cold.append(_wall(full + ["-o", str(Path(tmp) / "c.rrd")], env, tmp))
+            background.append(_wait_background_compile())  # the fused path, started by that first run
+            second.append(_wall(full + ["-o", str(Path(tmp) / "c2.rrd")], env, tmp))
         what = "run circle" + (" --duration 30" if quick else "") + " with recording"
         row(
             "startup",
@@ -370,9 +389,28 @@ def bench_startup(quick: bool, repeats: int) -> None:
             t_warm,
             value=min(cold),
             unit="s",
-            note=f"ratio: against the same run with a warm cache ({t_warm:.2f} s)",
+            note=f"ratio: against the same run with a warm cache ({t_warm:.2f} s); the fused path then "
+            f"compiled in the background for {min(background):.0f} s more",
+        )
+        row(
+            "startup",
+            f"second {what} after an empty cache (the fused path compiled)",
+            min(second),
+            t_warm,
+            value=min(second),
+            unit="s",
+            note="ratio: against the same run with a warm cache",
         )
         row("startup", f"later {what} (warm cache)", t_warm, None, value=t_warm, unit="s")
+
+
+def _wait_background_compile(limit_s: float = 300.0) -> float:
+    """Seconds until no background compile of the fused path (its lock file) is left, at most ``limit_s``."""
+    t0 = time.perf_counter()
+    locks = Path(tempfile.gettempdir()).glob
+    while any(locks("swarm_mj-fused-*.lock")) and time.perf_counter() - t0 < limit_s:
+        time.sleep(0.25)
+    return time.perf_counter() - t0
 
 
 def bench_tuning(quick: bool, repeats: int) -> None:
@@ -700,6 +738,15 @@ def main(argv: list[str] | None = None) -> int:
         f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
         flush=True,
     )
+    from swarm_mj import _jit, fused
+
+    t_jit = _jit.warm_up()
+    t_fused = fused.compile_now()  # (loads it when cached) every run below may use the fused path
+    print(
+        f"kernels ready ({t_jit:.1f} s), fused path {'ready' if fused.compiled() else 'NOT available'} "
+        f"({t_fused:.1f} s)",
+        flush=True,
+    )
     t0 = time.perf_counter()
     for sec in SECTIONS:
         if sec in args.skip:
@@ -708,7 +755,7 @@ def main(argv: list[str] | None = None) -> int:
         if sec == "core":
             bench_core(args.quick, repeats)
         elif sec == "runs":
-            bench_runs(args.quick, 1)
+            bench_runs(args.quick, repeats)
         elif sec == "env":
             bench_env(args.quick, repeats)
         elif sec == "vector":
