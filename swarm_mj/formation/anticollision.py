@@ -983,7 +983,9 @@ FLOOR_CLEARANCE_M = 0.5
 #: present horizontal distance, not the one predicted over ``horizon``: in a formed swarm the
 #: velocities estimated from positions jitter by a few cm/s, and over 1 s that closed the 8 cm
 #: between neighbouring outlines (eight followers at D = 1 m, 0.77 m apart) and held descents for
-#: seconds (median form-up settling 8.9 s over the 20 eight-follower stress starts; 6.6 s without).
+#: seconds. Over the 20 eight-follower stress starts the median form-up settling went 8.89 s → 6.96 s
+#: and the one start with a contact has none (0.2 m/s: 7.7 s and 3 contacts; no prediction at all:
+#: 6.6 s); five followers, 100 starts: 4.72 s → 4.60 s, still no contact.
 CLOSING_MIN_MPS = 0.5
 #: Centre distance (m) under which two drones' outlines (rotor tip to rotor tip, 2·FOOTPRINT_M)
 #: overlap in plan view, with 2 cm to spare: a drone never changes altitude through one that close.
@@ -1003,8 +1005,8 @@ class JetAwareRule(CompensatedRule):
     controller: :func:`~swarm_mj.mixing.attitude_priority`, and the rotor-lag compensation of
     :mod:`swarm_mj.control.lag`). What is left is the rule's: with that controller, over the same
     100 starts, ``layers`` still had a start with a contact and a worst dip of 0.136 m (a follower
-    crossing 0.4 m over another), this rule none and 0.023 m (median settling 4.72 s; eight
-    followers: 1 start with a contact, 0 crashes, 0.026 m, 8.89 s; ``report/stress*_realistic*.json``).
+    crossing 0.4 m over another), this rule none and 0.023 m (median settling 4.60 s; eight
+    followers: no contact, 0 crashes, 0.026 m, 6.96 s; ``report/stress*_realistic*.json``).
 
     **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
     follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
@@ -1030,8 +1032,8 @@ class JetAwareRule(CompensatedRule):
        printed, two drones that both yield upwards to a third end at the same altitude, within D̄
        of each other (measured: a contact).
     4. *never through* — a formed follower never changes altitude through a drone whose outline
-       overlaps its own in plan view (now or predicted over ``horizon``): it holds ``hop`` above
-       or below it until they are apart.
+       overlaps its own in plan view (now, or predicted over ``horizon`` when the two close faster
+       than ``CLOSING_MIN_MPS``): it holds ``hop`` above or below it until they are apart.
     5. *gentler crossings* — speed ≤ ``max_speed`` = 3 m/s and acceleration ≤ ``max_accel`` =
        4 m/s² on the layers (the layered rule's 4 and 6): with the rotors' lag a drone braking
        for another overshoots the path's tilt (43–57° measured at the contacts), its rotors then

@@ -107,3 +107,15 @@ def test_compiled_is_tied_to_the_sources(tmp_path, monkeypatch):
     assert fused.compiled()
     monkeypatch.setattr(fused, "_sources_hash", lambda: "another source")
     assert not fused.compiled()  # a callee changed: Numba's own check (this file's stamp) would not see it
+
+
+def test_warm_up_command_leaves_the_fused_path_compiled():
+    import subprocess
+    import sys
+
+    out = subprocess.run(
+        [sys.executable, "-m", "swarm_mj.cli", "warm-up"], capture_output=True, text=True, timeout=600, check=False
+    )
+    assert out.returncode == 0, out.stderr
+    assert "fused path ready" in out.stderr, out.stderr
+    assert fused.compiled()

@@ -89,6 +89,27 @@ def test_a_formed_follower_never_changes_altitude_through_a_drone_under_it():
     np.testing.assert_allclose(rule._through(p, np.array([2.0, 2.0, 2.0]), formed, _h(p)), [2.0, 2.0, 2.0])
 
 
+def test_never_through_predicts_only_for_drones_closing_fast():
+    # follower 2 beside follower 1 (outlines 5 cm clear), 0.5 m under it; follower 1 wants to descend
+    rule = JetAwareRule(3)
+    p = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 3.0], [OVERLAP_M + 0.05, 1.0, 2.5]])
+    rule.reset(p)
+    h = _h(p)
+    soon = h.copy()
+    soon[1, 2] = soon[2, 1] = 0.3  # what a straight-line prediction over 1 s gives for them
+    formed = np.array([False, True, True])
+    target = np.array([2.0, 2.0, 2.0])
+    for closing, held in ((0.1, False), (0.4, False), (0.8, True)):  # m/s; CLOSING_MIN_MPS = 0.5
+        rule.vel[:] = 0.0
+        rule.vel[2, 0] = -closing  # follower 2 moving towards follower 1
+        z_t = rule._through(p, target, formed, rule._closing(p, h, soon))
+        # jitter (a few cm/s in a formed swarm) predicts an overlap that does not come: not held
+        assert bool(np.isclose(z_t[1], 2.5 + HOP)) is held, (closing, z_t)
+    # unseen pairs (+inf in the prediction) stay unseen
+    soon[1, 2] = soon[2, 1] = np.inf
+    assert np.isinf(rule._closing(p, h, soon)[1, 2])
+
+
 # --------------------------------------------------------------------------- the mixer
 
 
