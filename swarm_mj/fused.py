@@ -7,26 +7,35 @@ whole chunk of periods in one call, in the same order and with the same kernels,
 are the same bit for bit (``tests/integration/test_fused.py`` compares whole runs):
 
 1. anti-collision, the layered rule's *formed* step (its velocity estimates, Fig. 5's check,
-   :func:`~swarm_mj.formation.layered.formed_step_kernel`, the merged references);
-2. backstepping, eqs. (17)–(24) (:func:`~swarm_mj.control.backstepping.backstepping_kernel`);
-3. the log row of the period;
-4. saturation (:func:`~swarm_mj.mixing.saturate_kernel`) and the wind force held over the period;
-5. per physics step: drag + wind into ``xfrc_applied`` (:func:`~swarm_mj.sim.drag_kernel`), then
-   MuJoCo's own ``mj_step`` (called from the kernel, :mod:`swarm_mj._mjstep`);
-6. the health check (:func:`~swarm_mj.sim.first_unhealthy`, MuJoCo's divergence warnings);
-7. the next observation (:func:`~swarm_mj.observation.observe_kernel`, the formation setpoints of
+   :func:`~swarm_mj.formation.layered.formed_step_kernel`, the merged references; for
+   ``jet-aware`` also its slot and overlap checks);
+2. where the physics has them, the downwash feedforward (:func:`~swarm_mj.aero.downwash.downwash_kernel`
+   on the last thrust commands) and the attitude predicted over the rotors' lag
+   (:func:`~swarm_mj.control.lag.predict_kernel`);
+3. backstepping, eqs. (17)–(24) (:func:`~swarm_mj.control.backstepping.backstepping_kernel`), then
+   the attitude-priority mixer where it is on (:func:`~swarm_mj.mixing.attitude_priority_kernel`);
+4. the log row of the period;
+5. saturation (:func:`~swarm_mj.mixing.saturate_kernel`) and the wind force held over the period;
+6. per physics step: drag + wind into ``xfrc_applied`` (:func:`~swarm_mj.sim.drag_kernel`), the
+   produced rotor thrusts of the lagged rotors, the downwash and ground-effect stages (their
+   kernels and :func:`~swarm_mj.sim.flush_stage_forces`), then MuJoCo's own ``mj_step`` (called
+   from the kernel, :mod:`swarm_mj._mjstep`), then the ground monitor's bookkeeping;
+7. the health check (:func:`~swarm_mj.sim.first_unhealthy`, MuJoCo's divergence warnings);
+8. the next observation (:func:`~swarm_mj.observation.observe_kernel`, the formation setpoints of
    :func:`~swarm_mj.formation.slots.setpoints_kernel`, the known wind force).
 
 It hands control back to Python (which then flies that period the ordinary way) whenever
 something happens that the ordinary path handles with Python code: Fig. 5 has work to do (two
-drones within D̄ horizontally, or an offset held), a contact (MuJoCo's ``ncon`` > 0: Python
-counts it, then the kernel resumes at the next physics step), an unhealthy state (Python raises the
-usual error), a non-finite command. The chunk size bounds how long Ctrl-C and the progress bar wait.
+drones within D̄ horizontally, or an offset held; for ``jet-aware`` also slots within D̄ or
+outlines overlapping), a contact with another drone or the ground (MuJoCo's ``ncon`` > 0: Python
+counts it with :meth:`~swarm_mj.sim.Sim.after_physics_step`, then the kernel resumes at the next
+physics step), an unhealthy state (Python raises the usual error), a non-finite command. The chunk
+size bounds how long Ctrl-C and the progress bar wait.
 
-:meth:`FusedLoop.build` says which runs qualify (:attr:`FusedLoop.why_not` otherwise): the paper's
-physics (drag and wind, no extra force stage, no monitor, no rotor lag), one swarm, the wind
-without relative airspeed, and the policy's plain parts (the layered rule or none, the clip mixer,
-no lag prediction, no downwash feedforward). Everything else flies the ordinary path.
+:meth:`FusedLoop.why_not` says which runs qualify: ``runner.run``'s built-in policy on one swarm,
+under the paper's physics or the realistic preset's stages and ground monitor, the wind without
+relative airspeed, and the ``layers``, ``compensated``, ``jet-aware`` or no rule. Everything
+else, and every period before the swarm is formed, flies the ordinary path.
 
 **Compiling.** The kernel takes Numba 10–20 s to compile, more than a whole run saves, so the
 first run never waits for it: ``runner.run(fused=None)`` (what ``swarm-mj run`` does) uses it when
@@ -94,8 +103,7 @@ def _samples():
     z = lambda *s: np.zeros(s)  # noqa: E731
     qpos = z(n, 7)
     qpos[:, 3] = 1.0
-    xfrc = z(n + 1, 6)[1:, 0:3]  # strided views, as the simulator's
-    xtorque = z(n + 1, 6)[1:, 3:6]
+    xfrc = z(n + 1, 6)  # MjData.xfrc_applied (nbody, 6): the drones' rows are sliced in the kernel
     warn = np.zeros((8, 2), dtype=np.int32)[:, 1]
     tables = (z(K, 3), z(K, 3), z(K, 3), z(K), z(K), z(n - 1, 3), z(3), z(3), 4.0, z(K, 3), False)
     obs = (z(n, 3), z(n, 3), z(n, 4), z(n, 3), z(n, 3), z(n, 3), z(n, n, 3), z(n, n), z(n, n)) + (
@@ -116,7 +124,7 @@ def _samples():
     addr = np.uint64(0)  # never called: no period to fly
     sim = (addr, addr, addr, np.zeros(1, dtype=np.int32), warn, qpos, z(n, 6), z(n, 4), xfrc, z(n, 4), z(n, 3))
     sim += (np.ones(3), UNMIX_T, MIX_T, 0.0, 4.5, 2, -0.5, 1e3, np.inf)
-    aero = (True, z(n, 4), z(n, 4), z(n, 3), z(n, 3), xtorque)
+    aero = (True, z(n, 4), z(n, 4), z(n, 3), z(n, 3), 1, 1)
     aero += (True, 2, 0.25, 1.2, 0.09, 0.01, 0.01, z(n, 3), z(n, 3))
     aero += (True, 0.25, 0.02, 0.09, 0.02, z(n, 3), z(n, 3), True, z(n, 3), z(n, 3), z(K, n, 3), z(K, n, 3))
     extra = (True, z(n, n), OVERLAP_M, z(1), True, 1.2, 0.09, 0.01, 0.01)
@@ -129,7 +137,7 @@ def _samples():
 def fused_steps(  # noqa: PLR0913, PLR0915 - one flat signature is what a compiled call takes cheapest
     k, s0, k_end, python_each,
     # the simulator: mj_step, mjModel, mjData addresses; views into MjData; the saturation
-    fn, m_addr, d_addr, ncon, warn, qpos, qvel, ctrl, xf, rotor_thrust, wind_now,
+    fn, m_addr, d_addr, ncon, warn, qpos, qvel, ctrl, xfrc, rotor_thrust, wind_now,
     neg_drag, unmix_t, mix_t, f_min, f_max, nsub, floor_z, max_distance, max_tilt,
     # the references: trajectory, D(t), slots, leader estimate, sensing, wind force table
     T, ref_pos, ref_vel, ref_acc, ref_yaw, D, unit_offsets, prev_leader, leader_vel, sensing_range, wind_force,
@@ -146,7 +154,7 @@ def fused_steps(  # noqa: PLR0913, PLR0915 - one flat signature is what a compil
     log_t, log_pos, log_vel, log_quat, log_rpy, log_pos_d, log_slot, log_att_d, log_U, log_rotor,
     log_wind_speed, wind_speed, log_wind_force, log_D,
     # the realistic physics (docs/aero.md): rotor lag, the downwash and ground-effect stages, the ground
-    lag, act, rotor_command, stage_force, stage_torque, xtorque,
+    lag, act, rotor_command, stage_force, stage_torque, body0, body_step,
     dw_on, dw_n, dw_arm, dw_rho, dw_r, dw_half_cda, dw_half_cda_body, dw_force, dw_torque,
     ge_on, ge_arm, ge_rotor_z, ge_r, ge_z_clip, ge_force, ge_torque, gm_on, vel_before, vel_now, log_dw, log_ge,
     # the controller's parts for it: jet-aware rule, downwash feedforward, lag prediction, mixer
@@ -162,6 +170,9 @@ def fused_steps(  # noqa: PLR0913, PLR0915 - one flat signature is what a compil
     zeros1 = np.zeros(n)
     zeros3 = np.zeros((n, 3))
     vel = qvel[:, 0:3]
+    # the drones' rows of xfrc_applied (nbody, 6), sliced here: the same layout for any n
+    xf = xfrc[body0 : body0 + n * body_step : body_step, 0:3]
+    xtorque = xfrc[body0 : body0 + n * body_step : body_step, 3:6]
     pos_v = qpos[:, 0:3]
     quat_v = qpos[:, 3:7]
     while k < k_end:
@@ -439,7 +450,7 @@ class FusedLoop:
         ref = env.reference
         self._sim_static = (
             np.uint64(_mjstep.mj_step_address() or 0), np.uint64(sim.model._address), np.uint64(d._address),
-            _mjstep.ncon_view(d), sim._warnings, sim.qpos, sim.qvel, sim.ctrl, sim._xfrc_force,
+            _mjstep.ncon_view(d), sim._warnings, sim.qpos, sim.qvel, sim.ctrl, d.xfrc_applied,
             sim.rotor_thrust,
         )  # fmt: skip
         self._sim_rest = (
@@ -500,7 +511,8 @@ class FusedLoop:
         gm = self._ground
         lag = bool(sim.motor_lag)
         out: tuple = (lag, sim._act if lag else self._no_lag, sim.rotor_command, sim._force, sim._torque)
-        out += (sim._xfrc_torque,)
+        ids = np.asarray(sim.world.body_ids)
+        out += (int(ids[0]), int(ids[1] - ids[0]) if len(ids) > 1 else 1)
         if dw is not None:
             out += (True, int(dw.n_per_copy), float(dw.arm), float(dw.rho), float(dw.rotor_radius))
             out += (float(dw.half_cda), float(dw.half_cda_body), dw.force, dw.torque)
@@ -555,6 +567,9 @@ class FusedLoop:
             return "monitors other than the ground's"
         if env.wind.relative_airspeed:
             return "wind on the relative airspeed"
+        ids = np.asarray(sim.world.body_ids)
+        if len(ids) > 1 and not (np.diff(ids) == ids[1] - ids[0]).all():
+            return "drone bodies not evenly spaced in the model"
         rule = policy.rule
         if sc.n_drones > 1 and type(rule) not in (LayeredRule, CompensatedRule, JetAwareRule, NoRule):
             return f"the {rule.name!r} rule"

@@ -119,3 +119,10 @@ def test_warm_up_command_leaves_the_fused_path_compiled():
     assert out.returncode == 0, out.stderr
     assert "fused path ready" in out.stderr, out.stderr
     assert fused.compiled()
+
+
+def test_one_compiled_signature_for_every_run_it_flies():
+    # a second signature would be a second 10-20 s compile in the middle of a user's run
+    for name, aero in (("lemniscate_single", None), ("circle", None), ("circle", "realistic"), ("step", "realistic")):
+        run(name, aero=aero, duration=2.0, progress=False, fused=True)
+    assert len(fused.fused_steps.signatures) == 1, fused.fused_steps.signatures
