@@ -494,7 +494,7 @@ class FusedLoop:
         if not self._layered:
             return self._no_rule
         rule = self.policy.rule
-        (vu, au), (vd, ad) = rule.z_up, rule.z_down
+        (vu, au), (vd, ad) = rule.z_up, rule.z_down_formed
         return (
             True, float(rule.safety), rule.offset, rule._prev_pos, rule.vel, self._prev_t, rule.path_p,
             rule.path_v, rule.path_a, rule.blocked, rule.zp, rule.zv, rule.za, float(rule.a_max),
