@@ -70,24 +70,17 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None,
 
     ``@jit`` or ``@jit(samples=lambda: [(arg, ...), ...])``: the argument tuples :func:`warm_up`
     calls the kernel with (a kernel only called from another kernel needs none).
-    ``deferred``: :func:`warm_up` leaves it alone (a large kernel its caller compiles when it
-    chooses, see :mod:`swarm_mj.fused`); :func:`compile_samples` compiles it.
+    ``deferred``: not registered, so :func:`warm_up` leaves it alone (a large kernel its caller
+    compiles when it chooses, with :func:`compile_samples`; see :mod:`swarm_mj.fused`).
     """
 
     def register(f: Callable[..., Any]) -> Callable[..., Any]:
         compiled = _compile(f)
-        name = f"{f.__module__}.{f.__qualname__}"
-        if deferred:
-            DEFERRED[name] = (compiled, samples)
-        else:
-            REGISTRY[name] = (compiled, samples)
+        if not deferred:
+            REGISTRY[f"{f.__module__}.{f.__qualname__}"] = (compiled, samples)
         return compiled
 
     return register if fn is None else register(fn)
-
-
-#: name -> (kernel, samples): the kernels declared with ``@jit(deferred=True)``.
-DEFERRED: dict[str, tuple[Callable[..., Any], Samples | None]] = {}
 
 
 def is_cached(kernel: Callable[..., Any]) -> bool:

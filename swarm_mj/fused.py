@@ -65,6 +65,8 @@ from .aero.ground import GroundContacts
 from .aero.ground_effect import GroundEffectStage, ground_effect_kernel
 from .control.backstepping import backstepping_kernel
 from .control.lag import predict_kernel
+from .env import StepRecord
+from .errors import UserError
 from .formation.anticollision import (
     OVERLAP_M,
     CompensatedRule,
@@ -95,6 +97,8 @@ DONE, REACT, CONTACT, UNHEALTHY, BAD_ACTION = 0, 1, 2, 3, 4
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
+#: Periods flown the ordinary way after Fig. 5 acted, before a fused chunk is tried again.
+COOL_DOWN = 10
 
 
 def _samples():
@@ -649,7 +653,7 @@ class FusedLoop:
             if self._jet_aware and k > env.k:
                 rule._formation_alt = float(self._formation_alt[0])
         if status == REACT:
-            self._cool = 10
+            self._cool = COOL_DOWN
         env.k = k
         env._contacts_seen = sim.contact_events
         if status == UNHEALTHY:
@@ -675,14 +679,10 @@ class FusedLoop:
             self.env.sim.check()  # raises SimulationDiverged, naming why
             raise AssertionError("internal: the fused path found a state the simulator calls healthy")
         if self.status == BAD_ACTION:
-            from .errors import UserError
-
             raise UserError("action contains NaN or inf")
 
     def _record(self, k: int) -> None:
         """The environment's record of the last period flown (as :meth:`SwarmEnv.step` leaves it)."""
-        from .env import StepRecord
-
         log, j = self.log, k - 1
         if j >= 0:
             aero = self.env.sim.stage_forces()

@@ -456,7 +456,7 @@ class Sim:
         then the extra stages' sum added (and their torque set)."""
         m, d = self.model, self.data
         xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
-        extra, monitors, lag = self._extra, self.monitors, self.motor_lag
+        extra, lag = self._extra, self.motor_lag
         force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
@@ -467,10 +467,7 @@ class Sim:
                     stage.apply(self, force, torque)
                 flush_stage_forces(xf, self._xfrc_torque, force, torque)  # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
-            if d.ncon or self._pairs_in_contact:
-                self._count_contacts()
-            for mon in monitors:
-                mon.after_step(self)
+            self.after_physics_step()
 
     def after_physics_step(self) -> None:
         """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
@@ -494,10 +491,7 @@ class Sim:
             self._xfrc_force[:] = force
             self._xfrc_torque[:] = torque
             mujoco.mj_step(m, d)
-            if d.ncon or self._pairs_in_contact:
-                self._count_contacts()
-            for mon in self.monitors:
-                mon.after_step(self)
+            self.after_physics_step()
 
     # ------------------------------------------------------------------ health
     def health(self, out: np.ndarray | None = None) -> np.ndarray:
