@@ -87,6 +87,7 @@ from .sim import (
     DIVERGENCE_WARNING_IDS,
     drag_kernel,
     first_unhealthy,
+    floor_gate_kernel,
     flush_stage_forces,
     unmix_kernel,
 )
@@ -127,7 +128,7 @@ def _samples():
     log += (z(K, n, 4), z(K, 3), z(K, 3), z(K, n, 3), z(K))
     addr = np.uint64(0)  # never called: no period to fly
     sim = (addr, addr, addr, np.zeros(1, dtype=np.int32), warn, qpos, z(n, 6), z(n, 4), xfrc, z(n, 4), z(n, 3))
-    sim += (np.ones(3), UNMIX_T, MIX_T, 0.0, 4.5, 2, -0.5, 1e3, np.inf)
+    sim += (np.ones(3), UNMIX_T, MIX_T, 0.0, 4.5, 2, -0.5, 1e3, np.inf, True, 0.4, np.zeros(3, dtype=np.int32), 0, 4)
     aero = (True, z(n, 4), z(n, 4), z(n, 3), z(n, 3), 1, 1)
     aero += (True, 2, 0.25, 1.2, 0.09, 0.01, 0.01, z(n, 3), z(n, 3))
     aero += (True, 0.25, 0.02, 0.09, 0.02, z(n, 3), z(n, 3), True, z(n, 3), z(n, 3), z(K, n, 3), z(K, n, 3))
@@ -143,6 +144,7 @@ def fused_steps(  # noqa: PLR0913, PLR0915 - one flat signature is what a compil
     # the simulator: mj_step, mjModel, mjData addresses; views into MjData; the saturation
     fn, m_addr, d_addr, ncon, warn, qpos, qvel, ctrl, xfrc, rotor_thrust, wind_now,
     neg_drag, unmix_t, mix_t, f_min, f_max, nsub, floor_z, max_distance, max_tilt,
+    gate_on, gate_z, geom_contype, gate_id, gate_solid,
     # the references: trajectory, D(t), slots, leader estimate, sensing, wind force table
     T, ref_pos, ref_vel, ref_acc, ref_yaw, D, unit_offsets, prev_leader, leader_vel, sensing_range, wind_force,
     wind_known,
@@ -272,6 +274,8 @@ def fused_steps(  # noqa: PLR0913, PLR0915 - one flat signature is what a compil
             saturate_kernel(U, unmix_t, mix_t, f_min, f_max, ctrl, rotor_thrust)
             if lag:
                 rotor_command[:] = rotor_thrust
+            if gate_on:  # Sim.step's floor gate
+                floor_gate_kernel(qpos, qvel, gate_z, T, geom_contype, gate_id, gate_solid)
             log_U[k] = ctrl
             log_wind_force[k] = wind_now
         for s in range(s0, nsub):
@@ -461,6 +465,8 @@ class FusedLoop:
             c(sim.drag.neg_drag, dtype=float), UNMIX_T, MIX_T, float(sim._f_min), float(sim._f_max),
             int(sim.n_substeps), float(sim.floor_z), float(sim.max_distance), float(sim.max_tilt),
         )  # fmt: skip
+        gate = sim._gate or (0, 0, 0.0)
+        self._gate_args = (sim.model.geom_contype, int(gate[0]), int(gate[1]))
         wind = env.wind
         self._tables = (
             c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float),
@@ -632,7 +638,9 @@ class FusedLoop:
             self._prev_t[0] = rule._prev_t
         ctl = policy.controller
         self._U[:] = ctl.U  # the last command (the downwash feedforward's thrust)
-        sim_args = (*self._sim_static, sim.wind.force, *self._sim_rest)
+        gate_on = bool(sim.floor_gate)
+        gate_z = float(sim._gate[2]) if gate_on else 0.0
+        sim_args = (*self._sim_static, sim.wind.force, *self._sim_rest, gate_on, gate_z, *self._gate_args)
         ref_args = (float(env.T), *self._tables, env._prev_leader, env._leader_vel, float(env.scenario.sensing_range))
         rest = (
             *bufs, *self._rule_args(), *self._ctl_static, ctl._prev_att_d, *self._ctl_flags, ctl.att_d, self._U,

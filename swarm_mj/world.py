@@ -123,15 +123,12 @@ def _drone_mjcf(
 
         body = drone.find("body", "body")
         body.add(
-            "geom",
+            "site",
             name="strut",
             type="capsule",
             fromto=[0, 0, -0.02, 0, 0, SKID_Z],
             size=[STRUT_RADIUS],
-            contype=0,
-            conaffinity=0,
             group=1,
-            density=0,
             rgba=[0.2, 0.2, 0.25, 1],
         )
         body.add(

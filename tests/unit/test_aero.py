@@ -38,7 +38,7 @@ from swarm_mj.aero.presets import (
 from swarm_mj.errors import UserError
 from swarm_mj.params import DEFAULT_PARAMS as P
 from swarm_mj.scenario import load_scenario, parse_scenario
-from swarm_mj.sim import Sim
+from swarm_mj.sim import FLOOR_GATE_M, Sim, floor_gate
 from swarm_mj.world import build_world
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -312,7 +312,8 @@ def test_paper_preset_has_no_lag_landing_gear_or_solid_floor():
     assert w.xml == build_world(2, ground=False, motor_tau=0.0).xml
     wr = build_world(2, ground=True, motor_tau=0.02)
     assert wr.model.na == 8
-    assert wr.model.ngeom == w.model.ngeom + 4  # a strut and a skid per drone
+    assert wr.model.ngeom == w.model.ngeom + 2  # a skid per drone (the strut is a site: drawn, never tested)
+    assert wr.model.nsite == w.model.nsite + 2
 
     # drone-drone geometry is the paper's: the same pairs of geoms of two drones can collide, and the
     # landing gear touches only the floor
@@ -375,6 +376,106 @@ def test_fall_is_a_crash_and_a_soft_touchdown_is_not():
     v_fall = np.sqrt(2 * P.g * (1.0 - REST_HEIGHT))
     assert by_drone[0][2] == pytest.approx(v_fall, rel=0.03) and by_drone[0][4]
     assert by_drone[1][2] < 0.5 and not by_drone[1][4]
+
+
+def _farthest_floor_point(m, sim_world) -> float:
+    """Independent of MuJoCo's bounding spheres: the largest distance from a drone's centre of any
+    point of its geoms that can touch the floor (the rotor disc, a cylinder; the skid, a box)."""
+    out = 0.0
+    for g in range(m.ngeom):
+        if sim_world.geom_drone[g] != 0 or not m.geom_conaffinity[g] & 4:
+            continue
+        pos, size = m.geom_pos[g], m.geom_size[g]
+        if m.geom_type[g] == mujoco.mjtGeom.mjGEOM_CYLINDER:  # rim point farthest from the centre
+            far = np.hypot(np.hypot(pos[0], pos[1]) + size[0], abs(pos[2]) + size[1])
+        else:
+            assert m.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX
+            corners = np.array(np.meshgrid(*[[-s, s] for s in size[:3]])).reshape(3, -1).T
+            far = np.linalg.norm(pos + corners @ _rot(m.geom_quat[g]).T, axis=1).max()
+        out = max(out, far)
+    return out
+
+
+def test_floor_gate_reach_bounds_every_orientation():
+    """The floor gate (``swarm_mj.sim.floor_gate``) tests the floor only when a drone's centre could
+    come within its reach + FLOOR_GATE_M of it: the reach bounds every point of the geoms that touch
+    the floor, and not loosely; at its reach no orientation touches the floor, just inside the
+    farthest point a drone tilted onto its disc's rim does (the check can fail)."""
+    w = build_world(1, ground=True)
+    fid, solid, z_near = floor_gate(w)
+    assert (fid, solid) == (mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, "floor"), 4)
+    reach = z_near - FLOOR_GATE_M
+    far = _farthest_floor_point(w.model, w)
+    assert far <= reach <= far + 0.02
+    m, d = w.model, mujoco.MjData(w.model)
+    rng = np.random.default_rng(3)
+    for q in [*rng.normal(size=(200, 4)), [np.cos(np.pi / 4), np.sin(np.pi / 4), 0, 0]]:
+        d.qpos[:] = 0.0
+        d.qpos[2] = reach
+        d.qpos[3:7] = np.asarray(q) / np.linalg.norm(q)
+        mujoco.mj_forward(m, d)
+        assert d.ncon == 0
+    d.qpos[2] = far - 0.003  # on its side (90° roll): the disc's rim points down
+    mujoco.mj_forward(m, d)
+    assert d.ncon > 0
+
+
+def test_floor_gate_switches_the_floor_by_height_and_fall_speed():
+    sim = _sim([[0.0, 0.0, 0.0]], cfg=preset("realistic"), T=0.01)
+    fid, solid, z_near = floor_gate(sim.world)
+    contype = sim.model.geom_contype
+    U = np.zeros((1, 4))
+    sim.step(U)
+    assert contype[fid] == solid  # resting on the floor
+    sim.reset(positions=np.array([[0.0, 0.0, 2.0]]))
+    sim.step(U)
+    assert contype[fid] == 0  # 2 m up: no floor test
+    # 0.25 m above z_near, falling at 30 m/s: it could fall 0.3 m within the period
+    sim.reset(positions=np.array([[0.0, 0.0, z_near + 0.25]]), velocities=np.array([[0.0, 0.0, -30.0]]))
+    sim.step(U)
+    assert contype[fid] == solid
+    sim.reset(positions=np.array([[0.0, 0.0, 2.0]]))
+    sim.floor_gate = False
+    sim.step(U)
+    assert contype[fid] == solid  # off: tested at every step
+    assert floor_gate(build_world(1)) is None  # the paper's floor is never touched: nothing to gate
+
+
+def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch):
+    """A take-off from rest, flight, and a touchdown (the floor tested, then not, then again): the
+    same log as with the floor tested at every physics step."""
+    import swarm_mj.sim as sim_module
+    from swarm_mj.runner import RunLog, run
+
+    sc = parse_scenario(
+        {
+            "name": "touchdown",
+            "duration": 3.0,
+            "leader": {
+                "trajectory": "circle",
+                "start": [0.0, 2.5, 0.0],
+                "params": {"radius": 2.5, "omega": 0.08, "altitude": 0.9, "climb_rate": -0.3},
+            },
+            "aero": {"model": "realistic"},
+        },
+        "<touchdown>",
+    )
+    kernel, floor_on = sim_module.floor_gate_kernel, []
+
+    def spy(qpos, qvel, z_near, horizon, contype, fid, solid):  # noqa: ANN001, ANN202
+        kernel(qpos, qvel, z_near, horizon, contype, fid, solid)
+        floor_on.append(bool(contype[fid]))
+
+    monkeypatch.setattr(sim_module, "floor_gate_kernel", spy)
+    gated = run(sc, progress=False, fused=False)
+    switches = np.flatnonzero(np.diff(floor_on))
+    assert len(switches) == 2 and floor_on.count(False) > 100  # on at rest, off aloft, on for the touchdown
+    monkeypatch.setattr(sim_module, "floor_gate", lambda world: None)
+    tested = run(sc, progress=False, fused=False)
+    assert gated.summary["ground_contacts"] == 1 and gated.summary["crashes"] == 0
+    for f in RunLog.__dataclass_fields__:
+        if f != "names":
+            assert np.array_equal(getattr(gated.log, f), getattr(tested.log, f), equal_nan=True), f
 
 
 def test_realistic_run_takes_off_from_rest():
