@@ -1006,8 +1006,8 @@ class JetAwareRule(CompensatedRule):
     controller: :func:`~swarm_mj.mixing.attitude_priority`, and the rotor-lag compensation of
     :mod:`swarm_mj.control.lag`). What is left is the rule's: with that controller, over the same
     100 starts, ``layers`` still had a start with a contact and a worst dip of 0.136 m (a follower
-    crossing 0.4 m over another), this rule none and 0.023 m (median settling 4.43 s; eight
-    followers: no contact, 0 crashes, 0.026 m, 5.58 s; ``report/stress*_realistic*.json``).
+    crossing 0.4 m over another), this rule none and 0.021 m (median settling 3.96 s; eight
+    followers: no contact, 0 crashes, 0.026 m, 4.84 s; ``report/stress*_realistic*.json``).
 
     **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
     follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
@@ -1042,19 +1042,23 @@ class JetAwareRule(CompensatedRule):
        touched. Measured over 400 random starts under ``--aero realistic`` (five followers, seeds
        0–99 and 200–399; eight, seeds 0–99): 3 starts with a contact, against 10 at 4 m/s and
        6 m/s², for 0.2–0.4 s more settling with five followers.
-    6. *gentler formed descents* — once every follower is formed, the altitude paths descend with
-       at most ``formed_descent_accel`` = 3.5 m/s² (the layered rule's 5): at 5 m/s² the thrust left,
-       m·(g − 5), turns any horizontal correction into a 45–53° tilt, which the lagged rotors ring
-       at about 2.5 Hz next to the formed neighbours (eight followers, measured). Over the 20
-       eight-follower stress starts the median settling went 6.96 s → 5.58 s, five followers
-       (100 starts) 4.60 s → 4.43 s, with no contact in either (applied during the transition
-       too, it gave 3 starts of the 100 five-follower ones a contact).
+    6. *gentler formed descents* — a follower that has joined the formation (dropped over its slot)
+       descends with at most ``formed_descent_accel`` = 3 m/s² (the layered rule's 5), during the
+       transition as well as once every follower is formed: at 5 m/s² the thrust left, m·(g − 5),
+       turns any horizontal correction into a 45–55° tilt (the controller asks for its 45° limit
+       with 7 cm of position error), which the lagged rotors ring at about 2.5 Hz next to the
+       formed neighbours, and which tips their jets onto them and onto the leader. The climbing,
+       waiting and crossing followers keep 5 m/s² (applied to them too, the re-timed crossings gave
+       3 of the 100 five-follower stress starts a contact). Measured (``swarm-mj stress --aero
+       realistic``): eight followers, 20 starts, median settling 5.58 s → 4.84 s (3.5 m/s² from the
+       drop: 5.06 s; 3.5 m/s² once all are formed, the previous form of this step: 5.58 s; before
+       it, 6.96 s); five followers, 100 starts, 4.43 s → 3.97 s; no contact in either.
     """
 
     name = "jet-aware"
 
     def __init__(
-        self, n: int, max_speed: float = 3.0, max_accel: float = 4.0, formed_descent_accel: float = 3.5, **kw: float
+        self, n: int, max_speed: float = 3.0, max_accel: float = 4.0, formed_descent_accel: float = 3.0, **kw: float
     ) -> None:
         super().__init__(n, max_speed=max_speed, max_accel=max_accel, **kw)
         self.z_down_formed = (self.z_down[0], min(float(formed_descent_accel), self.z_down[1]))
@@ -1138,6 +1142,26 @@ class JetAwareRule(CompensatedRule):
         formed = self.phase == FORMED
         formed[0] = False
         s.z_target = self._through(s.positions, s.z_target, formed, self._closing(s.positions, s.h, s.soon))
+
+    def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
+        """The layered rule's altitude paths, with 6. of the class docstring: the followers that have
+        joined the formation descend with at most ``formed_descent_accel``, the others with the
+        layered rule's ``descent_accel`` (the kernel moves each drone on its own: two calls on the
+        two groups give each row what one call with its own limit would)."""
+        joined = self.phase == FORMED  # the leader's row too (its path is not flown)
+        if dt <= 0.0 or self.z_down_formed == self.z_down:
+            return super()._advance_altitude(dt, target, target_vel)
+        (vu, au), (vd, ad), (_, ad_joined) = self.z_up, self.z_down, self.z_down_formed
+        target = np.asarray(target, dtype=np.float64)
+        target_vel = np.asarray(target_vel, dtype=np.float64)
+        for rows, a_down in ((np.flatnonzero(joined), ad_joined), (np.flatnonzero(~joined), ad)):
+            if rows.size == 0:
+                continue
+            zp, zv, za = self.zp[rows], self.zv[rows], self.za[rows]  # (k,) copies
+            advance_altitude_kernel(
+                float(dt), target[rows], target_vel[rows], zp, zv, za, vu, au, vd, a_down, self.jerk, self.k_v
+            )
+            self.zp[rows], self.zv[rows], self.za[rows] = zp, zv, za
 
     def _update_formed(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
