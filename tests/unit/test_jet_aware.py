@@ -118,6 +118,27 @@ def _rotors(U: np.ndarray) -> np.ndarray:
     return np.linalg.solve(MIX, U.T).T
 
 
+def test_joined_followers_descend_gentler_than_the_others_during_the_transition():
+    # 6. of JetAwareRule: a follower that has dropped over its slot descends at up to
+    # formed_descent_accel (3 m/s²), one still climbing or crossing at the layered rule's 5 m/s²
+    rule = JetAwareRule(3)
+    rule.reset(np.array([[0.0, 0.0, 5.0], [3.0, 0.0, 5.0], [0.0, 3.0, 5.0]]))
+    rule.phase[1] = FORMED  # joined; follower 2 still climbing (CLIMB)
+    assert rule.z_down_formed[1] == 3.0 and rule.z_down[1] == 5.0
+    target, target_vel = np.full(3, 1.0), np.zeros(3)  # 4 m below: both descend
+    lowest = np.zeros(3)
+    for _ in range(60):  # 0.6 s: the jerk-limited accelerations reach their limits
+        rule._advance_altitude(0.01, target, target_vel)
+        lowest = np.minimum(lowest, rule.za)
+    assert lowest[1] == pytest.approx(-3.0) and lowest[2] == pytest.approx(-5.0)
+    # each row as the layered rule's kernel moves it with its own limit, bit for bit
+    alone = JetAwareRule(3, formed_descent_accel=5.0)  # no gentler descent: the layered rule's step
+    alone.reset(np.array([[0.0, 0.0, 5.0], [3.0, 0.0, 5.0], [0.0, 3.0, 5.0]]))
+    for _ in range(60):
+        alone._advance_altitude(0.01, target, target_vel)
+    assert np.array_equal(alone.zp[2], rule.zp[2]) and not np.array_equal(alone.zp[1], rule.zp[1])
+
+
 def test_attitude_priority_leaves_a_feasible_command_alone():
     U = np.array([[4.9, 0.2, -0.1, 0.05]])
     np.testing.assert_array_equal(attitude_priority(U, 0.0, 4.5), U)
