@@ -5,7 +5,9 @@
 1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
    [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.mixing.saturate_kernel`,
    docs/interpretations.md §1); the result is held in ``ctrl`` for the whole period (a
-   zero-order hold, docs/interpretations.md §2);
+   zero-order hold, docs/interpretations.md §2); with a solid floor, the **floor gate**
+   (:func:`floor_gate_kernel`) leaves the floor out of MuJoCo's collision tests for the period
+   when no drone could reach it (the same run bit for bit, docs/aero.md);
 2. per physics step (``model.opt.timestep``; two per 10-ms period at the 5-ms default):
 
    a. the **force stages** each ADD a world-frame force and torque at every drone's centre of

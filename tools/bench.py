@@ -608,6 +608,7 @@ def bench_aero(quick: bool, repeats: int) -> None:
     from swarm_mj.scenario import load_scenario
 
     dur = 30.0 if quick else 60.0
+    repeats = max(repeats, 5)  # a ratio of two noisy times: the best of more interleaved repeats
     sc = load_scenario("circle").with_overrides(duration=dur)
     for aero in ("paper", "realistic"):
         run(sc.with_overrides(duration=1.0), progress=False, aero=aero)  # warm-up (JIT cache)

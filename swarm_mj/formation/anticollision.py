@@ -988,6 +988,14 @@ FLOOR_CLEARANCE_M = 0.5
 #: and the one start with a contact has none (0.2 m/s: 7.7 s and 3 contacts; no prediction at all:
 #: 6.6 s); five followers, 100 starts: 4.72 s → 4.60 s, still no contact.
 CLOSING_MIN_MPS = 0.5
+#: Added to D̄ (m): how far out :class:`JetAwareRule` holds a descending formed follower above a drone
+#: still crossing below it (7. of its docstring; the layered rule's hold starts at D̄). Measured
+#: (``swarm-mj stress --aero realistic``): the one contact in 100 eight-follower starts (seeds
+#: 0–99; seed 94: a follower crossing at 2.9 m/s towards one descending onto its layer, held too
+#: late) is gone, none in 300 five-follower ones, and the median settling of the 20 eight-follower
+#: stress starts went 4.84 s → 4.60 s. At 0.3 m the same, but the bundled ``lemniscate`` settled in
+#: 5.16 s instead of 4.3 s (a follower held over a crossing one that passed 1.05 m away).
+CROSSING_HOLD_M = 0.2
 #: Centre distance (m) under which two drones' outlines (rotor tip to rotor tip, 2·FOOTPRINT_M)
 #: overlap in plan view, with 2 cm to spare: a drone never changes altitude through one that close.
 OVERLAP_M = 2.0 * FOOTPRINT_M + 0.02
@@ -1006,8 +1014,8 @@ class JetAwareRule(CompensatedRule):
     controller: :func:`~swarm_mj.mixing.attitude_priority`, and the rotor-lag compensation of
     :mod:`swarm_mj.control.lag`). What is left is the rule's: with that controller, over the same
     100 starts, ``layers`` still had a start with a contact and a worst dip of 0.136 m (a follower
-    crossing 0.4 m over another), this rule none and 0.021 m (median settling 3.96 s; eight
-    followers: no contact, 0 crashes, 0.026 m, 4.84 s; ``report/stress*_realistic*.json``).
+    crossing 0.4 m over another), this rule none and 0.021 m (median settling 3.97 s; eight
+    followers: no contact, 0 crashes, 0.026 m, 4.60 s; ``report/stress*_realistic*.json``).
 
     **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
     follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
@@ -1053,6 +1061,12 @@ class JetAwareRule(CompensatedRule):
        realistic``): eight followers, 20 starts, median settling 5.58 s → 4.84 s (3.5 m/s² from the
        drop: 5.06 s; 3.5 m/s² once all are formed, the previous form of this step: 5.58 s; before
        it, 6.96 s); five followers, 100 starts, 4.43 s → 3.97 s; no contact in either.
+    7. *early hold over a crossing drone* — a formed follower still descending holds ``hop`` above
+       a drone crossing below it from D̄ + ``CROSSING_HOLD_M`` = 1.0 m out (now or predicted over
+       ``horizon``), not from D̄: a follower crossing at up to 3 m/s towards one descending onto
+       its layer closed the last 0.2 m before the hold had turned the descent round (seed 94 of
+       the eight-follower starts: a contact at 0.43 m). The layered rule's hold (4. *formed* of
+       :class:`LayeredRule`) stays, for every drone in transit.
     """
 
     name = "jet-aware"
@@ -1142,6 +1156,24 @@ class JetAwareRule(CompensatedRule):
         formed = self.phase == FORMED
         formed[0] = False
         s.z_target = self._through(s.positions, s.z_target, formed, self._closing(s.positions, s.h, s.soon))
+        if s.in_transit:
+            s.z_target = self._over_crossing(s.z, s.soon, s.z_target, formed)
+
+    def _over_crossing(self, z: np.ndarray, soon: np.ndarray, z_target: np.ndarray, formed: np.ndarray) -> np.ndarray:
+        """7. of the class docstring: ``z_target`` (n,) of the ``formed`` (n,) followers held ``hop``
+        above every crossing drone below them (altitudes ``z`` (n,)) that is, or is predicted to be
+        (``soon`` (n, n)), within D̄ + ``CROSSING_HOLD_M`` horizontally."""
+        below = (
+            (soon < self.safety + CROSSING_HOLD_M)
+            & formed[:, None]
+            & (self.phase[None, :] == CROSS)
+            & (z[None, :] < z[:, None])
+            & (z[None, :] > z_target[:, None] - self.clearance)
+        )
+        if not below.any():
+            return z_target
+        zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) the highest such drone
+        return np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
     def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
         """The layered rule's altitude paths, with 6. of the class docstring: the followers that have
@@ -1231,6 +1263,7 @@ __all__ = [
     "AntiCollision",
     "CLIMB",
     "CROSS",
+    "CROSSING_HOLD_M",
     "FOOTPRINT_M",
     "FORMED",
     "FLOOR_CLEARANCE_M",

@@ -8,6 +8,8 @@ import numpy as np
 import pytest
 
 from swarm_mj.formation.anticollision import (
+    CROSS,
+    CROSSING_HOLD_M,
     FORMED,
     OVERLAP_M,
     JetAwareRule,
@@ -87,6 +89,30 @@ def test_a_formed_follower_never_changes_altitude_through_a_drone_under_it():
     # beside it (outlines clear in plan view): free to descend
     p[2, 0] = OVERLAP_M + 0.05
     np.testing.assert_allclose(rule._through(p, np.array([2.0, 2.0, 2.0]), formed, _h(p)), [2.0, 2.0, 2.0])
+
+
+def test_a_descending_formed_follower_holds_early_over_a_crossing_drone():
+    # 7. of JetAwareRule: follower 1 has joined and descends to 2.0 m; follower 2 crosses 0.3 m
+    # under it. Held hop above it from D̄ + CROSSING_HOLD_M out (the layered rule: from D̄)
+    rule = JetAwareRule(3)
+    p = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 3.0], [0.0, 2.0, 2.7]])
+    rule.reset(p)
+    rule.phase[:] = [FORMED, FORMED, CROSS]
+    formed = np.array([False, True, False])
+    target = np.array([2.0, 2.0, 3.2])
+    for gap, held in ((0.79, True), (0.8 + CROSSING_HOLD_M - 0.01, True), (0.8 + CROSSING_HOLD_M + 0.01, False)):
+        soon = np.full((3, 3), np.inf)
+        soon[1, 2] = soon[2, 1] = gap  # follower 2 now or soon that far from follower 1
+        z_t = rule._over_crossing(p[:, 2], soon, target, formed)
+        assert z_t[1] == pytest.approx(2.7 + HOP if held else 2.0), gap
+        assert z_t[2] == 3.2  # the crossing drone is not a formed one: its target is left alone
+    # a drone that has joined (not crossing) or is above does not hold it
+    rule.phase[2] = FORMED
+    soon[1, 2] = soon[2, 1] = 0.5
+    assert rule._over_crossing(p[:, 2], soon, target, formed)[1] == 2.0
+    rule.phase[2] = CROSS
+    p[2, 2] = 3.3
+    assert rule._over_crossing(p[:, 2], soon, target, formed)[1] == 2.0
 
 
 def test_never_through_predicts_only_for_drones_closing_fast():
