@@ -117,8 +117,9 @@ def _drone_mjcf(
         # Landing gear (docs/aero.md): a strut under the hub and a square skid plate at its foot. The
         # skid touches only the floor: collision bit 4 (the floor has contype 4, the skid conaffinity 4
         # and contype 0). The rotor disc (the drone's outline) also gets conaffinity bit 4, so that a
-        # tilted drone hits the floor with it; drone-drone pairs are unchanged (bit 1). Two geoms per
-        # drone only: every geom costs MuJoCo kinematics at each RK4 stage.
+        # tilted drone hits the floor with it; drone-drone pairs are unchanged (bit 1). One geom per
+        # drone (the skid): every geom costs MuJoCo bounding-volume and collision work at each RK4
+        # stage, so the strut, which only has to be seen, is a site (docs/aero.md, "Cost").
         from .aero.ground import SKID_HALF, SKID_HALF_Z, SKID_Z, STRUT_RADIUS
 
         body = drone.find("body", "body")

@@ -25,7 +25,7 @@ import math
 import mujoco
 import numpy as np
 
-#: Landing gear: a strut (capsule, radius STRUT_RADIUS) under the hub down to a thin square skid
+#: Landing gear: a strut (a capsule site, drawn only, radius STRUT_RADIUS) under the hub down to a thin square skid
 #: plate turned 45° about z, corners 0.12 m from the centre under the arms, half-sizes
 #: (SKID_HALF, SKID_HALF, SKID_HALF_Z), centred at z = SKID_Z in the body frame; the skid's bottom
 #: face, 0.066 m below the centre of mass, is what rests on the floor (4 contact points).
