@@ -21,7 +21,7 @@ def _default_mujoco_gl() -> str | None:
     return "egl"
 
 
-# Headless by default: MuJoCo reads MUJOCO_GL when it is imported (docs/platform.md).
+# Headless by default: MuJoCo reads MUJOCO_GL when it is imported (docs/libraries.md).
 if "MUJOCO_GL" not in os.environ:
     _gl = _default_mujoco_gl()
     if _gl:

@@ -2,7 +2,7 @@
 
 PyMJCF is used only to build XML: the XML is compiled with ``mujoco.MjModel``
 directly, because ``dm_control.mjcf.Physics`` is broken with mujoco 4
-(docs/platform.md). Each drone is ``assets/quadrotor.xml`` attached under its own
+(docs/libraries.md). Each drone is ``assets/quadrotor.xml`` attached under its own
 namespace (``leader/``, ``follower1/``, ...), so names come out scoped
 (``leader/U1``, ``follower3/body``).
 """

@@ -15,7 +15,7 @@ and print frames per second beside the simulation's speed as ratios:
                                           [--sizes 640x480 1280x720] [--fps 30]
 
 Rendering is MuJoCo's OpenGL renderer through EGL; on a machine without a GPU that is
-Mesa's llvmpipe, on the CPU (docs/platform.md), so the numbers depend on the cores available.
+Mesa's llvmpipe, on the CPU (docs/libraries.md), so the numbers depend on the cores available.
 """
 
 from __future__ import annotations

@@ -1,6 +1,6 @@
 """OpenGL for headless rendering: which backend MuJoCo uses (MUJOCO_GL), EGL probing, one-line failures.
 
-MuJoCo reads ``MUJOCO_GL`` once, when it is imported (docs/platform.md): ``swarm_mj`` sets it to
+MuJoCo reads ``MUJOCO_GL`` once, when it is imported (docs/libraries.md): ``swarm_mj`` sets it to
 ``egl`` on Linux when libEGL can be opened (else ``disable``), unless the user set it. A backend
 the user chose that cannot load (``MUJOCO_GL=osmesa`` without libOSMesa) makes ``import mujoco``
 itself fail with an AttributeError deep in PyOpenGL; :func:`import_mujoco` (called by the command

@@ -24,7 +24,7 @@ RERUN = Path(sys.executable).with_name("rerun")
 
 
 def read_rrd(path: Path):
-    """All columns of a recording on the sim_time index, as a pandas DataFrame (docs/platform.md)."""
+    """All columns of a recording on the sim_time index, as a pandas DataFrame (docs/libraries.md)."""
     with rr.server.Server(datasets={"ds": [str(path)]}) as server:
         client = server.client()  # keep every object alive until the query has run
         dataset = client.get_dataset("ds")
