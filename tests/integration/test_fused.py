@@ -10,7 +10,7 @@ import pytest
 
 from swarm_mj import _jit, _mjstep, fused
 from swarm_mj.runner import RunLog, run
-from swarm_mj.scenario import load_scenario, parse_scenario
+from swarm_mj.scenario import load_scenario
 
 pytestmark = [
     pytest.mark.slow,
@@ -82,20 +82,8 @@ def test_realistic_physics_and_its_controller_bit_identical():
     assert b.extra["fused_periods"] > 0.8 * (len(a.log.t) - 1)
 
 
-def test_a_touchdown_inside_a_fused_chunk_is_counted_as_on_the_ordinary_path():
-    sc = parse_scenario(
-        {
-            "name": "touchdown",
-            "duration": 3.0,
-            "leader": {
-                "trajectory": "circle",
-                "start": [0.0, 2.5, 0.0],
-                "params": {"radius": 2.5, "omega": 0.08, "altitude": 0.9, "climb_rate": -0.3},
-            },
-            "aero": {"model": "realistic"},
-        },
-        "<touchdown>",
-    )
+def test_a_touchdown_inside_a_fused_chunk_is_counted_as_on_the_ordinary_path(touchdown_scenario):
+    sc = touchdown_scenario
     a, b = _both(sc)
     assert a.summary["ground_contacts"] == 1  # takes off, then descends onto the floor
     assert b.extra["fused_periods"] > 250  # every period after the first few, the touchdown among them

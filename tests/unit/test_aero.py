@@ -441,25 +441,13 @@ def test_floor_gate_switches_the_floor_by_height_and_fall_speed():
     assert floor_gate(build_world(1)) is None  # the paper's floor is never touched: nothing to gate
 
 
-def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch):
+def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch, touchdown_scenario):
     """A take-off from rest, flight, and a touchdown (the floor tested, then not, then again): the
     same log as with the floor tested at every physics step."""
     import swarm_mj.sim as sim_module
     from swarm_mj.runner import RunLog, run
 
-    sc = parse_scenario(
-        {
-            "name": "touchdown",
-            "duration": 3.0,
-            "leader": {
-                "trajectory": "circle",
-                "start": [0.0, 2.5, 0.0],
-                "params": {"radius": 2.5, "omega": 0.08, "altitude": 0.9, "climb_rate": -0.3},
-            },
-            "aero": {"model": "realistic"},
-        },
-        "<touchdown>",
-    )
+    sc = touchdown_scenario
     kernel, floor_on = sim_module.floor_gate_kernel, []
 
     def spy(qpos, qvel, z_near, horizon, contype, fid, solid):  # noqa: ANN001, ANN202
