@@ -83,16 +83,22 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None,
     return register if fn is None else register(fn)
 
 
-def is_cached(kernel: Callable[..., Any]) -> bool:
-    """Numba's on-disk cache holds ``kernel`` for its current source (False without Numba, or
-    when Numba's internals surprise us: then the caller compiles)."""
+def _cache_index(kernel: Callable[..., Any]) -> bool | None:
+    """Whether Numba's on-disk cache index holds ``kernel`` for its current source; None when that
+    cannot be told (no Numba, or Numba's internals surprise us: the index is an internal API)."""
     if not AVAILABLE:
-        return False
+        return None
     try:
-        dispatcher: Any = kernel
+        dispatcher: Any = kernel  # a numba Dispatcher; its cache is untyped internals
         return bool(dispatcher._cache._cache_file._load_index())
     except Exception:  # noqa: BLE001 - numba internals changed
-        return False
+        return None
+
+
+def is_cached(kernel: Callable[..., Any]) -> bool:
+    """Numba's on-disk cache holds ``kernel`` for its current source (False when that cannot be
+    told: then the caller compiles)."""
+    return bool(_cache_index(kernel))
 
 
 def compile_samples(kernel: Callable[..., Any], samples: Samples | None) -> None:
@@ -109,17 +115,11 @@ def uncached() -> list[str]:
     """The registered kernels (with samples) that Numba's on-disk cache does not hold for their
     current source, i.e. that :func:`warm_up` will compile. Uses Numba's cache index (an internal
     API: on any surprise a kernel counts as cached, and only the notice is lost)."""
-    out = []
-    for name, (kernel, samples) in list(REGISTRY.items()):
-        if samples is None or not AVAILABLE:
-            continue
-        try:
-            dispatcher: Any = kernel  # a numba Dispatcher (AVAILABLE); its cache is untyped internals
-            if not dispatcher._cache._cache_file._load_index():
-                out.append(name)
-        except Exception:  # noqa: BLE001, S112 - numba internals changed: say nothing
-            continue
-    return out
+    return [
+        name
+        for name, (kernel, samples) in list(REGISTRY.items())
+        if samples is not None and _cache_index(kernel) is False
+    ]
 
 
 def warm_up(announce: Callable[[str], None] | None = None) -> float:

@@ -29,10 +29,11 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"swarm-mj {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in COMMANDS:
+        module = name.replace("-", "_")  # warm-up: commands/warm_up.py
         try:
-            mod = importlib.import_module(f".commands.{name.replace('-', '_')}", __package__)
+            mod = importlib.import_module(f".commands.{module}", __package__)
         except ModuleNotFoundError as exc:
-            if exc.name and exc.name.endswith(f"commands.{name.replace('-', '_')}"):
+            if exc.name and exc.name.endswith(f"commands.{module}"):
                 continue  # subcommand not shipped in this build
             raise
         mod.add_parser(sub)

@@ -465,8 +465,8 @@ class FusedLoop:
             c(sim.drag.neg_drag, dtype=float), UNMIX_T, MIX_T, float(sim._f_min), float(sim._f_max),
             int(sim.n_substeps), float(sim.floor_z), float(sim.max_distance), float(sim.max_tilt),
         )  # fmt: skip
-        gate = sim._gate or (0, 0, 0.0)
-        self._gate_args = (sim.model.geom_contype, int(gate[0]), int(gate[1]))
+        fid, solid, z_near = sim._gate or (0, 0, 0.0)  # Sim's floor gate (none: never switched on)
+        self._gate_args = (float(z_near), sim.model.geom_contype, int(fid), int(solid))
         wind = env.wind
         self._tables = (
             c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float),
@@ -638,9 +638,7 @@ class FusedLoop:
             self._prev_t[0] = rule._prev_t
         ctl = policy.controller
         self._U[:] = ctl.U  # the last command (the downwash feedforward's thrust)
-        gate_on = bool(sim.floor_gate)
-        gate_z = float(sim._gate[2]) if gate_on else 0.0
-        sim_args = (*self._sim_static, sim.wind.force, *self._sim_rest, gate_on, gate_z, *self._gate_args)
+        sim_args = (*self._sim_static, sim.wind.force, *self._sim_rest, bool(sim.floor_gate), *self._gate_args)
         ref_args = (float(env.T), *self._tables, env._prev_leader, env._leader_vel, float(env.scenario.sensing_range))
         rest = (
             *bufs, *self._rule_args(), *self._ctl_static, ctl._prev_att_d, *self._ctl_flags, ctl.att_d, self._U,

@@ -232,15 +232,13 @@ def floor_gate(world: World) -> tuple[int, int, float] | None:
     drones' geoms that can touch the floor (MuJoCo's contype/conaffinity test)."""
     m = world.model
     fid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
-    if fid < 0 or (m.geom_contype[fid] == 0 and m.geom_conaffinity[fid] == 0):
+    if fid < 0:
         return None
-    if m.geom_type[fid] != mujoco.mjtGeom.mjGEOM_PLANE or m.geom_bodyid[fid] != 0:
+    ct = int(m.geom_contype[fid])
+    if ct == 0 or m.geom_conaffinity[fid] != 0:  # not solid, or solid through what the gate leaves alone
         return None
-    ct, ca = int(m.geom_contype[fid]), int(m.geom_conaffinity[fid])
-    if ca:  # the gate switches contype only
-        return None
-    quat = m.geom_quat[fid]
-    if not np.allclose(np.abs(quat), (1.0, 0.0, 0.0, 0.0)):  # a tilted floor: no gate
+    level = np.allclose(np.abs(m.geom_quat[fid]), (1.0, 0.0, 0.0, 0.0))
+    if m.geom_type[fid] != mujoco.mjtGeom.mjGEOM_PLANE or m.geom_bodyid[fid] != 0 or not level:
         return None
     touch = (world.geom_drone >= 0) & ((m.geom_conaffinity & ct) != 0)
     if not np.isin(m.geom_bodyid[touch], world.body_ids).all():

@@ -717,9 +717,15 @@ class LayeredRule(PaperRule):
             & (z[None, :] < z[:, None])
             & (z[None, :] > s.z_target[:, None] - self.clearance)
         )
-        if below.any():
-            zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
-            s.z_target = np.where(np.isfinite(zmax), np.maximum(s.z_target, zmax + self.hop), s.z_target)
+        s.z_target = self._hold_above(z, s.z_target, below)
+
+    def _hold_above(self, z: np.ndarray, z_target: np.ndarray, below: np.ndarray) -> np.ndarray:
+        """``z_target`` (n,) raised to ``hop`` above the highest drone j flagged in ``below`` (n, n)
+        [i, j] for each drone i (altitudes ``z`` (n,)); rows with no flag unchanged."""
+        if not below.any():
+            return z_target
+        zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) highest such drone
+        return np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
 
     def _fly_paths(self, s: _Step) -> tuple[np.ndarray, np.ndarray]:
         """Every follower flies limited paths (ours): horizontal, to ``goal``, and vertical, to
@@ -1170,10 +1176,7 @@ class JetAwareRule(CompensatedRule):
             & (z[None, :] < z[:, None])
             & (z[None, :] > z_target[:, None] - self.clearance)
         )
-        if not below.any():
-            return z_target
-        zmax = np.where(below, z[None, :], -np.inf).max(axis=1)  # (n,) the highest such drone
-        return np.where(np.isfinite(zmax), np.maximum(z_target, zmax + self.hop), z_target)
+        return self._hold_above(z, z_target, below)
 
     def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
         """The layered rule's altitude paths, with 6. of the class docstring: the followers that have
