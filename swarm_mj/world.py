@@ -90,7 +90,8 @@ def _drone_mjcf(
             raise UserError(f"quadrotor asset {asset} must define motor actuator {act}")
         motor.gear = gear
     for k, (x, y) in enumerate([(0, -L), (L, 0), (0, L), (-L, 0)], start=1):
-        rotor = drone.find("geom", f"rotor{k}")
+        # drawn rotor discs: sites in the bundled asset (geoms in an older custom one)
+        rotor = drone.find("site", f"rotor{k}") or drone.find("geom", f"rotor{k}")
         if rotor is not None:
             rotor.pos = [x, y, rotor.pos[2] if rotor.pos is not None else 0.0]
     plane = drone.find("geom", "rotor_plane")
@@ -148,9 +149,9 @@ def _drone_mjcf(
         disc = drone.find("geom", "rotor_plane")
         if disc is not None:
             disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
-    for geom in drone.find_all("geom"):
-        if geom.name in ("hub",):
-            geom.rgba = list(rgba)
+    hub = drone.find("site", "hub") or drone.find("geom", "hub")
+    if hub is not None:
+        hub.rgba = list(rgba)
     for arm in ("arm_x", "arm_y"):
         g = drone.find("geom", arm)
         if g is not None:

@@ -97,21 +97,27 @@ class Replay:
             if mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_MATERIAL, m) == "grid":
                 model.mat_rgba[m] = (0.86, 0.88, 0.92, 1.0)
                 model.mat_texrepeat[m] = (1.0, 1.0)
-        # Rotor discs and hub in the drone's colour (the asset draws every rotor light blue).
-        geom_drone = getattr(self.world, "geom_drone", None)
-        if geom_drone is not None:
-            for g in range(model.ngeom):
-                i = int(geom_drone[g])
-                if i < 0:
-                    continue
-                name = mujoco.mj_id2name(model, mujoco.mjtObj.mjOBJ_GEOM, g) or ""
-                rgb = LEADER_RGB if i == 0 else FOLLOWER_RGB
-                if name.endswith(("rotor1", "rotor2", "rotor3", "rotor4")):
-                    model.geom_rgba[g] = (*rgb, 0.6)
-                elif name.endswith("hub"):
-                    model.geom_rgba[g] = (*rgb, 1.0)
-                elif name.endswith("nose"):  # heading marker: white, so red means "leader" only
-                    model.geom_rgba[g] = (0.97, 0.97, 0.97, 1.0)
+        # Rotor discs and hub in the drone's colour (the asset draws every rotor light blue). They are
+        # sites in the bundled asset (drawn only, assets/quadrotor.xml), geoms in an older custom one.
+        body_ids = getattr(self.world, "body_ids", None)
+        if body_ids is not None:
+            drone_of = {int(b): i for i, b in enumerate(body_ids)}
+            for obj, count, bodyid, rgba in (
+                (mujoco.mjtObj.mjOBJ_GEOM, model.ngeom, model.geom_bodyid, model.geom_rgba),
+                (mujoco.mjtObj.mjOBJ_SITE, model.nsite, model.site_bodyid, model.site_rgba),
+            ):
+                for g in range(count):
+                    i = drone_of.get(int(bodyid[g]), -1)
+                    if i < 0:
+                        continue
+                    name = mujoco.mj_id2name(model, obj, g) or ""
+                    rgb = LEADER_RGB if i == 0 else FOLLOWER_RGB
+                    if name.endswith(("rotor1", "rotor2", "rotor3", "rotor4")):
+                        rgba[g] = (*rgb, 0.6)
+                    elif name.endswith("hub"):
+                        rgba[g] = (*rgb, 1.0)
+                    elif name.endswith("nose"):  # heading marker: white, so red means "leader" only
+                        rgba[g] = (0.97, 0.97, 0.97, 1.0)
 
     def _reference_vertices(self) -> np.ndarray:
         log, st = self.log, self.style

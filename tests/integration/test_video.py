@@ -72,9 +72,13 @@ def circle20():
 
 
 def _drone_pixels(seg: np.ndarray, world, i: int) -> np.ndarray:
-    """(m, 2) pixel coordinates (x, y) of drone i's geoms in a segmentation image."""
+    """(m, 2) pixel coordinates (x, y) of drone i's geoms and drawn sites (hub, rotor discs, nose:
+    assets/quadrotor.xml) in a segmentation image."""
     geoms = np.flatnonzero(world.geom_drone == i)
-    mask = np.isin(seg[..., 0], geoms) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM))
+    sites = np.flatnonzero(world.model.site_bodyid == world.body_ids[i])
+    mask = (np.isin(seg[..., 0], geoms) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_GEOM))) | (
+        np.isin(seg[..., 0], sites) & (seg[..., 1] == int(mujoco.mjtObj.mjOBJ_SITE))
+    )
     ys, xs = np.nonzero(mask)
     return np.column_stack([xs, ys])
 

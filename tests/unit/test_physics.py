@@ -634,6 +634,27 @@ def test_no_contacts_when_collisions_disabled():
     assert sim.pos[1, 0] < sim.pos[0, 0]  # they passed through each other
 
 
+@pytest.mark.parametrize("ground", [False, True])
+def test_every_drone_geom_collides_and_the_drawn_parts_are_sites(ground):
+    """A geom costs MuJoCo bounding-volume and collision work at every RK4 stage even when it never
+    collides, so each drone's geoms are its colliders only; the parts that are only drawn (hub, rotor
+    discs, nose, landing strut) are sites (assets/quadrotor.xml, docs/design.md "Cost")."""
+    w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]], ground=ground)
+    m = w.model
+    for i, b in enumerate(w.body_ids):
+        geoms = np.flatnonzero(m.geom_bodyid == b)
+        assert (m.geom_contype[geoms] | m.geom_conaffinity[geoms] > 0).all(), [m.geom(g).name for g in geoms]
+        sites = {m.site(s).name.split("/", 1)[1] for s in np.flatnonzero(m.site_bodyid == b)}
+        drawn = {"hub", "rotor1", "rotor2", "rotor3", "rotor4", "nose"} | ({"strut"} if ground else set())
+        assert drawn <= sites, sites
+        # the rotor discs sit at the motors (0, -L), (L, 0), (0, L), (-L, 0), drawn in the drone's colour
+        L = w.params.L
+        rotors = [mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"{w.names[i]}/rotor{k}") for k in range(1, 5)]
+        np.testing.assert_allclose(m.site_pos[rotors, :2], [[0, -L], [L, 0], [0, L], [-L, 0]])
+        hub = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_SITE, f"{w.names[i]}/hub")
+        assert m.site_rgba[hub, 0] > 0.8 if i == 0 else m.site_rgba[hub, 2] > 0.8  # leader red, followers blue
+
+
 # ----------------------------------------------------------------------------- 10. mixing
 def test_mixing_round_trip_and_saturation():
     rng = np.random.default_rng(3)
