@@ -35,6 +35,22 @@ def _log_of(result_or_log):
     return getattr(result_or_log, "log", result_or_log)
 
 
+def _world_of(result_or_log, world):
+    """The model to replay into: ``world`` when given, else for a ``RunResult`` whose physics has a
+    solid ground (docs/aero.md) the swarm with its landing gear, else None (``Replay`` builds the plain
+    swarm)."""
+    if world is not None:
+        return world
+    aero = getattr(getattr(result_or_log, "scenario", None), "aero", None)
+    if not getattr(aero, "ground", False):
+        return None
+    from ..world import build_world
+
+    log = _log_of(result_or_log)
+    p0 = np.nan_to_num(np.asarray(log.pos[0], float))
+    return build_world(len(log.names), positions=p0, names=list(log.names), ground=True)
+
+
 def _title(result_or_log) -> str | None:
     sc = getattr(result_or_log, "scenario", None)
     return getattr(sc, "name", None)
@@ -78,7 +94,7 @@ def render_video(
     writer = None
     ok = False
     try:
-        with Replay(log, world, width=w, height=h, style=style) as rep:
+        with Replay(log, _world_of(result, world), width=w, height=h, style=style) as rep:
             rep.title = _title(result)
             # macro_block_size=2: yuv420p needs even sizes, and nothing else is resized
             # (1280x720, 1920x1080 and 320x240 go through untouched).
@@ -132,7 +148,7 @@ def render_snapshot(
     if time > float(log.t[-1]) + 1e-6 or time < float(log.t[0]) - 1e-6:
         raise UserError(f"snapshot time {time:g} s is outside the run ({log.t[0]:g} to {log.t[-1]:g} s)")
     w, h = size
-    with Replay(log, world, width=w, height=h, style=style) as rep:
+    with Replay(log, _world_of(result, world), width=w, height=h, style=style) as rep:
         rep.title = _title(result)
         image = rep.render(float(time))
     tmp = _partial_path(path)

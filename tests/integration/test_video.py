@@ -33,6 +33,7 @@ import os
 os.environ.setdefault("MUJOCO_GL", "egl")  # before mujoco is imported (swarm_mj does the same)
 
 import argparse  # noqa: E402
+import dataclasses  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import textwrap  # noqa: E402
@@ -480,3 +481,20 @@ def test_osmesa_that_cannot_load_is_one_line_exit_1_recording_kept(tmp_path):
     assert "MUJOCO_GL=egl" in err[0]
     assert (tmp_path / "c.rrd").stat().st_size > 0 and not (tmp_path / "c.png").exists()
     assert sorted(x.name for x in tmp_path.iterdir()) == ["c.rrd"]
+
+
+def test_a_run_on_solid_ground_is_replayed_with_its_landing_gear(short_run):
+    """Under a preset with a solid ground (docs/aero.md) the video shows the drones the physics flew:
+    each with its landing skid (a geom) and strut (a site); under the paper's physics, the plain swarm."""
+    from swarm_mj.aero.presets import with_aero
+    from swarm_mj.video.encode import _world_of
+
+    assert _world_of(short_run, None) is None  # Replay builds the plain swarm
+    grounded = dataclasses.replace(short_run, scenario=with_aero(short_run.scenario, "realistic"))
+    w = _world_of(grounded, None)
+    assert w is not None and w.names == short_run.log.names
+    for name in w.names:
+        assert mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_GEOM, f"{name}/skid") >= 0
+        assert mujoco.mj_name2id(w.model, mujoco.mjtObj.mjOBJ_SITE, f"{name}/strut") >= 0
+    np.testing.assert_array_equal(w.initial_positions, short_run.log.pos[0])
+    assert _world_of(grounded, short_run) is short_run  # a world passed in is used as it is
