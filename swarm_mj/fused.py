@@ -645,12 +645,13 @@ class FusedLoop:
             *self._log_args, *self._aero_args(), *self._policy_args(),
         )  # fmt: skip
         k, s = env.k, 0
-        while True:
-            status, k, s = fused_steps(k, s, k_end, self._python_each(), *sim_args, *ref_args, *self._wind, *rest)
-            if status == CONTACT:
-                sim.after_physics_step()  # contacts and monitors, as Sim.step after that physics step
-                continue
-            break
+        with _mjstep.profiler_paused():  # MuJoCo's profiling clock off, as in Sim.step
+            while True:
+                status, k, s = fused_steps(k, s, k_end, self._python_each(), *sim_args, *ref_args, *self._wind, *rest)
+                if status == CONTACT:
+                    sim.after_physics_step()  # contacts and monitors, as Sim.step after that physics step
+                    continue
+                break
         self.status = status
         self.periods += k - env.k
         ctl.U = self._U.copy()

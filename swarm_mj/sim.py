@@ -15,7 +15,9 @@
       from the velocity at the start of the physics step, held over its RK4 stages), then
       :class:`WindStage` (the wind force F^w of eq. 37, held over the control period), then any
       extra stage in the order given; the sum goes to ``xfrc_applied``;
-   b. ``mujoco.mj_step``;
+   b. ``mujoco.mj_step``, with MuJoCo's profiling clock (``mjcb_time``, which feeds
+      ``mjData.timer`` and nothing else) off while the period is stepped: its clock reads cost
+      about a tenth of a step (:func:`swarm_mj._mjstep.timer_pause`);
    c. **contacts** between drones (rising edges counted, :attr:`Sim.contact_log`), then the
       **monitors** (:class:`Monitor`, e.g. the ground contacts and crashes of
       :class:`swarm_mj.aero.ground.GroundContacts`), each reading the state after the step;
@@ -45,6 +47,7 @@ import mujoco
 import numpy as np
 
 from ._jit import jit
+from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
 from .params import QuadParams
@@ -513,10 +516,14 @@ class Sim:
         if self._gate_on:
             fid, solid, z_near = self._gate  # type: ignore[misc]
             floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
-        if self._fused:
-            self._substeps_fused()
-        else:
-            self._substeps()
+        saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/_mjstep.py)
+        try:
+            if self._fused:
+                self._substeps_fused()
+            else:
+                self._substeps()
+        finally:
+            timer_resume(saved)
         if self.motor_lag:
             unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)
         if parked:

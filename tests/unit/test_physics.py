@@ -638,7 +638,8 @@ def test_no_contacts_when_collisions_disabled():
 def test_every_drone_geom_collides_and_the_drawn_parts_are_sites(ground):
     """A geom costs MuJoCo bounding-volume and collision work at every RK4 stage even when it never
     collides, so each drone's geoms are its colliders only; the parts that are only drawn (hub, rotor
-    discs, nose, landing strut) are sites (assets/quadrotor.xml, docs/design.md "Cost")."""
+    discs, nose, landing strut) are sites (assets/quadrotor.xml; docs/design.md, "Start-up and the step's own
+    cost")."""
     w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]], ground=ground)
     m = w.model
     for i, b in enumerate(w.body_ids):
@@ -724,3 +725,44 @@ def test_fifty_drones_build_and_step():
     decay = np.exp(-K[0] * t / M)
     dx = wind[0] / K[0] * (t - M / K[0] * (1.0 - decay))
     np.testing.assert_allclose(sim.pos - p0, np.tile([dx, 0.0, 0.0], (n, 1)), atol=1e-4 * dx)
+
+
+# ----------------------------------------------------------------------------- MuJoCo's profiling clock
+def test_sim_steps_with_mujocos_profiling_clock_off_and_puts_it_back():
+    """The Python bindings set MuJoCo's ``mjcb_time`` whenever an MjData is made, and MuJoCo then reads a
+    clock around every stage of every step (``mjData.timer``). ``Sim.step`` switches it off while it steps
+    (swarm_mj/_mjstep.py) and puts it back: the timers measure nothing inside, do outside, and the physics
+    is the same as raw ``mj_step`` with the clock on, bit for bit."""
+    from swarm_mj import _mjstep
+
+    w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]])
+    sim = Sim(w)
+    cb = _mjstep._time_callback()
+    assert cb is not None and cb.value  # the bindings' clock, installed with the MjData
+    before = cb.value
+    U = np.tile([w.params.hover_thrust + 0.3, 0.01, -0.02, 0.003], (2, 1))
+    step_timer = int(mujoco.mjtTimer.mjTIMER_STEP)
+    for _ in range(20):
+        sim.step(U)
+    assert (
+        sim.data.timer[step_timer].number == 20 * sim.n_substeps and sim.data.timer[step_timer].duration == 0.0
+    )  # no clock read
+    assert cb.value == before  # and it is back afterwards
+
+    raw = mujoco.MjData(w.model)  # the same 40 physics steps from Python, clock on
+    raw.ctrl[:] = sim.ctrl.ravel()
+    for _ in range(20 * sim.n_substeps):
+        raw.xfrc_applied[w.body_ids, :3] = (
+            -np.array([w.params.Kx, w.params.Ky, w.params.Kz]) * raw.qvel.reshape(2, 6)[:, :3]
+        )
+        mujoco.mj_step(w.model, raw)
+    assert raw.timer[step_timer].number == 20 * sim.n_substeps and raw.timer[step_timer].duration > 0.0  # the clock on
+    np.testing.assert_array_equal(raw.qpos, sim.data.qpos)
+    np.testing.assert_array_equal(raw.qvel, sim.data.qvel)
+
+    with _mjstep.profiler_paused():
+        assert not cb.value
+        with _mjstep.profiler_paused():  # nested: the outer one restores
+            pass
+        assert not cb.value
+    assert cb.value == before
