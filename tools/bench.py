@@ -47,6 +47,7 @@ Prints the rows as they come, then a Markdown table; ``--json`` writes the same 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib.util
 import json
 import os
@@ -122,9 +123,10 @@ def machine() -> dict:
 # --------------------------------------------------------------------------- raw baseline
 
 
-def raw_seconds(world, n_steps: int, *, lift: float = 2.0) -> float:
+def raw_seconds(world, n_steps: int, *, lift: float = 2.0, clock: bool = False) -> float:
     """Wall time of ``n_steps`` raw mj_step on ``world.model`` from its initial state with the
-    drones lifted to ``lift`` m (no floor contact): hover ctrl, a constant external force."""
+    drones lifted to ``lift`` m (no floor contact): hover ctrl, a constant external force.
+    ``clock``: with MuJoCo's profiling clock as the Python bindings leave it (on), not paused."""
     model = world.model
     d = mujoco.MjData(model)
     n = world.n_drones
@@ -134,7 +136,8 @@ def raw_seconds(world, n_steps: int, *, lift: float = 2.0) -> float:
     d.xfrc_applied[world.body_ids, 0:3] = (0.05, -0.03, 0.0)
     mujoco.mj_forward(model, d)
     step = mujoco.mj_step
-    with profiler_paused():  # as our runs step (swarm_mj/_mjstep.py): the baseline is MuJoCo at its fastest
+    # paused as our runs step (swarm_mj/_mjstep.py): the baseline is MuJoCo at its fastest
+    with contextlib.nullcontext() if clock else profiler_paused():
         t0 = time.perf_counter()
         for _ in range(n_steps):
             step(model, d)
@@ -187,7 +190,7 @@ def bench_runs(quick: bool, repeats: int) -> None:
         warm = run(sc.with_overrides(duration=1.0), progress=False)  # warm-up (JIT cache, imports,
         with tempfile.TemporaryDirectory() as tmp:  # the recorder's start-up)
             write_recording(warm, Path(tmp) / "warm.rrd")
-        t_run, t_rec, t_raw, t_step = [], [], [], []
+        t_run, t_rec, t_raw, t_step, t_clock = [], [], [], [], []
         for _ in range(repeats):
             t0 = time.perf_counter()
             res = run(sc, progress=False)
@@ -207,7 +210,8 @@ def bench_runs(quick: bool, repeats: int) -> None:
             )
             n_phys = int(round(dur / sc.timestep))
             t_raw.append(raw_seconds(w, n_phys))
-        a, r, raw, st = min(t_run), min(t_rec), min(t_raw), min(t_step)
+            t_clock.append(raw_seconds(w, n_phys, clock=True))
+        a, r, raw, st, rc = min(t_run), min(t_rec), min(t_raw), min(t_step), min(t_clock)
         label = f"{name} ({sc.n_drones} drone{'s' if sc.n_drones > 1 else ''}, {dur:g} s)"
         row(
             "runs",
@@ -235,8 +239,10 @@ def bench_runs(quick: bool, repeats: int) -> None:
             raw,
             value=dur / (a + r),
             unit="× real time",
-            note=f"recording overhead {100 * r / a:.0f} % (write_recording {r:.2f} s)",
+            note=f"recording overhead {100 * r / a:.0f} % (write_recording {r:.2f} s); "
+            f"{(a + r) / rc:.2f}× raw mj_step with the bindings' profiling clock on ({dur / rc:,.0f}× real time)",
             recording_overhead_pct=100 * r / a,
+            ratio_raw_clock_on=(a + r) / rc,
         )
 
 
