@@ -618,7 +618,7 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
     for n in sizes:
         sc, D = polygon_scenario(n, dur)
         w = build_world(n, positions=sc.initial_positions())
-        loops, raws, setups = [], [], []
+        loops, raws, setups, clocks = [], [], [], []
         for _ in range(repeats):  # interleaved: the same machine load for both
             t0 = time.perf_counter()
             res = run(sc, progress=False)
@@ -626,6 +626,7 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
             setups.append(wall - res.summary["wall_time_s"])
             loops.append(res.summary["wall_time_s"])
             raws.append(raw_seconds(w, int(round(dur / sc.timestep))))
+            clocks.append(raw_seconds(w, int(round(dur / sc.timestep)), clock=True))
         loop, raw, setup = min(loops), min(raws), min(setups)
         row(
             "scaling",
@@ -635,8 +636,10 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
             value=1000 * loop / dur,
             unit="ms per sim s",
             ratio=paired(loops, raws),
+            ratio_raw_clock_on=paired(loops, clocks),
             note=f"{1000 * loop / dur / n:.1f} ms per drone; raw {1000 * raw / dur:,.0f} ms; set-up {setup:.2f} s; "
-            f"D = {D:.1f} m; contacts {res.summary['contacts']}; best of {repeats}; ratio: median of the paired repeats"
+            f"D = {D:.1f} m; contacts {res.summary['contacts']}; best of {repeats}; ratio: median of the paired repeats; "
+            f"{paired(loops, clocks):.2f}× raw mj_step with the bindings' profiling clock on"
             + (f"; STOPPED {res.summary['stopped']}" if res.summary.get("stopped") else ""),
             n_drones=n,
         )
