@@ -92,7 +92,7 @@ def timer_pause() -> int | None:
 
     MuJoCo times each stage of ``mj_step`` (``mjData.timer``) only while the global callback
     ``mjcb_time`` is set, and the Python bindings set it (to a steady clock) whenever an ``MjData``
-    is made. Its clock reads cost about a tenth of a six-drone step (measured: 46.8 against 41.9 µs,
+    is made. Its clock reads cost about a tenth of a six-drone step (measured: 46.8 against 42.0 µs,
     docs/design.md, "Start-up and the step's own cost"); they change nothing in the physics. So the
     simulator's steps run with it unset and leave ``mjData.timer`` as it was.
     """

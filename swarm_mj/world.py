@@ -67,6 +67,12 @@ class World:
         return len(self.names)
 
 
+def _drawn_part(drone: mjcf.RootElement, name: str):  # noqa: ANN202 - a PyMJCF element or None
+    """A part of the drone that is only drawn: a site in the bundled asset, a geom in an older custom one."""
+    part = drone.find("site", name)
+    return part if part is not None else drone.find("geom", name)
+
+
 def _drone_mjcf(
     name: str, params: QuadParams, rgba: Sequence[float], asset: Path, *, ground: bool = False, motor_tau: float = 0.0
 ) -> mjcf.RootElement:
@@ -90,8 +96,7 @@ def _drone_mjcf(
             raise UserError(f"quadrotor asset {asset} must define motor actuator {act}")
         motor.gear = gear
     for k, (x, y) in enumerate([(0, -L), (L, 0), (0, L), (-L, 0)], start=1):
-        # drawn rotor discs: sites in the bundled asset (geoms in an older custom one)
-        rotor = drone.find("site", f"rotor{k}") or drone.find("geom", f"rotor{k}")
+        rotor = _drawn_part(drone, f"rotor{k}")
         if rotor is not None:
             rotor.pos = [x, y, rotor.pos[2] if rotor.pos is not None else 0.0]
     plane = drone.find("geom", "rotor_plane")
@@ -149,7 +154,7 @@ def _drone_mjcf(
         disc = drone.find("geom", "rotor_plane")
         if disc is not None:
             disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
-    hub = drone.find("site", "hub") or drone.find("geom", "hub")
+    hub = _drawn_part(drone, "hub")
     if hub is not None:
         hub.rgba = list(rgba)
     for arm in ("arm_x", "arm_y"):

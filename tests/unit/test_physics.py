@@ -640,7 +640,7 @@ def test_every_drone_geom_collides_and_the_drawn_parts_are_sites(ground):
     collides, so each drone's geoms are its colliders only; the parts that are only drawn (hub, rotor
     discs, nose, landing strut) are sites (assets/quadrotor.xml; docs/design.md, "Start-up and the step's own
     cost")."""
-    w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]], ground=ground)
+    w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]], ground=ground, params=QuadParams(L=0.3))  # not the asset's L
     m = w.model
     for i, b in enumerate(w.body_ids):
         geoms = np.flatnonzero(m.geom_bodyid == b)
