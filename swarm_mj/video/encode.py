@@ -13,7 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..progress import Progress
-from .replay import Replay
+from .replay import Replay, replay_world
 from .style import DEFAULT_FPS, DEFAULT_SIZE, DEFAULT_SNAPSHOT_TIME, VideoStyle
 
 
@@ -42,13 +42,7 @@ def _world_of(result_or_log, world):
     if world is not None:
         return world
     aero = getattr(getattr(result_or_log, "scenario", None), "aero", None)
-    if not getattr(aero, "ground", False):
-        return None
-    from ..world import build_world
-
-    log = _log_of(result_or_log)
-    p0 = np.nan_to_num(np.asarray(log.pos[0], float))
-    return build_world(len(log.names), positions=p0, names=list(log.names), ground=True)
+    return replay_world(_log_of(result_or_log), ground=True) if getattr(aero, "ground", False) else None
 
 
 def _title(result_or_log) -> str | None:

@@ -25,11 +25,20 @@ def _rgba(rgb: Sequence[float], a: float) -> np.ndarray:
     return np.array([rgb[0], rgb[1], rgb[2], a], dtype=np.float32)
 
 
+def replay_world(log, *, ground: bool = False):  # noqa: ANN201 - a swarm_mj.world.World
+    """The swarm a log replays into: its drones (names ``log.names``) at their first logged positions,
+    with the landing gear and the solid floor when ``ground`` (the physics of docs/aero.md)."""
+    from ..world import build_world
+
+    p0 = np.nan_to_num(np.asarray(log.pos[0], float))
+    return build_world(len(log.names), positions=p0, names=list(log.names), ground=ground)
+
+
 class Replay:
     """Replays a :class:`~swarm_mj.runner.RunLog` into a MuJoCo model and renders frames.
 
-    ``Replay(log)`` rebuilds the swarm with :func:`swarm_mj.world.build_world` (initial
-    positions ``log.pos[0]``, names ``log.names``); pass ``world`` to reuse one. Use as a
+    ``Replay(log)`` rebuilds the swarm with :func:`replay_world` (initial positions ``log.pos[0]``,
+    names ``log.names``); pass ``world`` to reuse one. Use as a
     context manager (it holds an EGL context): ``with Replay(log, width=640, height=480) as
     r: image = r.render(20.0)``.
     """
@@ -43,8 +52,6 @@ class Replay:
         height: int = DEFAULT_SIZE[1],
         style: VideoStyle | None = None,
     ) -> None:
-        from ..world import build_world
-
         if len(log.t) < 1:
             raise UserError("the run has no samples to render")
         self.log = log
@@ -52,8 +59,7 @@ class Replay:
         self.width, self.height = int(width), int(height)
         n = len(log.names)
         if world is None:
-            p0 = np.nan_to_num(np.asarray(log.pos[0], float))
-            world = build_world(n, positions=p0, names=list(log.names))
+            world = replay_world(log)
         if world.n_drones != n:
             raise UserError(f"the world has {world.n_drones} drones, the log {n}")
         self.world = world
