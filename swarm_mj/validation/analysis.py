@@ -1,0 +1,263 @@
+"""The downwash validation against the Neural-Swarm logs (docs/validation.md, "Method").
+
+For each flight: each drone's measured Fa_z (sysid.residual_force_g, smoothed), each model's
+prediction of it from the logged states (superposed over every other drone), the passes over
+each drone (passes.find_passes); then, per split (calibration / held-out) and per pairing of
+vehicles, the pooled RMSE, correlation, and each pass's peak, overall and per vertical-separation bin.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..aero.constants import AIR_DENSITY
+from ..aero.downwash import hover_induced_velocity
+from ..aero.wake import emitted_state, transport_time, wake_offset
+from ..errors import UserError
+from ..vehicles import Vehicle, load_vehicle
+from .flight import Flight, find_flights, load_flight, rotation_z_axis
+from .params import CALIBRATION, DATASET_MASS_G, DEFAULT_VEHICLE, ValidationParams
+from .passes import Pass, find_passes
+from .predict import gym_force, jet_force
+from .sysid import G, ThrustModel, motor_delay, read_thrust_model, readme_assignments, residual_force_g, thrust_g
+
+#: The models compared, in table order: ours, gym-pybullet-drones', none.
+MODELS = ("jet", "wake", "gym", "none")
+
+
+def smooth(x: np.ndarray, window: int) -> np.ndarray:
+    """Centred moving average over ``window`` samples (shorter at the ends)."""
+    if window <= 1:
+        return np.asarray(x, float)
+    k = np.ones(window)
+    return np.convolve(x, k, mode="same") / np.convolve(np.ones(len(x)), k, mode="same")
+
+
+@dataclass
+class DroneSetup:
+    """What the validation uses for one drone: its vehicle, thrust model and mass (g)."""
+
+    vehicle: Vehicle
+    thrust: ThrustModel
+    mass_g: float
+
+
+@dataclass
+class PassResult:
+    """One pass's samples (grams-force) and figures."""
+
+    flight: str
+    split: str
+    pairing: str
+    p: Pass
+    t: np.ndarray
+    measured: np.ndarray
+    predicted: dict[str, np.ndarray]
+
+    def peak(self, series: np.ndarray) -> float:
+        """The pass's peak: the most negative value (a push down is negative Fa_z)."""
+        return float(np.min(series))
+
+
+@dataclass
+class Setup:
+    """The run's options: vehicle overrides (drone id → vehicle), mass overrides (g)."""
+
+    vehicles: dict[str, Vehicle] = field(default_factory=dict)
+    masses: dict[str, float] = field(default_factory=dict)
+    params: ValidationParams = field(default_factory=ValidationParams)
+
+
+def drone_setup(flight: Flight, drone: str, setup: Setup) -> DroneSetup:
+    """The vehicle, thrust model and mass of one drone of a flight: the session's readme.txt names
+    its sysid file; the vehicle is the override or the sysid file's default; the mass the override,
+    the sysid file's ``mass:`` or the dataset's own (params.DATASET_MASS_G)."""
+    where = f"{flight.session / flight.experiment}"
+    sysid = readme_assignments(flight.session).get(drone)
+    if sysid is None:
+        raise UserError(f"{where}: {flight.session / 'readme.txt'} assigns no sysid file to {drone}")
+    thrust = read_thrust_model(flight.session / sysid)
+    vehicle = setup.vehicles.get(drone)
+    if vehicle is None:
+        name = DEFAULT_VEHICLE.get(sysid)
+        if name is None:
+            raise UserError(f"{where}: no vehicle for {drone} (sysid {sysid}); give --vehicle {drone}=NAME_OR_FILE")
+        vehicle = load_vehicle(name)
+    mass = setup.masses.get(drone, thrust.mass_g if thrust.mass_g is not None else DATASET_MASS_G.get(sysid))
+    if mass is None:
+        raise UserError(f"{where}: no mass for {drone} (sysid {sysid} gives none); give --mass {drone}=GRAMS")
+    return DroneSetup(vehicle, thrust, float(mass))
+
+
+def split_of(flight: Flight) -> str:
+    return "calibration" if (flight.session.name, flight.experiment) in CALIBRATION else "held_out"
+
+
+#: A model: (flight, setups, produced thrust (gf) per drone, lower index, params) -> force (k, 3) in N.
+ModelFn = Callable[[Flight, list[DroneSetup], list[np.ndarray], int, ValidationParams], np.ndarray]
+
+
+def _jet(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: int, p: ValidationParams) -> np.ndarray:
+    logs = list(flight.drones.values())
+    lo = logs[d]
+    f = np.zeros((len(flight.t), 3))
+    for j, up in enumerate(logs):
+        if j != d:
+            f += jet_force(
+                up.pos,
+                rotation_z_axis(up.quat),
+                thrust[j] * G / 1000.0,
+                setups[j].vehicle,
+                lo.pos,
+                lo.quat,
+                setups[d].vehicle,
+                p.hub_area,
+                p.rotor_layout,
+            )
+    return p.jet_gain * f
+
+
+def _gym(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: int, p: ValidationParams) -> np.ndarray:
+    logs = list(flight.drones.values())
+    f = np.zeros((len(flight.t), 3))
+    for j, up in enumerate(logs):
+        if j != d:
+            f += gym_force(up.pos, logs[d].pos, setups[j].vehicle.rotor_radius, p.gym_coeffs)
+    return f
+
+
+def _wake(
+    flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: int, p: ValidationParams
+) -> np.ndarray:
+    """The jet model with a travelling wake (swarm_mj.aero.wake): each upper drone's state taken
+    at the time the air now at the lower drone left its rotors (two fixed-point passes on τ)."""
+    logs = list(flight.drones.values())
+    lo, t = logs[d], flight.t
+    f = np.zeros((len(t), 3))
+    for j, up in enumerate(logs):
+        if j == d:
+            continue
+        src = setups[j].vehicle
+        state = np.concatenate([up.pos, rotation_z_axis(up.quat), thrust[j][:, None] * G / 1000.0], axis=1)
+        now = state
+        for _ in range(2):
+            axis = now[:, 3:6] / np.linalg.norm(now[:, 3:6], axis=1, keepdims=True)
+            s = np.einsum("kc,kc->k", lo.pos - now[:, :3], -axis)
+            u_h = hover_induced_velocity(now[:, 6], AIR_DENSITY, src.rotor_radius)
+            tau = transport_time(s, u_h, 2.0 * src.arm_length)
+            now = emitted_state(t, tau, t, state)
+        pos = now[:, :3] + wake_offset(t, tau, np.asarray(p.wind))
+        f += jet_force(pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle, p.hub_area, p.rotor_layout)
+    return p.jet_gain * f
+
+
+MODEL_FNS: dict[str, ModelFn] = {"jet": _jet, "wake": _wake, "gym": _gym}
+
+
+def analyse_flight(flight: Flight, setup: Setup, extra: dict[str, ModelFn] | None = None) -> list[PassResult]:
+    """Every pass of one flight with the measured and predicted Fa_z (gf) over it."""
+    p = setup.params
+    names = list(flight.drones)
+    logs = list(flight.drones.values())
+    setups = [drone_setup(flight, d, setup) for d in names]
+    thrust = [motor_delay(thrust_g(s.thrust, g), p.delay_alpha) for s, g in zip(setups, logs, strict=True)]
+    pos = np.stack([g.pos for g in logs])
+    fns = dict(MODEL_FNS, **(extra or {}))
+    out = []
+    for d, lo in enumerate(logs):
+        passes = find_passes(pos, d, p.r_pass, p.r_window, p.dz_min)
+        if not passes:
+            continue
+        meas = smooth(residual_force_g(lo, setups[d].thrust, setups[d].mass_g, p.delay_alpha)[:, 2], p.smooth_window)
+        pred = {
+            m: smooth(fn(flight, setups, thrust, d, p)[:, 2] / G * 1000.0, p.smooth_window) for m, fn in fns.items()
+        }
+        pred["none"] = np.zeros(len(flight.t))
+        for ps in passes:
+            sl = slice(ps.start, ps.stop)
+            pairing = " + ".join(setups[u].vehicle.name for u in ps.uppers) + " over " + setups[d].vehicle.name
+            out.append(
+                PassResult(
+                    flight.name,
+                    split_of(flight),
+                    pairing,
+                    ps,
+                    flight.t[sl],
+                    meas[sl],
+                    {m: v[sl] for m, v in pred.items()},
+                )
+            )
+    return out
+
+
+def figures(passes: list[PassResult], models: tuple[str, ...]) -> dict:
+    """Pooled figures of a set of passes (gf): RMSE and correlation over their samples, mean
+    measured peak, mean peak error (predicted − measured) and the median time by which the
+    measured peak follows the predicted one (s), per model."""
+    if not passes:
+        return {"n_passes": 0}
+    m = np.concatenate([q.measured for q in passes])
+    peaks = np.array([q.peak(q.measured) for q in passes])
+    out: dict = {"n_passes": len(passes), "n_samples": int(m.size), "mean_peak_measured_g": float(peaks.mean())}
+    for name in models:
+        pr = np.concatenate([q.predicted[name] for q in passes])
+        pp = np.array([q.peak(q.predicted[name]) for q in passes])
+        key = "" if name == "jet" else f"_{name}"
+        rmse = float(np.sqrt(np.mean((m - pr) ** 2)))
+        out["rmse_g" if name == "jet" else ("rmse_no_model_g" if name == "none" else f"rmse{key}_g")] = rmse
+        if name == "none":
+            continue
+        out[f"mean_peak_error{key}_g"] = float(np.mean(pp - peaks))
+        out[f"corr{key}"] = float(np.corrcoef(m, pr)[0, 1]) if np.std(pr) > 0 and np.std(m) > 0 else None
+        lags = [q.t[int(np.argmin(q.measured))] - q.t[int(np.argmin(q.predicted[name]))] for q in passes]
+        out[f"peak_lag{key}_s"] = float(np.median(lags))
+    return out
+
+
+def table(passes: list[PassResult], models: tuple[str, ...], bins: tuple[float, ...]) -> dict:
+    """:func:`figures` overall and per vertical-separation bin [bins[i], bins[i+1]) (m)."""
+    row = figures(passes, models)
+    row["bins"] = []
+    for lo, hi in zip(bins[:-1], bins[1:], strict=True):
+        sel = [q for q in passes if lo <= q.p.dz < hi]
+        row["bins"].append({"dz_m": [lo, hi], **figures(sel, models)})
+    row["peaks"] = [
+        {
+            "flight": q.flight,
+            "t_s": round(float(q.t[q.p.i_min - q.p.start]), 2),
+            "dz_m": q.p.dz,
+            "r_min_m": q.p.r_min,
+            "measured_g": q.peak(q.measured),
+            **{f"{n}_g": q.peak(q.predicted[n]) for n in models if n != "none"},
+        }
+        for q in passes
+    ]
+    return row
+
+
+def load_all(data: Path, progress: Callable[[str], None] | None = None) -> list[Flight]:
+    """Every flight under ``data`` (flight.find_flights), decoded. Raises UserError where there is none."""
+    if not data.is_dir():
+        raise UserError(f"--data {data}: no such folder")
+    found = find_flights(data)
+    if not found:
+        raise UserError(f"--data {data}: no Neural-Swarm logs (files cfNN_RR, two or more drones per flight)")
+    flights = []
+    for session, exp, run, files in found:
+        f = load_flight(session, exp, run, files)
+        if progress:
+            progress(f"decoded {f.name}: {', '.join(files)}, {f.t[-1] - f.t[0]:.1f} s")
+        flights.append(f)
+    return flights
+
+
+def calibrate_gain(passes: list[PassResult]) -> float:
+    """Least-squares gain k on the jet model over the single passes given (k = Σ p m / Σ p²): the
+    predictions must have been made with jet_gain = 1."""
+    m = np.concatenate([q.measured for q in passes])
+    pr = np.concatenate([q.predicted["jet"] for q in passes])
+    return float(np.dot(pr, m) / np.dot(pr, pr))

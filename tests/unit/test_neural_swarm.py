@@ -1,0 +1,328 @@
+"""The downwash validation against the Neural-Swarm logs (docs/validation.md): the decoder, the
+dataset's units, the residual force, pass detection, gym-pybullet-drones' formula, the travelling
+wake and the command's bad input.
+
+The tests that read the dataset look for it at ``../shared/neural-swarm`` from the repository root
+(or at ``$NEURAL_SWARM_DATA``) and are skipped, saying so, where it is absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import struct
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarm_mj.aero.downwash import BD, S0, downwash_kernel, hover_induced_velocity
+from swarm_mj.aero.wake import emitted_state, transport_time
+from swarm_mj.cli import main as cli_main
+from swarm_mj.validation.decode import decode, decode_bytes
+from swarm_mj.validation.flight import find_flights, load_flight, quat_decompress
+from swarm_mj.validation.passes import find_passes
+from swarm_mj.validation.predict import gym_force, jet_force
+from swarm_mj.validation.sysid import G, read_thrust_model, readme_assignments, residual_force_g
+from swarm_mj.vehicles import Vehicle
+
+REPO = Path(__file__).resolve().parents[2]
+DATA = Path(os.environ.get("NEURAL_SWARM_DATA", REPO.parent / "shared" / "neural-swarm"))
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the Neural-Swarm logs are not at {DATA}")
+#: The smallest flight of the dataset: three drones, 18 s (~190 kB a log).
+SMALL = "datacollection20_12_20_2019/swap_sss"
+
+
+def small_flight():
+    session = DATA / SMALL.split("/")[0]
+    (found,) = [f for f in find_flights(DATA / SMALL)]
+    return session, load_flight(*found)
+
+
+# --------------------------------------------------------------------------- decoder and units
+
+
+@needs_data
+def test_decoder_reads_every_block_with_a_good_crc_and_the_configured_variables():
+    session = DATA / SMALL.split("/")[0]
+    log = decode(DATA / SMALL / "cf50_00")
+    assert log.crc_errors == 0 and log.n_blocks > 100
+    # config.txt lists the logged variables in order (after five setting lines); the decoder adds tick
+    listed = [ln.strip() for ln in (session / "config.txt").read_text().splitlines()[5:] if ln.strip()]
+    assert list(log.columns) == ["tick", *listed]
+    # 18 s at 100 Hz (config.txt's frequency), within the records' count
+    assert len(log) == pytest.approx(1800, rel=0.05)
+
+
+@needs_data
+def test_crc_catches_a_corrupted_block_and_drops_only_its_records():
+    raw = (DATA / SMALL / "cf50_00").read_bytes()
+    good = decode_bytes(raw)
+    bad = bytearray(raw)
+    bad[len(raw) // 2] ^= 0x40  # one bit in the middle of the file
+    hurt = decode_bytes(bytes(bad))
+    assert hurt.crc_errors == 1
+    lost = len(good) - len(hurt)
+    assert 1 <= lost <= 25  # one block (the config's buffer size is 25 records)
+    assert set(hurt["tick"]).issubset(set(good["tick"]))
+
+
+def test_crc_convention_is_the_residue_of_the_checked_span_and_its_crc():
+    """A log built by hand: header 'tick(I),z(h),' + CRC, one block of two records + CRC."""
+
+    def with_crc(b: bytes) -> bytes:
+        # the stored CRC makes crc32(span + stored) == 0xFFFFFFFF: the complement of crc32(span), little-endian
+        return b + struct.pack("<I", zlib.crc32(b) ^ 0xFFFFFFFF)
+
+    header = with_crc(bytes([2]) + b"tick(I),z(h),")
+    assert zlib.crc32(header) & 0xFFFFFFFF == 0xFFFFFFFF
+    block = with_crc(bytes([2]) + struct.pack("<Ih", 10000, -5) + struct.pack("<Ih", 20000, 7))
+    log = decode_bytes(header + block)
+    assert log.crc_errors == 0
+    assert list(log["tick"]) == [10000, 20000] and list(log["z"]) == [-5, 7]
+
+
+@needs_data
+def test_time_base_is_microseconds_monotonic_at_100_hz():
+    log = decode(DATA / SMALL / "cf51_00")
+    dt = np.diff(log["tick"].astype(np.int64))
+    assert np.all(dt > 0)
+    assert np.median(dt) == pytest.approx(10_000, rel=0.02)  # µs: 100 Hz
+    assert log["tick"][-1] * 1e-6 == pytest.approx(18.0, abs=0.2)  # the flight's 18 s (learning/training.py: 17.98 s)
+
+
+@needs_data
+def test_units_against_the_setpoints_and_gravity():
+    """Positions in mm (they follow the setpoint, also mm), accelerations in mm/s² with gravity
+    (≈ +9810 in hover), quaternions unit and near level, voltage in mV of a 1S LiPo."""
+    session, f = small_flight()
+    for name in f.drones:
+        raw = decode(DATA / SMALL / f"{name}_00")
+        err = raw["stateEstimateZ.z"].astype(float) - raw["ctrltargetZ.z"]
+        assert abs(np.median(err)) < 50  # mm: a few cm off the setpoint (×10 if the unit were cm)
+        assert np.median(raw["stateEstimateZ.az"]) == pytest.approx(9810, rel=0.02)
+        q = quat_decompress(raw["stateEstimateZ.quat"])
+        assert np.allclose(np.linalg.norm(q, axis=1), 1.0, atol=1e-9)
+        tilt = np.degrees(np.arccos(np.clip(1 - 2 * (q[:, 0] ** 2 + q[:, 1] ** 2), -1, 1)))
+        assert np.median(tilt) < 10
+        assert 3000 < np.median(raw["pm.vbatMV"]) < 4300
+
+
+def test_quaternion_decompression_against_a_hand_compressed_quaternion():
+    q = np.array([0.1, -0.2, 0.05, 0.0])
+    q[3] = math.sqrt(1 - np.sum(q[:3] ** 2))  # w largest
+    comp = 3 << 30  # index of the largest
+    for i in range(3):  # stored from index 0 at the most significant end to index 2 at the least
+        mag = round(abs(q[i]) * math.sqrt(2) * 511)
+        comp |= ((mag | ((1 if q[i] < 0 else 0) << 9)) & 0x3FF) << (10 * (2 - i))
+    out = quat_decompress(np.array([comp], dtype=np.uint32))[0]
+    assert np.allclose(out, q, atol=1.0 / 511 / math.sqrt(2))
+
+
+# --------------------------------------------------------------------------- system identification
+
+
+@needs_data
+def test_thrust_model_by_hand_and_the_readme_assignments():
+    session = DATA / SMALL.split("/")[0]
+    assert readme_assignments(session)["cf52"] == "defaultcf.txt"
+    m = read_thrust_model(session / "defaultcf.txt")
+    p, v = 0.6, 3.7 / 4.2
+    by_hand = 11.093358483549203 - 39.08104165843915 * p - 9.525647087583181 * v + 20.573302305476638 * p * p
+    by_hand += 38.42885066644033 * v * p
+    assert float(m.rotor_thrust_g(np.array(p), np.array(v))) == pytest.approx(by_hand, rel=1e-12)
+    assert m.mass_g is None  # defaultcf.txt gives no mass; parrot_frame.txt does
+    assert read_thrust_model(session / "parrot_frame.txt").mass_g == 67.0
+
+
+@needs_data
+def test_residual_is_near_zero_for_the_drone_with_nothing_above_it():
+    """The top drone flies in free air: Fa_z ≈ 0 on average (a few % of its weight) with the dataset's
+    32 g; a stock 27-g Crazyflie's mass would leave −5 g."""
+    session, f = small_flight()
+    top = max(f.drones.values(), key=lambda g: g.pos[:, 2].mean())
+    model = read_thrust_model(session / "defaultcf.txt")
+    fa = residual_force_g(top, model, 32.0, 0.16)
+    assert abs(fa[:, 2].mean()) < 2.5
+    assert abs(fa[:, :2].mean(axis=0)).max() < 2.5
+    assert residual_force_g(top, model, 27.0, 0.16)[:, 2].mean() < -4.0
+
+
+@needs_data
+def test_the_lower_drone_is_pushed_down_during_a_pass():
+    session, f = small_flight()
+    pos = np.stack([g.pos for g in f.drones.values()])
+    bottom = int(np.argmin(pos[:, :, 2].mean(axis=1)))
+    passes = find_passes(pos, bottom, 0.1, 0.3, 0.1)
+    assert passes
+    fa = residual_force_g(list(f.drones.values())[bottom], read_thrust_model(session / "defaultcf.txt"), 32.0, 0.16)
+    for p in passes:
+        assert fa[p.start : p.stop, 2].min() < -8.0  # a quarter of its weight, at least
+    quiet = np.ones(len(f.t), bool)
+    for p in passes:
+        quiet[p.start : p.stop] = False
+    assert abs(fa[quiet, 2].mean()) < 2.5
+
+
+# --------------------------------------------------------------------------- passes
+
+
+def _line(k: int, v: float, dz: float, y: float = 0.0) -> np.ndarray:
+    """(2, k, 3): drone 0 at rest at the origin, drone 1 at height dz flying along x at v m/s, 10-ms samples,
+    from x = −1 m, offset y sideways."""
+    t = 0.01 * np.arange(k)
+    pos = np.zeros((2, k, 3))
+    pos[1, :, 0] = -1.0 + v * t
+    pos[1, :, 1] = y
+    pos[1, :, 2] = dz
+    return pos
+
+
+def test_pass_by_hand():
+    pos = _line(401, 0.5, 0.3)  # over the origin at t = 2 s (sample 200)
+    (p,) = find_passes(pos, 0, r_pass=0.1, r_window=0.3025, dz_min=0.1)
+    assert (p.lower, p.uppers, p.i_min) == (0, (1,), 200)
+    # |x| < 0.3025 m: x = −1 + 0.005 i, so 139.5 < i < 260.5
+    assert (p.start, p.stop) == (140, 261)
+    assert p.dz == pytest.approx(0.3) and p.r_min == pytest.approx(0.0, abs=1e-12)
+    assert find_passes(pos, 1, 0.1, 0.3, 0.1) == []  # nothing above the upper drone
+
+
+def test_no_pass_when_aside_level_or_cut_by_the_log():
+    assert find_passes(_line(401, 0.5, 0.3, y=0.15), 0, 0.1, 0.3, 0.1) == []  # never within 0.1 m
+    assert find_passes(_line(401, 0.5, 0.05), 0, 0.1, 0.3, 0.1) == []  # level: 5 cm above
+    assert find_passes(_line(300, 0.5, 0.3)[:, 150:], 0, 0.1, 0.3, 0.1) == []  # starts inside the window
+
+
+def test_two_drones_over_one_make_a_stack():
+    a = _line(401, 0.5, 0.3)
+    pos = np.concatenate([a, a[1:] * [-1, 1, 2]])  # a third drone from the other side, 0.6 m up
+    (p,) = find_passes(pos, 0, 0.1, 0.3, 0.1)
+    assert p.stack and p.uppers == (1, 2)
+
+
+# --------------------------------------------------------------------------- models
+
+
+def test_gym_pybullet_drones_formula_by_hand():
+    R, c = 0.0231348, (2267.18, 0.16, -0.11)
+    src = np.array([[0.0, 0.0, 1.3], [0.0, 0.0, 1.0], [0.0, 0.0, 0.9]])
+    dst = np.array([[0.05, 0.0, 1.0], [0.0, 0.0, 1.2], [0.0, 0.0, 0.9]])
+    f = gym_force(src, dst, R, c)
+    alpha = 2267.18 * (0.0231348 / (4 * 0.3)) ** 2  # 0.8427 N
+    beta = 0.16 * 0.3 - 0.11  # −0.062 m
+    assert f[0, 2] == pytest.approx(-alpha * math.exp(-0.5 * (0.05 / beta) ** 2), rel=1e-12)
+    assert f[0, 2] == pytest.approx(-0.6087, abs=1e-4)  # 0.8427 N × exp(−0.3252)
+    assert np.all(f[1:] == 0.0) and np.all(f[:, :2] == 0.0)  # nothing from below or level
+
+
+def test_jet_force_matches_the_simulators_kernel():
+    """jet_force (numpy, the validation's) against downwash_kernel (compiled, the simulator's) on a
+    '+' drone with the kernel's hub area: two implementations of docs/aero.md's force."""
+    rng = np.random.default_rng(7)
+    from swarm_mj.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
+    from swarm_mj.aero.downwash import BODY_AREA
+
+    veh = Vehicle("t", 0.5, 0.25, 0.09)
+    for _ in range(5):
+        pos = np.array([[0.0, 0.0, 2.0], [*rng.uniform(-0.4, 0.4, 2), rng.uniform(0.5, 1.8)]])
+        quat = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, *rng.uniform(-0.1, 0.1, 3)]])
+        quat /= np.linalg.norm(quat, axis=1, keepdims=True)
+        thrust = np.array([[1.2] * 4, [1.2] * 4])
+        f, t = np.zeros((2, 3)), np.zeros((2, 3))
+        half = 0.5 * AIR_DENSITY * DISC_DRAG_COEFFICIENT
+        downwash_kernel(
+            pos,
+            quat,
+            thrust,
+            2,
+            0.25,
+            AIR_DENSITY,
+            0.09,
+            half * math.pi * 0.09**2,
+            half * BODY_AREA,
+            0.09,
+            f,
+            t,
+            np.zeros((2, 3)),
+            np.zeros((2, 3)),
+        )
+        q_xyzw = quat[1:, [1, 2, 3, 0]]
+        mine = jet_force(
+            pos[:1], np.array([[0.0, 0.0, 1.0]]), np.array([4.8]), veh, pos[1:], q_xyzw, veh, BODY_AREA, "+"
+        )
+        assert mine[0] == pytest.approx(f[1], rel=1e-9, abs=1e-12)
+
+
+def test_transport_time_is_the_integral_of_the_centreline_speed():
+    u_h, l = 4.3, 0.092
+    for s in (0.05, 0.3, 0.6):
+        x = np.linspace(0.0, s, 20001)
+        inv = (x / l - S0) / (u_h * BD)  # 1 / U_c
+        assert transport_time(s, u_h, l) == pytest.approx(
+            float(np.sum((inv[1:] + inv[:-1]) / 2 * np.diff(x))), rel=1e-8
+        )
+    assert transport_time(-0.1, u_h, l) == 0.0 and transport_time(0.3, 0.0, l) == 0.0
+
+
+def test_a_drone_at_constant_speed_leaves_its_wake_v_tau_behind():
+    """Analytic case: the wake's axis at depth s passes v τ(s) behind where the drone is now."""
+    v = np.array([0.8, -0.3, 0.0])
+    times = 0.01 * np.arange(300)
+    track = np.array([0.2, 0.1, 1.5]) + times[:, None] * v
+    u_h = float(hover_induced_velocity(0.032 * G, 1.225, 0.0235))
+    now = np.array([2.5])
+    for s in (0.1, 0.3, 0.5):
+        tau = transport_time(np.array([s]), u_h, 0.092)
+        src = emitted_state(now, tau, times, track)[0]
+        here = np.interp(2.5, times, track[:, 0]), np.interp(2.5, times, track[:, 1])
+        offset = np.array(here) - src[:2]
+        assert offset == pytest.approx(v[:2] * tau[0], rel=1e-9)
+        assert np.linalg.norm(offset) == pytest.approx(np.linalg.norm(v) * (s * s / 0.184 - S0 * s) / (u_h * BD))
+
+
+# --------------------------------------------------------------------------- the command
+
+
+@pytest.mark.parametrize(
+    "argv, words",
+    [
+        (["--data", "/nonexistent/folder"], "no such folder"),
+        (["--data", "{empty}"], "no Neural-Swarm logs"),
+        (["--data", "{data}", "--vehicle", "cf50"], "expected ID=VALUE"),
+        (["--data", "{data}", "--vehicle", "drone=crazyflie21"], "expected ID=VALUE"),
+        (["--data", "{data}", "--vehicle", "cf50=no_such_vehicle"], "unknown vehicle"),
+        (["--data", "{data}", "--mass", "cf50=-3"], "positive"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(argv, words, tmp_path, capsys):
+    data = DATA / SMALL if DATA.is_dir() else tmp_path
+    argv = [a.format(empty=tmp_path, data=data) for a in argv]
+    assert cli_main(["validate", "downwash", *argv, "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("swarm-mj: error:") and words in err[0]
+
+
+@needs_data
+def test_unknown_drone_in_a_mapping_is_refused(capsys):
+    assert (
+        cli_main(["validate", "downwash", "--data", str(DATA / SMALL), "--vehicle", "cf99=crazyflie21", "--quiet"]) == 2
+    )
+    assert "no log of cf99" in capsys.readouterr().err
+
+
+@needs_data
+def test_the_command_writes_the_tables(tmp_path, capsys):
+    out = tmp_path / "v.json"
+    assert cli_main(["validate", "downwash", "--data", str(DATA / SMALL), "--json", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    (row,) = doc["rows"]
+    assert row["split"] == "held_out" and row["pairing"] == "crazyflie21 over crazyflie21"
+    for key in ("n_passes", "rmse_g", "rmse_no_model_g", "mean_peak_measured_g", "mean_peak_error_g", "corr", "bins"):
+        assert key in row
+    assert row["n_passes"] == len(row["peaks"]) == sum(b["n_passes"] for b in row["bins"])
+    assert doc["stacks"] and doc["stacks"][0]["pairing"] == "crazyflie21 + crazyflie21 over crazyflie21"
+    assert not list(tmp_path.glob(".*partial"))
+    assert "one drone above" in capsys.readouterr().out
