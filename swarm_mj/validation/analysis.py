@@ -19,7 +19,7 @@ from ..aero.downwash import hover_induced_velocity
 from ..aero.wake import emitted_state, transport_time, wake_offset
 from ..errors import UserError
 from ..vehicles import Vehicle, load_vehicle
-from .flight import Flight, find_flights, load_flight, rotation_z_axis
+from .flight import MAX_GAP, Flight, find_flights, load_flight, rotation_z_axis
 from .params import CALIBRATION, DATASET_MASS_G, DEFAULT_VEHICLE, ValidationParams
 from .passes import Pass, find_passes
 from .predict import gym_force, jet_force
@@ -158,8 +158,11 @@ def _wake(
 MODEL_FNS: dict[str, ModelFn] = {"jet": _jet, "wake": _wake, "gym": _gym}
 
 
-def analyse_flight(flight: Flight, setup: Setup, extra: dict[str, ModelFn] | None = None) -> list[PassResult]:
-    """Every pass of one flight with the measured and predicted Fa_z (gf) over it."""
+def analyse_flight(
+    flight: Flight, setup: Setup, extra: dict[str, ModelFn] | None = None, left_out: list[dict] | None = None
+) -> list[PassResult]:
+    """Every pass of one flight with the measured and predicted Fa_z (gf) over it; the events cut by
+    the log's ends are described in ``left_out``."""
     p = setup.params
     names = list(flight.drones)
     logs = list(flight.drones.values())
@@ -169,16 +172,43 @@ def analyse_flight(flight: Flight, setup: Setup, extra: dict[str, ModelFn] | Non
     fns = dict(MODEL_FNS, **(extra or {}))
     out = []
     for d, lo in enumerate(logs):
-        passes = find_passes(pos, d, p.r_pass, p.r_window, p.dz_min)
-        if not passes:
+        cut: list[tuple[int, int]] = []
+        passes = find_passes(pos, d, p.r_pass, p.r_window, p.dz_min, cut)
+        if not passes and not cut:
             continue
         meas = smooth(residual_force_g(lo, setups[d].thrust, setups[d].mass_g, p.delay_alpha)[:, 2], p.smooth_window)
         pred = {
             m: smooth(fn(flight, setups, thrust, d, p)[:, 2] / G * 1000.0, p.smooth_window) for m, fn in fns.items()
         }
         pred["none"] = np.zeros(len(flight.t))
+        for a, b in cut if left_out is not None else []:
+            m, j, gy = meas[a:b], pred["jet"][a:b], pred["gym"][a:b]
+            left_out.append(
+                {
+                    "flight": flight.name,
+                    "split": split_of(flight),
+                    "lower": names[d],
+                    "t_s": [round(float(flight.t[a]), 2), round(float(flight.t[b - 1]), 2)],
+                    "why": "a drone over it within r_window at the log's start or end (not a pass: it follows)",
+                    "mean_measured_g": float(m.mean()),
+                    "mean_jet_g": float(j.mean()),
+                    "mean_gym_g": float(gy.mean()),
+                    "rmse_g": float(np.sqrt(np.mean((m - j) ** 2))),
+                    "rmse_gym_g": float(np.sqrt(np.mean((m - gy) ** 2))),
+                    "rmse_no_model_g": float(np.sqrt(np.mean(m**2))),
+                    "corr": float(np.corrcoef(m, j)[0, 1]),
+                }
+            )
         for ps in passes:
             sl = slice(ps.start, ps.stop)
+            if not flight.valid[sl].all():
+                if left_out is not None:
+                    t_s = [round(float(flight.t[ps.start]), 2), round(float(flight.t[ps.stop - 1]), 2)]
+                    why = f"a gap longer than {MAX_GAP * 1000:.0f} ms in a log during the pass"
+                    left_out.append(
+                        {"flight": flight.name, "split": split_of(flight), "lower": names[d], "t_s": t_s, "why": why}
+                    )
+                continue
             pairing = " + ".join(setups[u].vehicle.name for u in ps.uppers) + " over " + setups[d].vehicle.name
             out.append(
                 PassResult(

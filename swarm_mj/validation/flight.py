@@ -20,6 +20,9 @@ from .decode import RawLog, decode
 
 #: Resampling period (s): the logs' nominal 100 Hz (config.txt's "frequency"), the dataset's own grid.
 DT = 0.01
+#: Longest step (s) between two records that the resampling interpolates across: a few-ms jitter
+#: around 10 ms is normal; the logs also have gaps of 40–600 ms (the card writing), marked invalid.
+MAX_GAP = 0.025
 #: A log file name: the drone's id, an underscore, the flight's number (``cf50_02``).
 LOG_NAME = re.compile(r"^(?P<drone>cf\d+)_(?P<run>\d+)$")
 _POS = ("x", "y", "z")
@@ -70,6 +73,8 @@ class DroneLog:
     pwm: np.ndarray  # (k, 4) normalised: PWM / 65536
     vbat: np.ndarray  # (k,) V
     crc_errors: int
+    #: (k,) False where the sample was interpolated across a gap longer than MAX_GAP; None: all valid.
+    valid: np.ndarray | None = None
 
     @classmethod
     def from_raw(cls, raw: RawLog, drone: str) -> DroneLog:
@@ -105,6 +110,8 @@ class DroneLog:
 
         q = lin(self.quat)
         q /= np.linalg.norm(q, axis=1, keepdims=True)
+        i = np.clip(np.searchsorted(self.t, t), 1, len(self.t) - 1)
+        valid = (self.t[i] - self.t[i - 1]) <= MAX_GAP
         return DroneLog(
             self.drone,
             self.path,
@@ -116,6 +123,7 @@ class DroneLog:
             lin(self.pwm),
             lin(self.vbat),
             self.crc_errors,
+            valid,
         )
 
 
@@ -136,6 +144,15 @@ class Flight:
     @property
     def t(self) -> np.ndarray:
         return next(iter(self.drones.values())).t
+
+    @property
+    def valid(self) -> np.ndarray:
+        """(k,) True where no drone's log has a gap longer than MAX_GAP."""
+        ok = np.ones(len(self.t), bool)
+        for g in self.drones.values():
+            if g.valid is not None:
+                ok &= g.valid
+        return ok
 
 
 def load_flight(session: Path, experiment: str, run: str, files: dict[str, Path]) -> Flight:

@@ -41,8 +41,11 @@ def runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def find_passes(pos: np.ndarray, lower: int, r_pass: float, r_window: float, dz_min: float) -> list[Pass]:
-    """The passes over drone ``lower`` (module docstring); pos (n_drones, k, 3) positions (m)."""
+def find_passes(
+    pos: np.ndarray, lower: int, r_pass: float, r_window: float, dz_min: float, cut: list[tuple[int, int]] | None = None
+) -> list[Pass]:
+    """The passes over drone ``lower`` (module docstring); pos (n_drones, k, 3) positions (m). The
+    events left out because the log's start or end cuts them are appended to ``cut`` (start, stop)."""
     n, k, _ = pos.shape
     others = [j for j in range(n) if j != lower]
     if not others:
@@ -52,9 +55,11 @@ def find_passes(pos: np.ndarray, lower: int, r_pass: float, r_window: float, dz_
     over = (dz >= dz_min) & (rxy < r_window)
     out: list[Pass] = []
     for a, b in runs(np.asarray(over.any(axis=0))):
-        if a == 0 or b == k:
-            continue
         r = np.where(over[:, a:b], rxy[:, a:b], np.inf)
+        if a == 0 or b == k:
+            if cut is not None and r.min() < r_pass:
+                cut.append((a, b))
+            continue
         jj, ii = np.unravel_index(int(np.argmin(r)), r.shape)
         if r[jj, ii] >= r_pass:
             continue

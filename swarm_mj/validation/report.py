@@ -66,8 +66,9 @@ def validate_downwash(data: Path, setup: Setup, progress: Callable[[str], None] 
             raise_unknown(drone, data, "--mass")
     results: list[PassResult] = []
     drones: dict[str, dict] = {}
+    left_out: list[dict] = []
     for f in flights:
-        found = analyse_flight(f, setup)
+        found = analyse_flight(f, setup, left_out=left_out)
         results += found
         for d in f.drones:
             s = drone_setup(f, d, setup)
@@ -99,6 +100,7 @@ def validate_downwash(data: Path, setup: Setup, progress: Callable[[str], None] 
         "stacks": _rows(stack, lambda q: (q.split, q.pairing), p.dz_bins),
         "by_experiment": _rows(single, lambda q: (q.split, q.flight.rsplit("/", 1)[0]), p.dz_bins),
         "bars": {f"{r['split']}: {r['pairing']}": bars(r) for r in rows if r["n_passes"]},
+        "left_out": left_out,
     }
     for r in doc["by_experiment"]:
         r.pop("peaks")  # each pass's peak is listed once, under rows and stacks

@@ -326,3 +326,43 @@ def test_the_command_writes_the_tables(tmp_path, capsys):
     assert doc["stacks"] and doc["stacks"][0]["pairing"] == "crazyflie21 + crazyflie21 over crazyflie21"
     assert not list(tmp_path.glob(".*partial"))
     assert "one drone above" in capsys.readouterr().out
+
+
+@needs_data
+def test_the_stored_jet_gain_is_the_fit_on_the_calibration_flights_alone():
+    """params.jet_gain is the least-squares gain over the calibration flights' single passes: refit here
+    from those flights only (the held-out flights are not read)."""
+    from swarm_mj.validation.analysis import Setup, analyse_flight, calibrate_gain
+    from swarm_mj.validation.flight import load_flight
+    from swarm_mj.validation.params import CALIBRATION, ValidationParams
+
+    setup = Setup()
+    found = []
+    for session, experiment in CALIBRATION:
+        for flight in find_flights(DATA / session / experiment):
+            found += [q for q in analyse_flight(load_flight(*flight), setup) if not q.p.stack]
+    assert {q.split for q in found} == {"calibration"} and len(found) >= 40
+    assert ValidationParams().jet_gain * calibrate_gain(found) == pytest.approx(ValidationParams().jet_gain, abs=5e-4)
+
+
+def test_resampling_marks_a_gap_in_a_log_invalid():
+    from swarm_mj.validation.flight import DroneLog
+
+    t = np.concatenate([0.01 * np.arange(10), 0.2 + 0.01 * np.arange(10)])  # records 0.09 → 0.20 s: a 110-ms gap
+    k = len(t)
+    log = DroneLog(
+        "cf1",
+        Path("x"),
+        t,
+        np.zeros((k, 3)),
+        np.zeros((k, 3)),
+        np.zeros((k, 3)),
+        np.tile([0.0, 0.0, 0.0, 1.0], (k, 1)),
+        np.zeros((k, 4)),
+        np.full(k, 3.7),
+        0,
+    )
+    grid = 0.01 * np.arange(30)
+    valid = log.resample(grid).valid
+    assert valid is not None
+    assert np.array_equal(np.flatnonzero(~valid), np.arange(10, 20))  # 0.10 … 0.19 s lie in the gap
