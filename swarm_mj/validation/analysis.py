@@ -181,7 +181,9 @@ def analyse_flight(
             m: smooth(fn(flight, setups, thrust, d, p)[:, 2] / G * 1000.0, p.smooth_window) for m, fn in fns.items()
         }
         pred["none"] = np.zeros(len(flight.t))
-        for a, b in cut if left_out is not None else []:
+        for a, b in cut:
+            if left_out is None:
+                break
             m, j, gy = meas[a:b], pred["jet"][a:b], pred["gym"][a:b]
             left_out.append(
                 {

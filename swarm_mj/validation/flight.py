@@ -110,8 +110,9 @@ class DroneLog:
 
         q = lin(self.quat)
         q /= np.linalg.norm(q, axis=1, keepdims=True)
-        i = np.clip(np.searchsorted(self.t, t), 1, len(self.t) - 1)
-        valid = (self.t[i] - self.t[i - 1]) <= MAX_GAP
+        right = np.clip(np.searchsorted(self.t, t, side="left"), 0, len(self.t) - 1)  # first record at or after
+        left = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 1)  # last at or before
+        valid = (self.t[right] - self.t[left]) <= MAX_GAP
         return DroneLog(
             self.drone,
             self.path,
