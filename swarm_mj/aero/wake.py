@@ -23,7 +23,7 @@ import numpy as np
 from .downwash import BD, S0
 
 
-def transport_time(s, u_h, l):
+def transport_time(s: np.ndarray | float, u_h: np.ndarray | float, l: float) -> np.ndarray:
     """τ(s) (s): time for air to travel from the rotors to depth s (m) down the jet's centreline,
     ∫₀ˢ ds'/U_c(s') = (s²/(2 l) − s0* s)/(U_H B_d); 0 for s <= 0 or U_H <= 0 (no jet)."""
     s = np.maximum(np.asarray(s, float), 0.0)

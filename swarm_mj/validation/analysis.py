@@ -93,6 +93,18 @@ def drone_setup(flight: Flight, drone: str, setup: Setup) -> DroneSetup:
     return DroneSetup(vehicle, thrust, float(mass))
 
 
+def plates(vehicle: Vehicle, p: ValidationParams) -> tuple[float, str]:
+    """(hub area m², rotor layout) of a lower drone: its vehicle file's optional ``hub_area`` and
+    ``rotor_layout`` ("x" or "+") keys, else the validation's Crazyflie values (params)."""
+    hub = vehicle.extra.get("hub_area", p.hub_area)
+    layout = vehicle.extra.get("rotor_layout", p.rotor_layout)
+    if isinstance(hub, bool) or not isinstance(hub, int | float) or not hub >= 0:
+        raise UserError(f"vehicle {vehicle.name}: hub_area must be a number >= 0 (m²), got {hub!r}")
+    if layout not in ("x", "+"):
+        raise UserError(f'vehicle {vehicle.name}: rotor_layout must be "x" or "+", got {layout!r}')
+    return float(hub), str(layout)
+
+
 def split_of(flight: Flight) -> str:
     return "calibration" if (flight.session.name, flight.experiment) in CALIBRATION else "held_out"
 
@@ -115,8 +127,7 @@ def _jet(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: 
                 lo.pos,
                 lo.quat,
                 setups[d].vehicle,
-                p.hub_area,
-                p.rotor_layout,
+                *plates(setups[d].vehicle, p),
             )
     return p.jet_gain * f
 
@@ -151,7 +162,9 @@ def _wake(
             tau = transport_time(s, u_h, 2.0 * src.arm_length)
             now = emitted_state(t, tau, t, state)
         pos = now[:, :3] + wake_offset(t, tau, np.asarray(p.wind))
-        f += jet_force(pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle, p.hub_area, p.rotor_layout)
+        f += jet_force(
+            pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle, *plates(setups[d].vehicle, p)
+        )
     return p.jet_gain * f
 
 

@@ -366,3 +366,29 @@ def test_resampling_marks_a_gap_in_a_log_invalid():
     valid = log.resample(grid).valid
     assert valid is not None
     assert np.array_equal(np.flatnonzero(~valid), np.arange(10, 20))  # 0.10 … 0.19 s lie in the gap
+
+
+@needs_data
+def test_a_vehicle_file_sets_the_lower_drones_plates(tmp_path, capsys):
+    """--vehicle maps a drone to a vehicle file; its optional hub_area / rotor_layout keys are used,
+    and a bad one is one line, exit 2."""
+    good = tmp_path / "cf_nohub.toml"
+    good.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nhub_area = 0.0\nrotor_layout = "x"\n')
+    base = ["validate", "downwash", "--data", str(DATA / SMALL), "--quiet"]
+    out = tmp_path / "a.json"
+    assert cli_main([*base, "--json", str(out)]) == 0
+    assert (
+        cli_main(
+            [*base, "--json", str(tmp_path / "b.json"), *sum((["--vehicle", f"cf5{i}={good}"] for i in range(3)), [])]
+        )
+        == 0
+    )
+    a, b = (json.loads((tmp_path / n).read_text())["rows"][0] for n in ("a.json", "b.json"))
+    assert b["mean_peak_error_g"] > a["mean_peak_error_g"]  # no hub plate: a weaker push predicted
+    assert json.loads((tmp_path / "b.json").read_text())["drones"]["cf50"]["vehicle"] == "cf_nohub"
+    bad = tmp_path / "bad.toml"
+    bad.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nrotor_layout = "h"\n')
+    capsys.readouterr()
+    assert cli_main([*base, "--vehicle", f"cf50={bad}"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rotor_layout" in err[0]
