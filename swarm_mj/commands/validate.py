@@ -46,7 +46,12 @@ def add_parser(sub) -> None:
         "for defaultcf.txt)",
     )
     d.add_argument("--json", metavar="PATH", help="write every figure to this JSON file (atomically)")
-    d.add_argument("--passes", action="store_true", help="print each pass's peak, measured and predicted")
+    d.add_argument(
+        "--passes",
+        action=argparse.BooleanOptionalAction,
+        default=True,
+        help="print each pass's peak, measured and predicted, and its error (default: on)",
+    )
     d.add_argument("--quiet", action="store_true", help="no progress lines")
     d.set_defaults(func=main)
 

@@ -168,7 +168,11 @@ def format_doc(doc: dict, passes: bool = False) -> str:
     fit = doc["calibration_fit"]
     out = [
         f"downwash validation, forces in gf (Fa_z < 0: pushed down); jet gain {fit['jet_gain_used']:.3f} "
-        f"(refitted on the calibration flights: {_f(fit['jet_gain_fitted'], 1, 3)})"
+        + (
+            f"(refitted on the calibration flights: {fit['jet_gain_fitted']:.3f})"
+            if fit["jet_gain_fitted"] is not None
+            else "(no calibration flight under --data to refit it on)"
+        )
     ]
     for row in doc["rows"]:
         out += format_row(row, "one drone above")
