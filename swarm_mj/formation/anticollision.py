@@ -1,10 +1,11 @@
 """Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; docs/interpretations.md §4): the rules'
 interface, the paper's rule and ``ANTI_COLLISION_RULES``. The layered rule (:class:`LayeredRule`, the
 default under the paper's physics) and the rules built on it (:class:`JetAwareRule`, the default
-under downwash; :class:`ClearanceRule`, the layered rule kept out of each other's downwash,
-``clearance``, opt-in; :class:`CompensatedRule`) follow; ``"auto"`` picks the default for the
-physics (:func:`resolve_rule`); :meth:`LayeredRule.update` is the
-transition as a sequence of steps (sense, climb, cross, drop, formed, fly the paths).
+under downwash; :class:`CompensatedRule`) follow; ``"auto"`` picks the default for the physics
+(:func:`resolve_rule`); :meth:`LayeredRule.update` is the transition as a sequence of steps
+(sense, climb, cross, drop, formed, fly the paths). Every rule reads its numbers from one
+:class:`~swarm_mj.formation.rule_params.RuleParams` record (``rule.params``): the named rules are
+its presets (:data:`PRESETS`), and a scenario's ``[formation]`` table may set any field.
 
 Every rule has the same small interface, vectorised over drones (index 0 is the leader):
 
@@ -20,8 +21,7 @@ and returns the controller's references (pos_d, vel_d, acc_d) (n, 3), the steere
 rows taken from the rule (what the policy calls; for the formed swarm the layered rule does
 it in one compiled kernel). Each rule appends its decisions to ``rule.events`` as dicts
 ``{t, drone, other, action}``: up, down, release (the paper's rule); cross, hold, aside,
-drop (the layered rule's transition); wait (on the ground) and round (going round a drone) of
-the downwash-aware ``clearance`` (:class:`ClearanceRule`).
+drop (the layered rule's transition).
 
 Decentralised (docs/interpretations.md §4): a drone's decision uses only its own state, the leader's position
 (through its slot and the formation altitude) and the positions of drones within its
@@ -41,7 +41,8 @@ import numpy as np
 
 from .._jit import jit
 from ..errors import UserError
-from .layered import advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
+from .layered import BRAKING_SHARE, advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
+from .rule_params import PRESETS, RuleParams
 
 
 @jit(samples=lambda: [(np.zeros(2), np.full((2, 2), np.inf), 0.8)])
@@ -110,8 +111,12 @@ class Rule:
     vel_d: np.ndarray  # (n, 3) velocity reference of the steered drones
     acc_d: np.ndarray  # (n, 3) acceleration reference of the steered drones
 
-    def __init__(self, n: int, **params: Any) -> None:
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        """``params``: the record (default: the preset named ``name``, :data:`PRESETS`), with
+        ``overrides`` (any of its fields; :class:`UserError` for an unknown key or a bad value)."""
         self.n = n
+        base = PRESETS[self.name] if params is None else params
+        self.params = base.with_overrides(overrides, where="")
 
     def reset(self, positions: np.ndarray) -> None:
         """Start of a run with the drones at positions (n, 3)."""
@@ -123,9 +128,11 @@ class Rule:
         """Adjusted setpoints pos_d (n, 3) and the drones it steers, steer (n,) bool."""
         raise NotImplementedError
 
-    #: whether the controller is to compensate the downwash of the other drones (when the physics has
-    #: one; see :class:`~swarm_mj.policy.DownwashFeedforward`)
-    downwash_feedforward = False
+    @property
+    def downwash_feedforward(self) -> bool:
+        """Whether the controller is to compensate the downwash of the other drones (when the physics
+        has one; see :class:`~swarm_mj.policy.DownwashFeedforward`): the record's field."""
+        return self.params.downwash_feedforward
 
     def references(
         self,
@@ -146,8 +153,8 @@ class NoRule(Rule):
 
     name = "off"
 
-    def __init__(self, n: int, **_: float) -> None:
-        self.n = n
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
@@ -187,10 +194,11 @@ def _clip_norm(v: np.ndarray, limit: float) -> np.ndarray:
     return v * np.minimum(1.0, limit / np.maximum(nrm, 1e-12))[:, None]
 
 
-def _stoppable_speed(room: float, accel: float, lag: float) -> float:
-    """Largest v with v²/(2·0.8·accel) + v·lag ≤ room (room floored at 0.1 m)."""
-    k = 1.0 / (1.6 * accel)
-    room = max(room, 0.1)
+def _stoppable_speed(room: float, accel: float, lag: float, room_min: float) -> float:
+    """Largest v with v²/(2·BRAKING_SHARE·accel) + v·lag ≤ room (room floored at ``room_min``): the
+    speed from which a path braking at BRAKING_SHARE·accel, after ``lag`` s, stops within ``room``."""
+    k = 1.0 / (2.0 * BRAKING_SHARE * accel)
+    room = max(room, room_min)
     return float((-lag + np.sqrt(lag * lag + 4.0 * k * room)) / (2.0 * k))
 
 
@@ -212,13 +220,12 @@ class PaperRule(Rule):
 
     name = "paper"
 
-    def __init__(
-        self, n: int, safety_distance: float = 0.8, hop: float = 0.4, hysteresis: float = 0.05, **_: float
-    ) -> None:
-        self.n = n
-        self.safety = float(safety_distance)
-        self.hop = float(hop)
-        self.hysteresis = float(hysteresis)
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
+        p = self.params
+        self.safety = p.safety_distance
+        self.hop = p.hop
+        self.hysteresis = p.hysteresis
         self._lower = np.tril(np.ones((n, n), dtype=bool), -1)  # [i, j]: j < i, so i yields to j
         self.vel_d = np.zeros((n, 3))  # (n, 3) velocity reference of steered drones
         self.acc_d = np.zeros((n, 3))  # (n, 3) acceleration reference of steered drones
@@ -262,8 +269,6 @@ class PaperRule(Rule):
 # --------------------------------------------------------------------------- the layered rule and the rules built on it
 CLIMB, CROSS, FORMED = 0, 1, 2
 G = 9.81  # m/s², paper Table 1 (docs/interpretations.md §1)
-HOVER_MIN_M = 0.3  # a waiting follower lifts off the ground to this height when there is room
-FOOTPRINT_M = 0.35  # centre to rotor tip: L + rotor radius = 0.25 + 0.09 m (docs/interpretations.md §1), rounded
 
 
 @dataclass
@@ -347,63 +352,36 @@ class LayeredRule(PaperRule):
 
     name = "layers"
 
-    def __init__(
-        self,
-        n: int,
-        safety_distance: float = 0.8,
-        hop: float = 0.4,
-        hysteresis: float = 0.05,
-        arrive: float = 0.2,
-        climb_tolerance: float = 0.35,
-        clearance: float = 0.3,
-        max_speed: float = 4.0,
-        max_accel: float = 6.0,
-        horizon: float = 1.0,
-        climb_speed: float = 4.0,
-        climb_accel: float = 8.0,
-        descent_speed: float = 1.5,
-        descent_accel: float = 5.0,
-        jerk: float = 120.0,
-        velocity_gain: float = 15.0,
-        max_tilt_deg: float = 30.0,
-        sensing_range: float = 4.0,
-        **_: float,
-    ) -> None:
-        self.arrive = float(arrive)
-        self.climb_tol = float(climb_tolerance)
-        self.clearance = float(clearance)
-        self.v_max = float(max_speed)
-        self.a_max = float(max_accel)
-        self.horizon = float(horizon)
-        self.z_up = (float(climb_speed), float(climb_accel))
-        self.z_down = (float(descent_speed), float(descent_accel))
-        self.z_down_formed = self.z_down  # (speed, accel) of descents once every follower is formed
-        self.jerk = float(jerk)
-        self.k_v = float(velocity_gain)
-        self.tan_tilt = float(np.tan(np.radians(max_tilt_deg)))
-        self.sensing_range = float(sensing_range)
-        # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop
-        # under a drone first seen straight above; crossing, D̄ + 0.2 m short of a drone first
-        # seen ahead. Braking at a, with the acceleration turning round in ``lag`` s:
-        # v²/(2·0.8·a) + v·lag ≤ room.
-        ad = self.z_down[1]
-        self.z_up = (
-            min(
-                self.z_up[0],
-                _stoppable_speed(
-                    self.sensing_range - float(hop) - 0.2, ad, (self.z_up[1] + ad) / self.jerk + 1.0 / self.k_v
-                ),
-            ),
-            self.z_up[1],
-        )
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
+        p = self.params
+        self.arrive = p.arrive
+        self.climb_tol = p.climb_tolerance
+        self.clearance = p.clearance
+        self.v_max = p.max_speed
+        self.a_max = p.max_accel
+        self.horizon = p.horizon
+        self.jerk = p.jerk
+        self.k_v = p.velocity_gain
+        self.tan_tilt = float(np.tan(np.radians(p.max_tilt_deg)))
+        self.sensing_range = p.sensing_range
+        self.footprint = p.keep_out()  # (m) keep-out radius: arm + rotor radius + outline_margin
+        self.overlap = p.overlap()  # (m) keep-out discs overlap in plan view under this centre distance
+        # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop +
+        # approach_margin under a drone first seen straight above; crossing, D̄ + approach_margin
+        # short of a drone first seen ahead. Braking at a, with the acceleration turning round in
+        # ``lag`` s: v²/(2·BRAKING_SHARE·a) + v·lag ≤ room.
+        ad = p.descent_accel
+        room_up = p.sensing_range - p.hop - p.approach_margin
+        lag_up = (p.climb_accel + ad) / self.jerk + 1.0 / self.k_v
+        self.z_up = (min(p.climb_speed, _stoppable_speed(room_up, ad, lag_up, p.stop_room_min)), p.climb_accel)
+        self.z_down = (p.descent_speed, ad)
+        # (speed, accel) of the descents of the followers that have joined the formation
+        self.z_down_formed = (p.descent_speed, min(p.formed_descent_accel, ad))
         a_h = min(self.a_max, G * self.tan_tilt)
-        self.v_max = min(
-            self.v_max,
-            _stoppable_speed(
-                self.sensing_range - float(safety_distance) - 0.2, a_h, 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
-            ),
-        )
-        super().__init__(n, safety_distance, hop, hysteresis)
+        room = p.sensing_range - p.safety_distance - p.approach_margin
+        lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
+        self.v_max = min(self.v_max, _stoppable_speed(room, a_h, lag, p.stop_room_min))
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
@@ -481,11 +459,14 @@ class LayeredRule(PaperRule):
         and pitch of eqs. (21)–(22) saturate at 45° (measured: a follower dropping 1.1 m as a
         step flew off sideways at 10 m/s). So upward accelerations (more thrust) may reach
         ``climb_accel``, downward ones (less thrust) only ``descent_accel``; the speed is
-        capped at ``climb_speed`` up and ``descent_speed`` down.
+        capped at ``climb_speed`` up and ``descent_speed`` down; the followers that have joined the
+        formation descend with at most ``formed_descent_accel`` (:meth:`_advance_altitude_two`).
         """
         if dt <= 0.0:
             self.za[:] = 0.0
             return
+        if self.z_down_formed != self.z_down:
+            return self._advance_altitude_two(dt, target, target_vel)
         (vu, au), (vd, ad) = self.z_up, self.z_down
         advance_altitude_kernel(
             float(dt),
@@ -501,6 +482,24 @@ class LayeredRule(PaperRule):
             self.jerk,
             self.k_v,
         )
+
+    def _advance_altitude_two(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
+        """The altitude paths when ``formed_descent_accel`` < ``descent_accel`` (6. of
+        :class:`JetAwareRule`): the followers that have joined the formation descend with at most
+        ``formed_descent_accel``, the others with ``descent_accel`` (the kernel moves each drone on
+        its own: two calls on the two groups give each row what one call with its own limit would)."""
+        joined = self.phase == FORMED  # the leader's row too (its path is not flown)
+        (vu, au), (vd, ad), (_, ad_joined) = self.z_up, self.z_down, self.z_down_formed
+        target = np.asarray(target, dtype=np.float64)
+        target_vel = np.asarray(target_vel, dtype=np.float64)
+        for rows, a_down in ((np.flatnonzero(joined), ad_joined), (np.flatnonzero(~joined), ad)):
+            if rows.size == 0:
+                continue
+            zp, zv, za = self.zp[rows], self.zv[rows], self.za[rows]  # (k,) copies
+            advance_altitude_kernel(
+                float(dt), target[rows], target_vel[rows], zp, zv, za, vu, au, vd, a_down, self.jerk, self.k_v
+            )
+            self.zp[rows], self.zv[rows], self.za[rows] = zp, zv, za
 
     # ------------------------------------------------------------------ the rule
     def _update_formed(
@@ -573,26 +572,13 @@ class LayeredRule(PaperRule):
             vband=self._vertical_overlap(z, self.horizon) & seen,
         )
 
-    def _ready_to_cross(self, s: _Step, climbing: np.ndarray) -> np.ndarray:
-        """(n,) climbing followers within ``climb_tolerance`` of their layer (ours)."""
-        return climbing & (s.z >= s.layer - self.climb_tol)
-
-    def _wait_floor(self) -> np.ndarray:
-        """(n,) the highest a follower waiting under a drone waits at (ours): where it is, lifting
-        off the ground to ``HOVER_MIN_M``."""
-        return np.maximum(self.zp, HOVER_MIN_M)
-
-    def _stuck_under(self, stuck: np.ndarray, slow: np.ndarray) -> np.ndarray:
-        """(n, n) the drones a waiting follower steps aside from (ours): every one it is stuck under."""
-        return stuck
-
     def _climb(self, s: _Step) -> None:
         """1. *climb* (ours): in place to its layer; never through a drone within D̄ above (it waits
         ``hop`` below, climbs over when too late to stop, steps aside from one that hovers there).
         Followers that reach their layer switch to the crossing."""
         z, h, layer = s.z, s.h, s.layer
         climbing = self.phase == CLIMB
-        ready = self._ready_to_cross(s, climbing)
+        ready = climbing & (z >= layer - self.climb_tol)  # within climb_tolerance of its layer
         for i in np.flatnonzero(ready):
             self.phase[i] = CROSS
             self.events.append({"t": s.t, "drone": int(i), "other": -1, "action": "cross"})
@@ -603,10 +589,13 @@ class LayeredRule(PaperRule):
         # within D̄ + 0.2 m now or soon if they move, within 2·FOOTPRINT + 0.1 m if they
         # hover (a drone climbing in place passes a hovering one that close unharmed);
         # the leader, which yields to nobody, also when about level with it
-        hovering = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
-        hovering[0] = False  # the leader may set off any time: always D̄ + 0.2 m
-        radius = np.where(hovering, 2.0 * FOOTPRINT_M + 0.1, self.safety + 0.2)[None, :]  # (1, n)
-        vertical = (z[None, :] > z[:, None] + 0.05) & (z[None, :] < layer[:, None] + self.clearance)
+        p = self.params
+        slow = _rownorm(self.vel[:, :2]) < p.hover_speed  # (n,), the leader too
+        hovering = slow.copy()
+        hovering[0] = False  # the leader may set off any time: always D̄ + approach_margin
+        pass_hover = 2.0 * self.footprint + p.hover_pass_margin
+        radius = np.where(hovering, pass_hover, self.safety + p.approach_margin)[None, :]  # (1, n)
+        vertical = (z[None, :] > z[:, None] + p.above_margin) & (z[None, :] < layer[:, None] + self.clearance)
         vertical[:, 0] |= z[0] > z - self.clearance  # the leader: level counts
         above = (s.soon < radius) & vertical
         above &= climbing[:, None]
@@ -614,36 +603,29 @@ class LayeredRule(PaperRule):
         # below it: wait (brake as hard as it can) no higher than now — it does not chase a
         # climbing drone from below — and hop under it, or on the ground. About level with
         # it already: climb over it, unless it is straight above (footprints overlap).
-        z_wait = np.maximum(np.minimum(self._wait_floor(), zmin - self.hop), 0.0)
-        overhead = (above & (h < 2.0 * FOOTPRINT_M)).any(axis=1)
+        z_wait = np.maximum(np.minimum(np.maximum(self.zp, p.hover_min), zmin - self.hop), 0.0)
+        overhead = (above & (h < 2.0 * self.footprint)).any(axis=1)
         vz = np.maximum(self.zv, 0.0)
-        z_stop = self.zp + vz * vz / (1.6 * self.z_down[1])  # where it could stop
-        late = z_stop > np.maximum(zmin - self.hop, 0.0) + 0.1
+        z_stop = self.zp + vz * vz / (2.0 * BRAKING_SHARE * self.z_down[1])  # where it could stop
+        late = z_stop > np.maximum(zmin - self.hop, 0.0) + p.late_margin
         over = np.isfinite(zmin) & late & ~overhead
         wait = np.isfinite(zmin) & ~over
         s.z_target[wait] = np.minimum(layer[wait], z_wait[wait])
         s.z_target_vel[wait] = 0.0
         s.z_target[over] = np.maximum(layer[over], zmin[over] + self.hop)
         # waiting, airborne, under a drone that hovers there (the leader hovering, or a
-        # follower over its slot): step aside, 0.2 m beyond the radius it keeps from it
-        slow = _rownorm(self.vel[:, :2]) < 0.5  # (n,), the leader too
-        stuck = above & (h < radius) & slow[None, :] & (z[:, None] > 0.2)
-        stuck = self._stuck_under(stuck, slow)
+        # follower over its slot): step aside, aside_margin beyond the radius it keeps from it
+        stuck = above & (h < radius) & slow[None, :] & (z[:, None] > p.airborne_min)
         positions = s.positions
-        there = _rownorm(positions[:, :2] - self.start_xy) < 0.1
+        there = _rownorm(positions[:, :2] - self.start_xy) < p.at_start
         aside = stuck.any(axis=1) & there & wait
         for i in np.flatnonzero(aside):
             j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
             away = positions[i, :2] - positions[j, :2]
             away /= max(float(np.linalg.norm(away)), 1e-9)
-            self.start_xy[i] = positions[j, :2] + (radius[0, j] + 0.2) * away
+            self.start_xy[i] = positions[j, :2] + (radius[0, j] + p.aside_margin) * away
             self.asides[i] += 1
             self.events.append({"t": s.t, "drone": int(i), "other": j, "action": "aside"})
-
-    def _conflicts(self, s: _Step, gap: np.ndarray, near: np.ndarray, gives_way: np.ndarray) -> np.ndarray:
-        """(n, n) the drones a crossing follower brakes for (ours): one it gives way to, predicted
-        within D̄ (``near``) in an altitude band it sweeps."""
-        return near & s.vband & gives_way
 
     def _cross(self, s: _Step) -> None:
         """2. *cross* (ours): the horizontal goals — its start while climbing, its slot (moving with
@@ -661,7 +643,8 @@ class LayeredRule(PaperRule):
         if not crossing.any():
             return
         speed = _rownorm(self.vel[:, :2])
-        horizon_i = np.minimum(speed / self.a_max + 0.3, 2.0)  # (n,) time to stop + reaction
+        p = self.params
+        horizon_i = np.minimum(speed / self.a_max + p.reaction_time, p.conflict_horizon_max)  # (n,) stop + react
         d = positions[None, :, :2] - positions[:, None, :2]
         dv = self.vel[None, :, :2] - self.vel[:, None, :2]
         vv = np.einsum("ijk,ijk->ij", dv, dv)
@@ -670,16 +653,11 @@ class LayeredRule(PaperRule):
         gap = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
         near = (gap < self.safety) & s.seen
         gives_way = (s.idx[None, :] < s.idx[:, None]) | (self.phase[None, :] != CROSS)
-        conflict = self._conflicts(s, gap, near, gives_way)
+        conflict = near & s.vband & gives_way  # in conflict: predicted within D̄ in a band it sweeps
         blocked = crossing & conflict.any(axis=1)
         for i in np.flatnonzero(blocked & ~self.blocked):
             self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
         self.blocked = blocked
-
-    def _under(self, s: _Step, i: int) -> np.ndarray:
-        """(n,) the drones that keep follower ``i`` from dropping (ours): still in transit and (now
-        or soon) within D̄ under it."""
-        return (s.soon[i] < self.safety) & (self.phase != FORMED) & (s.z < s.z[i] + self.clearance)
 
     def _drop(self, s: _Step) -> None:
         """3. *drop* (ours): a crossing follower within ``arrive`` of its slot (and its path too)
@@ -693,7 +671,9 @@ class LayeredRule(PaperRule):
             & (_rownorm(self.path_p - s.goal) < self.arrive)
         )
         for i in np.flatnonzero(there):
-            if not self._under(s, int(i)).any():
+            # still in transit and (now or soon) within D̄ under it: it waits
+            under = (s.soon[i] < self.safety) & (self.phase != FORMED) & (s.z < s.z[i] + self.clearance)
+            if not under.any():
                 self.phase[i] = FORMED
                 self.blocked[i] = False
                 self.events.append({"t": s.t, "drone": int(i), "other": -1, "action": "drop"})
@@ -744,223 +724,6 @@ class LayeredRule(PaperRule):
         return pos_d, s.steer
 
 
-def jet_clearance(dz: np.ndarray, margin: float = 0.0) -> np.ndarray:
-    """Horizontal centre distance (m) at which a drone |dz| m below another (either way round) is
-    clear of the upper one's jet: the jet's edge at that depth plus the lower drone's rotor span
-    (:func:`swarm_mj.metrics.in_jet`, the turbulent jet of Bauersfeld et al.), plus ``margin``."""
-    from ..metrics import DRONE_RADIUS_M, JET_R0_M, JET_REACH_M, JET_SPREAD
-
-    return JET_R0_M + JET_SPREAD * np.minimum(np.abs(dz), JET_REACH_M) + DRONE_RADIUS_M + margin
-
-
-class ClearanceRule(LayeredRule):
-    """``anti_collision = "clearance"`` (opt-in): the layered rule made downwash-aware by horizontal
-    clearance (the default under downwash is :class:`JetAwareRule`).
-
-    **Why** (issue 15; ``swarm-mj stress --aero realistic``, docs/interpretations.md): the layered
-    rule (``layers``) keeps drones apart by stacking them — a follower crossing on its layer passes
-    straight over the drones below, followers on their layers are above the leader's path — and
-    under the turbulent-jet downwash of Bauersfeld et al. (RA-L 2024; ``--aero realistic``) the
-    drone below sinks: over 20 starts (``tools/aero_compare.py``) a worst downwash dip of 1.86 m,
-    7 crashes and a start with contacts; with the feedforward (5.) alone (``compensated``) 10 of
-    100 starts still lose a drone (a drone 0.4 m under another's near jet, or tilting for its
-    crossing while its thrust is low, tips over); with all of 1.–5., 2 of 100 (and 0 contacts, 0
-    crashes, a worst dip of 0.021 m on every bundled swarm scenario), at the cost of settling: a
-    median of 5.05 s over 100 starts, against 4.12 s for ``compensated``. The jet's push is still
-    a tenth of a drone's weight 6 m down, so no altitude separation is enough.
-
-    **What is the paper's** (Fig. 5, §4): as in :class:`LayeredRule` (altitude changes while each
-    follower keeps aiming at its slot; D̄ = 0.8 m, the 0.4 m hop; the higher index yields and a
-    follower always yields to the leader; once formed, the printed reactive rule).
-
-    **What is the layered rule's** (ours, :class:`LayeredRule`): climb in place to a layer of its
-    own, cross on it along a limited path, drop over the slot; the layers are what keeps two
-    drones from touching.
-
-    **What is new here** (ours), each decision from the leader's position and the drones within
-    ``sensing_range``, with the jet clearance :func:`jet_clearance` (the jet's horizontal reach at
-    the two drones' vertical separation plus the rotor span of the one below, plus
-    ``jet_margin``):
-
-    1. *take off* — a follower still on the ground stays there while a drone it gives way to (the
-       leader, a lower index; not a formed one that hovers there: it would wait for ever) is, or
-       is predicted over ``horizon`` s to be, above its start within the jet clearance (the leader
-       sets off at full tilt over the followers).
-    2. *climb* — waiting under a drone it must not climb into, it waits no higher than it is (the
-       layered rule waited ``hop`` under it, in its jet, lifting off the ground to do so).
-    3. *cross* — it also brakes for a drone crossing on a layer up to ``jet_depth`` above or below
-       (the next layer) that moves and is predicted within the jet clearance (the near jet of a
-       drone 0.4 m up tips the one below over: measured, a follower flew off), and its path goes
-       round one that hovers there (braking, or over its slot) by the side point ``jet clearance +
-       0.1`` m out from it; paths are gentler (tilt ≤ ``max_tilt_deg`` = 25°, the layered rule's
-       30° with the rotors' lag of ``--aero realistic`` flipped a drone now and then).
-    4. *drop* — it descends from its layer only when no airborne drone, formed or not, is (or will
-       be) within the jet clearance under it (towards a formed drone or the leader the clearance
-       is capped just short of the distance between their slots, so that slots closer than that
-       stay reachable).
-    5. *feedforward* — crossing on the layers still passes over lower drones further down
-       (keeping every drone out of every jet costs seconds of settling: drones wait for each other
-       or go round the formed ones), so the controller compensates the downwash force it predicts
-       from the drones' positions, attitudes and thrust commands
-       (:class:`~swarm_mj.policy.DownwashFeedforward`: the simulator's jet model, as Bauersfeld et
-       al. compensate it in their §VI), the way it compensates the wind (eqs. 23–24). Only when
-       the physics has downwash (``--aero realistic``).
-    """
-
-    name = "clearance"
-    downwash_feedforward = True
-
-    def __init__(
-        self,
-        n: int,
-        safety_distance: float = 0.8,
-        hop: float = 0.4,
-        hysteresis: float = 0.05,
-        jet_margin: float = 0.1,
-        jet_depth: float = 0.5,
-        max_tilt_deg: float = 25.0,
-        descent_accel: float = 5.0,
-        **kw: float,
-    ) -> None:
-        super().__init__(
-            n, safety_distance, hop, hysteresis, max_tilt_deg=max_tilt_deg, descent_accel=descent_accel, **kw
-        )
-        self.jet_margin = float(jet_margin)
-        self.jet_depth = float(jet_depth)
-
-    def reset(self, positions: np.ndarray) -> None:
-        super().reset(positions)
-        self.holding = np.zeros(self.n, dtype=bool)  # (n,) held on the ground (1.)
-        self.side = np.zeros(self.n, dtype=np.int64)  # (n,) side it goes round a hovering drone (+1: left)
-
-    def _go_round(
-        self, positions: np.ndarray, goal: np.ndarray, movers: np.ndarray, obstacle: np.ndarray, radius: np.ndarray
-    ) -> np.ndarray:
-        """Goals (n, 2): for each of ``movers`` (n,) whose straight line to ``goal`` (n, 2) passes
-        within ``radius`` (n, n) of a drone flagged ``obstacle`` (n, n), a point at least 1 m along
-        the way to the side point of the nearest such drone (``radius`` + 0.1 m out from it, square
-        to the line), on the side it is already off the line (kept until it is past)."""
-        out = goal.copy()
-        for i in np.flatnonzero(movers):
-            p = positions[i, :2]
-            e = goal[i] - p
-            L = float(np.hypot(*e))
-            if L < 0.3:
-                self.side[i] = 0
-                continue
-            u = e / L
-            d = positions[:, :2] - p  # (n, 2)
-            along = d @ u
-            perp = d[:, 0] * u[1] - d[:, 1] * u[0]  # > 0: right of the line
-            rad = radius[i] + 0.1
-            block = obstacle[i] & (along > -0.1) & (along < L + 0.1) & (np.abs(perp) < rad)
-            if not block.any():
-                self.side[i] = 0
-                continue
-            j = int(np.argmin(np.where(block, along, np.inf)))
-            if self.side[i] == 0:
-                self.side[i] = 1 if perp[j] < 0.0 else -1  # pass on the far side
-                self.events.append({"t": self._prev_t, "drone": int(i), "other": j, "action": "round"})
-            normal = np.array([-u[1], u[0]]) * self.side[i]  # left (+1) or right (−1)
-            aim = positions[j, :2] + normal * rad[j] - p
-            out[i] = p + aim / max(float(np.hypot(*aim)), 1e-9) * max(float(np.hypot(*aim)), 1.0)
-        return out
-
-    # ------------------------------------------------------------------ its steps (the layered rule's, adjusted)
-    def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> _Step:
-        """The layered rule's, plus (ours) the vertical separations and the jet clearance of every
-        pair: towards a formed drone or the leader capped just short of the distance between their
-        slots (4. of the class docstring)."""
-        s = super()._sense(t, positions, pos_d, formation_alt, dt)
-        n, z, idx = self.n, s.z, s.idx
-        self._dz = z[None, :] - z[:, None]  # (n, n) z_j − z_i
-        self._jet = jet_clearance(self._dz, self.jet_margin)  # (n, n)
-        slot_gap = _rownorm((s.pos_d[None, :, :2] - s.pos_d[:, None, :2]).reshape(-1, 2)).reshape(n, n)
-        self._jet_c = np.where(
-            (self.phase == FORMED)[None, :] | (idx[None, :] == 0), np.minimum(self._jet, slot_gap - 0.05), self._jet
-        )  # (n, n)
-        return s
-
-    def _ready_to_cross(self, s: _Step, climbing: np.ndarray) -> np.ndarray:
-        """The layered rule's, and (ours) only once its climb has slowed (|ż| < 1 m/s): braking a
-        climb takes the thrust down to m·(g − 5 m/s²), and tilting then for the crossing, with the
-        rotors' lag, flipped drones."""
-        return super()._ready_to_cross(s, climbing) & (np.abs(self.zv) < 1.0)
-
-    def _wait_floor(self) -> np.ndarray:
-        """(n,) ours (2. of the class docstring): a waiting follower waits no higher than it is (the
-        layered rule lifted it off the ground, into the jet of the drone above)."""
-        return self.zp
-
-    def _stuck_under(self, stuck: np.ndarray, slow: np.ndarray) -> np.ndarray:
-        """The layered rule's, less formed drones that move (ours)."""
-        return stuck & ~((self.phase == FORMED) & ~slow)[None, :]
-
-    def _climb(self, s: _Step) -> None:
-        """1.–2. of the class docstring: the layered rule's climb (with the steps above), then the
-        take-off hold (:meth:`_take_off`)."""
-        super()._climb(s)
-        self._take_off(s)
-
-    def _take_off(self, s: _Step) -> None:
-        """1. *take off* (ours): a follower still on the ground stays there while a drone it gives way
-        to is (or is predicted to be) above its start within the jet clearance (the leader setting
-        off overhead); not for a formed drone hovering there: it would wait for ever (airborne, the
-        follower steps aside)."""
-        if not s.in_transit:
-            return
-        idx = s.idx
-        ground = (self.phase == CLIMB) & (s.z < HOVER_MIN_M)
-        staying = (self.phase == FORMED) & (_rownorm(self.vel[:, :2]) < 0.5)
-        overhead = (
-            s.seen
-            & (s.soon < self._jet)
-            & (self._dz > 0.05)
-            & ((idx[None, :] < idx[:, None]) | (idx[None, :] == 0))
-            & ~staying[None, :]
-        )
-        hold = ground & overhead.any(axis=1)
-        s.z_target[hold] = np.minimum(s.z_target[hold], 0.0)
-        s.z_target_vel[hold] = 0.0
-        for i in np.flatnonzero(hold & ~self.holding):
-            self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(overhead[i])), "action": "wait"})
-        self.holding = hold
-
-    def _conflicts(self, s: _Step, gap: np.ndarray, near: np.ndarray, gives_way: np.ndarray) -> np.ndarray:
-        """3. *cross*: the layered rule's conflicts, and (ours) a drone crossing on a layer up to
-        ``jet_depth`` above or below that moves, within the jet clearance (the near jet of a drone
-        0.4 m up tips the one below over)."""
-        hover = _rownorm(self.vel[:, :2]) < 0.5  # (n,)
-        near_jet = (
-            (gap < self._jet_c)
-            & s.seen
-            & (np.abs(self._dz) < self.jet_depth)
-            & (self.phase[None, :] == CROSS)
-            & ~hover[None, :]
-        )
-        return ((near & s.vband) | near_jet) & gives_way
-
-    def _under(self, s: _Step, i: int) -> np.ndarray:
-        """4. *drop* (ours): any airborne drone, formed or not, (now or soon) within the jet
-        clearance (at least D̄) under it; one on the ground is held by it (and waits for this one)."""
-        return (
-            (s.soon[i] < np.maximum(self.safety, self._jet_c[i]))
-            & (s.z < s.z[i] + self.clearance)
-            & (s.z > HOVER_MIN_M)
-        )
-
-    def _drop(self, s: _Step) -> None:
-        """4. *drop* (the layered rule's, with :meth:`_under`), then 3.'s going round (ours): a
-        crossing follower goes round a drone that hovers on the next layer (braking, or waiting to
-        drop) within the jet clearance of its line to the slot (:meth:`_go_round`)."""
-        super()._drop(s)
-        crossing = self.phase == CROSS
-        if crossing.any():
-            hover = _rownorm(self.vel[:, :2]) < 0.5
-            obstacle = s.seen & (hover & (self.phase == CROSS))[None, :] & (np.abs(self._dz) < self.jet_depth)
-            s.goal = self._go_round(s.positions, s.goal, crossing, obstacle, self._jet_c)
-
-
 def _update_formed_impl(
     rule: LayeredRule, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -974,37 +737,17 @@ def _update_formed_impl(
 
 
 class CompensatedRule(LayeredRule):
-    """``anti_collision = "compensated"``: today's layered rule (:class:`LayeredRule`, the paths
-    unchanged) with the downwash feedforward of :class:`ClearanceRule` (5.): under ``--aero
-    realistic`` the controller compensates the downwash force it predicts; under the paper's
-    physics it is the layered rule, bit for bit."""
+    """``anti_collision = "compensated"``: the layered rule (:class:`LayeredRule`, the paths
+    unchanged) with ``downwash_feedforward`` on (its preset): under ``--aero realistic`` the
+    controller compensates the downwash force it predicts; under the paper's physics it is the
+    layered rule, bit for bit. (The same as ``layers`` with ``downwash_feedforward = true``.)"""
 
     name = "compensated"
-    downwash_feedforward = True
 
 
-#: Lowest altitude (m) a yielding follower of :class:`JetAwareRule` is sent to (above the floor's
-#: ground effect and a hop clear of a drone taking off under it).
-FLOOR_CLEARANCE_M = 0.5
-#: Closing speed (m/s) under which :class:`JetAwareRule`'s never-through check (4.) takes two drones'
-#: present horizontal distance, not the one predicted over ``horizon``: in a formed swarm the
-#: velocities estimated from positions jitter by a few cm/s, and over 1 s that closed the 8 cm
-#: between neighbouring outlines (eight followers at D = 1 m, 0.77 m apart) and held descents for
-#: seconds. Over the 20 eight-follower stress starts the median form-up settling went 8.89 s → 6.96 s
-#: and the one start with a contact has none (0.2 m/s: 7.7 s and 3 contacts; no prediction at all:
-#: 6.6 s); five followers, 100 starts: 4.72 s → 4.60 s, still no contact.
-CLOSING_MIN_MPS = 0.5
-#: Added to D̄ (m): how far out :class:`JetAwareRule` holds a descending formed follower above a drone
-#: still crossing below it (7. of its docstring; the layered rule's hold starts at D̄). Measured
-#: (``swarm-mj stress --aero realistic``): the one contact in 100 eight-follower starts (seeds
-#: 0–99; seed 94: a follower crossing at 2.9 m/s towards one descending onto its layer, held too
-#: late) is gone, none in 300 five-follower ones, and the median settling of the 20 eight-follower
-#: stress starts went 4.84 s → 4.60 s. At 0.3 m the same, but the bundled ``lemniscate`` settled in
-#: 5.16 s instead of 4.3 s (a follower held over a crossing one that passed 1.05 m away).
-CROSSING_HOLD_M = 0.2
-#: Centre distance (m) under which two drones' outlines (rotor tip to rotor tip, 2·FOOTPRINT_M)
-#: overlap in plan view, with 2 cm to spare: a drone never changes altitude through one that close.
-OVERLAP_M = 2.0 * FOOTPRINT_M + 0.02
+#: Centre distance (m) under which two drones' keep-out discs overlap in plan view (the default
+#: vehicle and record: :meth:`RuleParams.overlap`); a rule's own is ``rule.overlap``.
+OVERLAP_M = RuleParams().overlap()
 
 
 class JetAwareRule(CompensatedRule):
@@ -1043,12 +786,12 @@ class JetAwareRule(CompensatedRule):
     3. *stacked offsets* — a yielding drone takes the altitude offset nearest the formation
        altitude that is at least ``hop`` from the offset of every drone it yields to (up first when
        it is above the other: the printed rule's ±``hop`` when it yields to one drone at the
-       formation altitude), never one lower than ``FLOOR_CLEARANCE_M`` above the floor. As
+       formation altitude), never one lower than ``floor_clearance`` above the floor. As
        printed, two drones that both yield upwards to a third end at the same altitude, within D̄
        of each other (measured: a contact).
     4. *never through* — a formed follower never changes altitude through a drone whose outline
        overlaps its own in plan view (now, or predicted over ``horizon`` when the two close faster
-       than ``CLOSING_MIN_MPS``): it holds ``hop`` above or below it until they are apart.
+       than ``closing_min``): it holds ``hop`` above or below it until they are apart.
     5. *gentler crossings* — speed ≤ ``max_speed`` = 3 m/s and acceleration ≤ ``max_accel`` =
        4 m/s² on the layers (the layered rule's 4 and 6): with the rotors' lag a drone braking
        for another overshoots the path's tilt (43–57° measured at the contacts), its rotors then
@@ -1068,7 +811,7 @@ class JetAwareRule(CompensatedRule):
        drop: 5.06 s; 3.5 m/s² once all are formed, the previous form of this step: 5.58 s; before
        it, 6.96 s); five followers, 100 starts, 4.43 s → 3.97 s; no contact in either.
     7. *early hold over a crossing drone* — a formed follower still descending holds ``hop`` above
-       a drone crossing below it from D̄ + ``CROSSING_HOLD_M`` = 1.0 m out (now or predicted over
+       a drone crossing below it from D̄ + ``crossing_hold`` = 1.0 m out (now or predicted over
        ``horizon``), not from D̄: a follower crossing at up to 3 m/s towards one descending onto
        its layer closed the last 0.2 m before the hold had turned the descent round (seed 94 of
        the eight-follower starts: a contact at 0.43 m). The layered rule's hold (4. *formed* of
@@ -1077,17 +820,11 @@ class JetAwareRule(CompensatedRule):
 
     name = "jet-aware"
 
-    def __init__(
-        self, n: int, max_speed: float = 3.0, max_accel: float = 4.0, formed_descent_accel: float = 3.0, **kw: float
-    ) -> None:
-        super().__init__(n, max_speed=max_speed, max_accel=max_accel, **kw)
-        self.z_down_formed = (self.z_down[0], min(float(formed_descent_accel), self.z_down[1]))
-
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
         self._slot_h = np.full((self.n, self.n), np.inf)  # (n, n) horizontal distances of the setpoints
         self._slot_yield = False
-        self._formation_alt = np.inf  # (set by update) offsets are kept FLOOR_CLEARANCE_M above the floor
+        self._formation_alt = np.inf  # (set by update) offsets are kept floor_clearance above the floor
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
@@ -1109,9 +846,11 @@ class JetAwareRule(CompensatedRule):
             return
         slot = (self._slot_h < self.safety) & self._lower  # (n, n) [i, j]: i yields to j by the slots
         hop = self.hop
-        # candidate offsets, none that would put the drone within FLOOR_CLEARANCE_M of the floor
-        low = FLOOR_CLEARANCE_M - self._formation_alt
-        cands = tuple(o for o in (0.0, hop, -hop, 2.0 * hop, -2.0 * hop, 3.0 * hop) if o >= low or o == 0.0)
+        # candidate offsets, from max_hops_down hops below to max_hops_up above, none that would put
+        # the drone within floor_clearance of the floor
+        low = self.params.floor_clearance - self._formation_alt
+        hops = range(-self.params.max_hops_down, self.params.max_hops_up + 1)
+        cands = tuple(o for o in (float(k) * hop for k in hops) if o >= low or o == 0.0)
         for i in range(1, self.n):
             if not active[i]:
                 continue
@@ -1139,7 +878,7 @@ class JetAwareRule(CompensatedRule):
     def _through(self, positions: np.ndarray, z_target: np.ndarray, formed: np.ndarray, soon: np.ndarray) -> np.ndarray:
         """4. of the class docstring: ``z_target`` (n,) of the ``formed`` (n,) followers held ``hop``
         clear of every drone whose outline overlaps theirs in plan view (``soon`` (n, n))."""
-        near = (soon < OVERLAP_M) & formed[:, None]
+        near = (soon < self.overlap) & formed[:, None]
         if not near.any():
             return z_target
         z = positions[:, 2]
@@ -1150,12 +889,12 @@ class JetAwareRule(CompensatedRule):
         return np.where(formed, held, z_target)
 
     def _closing(self, positions: np.ndarray, h: np.ndarray, soon: np.ndarray) -> np.ndarray:
-        """``soon`` (n, n) where two drones close faster than ``CLOSING_MIN_MPS``, else their present
+        """``soon`` (n, n) where two drones close faster than ``closing_min``, else their present
         horizontal distance ``h`` (n, n) (unseen pairs, +inf in ``soon``, stay +inf)."""
         d = positions[None, :, :2] - positions[:, None, :2]  # (n, n, 2) j − i
         dv = self.vel[None, :, :2] - self.vel[:, None, :2]
         closing = -np.einsum("ijk,ijk->ij", d, dv) / np.maximum(h, 1e-9)  # (n, n) > 0: approaching
-        return np.where(np.isinf(soon) | (closing > CLOSING_MIN_MPS), soon, h)
+        return np.where(np.isinf(soon) | (closing > self.params.closing_min), soon, h)
 
     def _formed(self, s: _Step) -> None:
         super()._formed(s)
@@ -1168,35 +907,15 @@ class JetAwareRule(CompensatedRule):
     def _over_crossing(self, z: np.ndarray, soon: np.ndarray, z_target: np.ndarray, formed: np.ndarray) -> np.ndarray:
         """7. of the class docstring: ``z_target`` (n,) of the ``formed`` (n,) followers held ``hop``
         above every crossing drone below them (altitudes ``z`` (n,)) that is, or is predicted to be
-        (``soon`` (n, n)), within D̄ + ``CROSSING_HOLD_M`` horizontally."""
+        (``soon`` (n, n)), within D̄ + ``crossing_hold`` horizontally."""
         below = (
-            (soon < self.safety + CROSSING_HOLD_M)
+            (soon < self.safety + self.params.crossing_hold)
             & formed[:, None]
             & (self.phase[None, :] == CROSS)
             & (z[None, :] < z[:, None])
             & (z[None, :] > z_target[:, None] - self.clearance)
         )
         return self._hold_above(z, z_target, below)
-
-    def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
-        """The layered rule's altitude paths, with 6. of the class docstring: the followers that have
-        joined the formation descend with at most ``formed_descent_accel``, the others with the
-        layered rule's ``descent_accel`` (the kernel moves each drone on its own: two calls on the
-        two groups give each row what one call with its own limit would)."""
-        joined = self.phase == FORMED  # the leader's row too (its path is not flown)
-        if dt <= 0.0 or self.z_down_formed == self.z_down:
-            return super()._advance_altitude(dt, target, target_vel)
-        (vu, au), (vd, ad), (_, ad_joined) = self.z_up, self.z_down, self.z_down_formed
-        target = np.asarray(target, dtype=np.float64)
-        target_vel = np.asarray(target_vel, dtype=np.float64)
-        for rows, a_down in ((np.flatnonzero(joined), ad_joined), (np.flatnonzero(~joined), ad)):
-            if rows.size == 0:
-                continue
-            zp, zv, za = self.zp[rows], self.zv[rows], self.za[rows]  # (k,) copies
-            advance_altitude_kernel(
-                float(dt), target[rows], target_vel[rows], zp, zv, za, vu, au, vd, a_down, self.jerk, self.k_v
-            )
-            self.zp[rows], self.zv[rows], self.za[rows] = zp, zv, za
 
     def _update_formed(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
@@ -1205,7 +924,7 @@ class JetAwareRule(CompensatedRule):
         h = _horizontal_distances(positions)
         self._react(t, positions, h, self._all)
         offset = self.offset
-        if (h[1:] < OVERLAP_M).any():
+        if (h[1:] < self.overlap).any():
             soon = self._closing(positions, h, self._approach(positions, self.horizon))
             z_t = self._through(positions, formation_alt + offset, self._followers, soon)
             offset = z_t - formation_alt
@@ -1253,11 +972,10 @@ ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "layers": LayeredRule,
     "paper": PaperRule,
     "off": NoRule,
-    "clearance": ClearanceRule,
     "compensated": CompensatedRule,
     "jet-aware": JetAwareRule,
 }
-AntiCollision = LayeredRule | PaperRule | NoRule | ClearanceRule | CompensatedRule | JetAwareRule
+AntiCollision = LayeredRule | PaperRule | NoRule | CompensatedRule | JetAwareRule
 
 
 __all__ = [
@@ -1266,22 +984,18 @@ __all__ = [
     "AntiCollision",
     "CLIMB",
     "CROSS",
-    "CROSSING_HOLD_M",
-    "FOOTPRINT_M",
     "FORMED",
-    "FLOOR_CLEARANCE_M",
     "OVERLAP_M",
     "G",
-    "HOVER_MIN_M",
-    "ClearanceRule",
     "CompensatedRule",
     "JetAwareRule",
     "LayeredRule",
     "NoRule",
+    "PRESETS",
     "PaperRule",
     "Rule",
+    "RuleParams",
     "horizontal_distances",
-    "jet_clearance",
     "make_rule",
     "merge_rows",
     "react_needed",
@@ -1303,8 +1017,10 @@ def resolve_rule(name: str, downwash: bool) -> str:
 
 
 def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:
-    """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``clearance``,
-    ``compensated``, ``jet-aware``; resolve ``"auto"`` first with :func:`resolve_rule`)."""
+    """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``compensated``,
+    ``jet-aware``; resolve ``"auto"`` first with :func:`resolve_rule`): its preset
+    (:data:`PRESETS`) with ``params``, any fields of :class:`RuleParams` (a scenario's
+    ``[formation]`` keys; :class:`UserError` naming ``where`` for an unknown one)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
-    return ANTI_COLLISION_RULES[name](n, **params)
+    return ANTI_COLLISION_RULES[name](n, PRESETS[name].with_overrides(params, where=where.rsplit(".", 1)[0]))

@@ -12,6 +12,19 @@ import numpy as np
 
 from .._jit import jit
 
+# Fixed in the kernels (compile-time constants: the kernels' signatures, which the fused loop
+# calls, do not carry them; docs/anticollision.md, "fixed in the kernels"). Not scenario keys.
+#: Share of its acceleration limit a path plans to brake with (v = √(2·BRAKING_SHARE·a·e)): 20 %
+#: left for the lag of the acceleration turning round.
+BRAKING_SHARE = 0.8
+#: Gain (1/s) of a horizontal path's final approach: speed ≤ this · distance to the goal.
+PATH_APPROACH_GAIN = 3.0
+#: Gain (1/s) of an altitude path's final approach: speed ≤ this · distance to the target.
+ALTITUDE_APPROACH_GAIN = 4.0
+#: Least vertical specific force (m/s²) the tilt limit of a horizontal path is taken from:
+#: a ≤ max(g + z̈, this)·tan(max tilt), so that a path braking a descent still steers.
+THRUST_FLOOR = 1.0
+
 
 def _formed_samples():
     n = 2
@@ -94,7 +107,13 @@ def advance_paths_kernel(
     g: float,
 ) -> None:
     """One step of the layered rule's horizontal paths (see LayeredRule._advance_paths), in place:
-    p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2)."""
+    p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2).
+
+    Invariant: |a| ≤ min(a_max, max(g + za, THRUST_FLOOR)·tan_tilt), |Δa| ≤ jerk·dt per step, and
+    the speed asked relative to the goal is ≤ v_max and ≤ √(2·BRAKING_SHARE·a_max·e_eff), e_eff
+    the distance left after the lag 2·a_max/jerk + 1/k_v: a path stops at the goal without
+    overshooting as long as the goal moves no faster than v_max. A blocked drone is asked for
+    zero velocity (it brakes to rest at a_max)."""
     n = p.shape[0]
     lag = 2.0 * a_max / jerk + 1.0 / k_v
     for i in range(n):
@@ -104,7 +123,7 @@ def advance_paths_kernel(
         rx = v[i, 0] - goal_vel[i, 0]
         ry = v[i, 1] - goal_vel[i, 1]
         e_eff = max(dist - np.sqrt(rx * rx + ry * ry) * lag, 0.0)
-        speed = min(min(v_max, np.sqrt(1.6 * a_max * e_eff)), 3.0 * dist)
+        speed = min(min(v_max, np.sqrt(2.0 * BRAKING_SHARE * a_max * e_eff)), PATH_APPROACH_GAIN * dist)
         k = speed / max(dist, 1e-9)
         vx = goal_vel[i, 0] + ex * k
         vy = goal_vel[i, 1] + ey * k
@@ -114,7 +133,7 @@ def advance_paths_kernel(
         if blocked[i]:
             vx = 0.0
             vy = 0.0
-        a_lim = min(a_max, max(g + za[i], 1.0) * tan_tilt)
+        a_lim = min(a_max, max(g + za[i], THRUST_FLOOR) * tan_tilt)
         ax = k_v * (vx - v[i, 0])
         ay = k_v * (vy - v[i, 1])
         s = min(1.0, a_lim / max(np.sqrt(ax * ax + ay * ay), 1e-12))
@@ -146,15 +165,21 @@ def advance_altitude_kernel(
     jerk: float,
     k_v: float,
 ) -> None:
-    """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place."""
+    """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place:
+    zp, zv, za (n,) towards target (n,) moving at target_vel (n,).
+
+    Invariant: −ad ≤ za ≤ au (less thrust is limited to ``ad``: eq. (18)'s U1 stays off its floor),
+    |Δza| ≤ jerk·dt, −vd ≤ zv asked ≤ vu, and the speed asked towards the target is ≤
+    √(2·BRAKING_SHARE·a·e_eff) with a the acceleration that will brake it: no overshoot of a
+    still target."""
     n = zp.shape[0]
     lag = (au + ad) / jerk + 1.0 / k_v
     for i in range(n):
         e = target[i] - zp[i]
         up = e >= 0.0
         e_eff = max(abs(e) - abs(zv[i]) * lag, 0.0)
-        v_stop = np.sqrt(2.0 * 0.8 * ad * e_eff) if up else np.sqrt(2.0 * 0.8 * au * e_eff)
-        speed = min(min(vu if up else vd, v_stop), 4.0 * abs(e))
+        v_stop = np.sqrt(2.0 * BRAKING_SHARE * ad * e_eff) if up else np.sqrt(2.0 * BRAKING_SHARE * au * e_eff)
+        speed = min(min(vu if up else vd, v_stop), ALTITUDE_APPROACH_GAIN * abs(e))
         sgn = 1.0 if e > 0.0 else (-1.0 if e < 0.0 else 0.0)
         v_des = min(max(target_vel[i] + sgn * speed, -vd), vu)
         a_des = min(max(k_v * (v_des - zv[i]), -ad), au)
