@@ -1,4 +1,7 @@
-"""The layered rule's limited paths (:class:`~swarm_mj.formation.anticollision.LayeredRule`), compiled.
+"""The anti-collision's compiled kernels: the layered rule's limited paths
+(:class:`~swarm_mj.formation.planner.LayeredRule`) and the pairwise helpers of the separation
+step and of the fused loop (:func:`horizontal_distances`, :func:`react_needed`, :func:`any_below`,
+:func:`merge_rows`).
 
 Each follower the rule steers flies a horizontal path (p, v, a (n, 2)) and an altitude path
 (zp, zv, za (n,)) whose position, velocity and acceleration go to the controller; the paths
@@ -254,3 +257,56 @@ def formed_step_kernel(
         out_acc[i, 0] = a[i, 0]
         out_acc[i, 1] = a[i, 1]
         out_acc[i, 2] = za[i]
+
+
+# --------------------------------------------------------------------------- pairwise helpers
+@jit(samples=lambda: [(np.zeros(2), np.full((2, 2), np.inf), 0.8)])
+def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:
+    """Fig. 5 has work to do: a drone holds an altitude offset (n,), or two drones are closer
+    than ``safety`` horizontally (h (n, n))."""
+    for x in offset:
+        if x != 0.0:
+            return True
+    for x in h.flat:
+        if x < safety:
+            return True
+    return False
+
+
+@jit(samples=lambda: [(np.full((2, 2), np.inf), 0.8)])
+def any_below(h: np.ndarray, limit: float) -> bool:
+    """Some pair (i, j), j < i, of the distances h (n, n) is below ``limit``."""
+    for i in range(h.shape[0]):
+        for j in range(i):
+            if h[i, j] < limit:
+                return True
+    return False
+
+
+@jit(samples=lambda: [(np.ones(2, dtype=np.bool_), *([np.zeros((2, 3))] * 4))])
+def merge_rows(steer: np.ndarray, rule_vel: np.ndarray, rule_acc: np.ndarray, vel: np.ndarray, acc: np.ndarray):
+    """Copies of vel, acc (n, 3) whose rows where steer (n,) is set come from rule_vel, rule_acc."""
+    v = vel.copy()
+    a = acc.copy()
+    for i in range(steer.shape[0]):
+        if steer[i]:
+            for j in range(3):
+                v[i, j] = rule_vel[i, j]
+                a[i, j] = rule_acc[i, j]
+    return v, a
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)),)])
+def horizontal_distances(pos: np.ndarray) -> np.ndarray:
+    """Pairwise horizontal distances (n, n) of positions (n, 3), +inf on the diagonal."""
+    n = pos.shape[0]
+    h = np.empty((n, n))
+    for i in range(n):
+        h[i, i] = np.inf
+        for j in range(i + 1, n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            d = np.sqrt(dx * dx + dy * dy)
+            h[i, j] = d
+            h[j, i] = d
+    return h
