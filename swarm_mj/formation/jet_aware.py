@@ -7,8 +7,8 @@ from __future__ import annotations
 import numpy as np
 
 from .layered import any_below, react_needed
-from .planner import CROSS, FORMED, CompensatedRule, _formed_step, _Step
-from .rules import _horizontal_distances
+from .planner import CROSS, FORMED, CompensatedRule, PlanStep, formed_step
+from .rules import pair_distances
 from .separation import closing_only, descending_onto, hold_above, never_through, offset_candidates, stacked_react
 
 
@@ -56,7 +56,7 @@ class JetAwareRule(CompensatedRule):
     def set_slots(self, pos_d: np.ndarray) -> None:
         """The setpoints (n, 3) whose horizontal distances 2. of the class docstring reads (row 0:
         the leader's reference); :meth:`update` sets them every step."""
-        self._slot_h = _horizontal_distances(pos_d)
+        self._slot_h = pair_distances(pos_d)
         self._slot_yield = any_below(self._slot_h, self.safety)  # some slots within D̄ of each other
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
@@ -77,7 +77,7 @@ class JetAwareRule(CompensatedRule):
         (:func:`~.separation.closing_only`)."""
         return closing_only(positions, self.vel, h, soon, self.params.closing_min)
 
-    def _formed(self, s: _Step) -> None:
+    def _formed(self, s: PlanStep) -> None:
         super()._formed(s)
         formed = self.phase == FORMED
         formed[0] = False
@@ -97,11 +97,11 @@ class JetAwareRule(CompensatedRule):
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """The layered rule's formed step (one compiled kernel) with 4. of the class docstring."""
-        h = _horizontal_distances(positions)
+        h = pair_distances(positions)
         self._react(t, positions, h, self._all)
         offset = self.offset
         if (h[1:] < self.overlap).any():
             soon = self._closing(positions, h, self._approach(positions, self.horizon))
             z_t = self._through(positions, formation_alt + offset, self._followers, soon)
             offset = z_t - formation_alt
-        return _formed_step(self, dt, positions, pos_d, formation_alt, offset)
+        return formed_step(self, dt, positions, pos_d, formation_alt, offset)

@@ -13,7 +13,7 @@ import numpy as np
 
 from .layered import BRAKING_SHARE, advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
 from .rule_params import RuleParams
-from .rules import PaperRule, _horizontal_distances, _rownorm
+from .rules import PaperRule, pair_distances, rownorm
 from .separation import Sensed, SeparationFilter, closest_approach, descending_onto, hold_above
 
 
@@ -30,7 +30,7 @@ G = 9.81  # m/s², paper Table 1 (docs/interpretations.md §1)
 
 
 @dataclass
-class _Step:
+class PlanStep:
     """What one step of the layered rule's transition (:meth:`LayeredRule.update`) works from and
     on, shared by its steps (n drones; index 0 is the leader)."""
 
@@ -299,7 +299,7 @@ class LayeredRule(PaperRule):
         self._dt_last = dt
         return dt
 
-    def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> _Step:
+    def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> PlanStep:
         """What this step of the transition works from (ours): each follower's layer and altitude
         target, and who sees whom within ``sensing_range`` (the leader's position it always has:
         the slots are built from it), with the predicted approaches and the swept altitude bands."""
@@ -314,14 +314,14 @@ class LayeredRule(PaperRule):
         # these then does nothing, as before)
         seen = _seen(positions, self.sensing_range)  # (n, n)
         soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
-        return _Step(
+        return PlanStep(
             t=t,
             positions=positions,
             pos_d=pos_d.copy(),
             formation_alt=formation_alt,
             dt=dt,
             steer=steer,
-            h=_horizontal_distances(positions),
+            h=pair_distances(positions),
             z=z,
             layer=layer,
             z_target=layer.copy(),
@@ -333,7 +333,7 @@ class LayeredRule(PaperRule):
             vband=self._vertical_overlap(z, self.horizon) & seen,
         )
 
-    def _climb(self, s: _Step) -> None:
+    def _climb(self, s: PlanStep) -> None:
         """1. *climb* (ours): in place to its layer; never through a drone within D̄ above (it waits
         ``hop`` below, climbs over when too late to stop, steps aside from one that hovers there).
         Followers that reach their layer switch to the crossing."""
@@ -351,7 +351,7 @@ class LayeredRule(PaperRule):
         # hover (a drone climbing in place passes a hovering one that close unharmed);
         # the leader, which yields to nobody, also when about level with it
         p = self.params
-        slow = _rownorm(self.vel[:, :2]) < p.hover_speed  # (n,), the leader too
+        slow = rownorm(self.vel[:, :2]) < p.hover_speed  # (n,), the leader too
         hovering = slow.copy()
         hovering[0] = False  # the leader may set off any time: always D̄ + approach_margin
         pass_hover = 2.0 * self.footprint + p.hover_pass_margin
@@ -378,7 +378,7 @@ class LayeredRule(PaperRule):
         # follower over its slot): step aside, aside_margin beyond the radius it keeps from it
         stuck = above & (h < radius) & slow[None, :] & (z[:, None] > p.airborne_min)
         positions = s.positions
-        there = _rownorm(positions[:, :2] - self.start_xy) < p.at_start
+        there = rownorm(positions[:, :2] - self.start_xy) < p.at_start
         aside = stuck.any(axis=1) & there & wait
         for i in np.flatnonzero(aside):
             j = int(np.argmin(np.where(stuck[i], h[i], np.inf)))
@@ -388,7 +388,7 @@ class LayeredRule(PaperRule):
             self.asides[i] += 1
             self.events.append({"t": s.t, "drone": int(i), "other": j, "action": "aside"})
 
-    def _cross(self, s: _Step) -> None:
+    def _cross(self, s: PlanStep) -> None:
         """2. *cross* (ours): the horizontal goals — its start while climbing, its slot (moving with
         the leader) after — and, crossing on the layer, braking to rest (``blocked``) while a drone
         it gives way to (the leader, a lower index, any drone not crossing) is in conflict."""
@@ -403,7 +403,7 @@ class LayeredRule(PaperRule):
         self.blocked &= crossing
         if not crossing.any():
             return
-        speed = _rownorm(self.vel[:, :2])
+        speed = rownorm(self.vel[:, :2])
         p = self.params
         horizon_i = np.minimum(speed / self.a_max + p.reaction_time, p.conflict_horizon_max)  # (n,) stop + react
         d = positions[None, :, :2] - positions[:, None, :2]
@@ -420,7 +420,7 @@ class LayeredRule(PaperRule):
             self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
         self.blocked = blocked
 
-    def _drop(self, s: _Step) -> None:
+    def _drop(self, s: PlanStep) -> None:
         """3. *drop* (ours): a crossing follower within ``arrive`` of its slot (and its path too)
         joins the formation — and so descends to the formation altitude — when nothing is under it."""
         crossing = self.phase == CROSS
@@ -428,8 +428,8 @@ class LayeredRule(PaperRule):
             return
         there = (
             crossing
-            & (_rownorm(s.positions[:, :2] - s.goal) < self.arrive)
-            & (_rownorm(self.path_p - s.goal) < self.arrive)
+            & (rownorm(s.positions[:, :2] - s.goal) < self.arrive)
+            & (rownorm(self.path_p - s.goal) < self.arrive)
         )
         for i in np.flatnonzero(there):
             # still in transit and (now or soon) within D̄ under it: it waits
@@ -439,7 +439,7 @@ class LayeredRule(PaperRule):
                 self.blocked[i] = False
                 self.events.append({"t": s.t, "drone": int(i), "other": -1, "action": "drop"})
 
-    def _formed(self, s: _Step) -> None:
+    def _formed(self, s: PlanStep) -> None:
         """4. *formed* (the paper's, Fig. 5): the reactive rule among formed drones and the leader
         sets the altitude offset of each formed follower; ours: one still descending never descends
         onto a drone in transit within D̄ (now or soon) below it, it waits ``hop`` above it
@@ -454,7 +454,7 @@ class LayeredRule(PaperRule):
         below = descending_onto(z, s.z_target, formed, self.phase != FORMED, s.soon < self.safety, self.clearance)
         s.z_target = hold_above(z, s.z_target, below, self.hop)
 
-    def _fly_paths(self, s: _Step) -> tuple[np.ndarray, np.ndarray]:
+    def _fly_paths(self, s: PlanStep) -> tuple[np.ndarray, np.ndarray]:
         """Every follower flies limited paths (ours): horizontal, to ``goal``, and vertical, to
         ``z_target`` (see :meth:`_advance_paths`, :meth:`_advance_altitude`); their position,
         velocity and acceleration are the controller's references."""
@@ -478,9 +478,9 @@ def _update_formed_impl(
     steps with the climb / cross / drop parts, which then do nothing, left out — the reactive
     rule (Fig. 5, among all drones), then the horizontal and altitude paths towards the slots
     and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.formation.layered.formed_step_kernel`)."""
-    h = _horizontal_distances(positions)
+    h = pair_distances(positions)
     rule._react(t, positions, h, rule._all)  # 4. Fig. 5 among all drones
-    return _formed_step(rule, dt, positions, pos_d, formation_alt, rule.offset)
+    return formed_step(rule, dt, positions, pos_d, formation_alt, rule.offset)
 
 
 def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
@@ -493,7 +493,7 @@ def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
     return seen
 
 
-def _formed_step(
+def formed_step(
     rule: LayeredRule, dt: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, offset: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray]:
     """The paths towards the slots and formation_alt + offset (n,), in one compiled kernel

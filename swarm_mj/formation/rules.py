@@ -124,12 +124,12 @@ def _merged(
     return pos_d, vel_d, acc_d
 
 
-def _rownorm(v: np.ndarray) -> np.ndarray:
-    """Euclidean norm of each row of v (n, k) (_rownorm(v), without its overhead)."""
+def rownorm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of v (n, k) (np.linalg.norm(v, axis=1), without its overhead)."""
     return np.sqrt(np.einsum("ij,ij->i", v, v))
 
 
-def _horizontal_distances(positions: np.ndarray) -> np.ndarray:
+def pair_distances(positions: np.ndarray) -> np.ndarray:
     """Pairwise horizontal distances (n, n), +inf on the diagonal."""
     return horizontal_distances(np.ascontiguousarray(positions, dtype=np.float64))
 
@@ -171,7 +171,7 @@ class PaperRule(Rule):
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         """Fig. 5 on every drone: altitude offsets only, (x, y) setpoints unchanged."""
-        h = _horizontal_distances(positions)
+        h = pair_distances(positions)
         self._react(t, positions, h, np.ones(self.n, dtype=bool))
         pos_d = pos_d.copy()
         pos_d[:, 2] += self.offset

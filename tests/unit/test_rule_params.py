@@ -111,9 +111,7 @@ def test_named_rules_are_presets_and_the_default_is_written_once():
     assert PRESETS["layers"] == PRESETS["paper"] == base
     changed = {k for k in PARAM_KEYS if getattr(PRESETS["jet-aware"], k) != getattr(base, k)}
     assert changed == {"max_speed", "max_accel", "formed_descent_accel", "downwash_feedforward"}
-    assert {k for k in PARAM_KEYS if getattr(PRESETS["compensated"], k) != getattr(base, k)} == {
-        "downwash_feedforward"
-    }
+    assert {k for k in PARAM_KEYS if getattr(PRESETS["compensated"], k) != getattr(base, k)} == {"downwash_feedforward"}
     # a scenario that sets nothing holds no copy of a default
     assert parse_scenario(_scenario()).anti_collision_params == {}
     # the rules' attributes come from the record
