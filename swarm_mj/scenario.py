@@ -24,7 +24,7 @@ from .aero.presets import PAPER, AeroConfig, parse_aero
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
-from .formation.rule_params import PARAM_KEYS, PRESETS, RuleParams, check_overrides
+from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
 from .mixing import MIXERS
 from .resources import SCENARIOS_DIR
@@ -53,10 +53,12 @@ _TOP_KEYS = {
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
-#: ``[formation]``: the D schedule, the rule, and any field of the rule's parameter record
-#: (:class:`~swarm_mj.formation.rule_params.RuleParams`).
-_FORMATION_KEYS = {"diameter", "anti_collision", *PARAM_KEYS}
-_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation"}
+#: ``[formation]``: the D schedule, the rule, and the fields of the rule's parameter record
+#: (:class:`~swarm_mj.formation.rule_params.RuleParams`) but the ones asked of the controller,
+#: which are ``[controller]`` keys.
+_RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("formation", "controller")}
+_FORMATION_KEYS = {"diameter", "anti_collision", *_RULE_KEYS["formation"]}
+_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
 
 
 @dataclass(frozen=True)
@@ -569,10 +571,11 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             f"unknown rule {rule!r}; choose one of {AUTO}, {', '.join(ANTI_COLLISION_RULES)}",
             where=f"{w}formation.anti_collision",
         )
-    ac_params = check_overrides({k: v for k, v in form.items() if k in PARAM_KEYS}, where=f"{w}formation")
+    ac_params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
     sensing = float(ac_params.pop("sensing_range", RuleParams().sensing_range))
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
+    ac_params |= check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
     g = ctl.get("gains", "table4")
     if isinstance(g, str):
         if g == "table4":

@@ -28,10 +28,9 @@ ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "layers": LayeredRule,
     "paper": PaperRule,
     "off": NoRule,
-    "compensated": CompensatedRule,
     "jet-aware": JetAwareRule,
 }
-AntiCollision = LayeredRule | PaperRule | NoRule | CompensatedRule | JetAwareRule
+AntiCollision = LayeredRule | PaperRule | NoRule | JetAwareRule
 
 
 __all__ = [
@@ -74,10 +73,10 @@ def resolve_rule(name: str, downwash: bool) -> str:
 
 
 def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:
-    """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``compensated``,
-    ``jet-aware``; resolve ``"auto"`` first with :func:`resolve_rule`): its preset
-    (:data:`PRESETS`) with ``params``, any fields of :class:`RuleParams` (a scenario's
-    ``[formation]`` keys; :class:`UserError` naming ``where`` for an unknown one)."""
+    """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``jet-aware``; resolve
+    ``"auto"`` first with :func:`resolve_rule`): its preset (:data:`PRESETS`) with ``params``, any
+    fields of :class:`RuleParams` (a scenario's ``[formation]`` keys and ``[controller]
+    downwash_feedforward``; :class:`UserError` naming ``where`` for an unknown one)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
     return ANTI_COLLISION_RULES[name](n, PRESETS[name].with_overrides(params, where=where.rsplit(".", 1)[0]))

@@ -7,12 +7,12 @@ from __future__ import annotations
 import numpy as np
 
 from .layered import any_below, react_needed
-from .planner import CROSS, FORMED, CompensatedRule, PlanStep, formed_step
+from .planner import CROSS, FORMED, LayeredRule, PlanStep, formed_step
 from .rules import pair_distances
 from .separation import closing_only, descending_onto, hold_above, never_through, offset_candidates, stacked_react
 
 
-class JetAwareRule(CompensatedRule):
+class JetAwareRule(LayeredRule):
     """``anti_collision = "jet-aware"``, the default wherever the physics has downwash
     (``--aero realistic``; ``"auto"`` picks it): the layered rule made downwash-aware and its
     formed phase made to settle.

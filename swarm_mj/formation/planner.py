@@ -1,7 +1,6 @@
 """The planner of the anti-collision (ours; docs/interpretations.md §4, docs/anticollision.md): the
 phase machine (climb, cross, formed) of :class:`LayeredRule`, its layers and its limited paths;
-the separation it applies comes from :mod:`.separation`. :class:`CompensatedRule` is its preset
-with the downwash feedforward on.
+the separation it applies comes from :mod:`.separation`.
 """
 
 from __future__ import annotations
@@ -530,10 +529,7 @@ def formed_step(
     return out, rule._followers
 
 
-class CompensatedRule(LayeredRule):
-    """``anti_collision = "compensated"``: the layered rule (:class:`LayeredRule`, the paths
-    unchanged) with ``downwash_feedforward`` on (its preset): under ``--aero realistic`` the
-    controller compensates the downwash force it predicts; under the paper's physics it is the
-    layered rule, bit for bit. (The same as ``layers`` with ``downwash_feedforward = true``.)"""
-
-    name = "compensated"
+#: The layered rule; the name stays for the fused loop's rule check. What the ``compensated`` rule
+#: was (the layered rule with the downwash feedforward) is ``layers`` with ``[controller]
+#: downwash_feedforward = true``.
+CompensatedRule = LayeredRule

@@ -3,7 +3,8 @@ measurements behind each value: docs/anticollision.md).
 
 Every tunable and named threshold of the rules is one field of the frozen :class:`RuleParams`,
 with its unit, its admissible range and a one-line reason in the field's metadata; the default
-is written there once. A scenario sets any of them in its ``[formation]`` table
+is written there once. A scenario sets any of them in its ``[formation]`` table (``downwash_feedforward``, asked of the
+controller, in ``[controller]``)
 (:func:`check_overrides` validates them from the metadata, and an unknown key is one
 :class:`~swarm_mj.errors.UserError` naming it and the allowed ones). The named rules are
 presets (:data:`PRESETS`): the record with a few fields changed.
@@ -28,10 +29,20 @@ from ..errors import UserError
 from ..params import DEFAULT_PARAMS, QuadParams
 
 
-def _p(default: Any, unit: str, why: str, lo: float | None = 0.0, hi: float | None = None, *, open_lo: bool = True):
-    """A record field: its default, unit, one-line reason and range (``lo`` < v (or ≤ when not
-    ``open_lo``) ≤ ``hi``; None: unbounded)."""
-    return field(default=default, metadata={"unit": unit, "why": why, "lo": lo, "hi": hi, "open_lo": open_lo})
+def _p(
+    default: Any,
+    unit: str,
+    why: str,
+    lo: float | None = 0.0,
+    hi: float | None = None,
+    *,
+    open_lo: bool = True,
+    table: str = "formation",
+):
+    """A record field: its default, unit, one-line reason, range (``lo`` < v (or ≤ when not
+    ``open_lo``) ≤ ``hi``; None: unbounded) and the scenario table that sets it."""
+    meta = {"unit": unit, "why": why, "lo": lo, "hi": hi, "open_lo": open_lo, "table": table}
+    return field(default=default, metadata=meta)
 
 
 @dataclass(frozen=True)
@@ -86,7 +97,10 @@ class RuleParams:
     crossing_hold: float = _p(0.2, "m", "a descending formed follower holds over a crossing drone from D̄ + this")
     max_hops_up: int = _p(3, "hops", "highest stacked offset, in hops above the formation", 1.0, 20.0, open_lo=False)
     max_hops_down: int = _p(2, "hops", "lowest stacked offset, in hops below the formation", 0.0, 20.0, open_lo=False)
-    downwash_feedforward: bool = _p(False, "", "the controller compensates the others' predicted downwash", None)
+    # --- asked of the controller (a [controller] key, beside wind_feedforward)
+    downwash_feedforward: bool = _p(
+        False, "", "the controller compensates the others' predicted downwash", None, table="controller"
+    )
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -106,8 +120,9 @@ class RuleParams:
         return 2.0 * self.keep_out(vehicle) + self.overlap_spare
 
 
-#: The keys a scenario may set (every field of :class:`RuleParams`).
+#: The keys a scenario may set (every field of :class:`RuleParams`), and the table of each.
 PARAM_KEYS: tuple[str, ...] = tuple(f.name for f in fields(RuleParams))
+PARAM_TABLE: dict[str, str] = {f.name: f.metadata["table"] for f in fields(RuleParams)}
 _FIELDS = {f.name: f for f in fields(RuleParams)}
 
 
@@ -151,11 +166,12 @@ def check_overrides(overrides: dict[str, Any], where: str = "formation") -> dict
     return out
 
 
-#: The named rules as presets of the record (``off`` has none: it reads nothing).
+#: The named rules as presets of the record (``off`` reads nothing). The layered rule with the
+#: downwash feedforward, once the ``compensated`` rule, is ``layers`` with ``[controller]
+#: downwash_feedforward = true``.
 PRESETS: dict[str, RuleParams] = {
     "paper": RuleParams(),
     "layers": RuleParams(),
-    "compensated": RuleParams(downwash_feedforward=True),
     "jet-aware": RuleParams(max_speed=3.0, max_accel=4.0, formed_descent_accel=3.0, downwash_feedforward=True),
     "off": RuleParams(),
 }

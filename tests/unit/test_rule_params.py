@@ -13,9 +13,17 @@ import numpy as np
 import pytest
 
 from swarm_mj.aero.constants import ROTOR_RADIUS
+from swarm_mj.aero.presets import preset
 from swarm_mj.errors import UserError
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule, make_rule
-from swarm_mj.formation.rule_params import PARAM_KEYS, PRESETS, RuleParams, check_overrides, vehicle_outline
+from swarm_mj.formation.rule_params import (
+    PARAM_KEYS,
+    PARAM_TABLE,
+    PRESETS,
+    RuleParams,
+    check_overrides,
+    vehicle_outline,
+)
 from swarm_mj.params import QuadParams
 from swarm_mj.policy import BacksteppingPolicy
 from swarm_mj.scenario import parse_scenario
@@ -24,12 +32,16 @@ ROOT = Path(__file__).resolve().parents[2]
 FORMATION = ROOT / "swarm_mj" / "formation"
 
 
-def _scenario(**formation) -> dict:
+def _scenario(**keys) -> dict:
+    """A scenario with each key in its table ([formation], or [controller] for what is asked of it)."""
+    tables: dict[str, dict] = {"formation": {}, "controller": {}}
+    for k, v in keys.items():
+        tables[PARAM_TABLE.get(k, "formation")][k] = v
     return {
         "duration": 1.0,
         "leader": {"trajectory": "hover", "params": {"position": [0.0, 0.0, 2.0]}},
         "followers": {"start": [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]},
-        "formation": formation,
+        **tables,
     }
 
 
@@ -82,7 +94,7 @@ def test_unknown_key_is_one_line_naming_it_and_the_allowed_ones():
         parse_scenario(_scenario(crosing_hold=0.3), path="x.toml")
     msg = str(e.value)
     assert "\n" not in msg and "crosing_hold" in msg and "x.toml: formation" in msg
-    assert all(k in msg for k in PARAM_KEYS)
+    assert all(k in msg for k in PARAM_KEYS if PARAM_TABLE[k] == "formation")
     with pytest.raises(UserError, match="unknown key 'jerk_limit'; allowed: safety_distance"):
         make_rule("layers", 3, jerk_limit=1.0)
 
@@ -103,7 +115,25 @@ def test_unknown_key_is_one_line_naming_it_and_the_allowed_ones():
 def test_bad_values_are_refused_naming_the_field(key, value, needle):
     with pytest.raises(UserError, match=needle) as e:
         parse_scenario(_scenario(**{key: value}), path="x.toml")
-    assert f"x.toml: formation.{key}:" in str(e.value)
+    assert f"x.toml: {PARAM_TABLE[key]}.{key}:" in str(e.value)
+
+
+def test_the_downwash_feedforward_is_a_controller_option_any_rule_may_take():
+    # once the ``compensated`` rule: now ``layers`` (or any rule) with [controller] downwash_feedforward
+    real = preset("realistic")
+    layers = parse_scenario(_scenario(anti_collision="layers")).with_overrides(aero=real)
+    assert BacksteppingPolicy(layers).downwash_ff is None
+    on = parse_scenario(_scenario(anti_collision="layers", downwash_feedforward=True)).with_overrides(aero=real)
+    assert BacksteppingPolicy(on).downwash_ff is not None and isinstance(BacksteppingPolicy(on).rule, LayeredRule)
+    jet = parse_scenario(_scenario(anti_collision="jet-aware")).with_overrides(aero=real)
+    assert BacksteppingPolicy(jet).downwash_ff is not None  # the jet-aware preset asks for it
+    off = parse_scenario(_scenario(anti_collision="jet-aware", downwash_feedforward=False)).with_overrides(aero=real)
+    assert BacksteppingPolicy(off).downwash_ff is None
+    # it is not a [formation] key
+    data = _scenario()
+    data["formation"]["downwash_feedforward"] = True
+    with pytest.raises(UserError, match="unknown key"):
+        parse_scenario(data)
 
 
 def test_named_rules_are_presets_and_the_default_is_written_once():
@@ -111,14 +141,13 @@ def test_named_rules_are_presets_and_the_default_is_written_once():
     assert PRESETS["layers"] == PRESETS["paper"] == base
     changed = {k for k in PARAM_KEYS if getattr(PRESETS["jet-aware"], k) != getattr(base, k)}
     assert changed == {"max_speed", "max_accel", "formed_descent_accel", "downwash_feedforward"}
-    assert {k for k in PARAM_KEYS if getattr(PRESETS["compensated"], k) != getattr(base, k)} == {"downwash_feedforward"}
     # a scenario that sets nothing holds no copy of a default
     assert parse_scenario(_scenario()).anti_collision_params == {}
     # the rules' attributes come from the record
     rule = make_rule("jet-aware", 3)
     assert (rule.safety, rule.hop, rule.v_max, rule.a_max) == (0.8, 0.4, 3.0, 4.0)
     assert rule.z_down_formed == (1.5, 3.0) and rule.downwash_feedforward
-    assert not make_rule("layers", 3).downwash_feedforward and make_rule("compensated", 3).downwash_feedforward
+    assert not make_rule("layers", 3).downwash_feedforward
 
 
 def test_keep_out_is_the_vehicles_arm_plus_rotor_radius_plus_the_margin():
