@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from ..params import DEFAULT_PARAMS
 from .layered import BRAKING_SHARE, advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm
@@ -25,7 +26,7 @@ def _stoppable_speed(room: float, accel: float, lag: float, room_min: float) -> 
 
 
 CLIMB, CROSS, FORMED = 0, 1, 2
-G = 9.81  # m/s², paper Table 1 (docs/interpretations.md §1)
+G = DEFAULT_PARAMS.g  # m/s², paper Table 1 (docs/interpretations.md §1)
 
 
 @dataclass
@@ -405,12 +406,7 @@ class LayeredRule(PaperRule):
         speed = rownorm(self.vel[:, :2])
         p = self.params
         horizon_i = np.minimum(speed / self.a_max + p.reaction_time, p.conflict_horizon_max)  # (n,) stop + react
-        d = positions[None, :, :2] - positions[:, None, :2]
-        dv = self.vel[None, :, :2] - self.vel[:, None, :2]
-        vv = np.einsum("ijk,ijk->ij", dv, dv)
-        tc = np.clip(-np.einsum("ijk,ijk->ij", d, dv) / np.maximum(vv, 1e-9), 0.0, horizon_i[:, None])
-        m = d + tc[:, :, None] * dv
-        gap = np.sqrt(np.einsum("ijk,ijk->ij", m, m))
+        gap = closest_approach(positions, self.vel, horizon_i[:, None])  # (n, n) over each one's horizon
         near = (gap < self.safety) & s.seen
         gives_way = (s.idx[None, :] < s.idx[:, None]) | (self.phase[None, :] != CROSS)
         conflict = near & s.vband & gives_way  # in conflict: predicted within D̄ in a band it sweeps

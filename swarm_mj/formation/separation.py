@@ -26,9 +26,10 @@ import numpy as np
 from .layered import react_needed
 
 
-def closest_approach(positions: np.ndarray, vel: np.ndarray, horizon: float) -> np.ndarray:
-    """(n, n) smallest horizontal distance of each pair over the next ``horizon`` s, predicting the
-    relative motion as a straight line (velocities ``vel`` (n, 3)); +inf on the diagonal.
+def closest_approach(positions: np.ndarray, vel: np.ndarray, horizon: float | np.ndarray) -> np.ndarray:
+    """(n, n) smallest horizontal distance of each pair over the next ``horizon`` s (a number, or
+    (n, 1): drone i's own), predicting the relative motion as a straight line (velocities ``vel``
+    (n, 3)); +inf on the diagonal.
 
     Invariant: ≤ the present distance, and equal to it for a pair moving apart (the time of
     closest approach is clipped to [0, horizon])."""
