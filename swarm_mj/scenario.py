@@ -24,6 +24,7 @@ from .aero.presets import PAPER, AeroConfig, parse_aero
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
+from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
 from .mixing import MIXERS
 from .resources import SCENARIOS_DIR
@@ -52,8 +53,12 @@ _TOP_KEYS = {
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
-_FORMATION_KEYS = {"diameter", "anti_collision", "safety_distance", "hop", "hysteresis", "arrive", "sensing_range"}
-_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation"}
+#: ``[formation]``: the D schedule, the rule, and the fields of the rule's parameter record
+#: (:class:`~swarm_mj.formation.rule_params.RuleParams`) but the ones asked of the controller,
+#: which are ``[controller]`` keys.
+_RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("formation", "controller")}
+_FORMATION_KEYS = {"diameter", "anti_collision", *_RULE_KEYS["formation"]}
+_CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
 
 
 @dataclass(frozen=True)
@@ -85,7 +90,7 @@ class Scenario:
     random_start: RandomStart | None
     diameter: Any  # float or [[t, D], ...]
     anti_collision: str
-    anti_collision_params: dict[str, float]
+    anti_collision_params: dict[str, Any]  # the record's fields the scenario sets (sensing_range aside)
     sensing_range: float
     gains: np.ndarray  # (12,) or (n, 12)
     gains_source: str
@@ -103,6 +108,12 @@ class Scenario:
         """The anti-collision rule flown: ``anti_collision`` with ``"auto"`` resolved for the physics
         (:func:`~swarm_mj.formation.anticollision.resolve_rule`)."""
         return resolve_rule(self.anti_collision, self.aero.downwash)
+
+    @property
+    def rule_params(self) -> RuleParams:
+        """The parameter record the rule flies with: :attr:`rule`'s preset with the scenario's
+        ``[formation]`` fields (and its ``sensing_range``)."""
+        return PRESETS[self.rule].with_overrides({**self.anti_collision_params, "sensing_range": self.sensing_range})
 
     @property
     def attitude_priority_on(self) -> bool:
@@ -560,14 +571,11 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             f"unknown rule {rule!r}; choose one of {AUTO}, {', '.join(ANTI_COLLISION_RULES)}",
             where=f"{w}formation.anti_collision",
         )
-    wf = f"{w}formation."
-    ac_params = {
-        k: float(_number(form, k, d, wf, positive=True))
-        for k, d in (("safety_distance", 0.8), ("hop", 0.4), ("hysteresis", 0.05), ("arrive", 0.2))
-    }
-    sensing = float(_number(form, "sensing_range", 4.0, wf, positive=True))
+    ac_params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
+    sensing = float(ac_params.pop("sensing_range", RuleParams().sensing_range))
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
+    ac_params |= check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
     g = ctl.get("gains", "table4")
     if isinstance(g, str):
         if g == "table4":

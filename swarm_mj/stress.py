@@ -25,7 +25,7 @@ from .parallel import map_ordered
 from .progress import Progress
 from .scenario import RandomStart, check_random_start_feasible
 
-RULES = tuple(ANTI_COLLISION_RULES)  # layers, paper, off, clearance, compensated, jet-aware ("auto" picks one)
+RULES = tuple(ANTI_COLLISION_RULES)  # layers, paper, off, jet-aware ("auto" picks one)
 
 
 @dataclass(frozen=True)

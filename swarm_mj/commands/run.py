@@ -143,7 +143,7 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
         from ..recording import write_recording
 
         out = Path(args.output) if args.output else Path(f"{sc.name}.rrd")
-        write_recording(result, out, safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
+        write_recording(result, out, safety_distance=sc.rule_params.safety_distance)
         if not args.quiet:
             print(f"recording: {out}  (open with: swarm-mj view {out})", file=sys.stderr)
         if args.spawn:  # after the file is complete, so that the recording is kept whatever happens

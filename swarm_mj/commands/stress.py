@@ -13,7 +13,7 @@ worst altitude dip of a drone in another drone's jet (``downwash_dip_worst_m``, 
 ``metrics.downwash_dip``).
 
 Each drone sees the others within ``--sensing-range`` (default 4 m; the layered rule caps
-its speeds so that it can stop within it, see ``formation.anticollision.LayeredRule``).
+its speeds so that it can stop within it, see ``formation.planner.LayeredRule``).
 Short runs (``--duration`` 15 s) are enough to form up.
 
     swarm-mj stress --rule layers --rule paper --starts 100 --followers 5

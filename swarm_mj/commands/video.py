@@ -171,7 +171,7 @@ def main(args: argparse.Namespace) -> int:
     if args.record:
         from ..recording import write_recording
 
-        write_recording(result, Path(args.record), safety_distance=sc.anti_collision_params.get("safety_distance", 0.8))
+        write_recording(result, Path(args.record), safety_distance=sc.rule_params.safety_distance)
         if not args.quiet:
             print(f"recording: {args.record}  (open with: rerun {args.record})", file=sys.stderr)
     if result.error is not None:

@@ -1,4 +1,7 @@
-"""The layered rule's limited paths (:class:`~swarm_mj.formation.anticollision.LayeredRule`), compiled.
+"""The anti-collision's compiled kernels: the layered rule's limited paths
+(:class:`~swarm_mj.formation.planner.LayeredRule`) and the pairwise helpers of the separation
+step and of the fused loop (:func:`horizontal_distances`, :func:`react_needed`, :func:`any_below`,
+:func:`merge_rows`).
 
 Each follower the rule steers flies a horizontal path (p, v, a (n, 2)) and an altitude path
 (zp, zv, za (n,)) whose position, velocity and acceleration go to the controller; the paths
@@ -11,6 +14,19 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
+
+# Fixed in the kernels (compile-time constants: the kernels' signatures, which the fused loop
+# calls, do not carry them; docs/anticollision.md, "fixed in the kernels"). Not scenario keys.
+#: Share of its acceleration limit a path plans to brake with (v = √(2·BRAKING_SHARE·a·e)): 20 %
+#: left for the lag of the acceleration turning round.
+BRAKING_SHARE = 0.8
+#: Gain (1/s) of a horizontal path's final approach: speed ≤ this · distance to the goal.
+PATH_APPROACH_GAIN = 3.0
+#: Gain (1/s) of an altitude path's final approach: speed ≤ this · distance to the target.
+ALTITUDE_APPROACH_GAIN = 4.0
+#: Least vertical specific force (m/s²) the tilt limit of a horizontal path is taken from:
+#: a ≤ max(g + z̈, this)·tan(max tilt), so that a path braking a descent still steers.
+THRUST_FLOOR = 1.0
 
 
 def _formed_samples():
@@ -94,7 +110,13 @@ def advance_paths_kernel(
     g: float,
 ) -> None:
     """One step of the layered rule's horizontal paths (see LayeredRule._advance_paths), in place:
-    p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2)."""
+    p, v, a (n, 2) move towards goal (n, 2) moving at goal_vel (n, 2).
+
+    Invariant: |a| ≤ min(a_max, max(g + za, THRUST_FLOOR)·tan_tilt), |Δa| ≤ jerk·dt per step, and
+    the speed asked relative to the goal is ≤ v_max and ≤ √(2·BRAKING_SHARE·a_max·e_eff), e_eff
+    the distance left after the lag 2·a_max/jerk + 1/k_v: a path stops at the goal without
+    overshooting as long as the goal moves no faster than v_max. A blocked drone is asked for
+    zero velocity (it brakes to rest at a_max)."""
     n = p.shape[0]
     lag = 2.0 * a_max / jerk + 1.0 / k_v
     for i in range(n):
@@ -104,7 +126,7 @@ def advance_paths_kernel(
         rx = v[i, 0] - goal_vel[i, 0]
         ry = v[i, 1] - goal_vel[i, 1]
         e_eff = max(dist - np.sqrt(rx * rx + ry * ry) * lag, 0.0)
-        speed = min(min(v_max, np.sqrt(1.6 * a_max * e_eff)), 3.0 * dist)
+        speed = min(min(v_max, np.sqrt(2.0 * BRAKING_SHARE * a_max * e_eff)), PATH_APPROACH_GAIN * dist)
         k = speed / max(dist, 1e-9)
         vx = goal_vel[i, 0] + ex * k
         vy = goal_vel[i, 1] + ey * k
@@ -114,7 +136,7 @@ def advance_paths_kernel(
         if blocked[i]:
             vx = 0.0
             vy = 0.0
-        a_lim = min(a_max, max(g + za[i], 1.0) * tan_tilt)
+        a_lim = min(a_max, max(g + za[i], THRUST_FLOOR) * tan_tilt)
         ax = k_v * (vx - v[i, 0])
         ay = k_v * (vy - v[i, 1])
         s = min(1.0, a_lim / max(np.sqrt(ax * ax + ay * ay), 1e-12))
@@ -146,15 +168,21 @@ def advance_altitude_kernel(
     jerk: float,
     k_v: float,
 ) -> None:
-    """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place."""
+    """One step of the layered rule's altitude paths (see LayeredRule._advance_altitude), in place:
+    zp, zv, za (n,) towards target (n,) moving at target_vel (n,).
+
+    Invariant: −ad ≤ za ≤ au (less thrust is limited to ``ad``: eq. (18)'s U1 stays off its floor),
+    |Δza| ≤ jerk·dt, −vd ≤ zv asked ≤ vu, and the speed asked towards the target is ≤
+    √(2·BRAKING_SHARE·a·e_eff) with a the acceleration that will brake it: no overshoot of a
+    still target."""
     n = zp.shape[0]
     lag = (au + ad) / jerk + 1.0 / k_v
     for i in range(n):
         e = target[i] - zp[i]
         up = e >= 0.0
         e_eff = max(abs(e) - abs(zv[i]) * lag, 0.0)
-        v_stop = np.sqrt(2.0 * 0.8 * ad * e_eff) if up else np.sqrt(2.0 * 0.8 * au * e_eff)
-        speed = min(min(vu if up else vd, v_stop), 4.0 * abs(e))
+        v_stop = np.sqrt(2.0 * BRAKING_SHARE * ad * e_eff) if up else np.sqrt(2.0 * BRAKING_SHARE * au * e_eff)
+        speed = min(min(vu if up else vd, v_stop), ALTITUDE_APPROACH_GAIN * abs(e))
         sgn = 1.0 if e > 0.0 else (-1.0 if e < 0.0 else 0.0)
         v_des = min(max(target_vel[i] + sgn * speed, -vd), vu)
         a_des = min(max(k_v * (v_des - zv[i]), -ad), au)
@@ -229,3 +257,56 @@ def formed_step_kernel(
         out_acc[i, 0] = a[i, 0]
         out_acc[i, 1] = a[i, 1]
         out_acc[i, 2] = za[i]
+
+
+# --------------------------------------------------------------------------- pairwise helpers
+@jit(samples=lambda: [(np.zeros(2), np.full((2, 2), np.inf), 0.8)])
+def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:
+    """Fig. 5 has work to do: a drone holds an altitude offset (n,), or two drones are closer
+    than ``safety`` horizontally (h (n, n))."""
+    for x in offset:
+        if x != 0.0:
+            return True
+    for x in h.flat:
+        if x < safety:
+            return True
+    return False
+
+
+@jit(samples=lambda: [(np.full((2, 2), np.inf), 0.8)])
+def any_below(h: np.ndarray, limit: float) -> bool:
+    """Some pair (i, j), j < i, of the distances h (n, n) is below ``limit``."""
+    for i in range(h.shape[0]):
+        for j in range(i):
+            if h[i, j] < limit:
+                return True
+    return False
+
+
+@jit(samples=lambda: [(np.ones(2, dtype=np.bool_), *([np.zeros((2, 3))] * 4))])
+def merge_rows(steer: np.ndarray, rule_vel: np.ndarray, rule_acc: np.ndarray, vel: np.ndarray, acc: np.ndarray):
+    """Copies of vel, acc (n, 3) whose rows where steer (n,) is set come from rule_vel, rule_acc."""
+    v = vel.copy()
+    a = acc.copy()
+    for i in range(steer.shape[0]):
+        if steer[i]:
+            for j in range(3):
+                v[i, j] = rule_vel[i, j]
+                a[i, j] = rule_acc[i, j]
+    return v, a
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)),)])
+def horizontal_distances(pos: np.ndarray) -> np.ndarray:
+    """Pairwise horizontal distances (n, n) of positions (n, 3), +inf on the diagonal."""
+    n = pos.shape[0]
+    h = np.empty((n, n))
+    for i in range(n):
+        h[i, i] = np.inf
+        for j in range(i + 1, n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            d = np.sqrt(dx * dx + dy * dy)
+            h[i, j] = d
+            h[j, i] = d
+    return h

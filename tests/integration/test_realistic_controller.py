@@ -56,10 +56,13 @@ def _tilt_std_after(sc, t0: float) -> tuple[float, dict]:
 @pytest.mark.slow
 def test_lag_compensation_damps_the_swarms_attitude_ringing():
     # the six-drone circle under realistic physics, 10 s, with the layered rule's crossing figures
-    # (``compensated``: the layered rule and the downwash feedforward): after the form-up (t > 6 s)
+    # (``layers`` and the downwash feedforward): after the form-up (t > 6 s)
     # the drones fly their slots on the circle; without the compensation their roll and pitch ring
     # (std 4.6°, up to 43°, docs/interpretations.md §2), with it they hold (0.6°, at most 3.5°)
-    sc = with_aero(load_scenario("circle").with_overrides(duration=10.0, anti_collision="compensated"), "realistic")
+    sc = load_scenario("circle").with_overrides(
+        duration=10.0, anti_collision="layers", anti_collision_params={"downwash_feedforward": True}
+    )
+    sc = with_aero(sc, "realistic")
     on, s_on = _tilt_std_after(sc, 6.0)
     off, _ = _tilt_std_after(sc.with_overrides(lag_compensation="off"), 6.0)
     assert on < 0.25 * off, (on, off)

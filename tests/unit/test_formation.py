@@ -154,7 +154,7 @@ def test_make_rule_names_and_refusal():
     assert isinstance(make_rule("layers", 6), LayeredRule)
     assert isinstance(make_rule("paper", 6), PaperRule) and not isinstance(make_rule("paper", 6), LayeredRule)
     assert isinstance(make_rule("off", 6), NoRule)
-    with pytest.raises(UserError, match="layers, paper, off, clearance, compensated"):
+    with pytest.raises(UserError, match="layers, paper, off, jet-aware"):
         make_rule("magic", 6)
 
 

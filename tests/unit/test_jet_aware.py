@@ -9,7 +9,6 @@ import pytest
 
 from swarm_mj.formation.anticollision import (
     CROSS,
-    CROSSING_HOLD_M,
     FORMED,
     OVERLAP_M,
     JetAwareRule,
@@ -17,9 +16,11 @@ from swarm_mj.formation.anticollision import (
     make_rule,
     resolve_rule,
 )
+from swarm_mj.formation.rule_params import RuleParams
 from swarm_mj.mixing import MIX, attitude_priority
 
 HOP = 0.4
+HOLD = RuleParams().crossing_hold  # 7. of JetAwareRule: how far beyond D̄ the early hold starts
 FAR = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.0], [0.0, 10.0, 2.0]])  # setpoints far apart
 
 
@@ -34,7 +35,7 @@ def test_auto_is_jet_aware_under_downwash_and_layers_otherwise():
     assert resolve_rule("auto", downwash=False) == "layers"
     assert resolve_rule("paper", downwash=True) == "paper"
     assert isinstance(make_rule("jet-aware", 3), JetAwareRule)
-    assert JetAwareRule.downwash_feedforward
+    assert make_rule("jet-aware", 3).downwash_feedforward and not make_rule("layers", 3).downwash_feedforward
 
 
 def test_two_drones_yielding_to_the_leader_do_not_end_at_the_same_altitude():
@@ -93,14 +94,14 @@ def test_a_formed_follower_never_changes_altitude_through_a_drone_under_it():
 
 def test_a_descending_formed_follower_holds_early_over_a_crossing_drone():
     # 7. of JetAwareRule: follower 1 has joined and descends to 2.0 m; follower 2 crosses 0.3 m
-    # under it. Held hop above it from D̄ + CROSSING_HOLD_M out (the layered rule: from D̄)
+    # under it. Held hop above it from D̄ + crossing_hold out (the layered rule: from D̄)
     rule = JetAwareRule(3)
     p = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 3.0], [0.0, 2.0, 2.7]])
     rule.reset(p)
     rule.phase[:] = [FORMED, FORMED, CROSS]
     formed = np.array([False, True, False])
     target = np.array([2.0, 2.0, 3.2])
-    for gap, held in ((0.79, True), (0.8 + CROSSING_HOLD_M - 0.01, True), (0.8 + CROSSING_HOLD_M + 0.01, False)):
+    for gap, held in ((0.79, True), (0.8 + HOLD - 0.01, True), (0.8 + HOLD + 0.01, False)):
         soon = np.full((3, 3), np.inf)
         soon[1, 2] = soon[2, 1] = gap  # follower 2 now or soon that far from follower 1
         z_t = rule._over_crossing(p[:, 2], soon, target, formed)

@@ -117,7 +117,8 @@ def test_defaults_of_a_minimal_scenario():
     assert real.rule == "jet-aware" and real.attitude_priority_on
     assert sc.with_overrides(mixer="attitude_priority").attitude_priority_on
     assert not real.with_overrides(mixer="clip").attitude_priority_on
-    assert sc.anti_collision_params["safety_distance"] == 0.8 and sc.anti_collision_params["hop"] == 0.4
+    assert sc.rule_params.safety_distance == 0.8 and sc.rule_params.hop == 0.4  # paper Fig. 5
+    assert sc.anti_collision_params == {}  # nothing set: every value is the preset's
     assert sc.n_drones == 1 and sc.names == ["leader"]
     assert sc.steady_after == 10.0
 

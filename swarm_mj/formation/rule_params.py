@@ -1,0 +1,182 @@
+"""The anti-collision's parameter record (docs/interpretations.md §4; the long reasons and the
+measurements behind each value: docs/anticollision.md).
+
+Every tunable and named threshold of the rules is one field of the frozen :class:`RuleParams`,
+with its unit, its admissible range and a one-line reason in the field's metadata; the default
+is written there once. A scenario sets any of them in its ``[formation]`` table (``downwash_feedforward``, asked of the
+controller, in ``[controller]``)
+(:func:`check_overrides` validates them from the metadata, and an unknown key is one
+:class:`~swarm_mj.errors.UserError` naming it and the allowed ones). The named rules are
+presets (:data:`PRESETS`): the record with a few fields changed.
+
+The vehicle's geometry is not a parameter: the keep-out radius of a drone is its arm plus its
+rotor radius (:func:`vehicle_outline`), from the vehicle's parameters, plus ``outline_margin``.
+
+Numbers that shape the compiled paths (the braking share, the approach gains, the thrust floor)
+are :mod:`swarm_mj.formation.layered`'s constants, not fields: the kernels' signatures do not
+carry them (docs/anticollision.md, "fixed in the kernels").
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields, replace
+from typing import Any
+
+import numpy as np
+
+from ..aero.constants import ROTOR_RADIUS
+from ..errors import UserError
+from ..params import DEFAULT_PARAMS, QuadParams
+
+
+def _p(
+    default: Any,
+    unit: str,
+    why: str,
+    lo: float | None = 0.0,
+    hi: float | None = None,
+    *,
+    open_lo: bool = True,
+    table: str = "formation",
+):
+    """A record field: its default, unit, one-line reason, range (``lo`` < v (or ≤ when not
+    ``open_lo``) ≤ ``hi``; None: unbounded) and the scenario table that sets it."""
+    meta = {"unit": unit, "why": why, "lo": lo, "hi": hi, "open_lo": open_lo, "table": table}
+    return field(default=default, metadata=meta)
+
+
+@dataclass(frozen=True)
+class RuleParams:
+    """Every tunable of the anti-collision (units and reasons in each field's metadata).
+
+    Fields marked *paper* are Fig. 5's (§4); the others are ours (docs/interpretations.md §4,
+    docs/anticollision.md)."""
+
+    # --- the paper's reaction (Fig. 5)
+    safety_distance: float = _p(0.8, "m", "paper: D̄, the horizontal distance under which the higher index yields")
+    hop: float = _p(0.4, "m", "paper: the altitude change of a yielding drone; also the spacing of the layers")
+    hysteresis: float = _p(0.05, "m", "a yielding drone returns once beyond D̄ + this (the paper does not say when)")
+    # --- sensing and prediction
+    sensing_range: float = _p(4.0, "m", "a drone decides from the drones within this 3D distance (and the leader)")
+    horizon: float = _p(1.0, "s", "closest approach predicted over this horizon (straight-line relative motion)")
+    hover_speed: float = _p(0.5, "m/s", "a drone slower than this horizontally counts as hovering")
+    # --- the planner's limited paths
+    max_speed: float = _p(4.0, "m/s", "horizontal path speed on the layers (capped to stop within the sensing range)")
+    max_accel: float = _p(6.0, "m/s²", "horizontal path acceleration on the layers")
+    climb_speed: float = _p(4.0, "m/s", "altitude path speed up (capped to stop within the sensing range)")
+    climb_accel: float = _p(8.0, "m/s²", "altitude path acceleration up (more thrust)")
+    descent_speed: float = _p(1.5, "m/s", "altitude path speed down")
+    descent_accel: float = _p(5.0, "m/s²", "altitude path acceleration down: eq. (18)'s thrust stays off its floor")
+    formed_descent_accel: float = _p(5.0, "m/s²", "descent acceleration once joined (≤ descent_accel)")
+    jerk: float = _p(120.0, "m/s³", "paths' jerk limit: the acceleration reference turns round smoothly")
+    velocity_gain: float = _p(15.0, "1/s", "paths' velocity loop gain (the acceleration asked per m/s of error)")
+    max_tilt_deg: float = _p(30.0, "deg", "horizontal path acceleration ≤ (g + z̈)·tan(this)", 0.0, 89.0)
+    # --- the planner's phases (climb, cross, drop)
+    arrive: float = _p(0.2, "m", "a crossing follower this close to its slot (and its path) drops")
+    climb_tolerance: float = _p(0.35, "m", "a climbing follower this close under its layer starts crossing")
+    clearance: float = _p(0.3, "m", "vertical band: drones closer in altitude than this count as level")
+    approach_margin: float = _p(0.2, "m", "kept beyond D̄ (or hop) from a moving drone when climbing, and when stopping")
+    stop_room_min: float = _p(0.1, "m", "least room the sensing-range speed cap works with")
+    above_margin: float = _p(0.05, "m", "a drone counts as above a climbing one when higher by more than this")
+    late_margin: float = _p(0.1, "m", "a climbing follower that cannot stop this far under its wait climbs over")
+    hover_min: float = _p(0.3, "m", "a follower waiting under a drone lifts off the ground to this height")
+    airborne_min: float = _p(0.2, "m", "a follower higher than this is airborne (it may step aside)")
+    at_start: float = _p(0.1, "m", "a follower within this of its climbing point is there (it may step aside)")
+    aside_margin: float = _p(0.2, "m", "a follower steps aside to this beyond its radius from a hovering drone")
+    hover_pass_margin: float = _p(0.1, "m", "a climbing drone passes a hovering one 2·outline + this apart")
+    reaction_time: float = _p(0.3, "s", "a crossing drone's conflict horizon: its time to stop plus this")
+    conflict_horizon_max: float = _p(2.0, "s", "longest conflict horizon of a crossing drone")
+    # --- the vehicle's outline
+    outline_margin: float = _p(
+        0.01, "m", "keep-out radius = arm + rotor radius + this (the 0.35 m flown before)", 0.0, open_lo=False
+    )
+    overlap_spare: float = _p(0.02, "m", "outlines overlap in plan view under 2·keep-out + this", 0.0, open_lo=False)
+    # --- the jet-aware separation (docs/interpretations.md §4)
+    floor_clearance: float = _p(0.5, "m", "lowest altitude a stacked offset sends a yielding follower to")
+    closing_min: float = _p(0.5, "m/s", "never-through predicts only for pairs closing faster than this")
+    crossing_hold: float = _p(0.2, "m", "a descending formed follower holds over a crossing drone from D̄ + this")
+    max_hops_up: int = _p(3, "hops", "highest stacked offset, in hops above the formation", 1.0, 20.0, open_lo=False)
+    max_hops_down: int = _p(2, "hops", "lowest stacked offset, in hops below the formation", 0.0, 20.0, open_lo=False)
+    # --- asked of the controller (a [controller] key, beside wind_feedforward)
+    downwash_feedforward: bool = _p(
+        False, "", "the controller compensates the others' predicted downwash", None, table="controller"
+    )
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return tuple(f.name for f in fields(self))
+
+    def with_overrides(self, overrides: dict[str, Any], where: str = "formation") -> RuleParams:
+        """A copy with ``overrides`` (validated by :func:`check_overrides`)."""
+        return replace(self, **check_overrides(overrides, where)) if overrides else self
+
+    def keep_out(self, vehicle: QuadParams = DEFAULT_PARAMS) -> float:
+        """Keep-out radius (m) of a drone in plan view: :func:`vehicle_outline` + ``outline_margin``."""
+        return vehicle_outline(vehicle) + self.outline_margin
+
+    def overlap(self, vehicle: QuadParams = DEFAULT_PARAMS) -> float:
+        """Centre distance (m) under which two drones' keep-out discs overlap in plan view, with
+        ``overlap_spare`` to spare: a formed drone never changes altitude through one that close."""
+        return 2.0 * self.keep_out(vehicle) + self.overlap_spare
+
+
+#: The keys a scenario may set (every field of :class:`RuleParams`), and the table of each.
+PARAM_KEYS: tuple[str, ...] = tuple(f.name for f in fields(RuleParams))
+PARAM_TABLE: dict[str, str] = {f.name: f.metadata["table"] for f in fields(RuleParams)}
+_FIELDS = {f.name: f for f in fields(RuleParams)}
+
+
+def vehicle_outline(vehicle: QuadParams = DEFAULT_PARAMS) -> float:
+    """Centre to rotor tip (m) in plan view: the arm L plus the rotor radius (the drawn rotor discs of
+    ``assets/quadrotor.xml``, :data:`swarm_mj.aero.constants.ROTOR_RADIUS`)."""
+    return float(vehicle.L) + float(getattr(vehicle, "rotor_radius", ROTOR_RADIUS))
+
+
+def check_overrides(overrides: dict[str, Any], where: str = "formation") -> dict[str, Any]:
+    """``overrides`` validated against the record's metadata: known keys, type (bool, integer or
+    number), finite and in range; :class:`UserError` naming ``where.key`` otherwise. Returns them
+    converted (floats as float, integers as int)."""
+    out: dict[str, Any] = {}
+    for key, v in overrides.items():
+        w = f"{where}.{key}" if where else key
+        f = _FIELDS.get(key)
+        if f is None:
+            raise UserError(f"unknown key {key!r}; allowed: {', '.join(PARAM_KEYS)}", where=where or None)
+        m = f.metadata
+        if f.type in ("bool", bool):
+            if not isinstance(v, (bool, np.bool_)):
+                raise UserError(f"must be true or false, got {v!r}", where=w)
+            out[key] = bool(v)
+            continue
+        integer = f.type in ("int", int)
+        if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+            raise UserError(f"must be {'an integer' if integer else 'a number'}, got {v!r}", where=w)
+        if integer and float(v) != int(v):
+            raise UserError(f"must be an integer, got {v!r}", where=w)
+        if not np.isfinite(v):
+            raise UserError(f"must be finite, got {v!r}", where=w)
+        lo, hi = m["lo"], m["hi"]
+        unit = f" {m['unit']}" if m["unit"] else ""
+        if lo is not None and (v <= lo if m["open_lo"] else v < lo):
+            bound = "positive" if lo == 0.0 and m["open_lo"] else f"{'>' if m['open_lo'] else '>='} {lo:g}{unit}"
+            raise UserError(f"must be {bound}, got {v!r}", where=w)
+        if hi is not None and v > hi:
+            raise UserError(f"must be <= {hi:g}{unit}, got {v!r}", where=w)
+        out[key] = int(v) if integer else float(v)
+    return out
+
+
+#: The named rules as presets of the record (``off`` reads nothing). The layered rule with the
+#: downwash feedforward, once the ``compensated`` rule, is ``layers`` with ``[controller]
+#: downwash_feedforward = true``.
+PRESETS: dict[str, RuleParams] = {
+    "paper": RuleParams(),
+    "layers": RuleParams(),
+    "jet-aware": RuleParams(max_speed=3.0, max_accel=4.0, formed_descent_accel=3.0, downwash_feedforward=True),
+    "off": RuleParams(),
+}
+
+
+def describe() -> list[tuple[str, str, str, str]]:
+    """(key, default, unit, reason) of every field, for docs and ``--help`` text."""
+    return [(f.name, repr(f.default), f.metadata["unit"], f.metadata["why"]) for f in fields(RuleParams)]

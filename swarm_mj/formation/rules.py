@@ -1,0 +1,178 @@
+"""The anti-collision rules' interface (:class:`Rule`), no rule (:class:`NoRule`) and the paper's
+rule as printed (:class:`PaperRule`: Fig. 5, the separation step alone; docs/interpretations.md §4).
+
+Every rule has the same small interface, vectorised over drones (index 0 is the leader):
+
+    rule.reset(positions (n, 3))
+    pos_d, steer = rule.update(t, positions (n, 3), pos_d (n, 3), formation_alt)
+
+``pos_d`` are the formation setpoints (slot of each follower, paper §4; the leader's own
+reference in row 0) and come back adjusted. ``steer`` (n,) flags the drones whose velocity
+and acceleration references the rule sets itself: ``rule.vel_d`` (n, 3) and ``rule.acc_d``
+(n, 3) (zero for a drone told to hold its (x, y)); the others keep the formation's
+references. ``rule.references(t, positions, pos_d, vel_d, acc_d, formation_alt)`` does both
+and returns the controller's references (pos_d, vel_d, acc_d) (n, 3), the steered drones'
+rows taken from the rule (what the policy calls; for the formed swarm the layered rule does
+it in one compiled kernel). Each rule appends its decisions to ``rule.events`` as dicts
+``{t, drone, other, action}``: up, down, release (Fig. 5); cross, hold, aside, drop (the
+layered rule's transition). Every rule reads its numbers from ``rule.params``, one
+:class:`~swarm_mj.formation.rule_params.RuleParams` record.
+
+Decentralised (docs/interpretations.md §4): a drone's decision uses only its own state, the leader's position
+(through its slot and the formation altitude) and the positions of drones within its
+sensing range (velocities of neighbours are estimated from their successive positions).
+No rule reads another drone's internal state; the layered rule uses the other drones'
+indices (the priority of Fig. 5: higher index yields) and whether they are still in
+transit to their slot, which a drone broadcasts or which its neighbours can tell from
+its altitude (a formed drone flies at the formation altitude).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .layered import horizontal_distances, merge_rows
+from .rule_params import PRESETS, RuleParams
+from .separation import fig5_react
+
+
+class Rule:
+    """What every rule shares: :meth:`references` from the rule's own ``update``.
+
+    A new rule subclasses it with ``name``, ``events``, ``vel_d``, ``acc_d`` (n, 3), ``reset(positions)``
+    and ``update(t, positions, pos_d, formation_alt) -> (pos_d, steer)`` (see the module docstring),
+    and is registered in :data:`ANTI_COLLISION_RULES` (which makes it a scenario's
+    ``formation.anti_collision`` value and a ``--anti-collision`` choice)."""
+
+    name: str
+    n: int
+    events: list[dict]
+    vel_d: np.ndarray  # (n, 3) velocity reference of the steered drones
+    acc_d: np.ndarray  # (n, 3) acceleration reference of the steered drones
+
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        """``params``: the record (default: the preset named ``name``, :data:`PRESETS`), with
+        ``overrides`` (any of its fields; :class:`UserError` for an unknown key or a bad value)."""
+        self.n = n
+        base = PRESETS[self.name] if params is None else params
+        self.params = base.with_overrides(overrides, where="")
+
+    def reset(self, positions: np.ndarray) -> None:
+        """Start of a run with the drones at positions (n, 3)."""
+        raise NotImplementedError
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Adjusted setpoints pos_d (n, 3) and the drones it steers, steer (n,) bool."""
+        raise NotImplementedError
+
+    @property
+    def downwash_feedforward(self) -> bool:
+        """Whether the controller is to compensate the downwash of the other drones (when the physics
+        has one; see :class:`~swarm_mj.policy.DownwashFeedforward`): the record's field."""
+        return self.params.downwash_feedforward
+
+    def references(
+        self,
+        t: float,
+        positions: np.ndarray,
+        pos_d: np.ndarray,
+        vel_d: np.ndarray,
+        acc_d: np.ndarray,
+        formation_alt: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`update` and the references the controller needs, (pos_d, vel_d, acc_d) (n, 3):
+        the drones the rule steers take its velocity and acceleration references."""
+        return _merged(self, *self.update(t, positions, pos_d, formation_alt), vel_d, acc_d)
+
+
+class NoRule(Rule):
+    """No anti-collision (``anti_collision = "off"``): setpoints pass through unchanged."""
+
+    name = "off"
+
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
+        self.events: list[dict] = []
+        self.vel_d = np.zeros((n, 3))
+        self.acc_d = np.zeros((n, 3))
+
+    def reset(self, positions: np.ndarray) -> None:
+        self.events = []
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Pass the formation setpoints (n, 3) through; steer nobody."""
+        return pos_d, np.zeros(self.n, dtype=bool)
+
+
+def _merged(
+    rule, pos_d: np.ndarray, steer: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(pos_d, vel_d, acc_d) with the rows of the steered drones (n,) from rule.vel_d, rule.acc_d."""
+    vel_d, acc_d = merge_rows(
+        steer,
+        rule.vel_d,
+        rule.acc_d,
+        np.ascontiguousarray(vel_d, dtype=np.float64),
+        np.ascontiguousarray(acc_d, dtype=np.float64),
+    )
+    return pos_d, vel_d, acc_d
+
+
+def rownorm(v: np.ndarray) -> np.ndarray:
+    """Euclidean norm of each row of v (n, k) (np.linalg.norm(v, axis=1), without its overhead)."""
+    return np.sqrt(np.einsum("ij,ij->i", v, v))
+
+
+def pair_distances(positions: np.ndarray) -> np.ndarray:
+    """Pairwise horizontal distances (n, n), +inf on the diagonal."""
+    return horizontal_distances(np.ascontiguousarray(positions, dtype=np.float64))
+
+
+class PaperRule(Rule):
+    """The paper's rule exactly as printed (Fig. 5, §4), with the details docs/interpretations.md §4 fixes.
+
+    When two drones are closer than the safety distance D̄ = 0.8 m in the horizontal
+    plane, the one with the higher index yields (a follower always yields to the leader):
+    its altitude setpoint moves by ``hop`` = 0.4 m, up if it is not below the other drone,
+    else down, its (x, y) setpoint unchanged. It returns to the formation altitude once
+    every drone it yields to is back beyond D̄ + ``hysteresis`` (docs/interpretations.md §4: "a little
+    hysteresis"; the paper does not say when a drone returns).
+    """
+
+    name = "paper"
+
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
+        p = self.params
+        self.safety = p.safety_distance
+        self.hop = p.hop
+        self.hysteresis = p.hysteresis
+        self._lower = np.tri(n, k=-1, dtype=bool)  # [i, j]: j < i, so i yields to j
+        self.vel_d = np.zeros((n, 3))  # (n, 3) velocity reference of steered drones
+        self.acc_d = np.zeros((n, 3))  # (n, 3) acceleration reference of steered drones
+        self.reset(np.zeros((n, 3)))
+
+    def reset(self, positions: np.ndarray) -> None:
+        self.offset = np.zeros(self.n)  # (n,) current altitude offset of each drone
+        self.events: list[dict] = []
+
+    def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
+        """Fig. 5: trigger and release the altitude offsets of the drones flagged ``active`` (n,)
+        (:func:`~swarm_mj.formation.separation.fig5_react`)."""
+        fig5_react(t, positions, h, active, self.offset, self.events, self.safety, self.hop, self.hysteresis)
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Fig. 5 on every drone: altitude offsets only, (x, y) setpoints unchanged."""
+        h = pair_distances(positions)
+        self._react(t, positions, h, np.ones(self.n, dtype=bool))
+        pos_d = pos_d.copy()
+        pos_d[:, 2] += self.offset
+        return pos_d, np.zeros(self.n, dtype=bool)

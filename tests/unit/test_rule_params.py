@@ -1,0 +1,216 @@
+"""The anti-collision's parameter record (swarm_mj/formation/rule_params.py, docs/anticollision.md):
+every field documented, validated from its metadata, settable from a scenario and read by the
+rules; the named rules are presets; the keep-out geometry comes from the vehicle; and the
+reference-level separation filter interface (swarm_mj/formation/separation.py)."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import fields, replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from swarm_mj.aero.constants import ROTOR_RADIUS
+from swarm_mj.aero.presets import preset
+from swarm_mj.errors import UserError
+from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule, make_rule
+from swarm_mj.formation.rule_params import (
+    PARAM_KEYS,
+    PARAM_TABLE,
+    PRESETS,
+    RuleParams,
+    check_overrides,
+    vehicle_outline,
+)
+from swarm_mj.params import QuadParams
+from swarm_mj.policy import BacksteppingPolicy
+from swarm_mj.scenario import parse_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+FORMATION = ROOT / "swarm_mj" / "formation"
+
+
+def _scenario(**keys) -> dict:
+    """A scenario with each key in its table ([formation], or [controller] for what is asked of it)."""
+    tables: dict[str, dict] = {"formation": {}, "controller": {}}
+    for k, v in keys.items():
+        tables[PARAM_TABLE.get(k, "formation")][k] = v
+    return {
+        "duration": 1.0,
+        "leader": {"trajectory": "hover", "params": {"position": [0.0, 0.0, 2.0]}},
+        "followers": {"start": [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]},
+        **tables,
+    }
+
+
+def _other_value(f) -> object:
+    """A valid value of field f that is not its default."""
+    if f.type in ("bool", bool):
+        return not f.default
+    if f.type in ("int", int):
+        return f.default + 1
+    hi = f.metadata["hi"]
+    v = f.default * 1.25 if f.default else 0.05
+    return min(v, hi) if hi is not None and v > hi else v
+
+
+def test_every_field_has_a_unit_a_reason_a_range_and_a_valid_default():
+    for f in fields(RuleParams):
+        m = f.metadata
+        assert {"unit", "why", "lo", "hi", "open_lo"} <= set(m), f.name
+        assert m["why"] and len(m["why"]) <= 100, f.name  # one line; the long reasons are in docs/
+        assert check_overrides({f.name: f.default}) == {f.name: f.default}, f.name
+
+
+def test_every_field_is_explained_in_the_docs():
+    doc = (ROOT / "docs" / "anticollision.md").read_text()
+    missing = [k for k in PARAM_KEYS if f"`{k}`" not in doc]
+    assert not missing, missing
+
+
+def test_every_field_is_read_by_the_rules():
+    # a field a scenario may set but no code reads would be accepted and then dropped
+    # (the record's own methods read the keep-out fields: self.<field> there)
+    src = "\n".join(p.read_text() for p in FORMATION.glob("*.py"))
+    unread = [k for k in PARAM_KEYS if not re.search(rf"\b(p|params|self\.params|self)\.{k}\b", src)]
+    assert not unread, unread
+
+
+def test_every_field_is_settable_from_a_scenario_and_reaches_the_rule():
+    for f in fields(RuleParams):
+        v = _other_value(f)
+        sc = parse_scenario(_scenario(anti_collision="jet-aware", **{f.name: v}))
+        assert getattr(sc.rule_params, f.name) == v, f.name
+        rule = BacksteppingPolicy(sc).rule
+        assert getattr(rule.params, f.name) == v, f.name
+        # the other fields keep the preset's values
+        assert replace(rule.params, **{f.name: getattr(PRESETS["jet-aware"], f.name)}) == PRESETS["jet-aware"]
+
+
+def test_unknown_key_is_one_line_naming_it_and_the_allowed_ones():
+    with pytest.raises(UserError) as e:
+        parse_scenario(_scenario(crosing_hold=0.3), path="x.toml")
+    msg = str(e.value)
+    assert "\n" not in msg and "crosing_hold" in msg and "x.toml: formation" in msg
+    assert all(k in msg for k in PARAM_KEYS if PARAM_TABLE[k] == "formation")
+    with pytest.raises(UserError, match="unknown key 'jerk_limit'; allowed: safety_distance"):
+        make_rule("layers", 3, jerk_limit=1.0)
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "needle"),
+    [
+        ("hop", -0.4, "positive"),
+        ("hop", True, "a number"),
+        ("hop", "0.4", "a number"),
+        ("max_tilt_deg", 95.0, "<= 89 deg"),
+        ("max_hops_up", 2.5, "an integer"),
+        ("max_hops_up", 0, ">= 1"),
+        ("downwash_feedforward", 1, "true or false"),
+        ("horizon", float("inf"), "finite"),
+    ],
+)
+def test_bad_values_are_refused_naming_the_field(key, value, needle):
+    with pytest.raises(UserError, match=needle) as e:
+        parse_scenario(_scenario(**{key: value}), path="x.toml")
+    assert f"x.toml: {PARAM_TABLE[key]}.{key}:" in str(e.value)
+
+
+def test_the_downwash_feedforward_is_a_controller_option_any_rule_may_take():
+    # once the ``compensated`` rule: now ``layers`` (or any rule) with [controller] downwash_feedforward
+    real = preset("realistic")
+    layers = parse_scenario(_scenario(anti_collision="layers")).with_overrides(aero=real)
+    assert BacksteppingPolicy(layers).downwash_ff is None
+    on = parse_scenario(_scenario(anti_collision="layers", downwash_feedforward=True)).with_overrides(aero=real)
+    assert BacksteppingPolicy(on).downwash_ff is not None and isinstance(BacksteppingPolicy(on).rule, LayeredRule)
+    jet = parse_scenario(_scenario(anti_collision="jet-aware")).with_overrides(aero=real)
+    assert BacksteppingPolicy(jet).downwash_ff is not None  # the jet-aware preset asks for it
+    off = parse_scenario(_scenario(anti_collision="jet-aware", downwash_feedforward=False)).with_overrides(aero=real)
+    assert BacksteppingPolicy(off).downwash_ff is None
+    # it is not a [formation] key
+    data = _scenario()
+    data["formation"]["downwash_feedforward"] = True
+    with pytest.raises(UserError, match="unknown key"):
+        parse_scenario(data)
+
+
+def test_named_rules_are_presets_and_the_default_is_written_once():
+    base = RuleParams()
+    assert PRESETS["layers"] == PRESETS["paper"] == base
+    changed = {k for k in PARAM_KEYS if getattr(PRESETS["jet-aware"], k) != getattr(base, k)}
+    assert changed == {"max_speed", "max_accel", "formed_descent_accel", "downwash_feedforward"}
+    # a scenario that sets nothing holds no copy of a default
+    assert parse_scenario(_scenario()).anti_collision_params == {}
+    # the rules' attributes come from the record
+    rule = make_rule("jet-aware", 3)
+    assert (rule.safety, rule.hop, rule.v_max, rule.a_max) == (0.8, 0.4, 3.0, 4.0)
+    assert rule.z_down_formed == (1.5, 3.0) and rule.downwash_feedforward
+    assert not make_rule("layers", 3).downwash_feedforward
+
+
+def test_keep_out_is_the_vehicles_arm_plus_rotor_radius_plus_the_margin():
+    p = RuleParams()
+    assert vehicle_outline() == pytest.approx(0.25 + ROTOR_RADIUS)
+    big = QuadParams(L=0.4)
+    assert p.keep_out(big) == pytest.approx(0.4 + ROTOR_RADIUS + p.outline_margin)
+    assert p.overlap(big) == pytest.approx(2 * (0.4 + ROTOR_RADIUS + p.outline_margin) + p.overlap_spare)
+    rule = LayeredRule(3, outline_margin=0.05)
+    assert rule.footprint == pytest.approx(0.25 + ROTOR_RADIUS + 0.05)
+
+
+def test_a_hovering_threshold_set_by_a_scenario_changes_who_counts_as_hovering():
+    # hover_speed (one field, was 0.5 m/s written five times): a follower climbing under a drone
+    # that drifts at 0.6 m/s keeps D̄ + approach_margin from it; call the drift hovering (0.7 m/s)
+    # and it keeps only 2·keep-out + hover_pass_margin, so a drone 0.9 m aside no longer stops it
+    def climb_target(hover_speed: float) -> float:
+        rule = LayeredRule(3, hover_speed=hover_speed)
+        p = np.array([[5.0, 5.0, 2.0], [0.0, 0.0, 0.5], [0.9, 0.0, 1.6]])
+        rule.reset(p)
+        rule.update(0.0, p, p.copy(), 2.0)
+        q = p.copy()
+        q[2, 1] += 0.006  # 0.6 m/s over 10 ms
+        rule.update(0.01, q, p.copy(), 2.0)
+        return rule.zp[1], rule.zv[1]
+
+    _, v_default = climb_target(0.5)
+    _, v_hover = climb_target(0.7)
+    assert v_default <= 0.0 < v_hover  # held (or braking) under it vs free to climb
+
+
+class _ZeroAcc:
+    """A separation filter that asks every steered drone for zero acceleration (a test double)."""
+
+    def reset(self, n: int) -> None:
+        self.calls = 0
+
+    def __call__(self, sensed, pos_d, vel_d, acc_d, steer):
+        self.calls += 1
+        assert sensed.positions.shape == (3, 3) and sensed.seen.shape == (3, 3)
+        assert sensed.keep_out == pytest.approx(vehicle_outline() + RuleParams().outline_margin)
+        acc = acc_d.copy()
+        acc[steer] = 0.0
+        return vel_d.copy(), acc
+
+
+def test_a_separation_filter_sees_the_planners_references_and_changes_only_steered_rows():
+    p = np.array([[0.0, 0.0, 2.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    slots = np.array([[0.0, 0.0, 2.0], [0.0, 1.0, 2.0], [0.0, -1.0, 2.0]])
+    lead_vel, lead_acc = np.zeros((3, 3)), np.zeros((3, 3))
+    lead_acc[0] = [0.5, 0.0, 0.0]
+    plain, filt = JetAwareRule(3), JetAwareRule(3)
+    f = _ZeroAcc()
+    f.reset(3)
+    filt.separation_filter = f
+    for rule in (plain, filt):
+        rule.reset(p)
+    for k in range(20):
+        a = plain.references(0.01 * k, p, slots, lead_vel, lead_acc, 2.0)
+        b = filt.references(0.01 * k, p, slots, lead_vel, lead_acc, 2.0)
+        np.testing.assert_array_equal(a[0], b[0])  # positions: the planner's
+        np.testing.assert_array_equal(a[1], b[1])
+        np.testing.assert_array_equal(b[2][0], a[2][0])  # the leader's row untouched
+        assert (b[2][1:] == 0.0).all()
+    assert f.calls == 20 and np.abs(a[2][1:]).max() > 0.0  # the planner did ask for accelerations
+    assert (plain.phase != FORMED).any()
