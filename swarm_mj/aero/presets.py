@@ -114,15 +114,19 @@ def with_aero(sc, model: str | None):
 
 def install(sim, cfg: AeroConfig) -> None:
     """Attach the force stages and the ground monitor that ``cfg`` asks for to ``sim``."""
-    from .downwash import DownwashStage
+    from .downwash import BODY_AREA, DownwashStage
     from .ground import GroundContacts
     from .ground_effect import GroundEffectStage
 
+    # the rotors and the body of the simulated vehicle (docs/vehicles.md); the paper's drone gets the
+    # stages' defaults (rotor radius 0.09 m, size scale 1)
+    p = sim.params
+    s = p.size_scale
     stages: list = []
     if cfg.downwash:
-        stages.append(DownwashStage())
+        stages.append(DownwashStage(rotor_radius=p.rotor_radius, body_area=BODY_AREA * s * s))
     if cfg.ground_effect:
-        stages.append(GroundEffectStage())
+        stages.append(GroundEffectStage(rotor_radius=p.rotor_radius, rotor_z=ROTOR_PLANE_Z * s))
     for st in stages:
         sim.add_stage(st)  # after drag and wind (docs/design.md, "the step pipeline")
     if cfg.ground:
