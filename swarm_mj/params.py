@@ -27,7 +27,10 @@ class QuadParams:
     §4); ``yaw_coefficient`` κ (m) the rotors' drag-torque-to-thrust ratio: the yaw torque is
     κ·(F1 − F2 + F3 − F4) (docs/vehicles.md); None is the paper's model, yaw torque L·U4 with
     U4 = F1 − F2 + F3 − F4 (eq. 29). The controller's U4 is always "yaw torque / L" (eq. 1), so
-    a vehicle with κ maps U to rotor thrusts with :attr:`mix_t` / :attr:`unmix_t`.
+    a vehicle with κ maps U to rotor thrusts with :attr:`mix_t` / :attr:`unmix_t`. ``motor_tau``
+    (s) is the vehicle's rotor time constant: the lag of a physics preset with lag (``--aero
+    realistic``) unless the scenario's ``[aero]`` sets its own (:func:`swarm_mj.aero.presets.vehicle_lag`);
+    None (the paper's drone): the preset's.
     """
 
     m: float = T1["m"]
@@ -44,6 +47,7 @@ class QuadParams:
     rotor_radius: float = PAPER_ROTOR_RADIUS
     collision_radius: float | None = None
     yaw_coefficient: float | None = None
+    motor_tau: float | None = None  # s, the vehicle's rotor time constant (None: the aero preset's)
 
     def __post_init__(self) -> None:
         for name in ("m", "Ix", "Iy", "Iz", "L", "g"):
@@ -54,7 +58,7 @@ class QuadParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"drag coefficient {name} must be >= 0, got {v!r}")
-        for name in ("rotor_radius", "collision_radius", "yaw_coefficient"):
+        for name in ("rotor_radius", "collision_radius", "yaw_coefficient", "motor_tau"):
             v = getattr(self, name)
             if v is not None and (not np.isfinite(v) or v <= 0):
                 raise UserError(f"vehicle parameter {name} must be a positive number, got {v!r}")

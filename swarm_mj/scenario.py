@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .aero.presets import PAPER, AeroConfig, parse_aero
+from .aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
@@ -625,7 +625,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         raise UserError("must be a table", where=f"{w}wind")
     wind = WindConfig.from_dict(wind_table, where=path)
 
-    aero = parse_aero(data.get("aero"), where=f"{w}aero")
+    aero = vehicle_lag(parse_aero(data.get("aero"), where=f"{w}aero"), data.get("aero"), params)
     if 0 < aero.motor_tau < dt:
         raise UserError(
             f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",

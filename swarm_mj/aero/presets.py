@@ -99,6 +99,17 @@ def parse_aero(table: Any, where: str = "aero") -> AeroConfig:
     return replace(cfg, **kw) if kw else cfg
 
 
+def vehicle_lag(cfg: AeroConfig, table: Any, params) -> AeroConfig:  # noqa: ANN001 - params: QuadParams
+    """``cfg`` with the vehicle's rotor time constant (``params.motor_tau``, docs/vehicles.md) as its
+    lag where the preset has lag and the ``[aero]`` table does not set ``motor_tau`` itself;
+    unchanged otherwise (the paper's drone gives none)."""
+    own = isinstance(table, dict) and "motor_tau" in table
+    tau = getattr(params, "motor_tau", None)
+    if tau is None or own or cfg.motor_tau == 0:
+        return cfg
+    return replace(cfg, motor_tau=float(tau))
+
+
 def with_aero(sc, model: str | None):
     """Scenario ``sc`` flown under preset ``model`` (None: unchanged), keeping its own switch
     overrides; the TOML document (``sc.raw``) is updated too, so that sweeps re-parse it alike."""
@@ -109,7 +120,7 @@ def with_aero(sc, model: str | None):
     table = dict(raw.get("aero", {}) or {})
     table["model"] = model
     raw["aero"] = table
-    return sc.with_overrides(aero=parse_aero(table, where="--aero"), raw=raw)
+    return sc.with_overrides(aero=vehicle_lag(parse_aero(table, where="--aero"), table, sc.params), raw=raw)
 
 
 def install(sim, cfg: AeroConfig) -> None:

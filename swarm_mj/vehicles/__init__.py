@@ -6,8 +6,8 @@ A vehicle file has at least ``mass`` (kg), ``arm_length`` (m, centre to motor) a
 vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N·s/m) and ``max_thrust``
 (N per rotor); it may give ``min_thrust`` (N, default 0), ``yaw_torque_coefficient`` (m: the
 rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
-default ``arm_length``) and ``motor_tau`` (s, the rotor time constant, documentation and the
-default lag of ``swarm-mj tune --vehicle``). :meth:`Vehicle.params` gives the
+default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
+realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms). :meth:`Vehicle.params` gives the
 :class:`~swarm_mj.params.QuadParams` the simulator and the controller use.
 """
 
@@ -88,6 +88,7 @@ class Vehicle:
                 rotor_radius=self.rotor_radius,
                 collision_radius=self._number("collision_radius", "m"),
                 yaw_coefficient=self._number("yaw_torque_coefficient", "m"),
+                motor_tau=self.motor_tau,
             )
         except UserError as e:
             raise UserError(f"{self.path}: {e}") from None
