@@ -7,8 +7,9 @@ vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N�
 (N per rotor); it may give ``min_thrust`` (N, default 0), ``yaw_torque_coefficient`` (m: the
 rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
 default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
-realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms). :meth:`Vehicle.params` gives the
-:class:`~swarm_mj.params.QuadParams` the simulator and the controller use.
+realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms) and ``gains`` (the gains
+file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them).
+:meth:`Vehicle.params` gives the :class:`~swarm_mj.params.QuadParams` the simulator and the controller use.
 """
 
 from __future__ import annotations
@@ -92,6 +93,18 @@ class Vehicle:
             )
         except UserError as e:
             raise UserError(f"{self.path}: {e}") from None
+
+    @property
+    def gains_file(self) -> Path | None:
+        """The gains tuned for this vehicle (the file's ``gains``, a gains file written by ``swarm-mj tune
+        --vehicle``, relative to the vehicle file), or None; ``swarm-mj stress --vehicle`` flies them."""
+        g = self.extra.get("gains")
+        if g is None:
+            return None
+        p = Path(self.path).parent / g if isinstance(g, str) else None
+        if p is None or not p.is_file():
+            raise UserError(f"{self.path}: vehicle key 'gains' must name a gains file, got {g!r}")
+        return p.resolve()
 
     @property
     def motor_tau(self) -> float | None:

@@ -263,3 +263,32 @@ def test_bundled_crazyflie_scenarios_fly_a_crazyflie() -> None:
     assert len(names) >= 2
     for n in names:
         assert load_scenario(n).params == CFP
+
+
+def test_the_vehicles_rotor_lag_is_the_lag_of_a_preset_with_lag() -> None:
+    from swarm_mj.aero.presets import REALISTIC_MOTOR_TAU, with_aero
+
+    cf = {**BASE, "vehicle": {"model": "crazyflie21"}}
+    assert parse_scenario({**cf, "aero": {"model": "realistic"}}).aero.motor_tau == CF.motor_tau
+    assert parse_scenario({**cf, "aero": {"model": "realistic", "motor_tau": 0.02}}).aero.motor_tau == 0.02
+    assert parse_scenario(cf).aero.motor_tau == 0.0  # the paper's physics: ideal rotors whatever the vehicle
+    assert with_aero(parse_scenario(cf), "realistic").aero.motor_tau == CF.motor_tau  # --aero realistic
+    assert with_aero(parse_scenario(dict(BASE)), "realistic").aero.motor_tau == REALISTIC_MOTOR_TAU
+
+
+def test_vehicle_gains_file() -> None:
+    g = CF.gains_file
+    assert g is not None and g.is_file() and g.name == "crazyflie21_fpa_seed0.toml"
+    assert load_vehicle("paper").gains_file is None
+
+
+def test_stress_flies_the_vehicle_and_its_gains() -> None:
+    from swarm_mj.stress import StressCase, stress_data, stress_scenario
+
+    case = StressCase("layers", 3, 2, 3.0, 0.6, 1.0, vehicle="crazyflie21", gains=str(CF.gains_file))
+    d = stress_data(case)
+    assert d["vehicle"] == {"model": "crazyflie21"} and d["controller"] == {"gains": str(CF.gains_file)}
+    sc = stress_scenario(case)
+    assert sc.params == CFP and sc.gains_source == str(CF.gains_file)
+    plain = stress_data(StressCase("layers", 3, 2, 3.0, 0.6, 1.0))
+    assert "vehicle" not in plain and "controller" not in plain  # the paper's stress scenario as before
