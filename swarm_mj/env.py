@@ -58,7 +58,7 @@ import numpy as np
 from dm_env import specs
 
 from ._jit import jit
-from .aero.ground import rest_positions
+from .aero.ground import REST_HEIGHT, rest_positions
 from .aero.presets import install as install_aero
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
@@ -163,7 +163,12 @@ class SwarmEnv(dm_env.Environment):
         self.T = sc.control_period
         self.n_steps = int(round(sc.duration / self.T))
         aero = sc.aero
-        starts = sc.initial_positions() if not aero.ground else rest_positions(sc.initial_positions())
+        p = sc.params  # the scenario's vehicle (docs/vehicles.md); its landing gear scales with the arm
+        starts = (
+            sc.initial_positions()
+            if not aero.ground
+            else rest_positions(sc.initial_positions(), REST_HEIGHT * p.size_scale)
+        )
         self.world = build_world(
             n,
             positions=starts,
@@ -173,6 +178,7 @@ class SwarmEnv(dm_env.Environment):
             integrator=sc.integrator,
             ground=aero.ground,
             motor_tau=aero.motor_tau,
+            params=p,
         )
         self.sim = Sim(self.world, self.T, force_stages=force_stages)
         if not aero.is_paper:

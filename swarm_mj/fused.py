@@ -462,7 +462,7 @@ class FusedLoop:
             sim.rotor_thrust,
         )  # fmt: skip
         self._sim_rest = (
-            c(sim.drag.neg_drag, dtype=float), UNMIX_T, MIX_T, float(sim._f_min), float(sim._f_max),
+            c(sim.drag.neg_drag, dtype=float), sim._unmix_t, sim._mix_t, float(sim._f_min), float(sim._f_max),
             int(sim.n_substeps), float(sim.floor_z), float(sim.max_distance), float(sim.max_tilt),
         )  # fmt: skip
         fid, solid, z_near = sim._gate or (0, 0, 0.0)  # Sim's floor gate (none: never switched on)

@@ -70,15 +70,18 @@ def saturate_kernel(
             U_out[i, r] = u
 
 
-def saturate(U: np.ndarray, f_min: float, f_max: float) -> tuple[np.ndarray, np.ndarray]:
+def saturate(
+    U: np.ndarray, f_min: float, f_max: float, unmix_t: np.ndarray = UNMIX_T, mix_t: np.ndarray = MIX_T
+) -> tuple[np.ndarray, np.ndarray]:
     """Map commanded U (n, 4) to rotors, clip each rotor to [f_min, f_max], map back.
 
     Returns (U_applied (n, 4), F (n, 4)): the wrench the motors can deliver and the rotor thrusts.
-    The arithmetic is :func:`saturate_kernel`, the one the simulator runs.
+    The arithmetic is :func:`saturate_kernel`, the one the simulator runs; ``unmix_t``/``mix_t``
+    are a vehicle's (:attr:`swarm_mj.params.QuadParams.unmix_t`), the paper's by default.
     """
     U = np.ascontiguousarray(U, dtype=np.float64)
     U_out, F = np.empty_like(U), np.empty_like(U)
-    saturate_kernel(U, UNMIX_T, MIX_T, float(f_min), float(f_max), U_out, F)
+    saturate_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), U_out, F)
     return U_out, F
 
 
@@ -119,7 +122,9 @@ def attitude_priority_kernel(
             out[i, r] = u
 
 
-def attitude_priority(U: np.ndarray, f_min: float, f_max: float) -> np.ndarray:
+def attitude_priority(
+    U: np.ndarray, f_min: float, f_max: float, unmix_t: np.ndarray = UNMIX_T, mix_t: np.ndarray = MIX_T
+) -> np.ndarray:
     """U1..U4 (n, 4) with the collective thrust U1 moved, as little as needed, so that the torques
     U2..U4 fit the rotors' range [f_min, f_max] (as far as they can): when a rotor would be
     clipped at f_min the other three are raised with it, when one would pass f_max all four are
@@ -127,8 +132,9 @@ def attitude_priority(U: np.ndarray, f_min: float, f_max: float) -> np.ndarray:
     controllers such as PX4 and Betaflight); the paper clips each rotor on its own (eqs. 26–29),
     which at low thrust also clips the torque the attitude loop asked for. Rotors are still
     clipped afterwards by the simulator (:func:`saturate`). The arithmetic is
-    :func:`attitude_priority_kernel`."""
+    :func:`attitude_priority_kernel`; ``unmix_t``/``mix_t`` are a vehicle's
+    (:attr:`swarm_mj.params.QuadParams.unmix_t`), the paper's by default."""
     U = np.ascontiguousarray(U, dtype=np.float64)
     out = np.empty_like(U)
-    attitude_priority_kernel(U, UNMIX_T, MIX_T, float(f_min), float(f_max), out)
+    attitude_priority_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), out)
     return out

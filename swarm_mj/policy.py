@@ -32,10 +32,12 @@ class DownwashFeedforward:
     the prediction lags the drones' attitude by a control period and the rotors' by their lag)."""
 
     def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
-        from .aero.downwash import DownwashStage
+        from .aero.downwash import BODY_AREA, DownwashStage
 
         self.n = n
-        st = DownwashStage()  # its coefficients; the kernel is called directly (one call per step)
+        s = params.size_scale  # the vehicle's rotors and body (docs/vehicles.md); 1 for the paper's
+        # its coefficients; the kernel is called directly (one call per step)
+        st = DownwashStage(rotor_radius=params.rotor_radius, body_area=BODY_AREA * s * s)
         self._args = (n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, st.rotor_radius)
         self._pos = np.zeros((n, 3))
         self._quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
@@ -143,7 +145,7 @@ class BacksteppingPolicy:
             omega_body=body_rates,
         )
         if self.attitude_priority:
-            U = attitude_priority(U, ctl.params.f_min, ctl.params.f_max)
+            U = attitude_priority(U, ctl.params.f_min, ctl.params.f_max, ctl.params.unmix_t, ctl.params.mix_t)
             ctl.U = U
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
 

@@ -20,13 +20,14 @@ from typing import Any
 
 import numpy as np
 
-from .aero.presets import PAPER, AeroConfig, parse_aero
+from .aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
 from .mixing import MIXERS
+from .params import DEFAULT_PARAMS, QuadParams
 from .resources import SCENARIOS_DIR
 from .trajectories import TRAJECTORIES, make_trajectory
 from .wind import WindConfig
@@ -49,6 +50,7 @@ _TOP_KEYS = {
     "controller",
     "wind",
     "aero",
+    "vehicle",
 }
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
@@ -59,6 +61,7 @@ _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
 _RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("formation", "controller")}
 _FORMATION_KEYS = {"diameter", "anti_collision", *_RULE_KEYS["formation"]}
 _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
+_VEHICLE_KEYS = {"model"}
 
 
 @dataclass(frozen=True)
@@ -102,6 +105,14 @@ class Scenario:
     aero: AeroConfig = PAPER  # physics preset (docs/aero.md); the paper's model by default
     mixer: str = "auto"  # "auto" | "clip" | "attitude_priority" (see attitude_priority_on)
     lag_compensation: str = "auto"  # "auto" | "on" | "off" (see lag_horizons)
+    vehicle: str = "paper"  # [vehicle] model: a bundled vehicle's name or a vehicle file (docs/vehicles.md)
+    params: QuadParams = DEFAULT_PARAMS  # the vehicle's parameters; the paper's (Table 1) by default
+
+    @property
+    def start_clearance(self) -> float:
+        """Least centre distance between two starts (m): :data:`START_CLEARANCE_M` scaled by the
+        vehicle's rotor span over the paper drone's (exactly :data:`START_CLEARANCE_M` for the paper)."""
+        return START_CLEARANCE_M * (self.params.rotor_span / DEFAULT_PARAMS.rotor_span)
 
     @property
     def rule(self) -> str:
@@ -157,7 +168,13 @@ class Scenario:
         return np.vstack(
             [
                 self.leader_start,
-                random_follower_starts(self.leader_start, self.n_followers, self.random_start, where=self.path),
+                random_follower_starts(
+                    self.leader_start,
+                    self.n_followers,
+                    self.random_start,
+                    where=self.path,
+                    clearance=self.start_clearance,
+                ),
             ]
         )
 
@@ -335,9 +352,10 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
         raise UserError(f"the reference goes below the ground (z = {z[i]:g} m at t = {t[i]:g} s)", where=where)
 
 
-def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> None:
+def check_start_spacing(starts: np.ndarray, names: list[str], where: str, clearance: float = START_CLEARANCE_M) -> None:
     """Explicit starts: on or above the ground (z >= 0), within :data:`MAX_RANGE_M` of the origin
-    and every two drones at least :data:`START_CLEARANCE_M` apart (3D centre distance), as random
+    and every two drones at least ``clearance`` (the vehicle's :attr:`Scenario.start_clearance`,
+    :data:`START_CLEARANCE_M` for the paper's drone) apart (3D centre distance), as random
     starts are."""
     below = np.flatnonzero(starts[:, 2] < 0)
     if len(below):
@@ -353,26 +371,29 @@ def check_start_spacing(starts: np.ndarray, names: list[str], where: str) -> Non
     d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)  # (n, n)
     d[np.diag_indices(len(starts))] = np.inf
     i, j = map(int, np.unravel_index(np.argmin(d), d.shape))
-    if d[i, j] < START_CLEARANCE_M:
+    if d[i, j] < clearance:
         i, j = sorted((i, j))
         raise UserError(
             f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
-            f"{START_CLEARANCE_M:g} m apart (rotor tips touch below 0.68 m)",
+            f"{clearance:g} m apart (rotor tips touch below two rotor spans)",
             where=where,
         )
 
 
-def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: str = "") -> np.ndarray:
+def random_follower_starts(
+    leader: np.ndarray, n: int, rs: RandomStart, where: str = "", clearance: float = START_CLEARANCE_M
+) -> np.ndarray:
     """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (seeded
     random crossing starts; docs/interpretations.md, "starts"), every two drones (leader included) at least
-    max(``rs.min_spacing``, :data:`START_CLEARANCE_M`) apart; rejection sampling, seeded.
+    max(``rs.min_spacing``, ``clearance``) apart (``clearance``: the vehicle's, :data:`START_CLEARANCE_M`
+    for the paper's drone); rejection sampling, seeded.
 
     The floor of 0.70 m keeps a start from being a contact before anything flies: with a
     smaller spacing two drones lined up along x or y would overlap their rotors at t = 0,
     and MuJoCo would count that against whatever rule is flown.
     """
-    check_random_start_feasible(n, rs, where)
-    spacing = max(rs.min_spacing, START_CLEARANCE_M)
+    check_random_start_feasible(n, rs, where, clearance)
+    spacing = max(rs.min_spacing, clearance)
     rng = np.random.default_rng(rs.seed)
     pts = np.empty((n + 1, 2))  # (n + 1, 2) leader first
     pts[0] = np.asarray(leader[:2], float)
@@ -395,11 +416,11 @@ def random_follower_starts(leader: np.ndarray, n: int, rs: RandomStart, where: s
     return np.column_stack([pts[1:], np.full(n, float(leader[2]))])
 
 
-def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> None:
+def check_random_start_feasible(n: int, rs: RandomStart, where: str = "", clearance: float = START_CLEARANCE_M) -> None:
     """Refuse, before anything is simulated, a request no placement can meet.
 
     Disks of radius s/2 around n + 1 points (the leader and n followers, s the effective
-    spacing max(min_spacing, :data:`START_CLEARANCE_M`)) that lie within r of the leader
+    spacing max(min_spacing, ``clearance``)) that lie within r of the leader
     fit in a disk of radius r + s/2 without overlapping, so (n + 1)·(s/2)² ≤
     0.9069·(r + s/2)² is necessary (0.9069 = π/√12, the densest packing of equal disks in
     the plane). Requests that pass may still be too tight for rejection sampling; those
@@ -417,7 +438,7 @@ def check_random_start_feasible(n: int, rs: RandomStart, where: str = "") -> Non
         )
     if n < 0:
         raise UserError(f"follower count must be >= 0, got {n}", where=wr)
-    se = max(s, START_CLEARANCE_M)
+    se = max(s, clearance)
     if (n + 1) * (se / 2) ** 2 > 0.9069 * (r + se / 2) ** 2:
         raise UserError(
             f"cannot place {n} followers {se:g} m apart (and from the leader) within "
@@ -497,6 +518,8 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast", where=f"{w}integrator")
     seed = check_seed(data.get("seed", 0), f"{w}seed")
+    vehicle, params = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
+    clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
     leader = _check_keys(
@@ -554,7 +577,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
             )
             if rstart.max_tries > MAX_TRIES:
                 raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
-            check_random_start_feasible(n_f, rstart, path)
+            check_random_start_feasible(n_f, rstart, path, clearance)
         else:
             raise UserError("followers need start positions or random_start", where=f"{w}followers")
 
@@ -610,7 +633,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         raise UserError("must be a table", where=f"{w}wind")
     wind = WindConfig.from_dict(wind_table, where=path)
 
-    aero = parse_aero(data.get("aero"), where=f"{w}aero")
+    aero = vehicle_lag(parse_aero(data.get("aero"), where=f"{w}aero"), data.get("aero"), params)
     if 0 < aero.motor_tau < dt:
         raise UserError(
             f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
@@ -621,9 +644,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
     names = ["leader"] + [f"follower{k}" for k in range(1, n_f + 1)]
     if starts is not None:
-        check_start_spacing(np.vstack([leader_start, starts]), names, f"{w}followers.start")
+        check_start_spacing(np.vstack([leader_start, starts]), names, f"{w}followers.start", clearance)
     else:
-        check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start")
+        check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start", clearance)
 
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
@@ -659,7 +682,36 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         path=path,
         raw=data,
         aero=aero,
+        vehicle=vehicle,
+        params=params,
     )
+
+
+def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams]:
+    """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
+    a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the
+    scenario's folder). Returns (the model as given, its :class:`~swarm_mj.params.QuadParams`);
+    :class:`UserError` naming the field or the vehicle file and key otherwise (docs/vehicles.md)."""
+    from .vehicles import bundled, load_vehicle
+
+    if table is None:
+        return "paper", DEFAULT_PARAMS
+    t = _check_keys(table, _VEHICLE_KEYS, where)
+    model = t.get("model", "paper")
+    if not isinstance(model, str) or not model:
+        raise UserError(
+            f"must be a bundled vehicle ({', '.join(bundled())}) or a vehicle file, got {model!r}",
+            where=f"{where}.model",
+        )
+    arg: str | Path = model
+    if model not in bundled():
+        arg = Path(model) if Path(model).is_absolute() else base / model
+        if not arg.is_file():
+            raise UserError(
+                f"unknown vehicle {model!r}: neither a bundled vehicle ({', '.join(bundled())}) nor a file",
+                where=f"{where}.model",
+            )
+    return model, load_vehicle(arg).params()
 
 
 def _missing(where: str):

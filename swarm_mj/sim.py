@@ -49,7 +49,7 @@ import numpy as np
 from ._jit import jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
-from .mixing import MIX_T, UNMIX_T, saturate_kernel
+from .mixing import saturate_kernel
 from .params import QuadParams
 from .world import World
 
@@ -349,6 +349,7 @@ class Sim:
         p = world.params
         self.params: QuadParams = p
         self._f_min, self._f_max = p.f_min, p.f_max
+        self._unmix_t, self._mix_t = p.unmix_t, p.mix_t  # the vehicle's rotor mixing (docs/vehicles.md)
         d = self.data
         self.qpos = d.qpos.reshape(N, 7)  # views into MjData
         self.qvel = d.qvel.reshape(N, 6)
@@ -509,7 +510,7 @@ class Sim:
         parked = self._any_parked
         if parked:
             U = self._hold_parked(U)
-        saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
+        saturate_kernel(U, self._unmix_t, self._mix_t, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         self.wind.set(wind_force)
         if self.motor_lag:
             self.rotor_command[:] = self.rotor_thrust
@@ -525,7 +526,7 @@ class Sim:
         finally:
             timer_resume(saved)
         if self.motor_lag:
-            unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)
+            unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
         if parked:
             self._put_back()
 
@@ -539,7 +540,7 @@ class Sim:
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
             if lag:
-                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)  # produced rotor thrusts
+                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)  # produced rotor thrusts
             if extra:
                 for stage in extra:
                     stage.apply(self, force, torque)
@@ -563,7 +564,7 @@ class Sim:
             force[:] = 0.0
             torque[:] = 0.0
             if self.motor_lag:
-                unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)
+                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
             for stage in self.stages:
                 stage.apply(self, force, torque)
             self._xfrc_force[:] = force

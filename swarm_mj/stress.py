@@ -42,6 +42,8 @@ class StressCase:
     trajectory: str = "circle"
     diameter: float = 1.0
     aero: str = "paper"  # physics preset (docs/aero.md)
+    vehicle: str | None = None  # [vehicle] model (docs/vehicles.md); None: the paper's drone
+    gains: str | None = None  # a gains file; None: Table 4
 
 
 def stress_scenario(case: StressCase):
@@ -65,6 +67,8 @@ def stress_data(case: StressCase) -> dict:
         },
         "formation": {"diameter": case.diameter, "anti_collision": case.rule, "sensing_range": case.sensing_range},
         "aero": {"model": case.aero},
+        **({"vehicle": {"model": case.vehicle}} if case.vehicle is not None else {}),
+        **({"controller": {"gains": case.gains}} if case.gains is not None else {}),
     }
 
 
@@ -125,12 +129,16 @@ def stress(
     sensing_range: float = 4.0,
     progress: bool = False,
     aero: str = "paper",
+    vehicle: str | None = None,
+    gains: str | None = None,
 ) -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows).
 
     The flights go through :func:`swarm_mj.parallel.map_ordered` (spawn workers, CPU affinity,
     Ctrl-C handled by the parent); rows come back in case order, rule-major then seed.
-    ``progress``: a progress bar on stderr when it is a terminal.
+    ``progress``: a progress bar on stderr when it is a terminal. ``vehicle``, ``gains``: the
+    scenario's ``[vehicle] model`` and ``[controller] gains`` (docs/vehicles.md); None: the paper's
+    drone and Table 4.
     """
     if starts < 1 or followers < 1:
         raise UserError("--starts and --followers must be at least 1")
@@ -144,7 +152,18 @@ def stress(
     # "auto" flies, and is reported as, the rule it stands for under this physics
     rules = list(dict.fromkeys(resolve_rule(r, preset(aero).downwash) for r in rules))
     cases = [
-        StressCase(rule, seed0 + k, followers, radius, min_spacing, duration, sensing_range, aero=aero)
+        StressCase(
+            rule,
+            seed0 + k,
+            followers,
+            radius,
+            min_spacing,
+            duration,
+            sensing_range,
+            aero=aero,
+            vehicle=vehicle,
+            gains=gains,
+        )
         for rule in rules
         for k in range(starts)
     ]

@@ -95,13 +95,26 @@ def _drone_mjcf(
         if motor is None:
             raise UserError(f"quadrotor asset {asset} must define motor actuator {act}")
         motor.gear = gear
+    # The drawn parts, the contact disc and the rotor plane scale with the arm (docs/vehicles.md):
+    # s = L / 0.25 is 1.0 for the paper's drone, whose asset sizes are kept as written.
+    s = params.size_scale
     for k, (x, y) in enumerate([(0, -L), (L, 0), (0, L), (-L, 0)], start=1):
         rotor = _drawn_part(drone, f"rotor{k}")
         if rotor is not None:
-            rotor.pos = [x, y, rotor.pos[2] if rotor.pos is not None else 0.0]
+            rotor.pos = [x, y, s * rotor.pos[2] if rotor.pos is not None else 0.0]
+            if rotor.tag == "site" and rotor.dclass is not None and rotor.dclass.site.size is not None:
+                rotor.size = [params.rotor_radius, s * rotor.dclass.site.size[1]]
     plane = drone.find("geom", "rotor_plane")
     if plane is not None:
-        plane.size = [L, plane.size[1]]
+        plane.size = [params.contact_radius, s * plane.size[1]]
+        if plane.pos is not None:
+            plane.pos = [p * s for p in plane.pos]
+    for part in ("hub", "nose"):
+        el = _drawn_part(drone, part)
+        if el is not None and s != 1.0:
+            el.size = [v * s for v in el.size]
+            if el.pos is not None:
+                el.pos = [v * s for v in el.pos]
     if motor_tau > 0:
         # First-order rotor dynamics (docs/aero.md): MuJoCo integrates act' = (ctrl − act)/τ and applies
         # gear·act. The mixing is linear, so filtering U1..U4 is filtering each rotor's thrust.
@@ -133,8 +146,8 @@ def _drone_mjcf(
             "site",
             name="strut",
             type="capsule",
-            fromto=[0, 0, -0.02, 0, 0, SKID_Z],
-            size=[STRUT_RADIUS],
+            fromto=[0, 0, -0.02 * s, 0, 0, SKID_Z * s],
+            size=[STRUT_RADIUS * s],
             group=1,
             rgba=[0.2, 0.2, 0.25, 1],
         )
@@ -142,8 +155,8 @@ def _drone_mjcf(
             "geom",
             name="skid",
             type="box",
-            size=[SKID_HALF, SKID_HALF, SKID_HALF_Z],
-            pos=[0, 0, SKID_Z],
+            size=[SKID_HALF * s, SKID_HALF * s, SKID_HALF_Z * s],
+            pos=[0, 0, SKID_Z * s],
             euler=[0, 0, 45],
             contype=0,
             conaffinity=4,
@@ -160,7 +173,7 @@ def _drone_mjcf(
     for arm in ("arm_x", "arm_y"):
         g = drone.find("geom", arm)
         if g is not None:
-            g.size = [L if arm == "arm_x" else g.size[0], L if arm == "arm_y" else g.size[1], g.size[2]]
+            g.size = [L if arm == "arm_x" else s * g.size[0], L if arm == "arm_y" else s * g.size[1], s * g.size[2]]
     return drone
 
 

@@ -39,10 +39,13 @@ REST_HEIGHT = -(SKID_Z - SKID_HALF_Z)
 TAKEOFF_CLEARANCE = 0.05
 
 
-def rest_positions(positions: np.ndarray) -> np.ndarray:
-    """Start positions (n, 3) with every z below the rest height raised to it (z = 0: on the ground)."""
+def rest_positions(positions: np.ndarray, rest_height: float = REST_HEIGHT) -> np.ndarray:
+    """Start positions (n, 3) with every z below the rest height raised to it (z = 0: on the ground).
+
+    ``rest_height``: the vehicle's (``REST_HEIGHT`` × :attr:`swarm_mj.params.QuadParams.size_scale`,
+    the landing gear scales with the arm, docs/vehicles.md); the paper drone's by default."""
     p = np.array(positions, dtype=float)
-    p[:, 2] = np.maximum(p[:, 2], REST_HEIGHT)
+    p[:, 2] = np.maximum(p[:, 2], rest_height)
     return p
 
 
@@ -72,7 +75,7 @@ class GroundContacts:
         self.episode_crashed = np.zeros(N, dtype=bool)
         self._all_airborne = False
         self._any_contact = bool(self.in_contact.any())
-        self._takeoff_z = REST_HEIGHT + TAKEOFF_CLEARANCE
+        self._takeoff_z = REST_HEIGHT * sim.params.size_scale + TAKEOFF_CLEARANCE  # gear scales with the arm
         self._vel_before = sim.vel.copy()  # (N, 3) velocity at the start of the last step
         self._vel_now = sim.vel.copy()
 

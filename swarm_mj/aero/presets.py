@@ -99,6 +99,17 @@ def parse_aero(table: Any, where: str = "aero") -> AeroConfig:
     return replace(cfg, **kw) if kw else cfg
 
 
+def vehicle_lag(cfg: AeroConfig, table: Any, params) -> AeroConfig:  # noqa: ANN001 - params: QuadParams
+    """``cfg`` with the vehicle's rotor time constant (``params.motor_tau``, docs/vehicles.md) as its
+    lag where the preset has lag and the ``[aero]`` table does not set ``motor_tau`` itself;
+    unchanged otherwise (the paper's drone gives none)."""
+    own = isinstance(table, dict) and "motor_tau" in table
+    tau = getattr(params, "motor_tau", None)
+    if tau is None or own or cfg.motor_tau == 0:
+        return cfg
+    return replace(cfg, motor_tau=float(tau))
+
+
 def with_aero(sc, model: str | None):
     """Scenario ``sc`` flown under preset ``model`` (None: unchanged), keeping its own switch
     overrides; the TOML document (``sc.raw``) is updated too, so that sweeps re-parse it alike."""
@@ -109,20 +120,24 @@ def with_aero(sc, model: str | None):
     table = dict(raw.get("aero", {}) or {})
     table["model"] = model
     raw["aero"] = table
-    return sc.with_overrides(aero=parse_aero(table, where="--aero"), raw=raw)
+    return sc.with_overrides(aero=vehicle_lag(parse_aero(table, where="--aero"), table, sc.params), raw=raw)
 
 
 def install(sim, cfg: AeroConfig) -> None:
     """Attach the force stages and the ground monitor that ``cfg`` asks for to ``sim``."""
-    from .downwash import DownwashStage
+    from .downwash import BODY_AREA, DownwashStage
     from .ground import GroundContacts
     from .ground_effect import GroundEffectStage
 
+    # the rotors and the body of the simulated vehicle (docs/vehicles.md); the paper's drone gets the
+    # stages' defaults (rotor radius 0.09 m, size scale 1)
+    p = sim.params
+    s = p.size_scale
     stages: list = []
     if cfg.downwash:
-        stages.append(DownwashStage())
+        stages.append(DownwashStage(rotor_radius=p.rotor_radius, body_area=BODY_AREA * s * s))
     if cfg.ground_effect:
-        stages.append(GroundEffectStage())
+        stages.append(GroundEffectStage(rotor_radius=p.rotor_radius, rotor_z=ROTOR_PLANE_Z * s))
     for st in stages:
         sim.add_stage(st)  # after drag and wind (docs/design.md, "the step pipeline")
     if cfg.ground:

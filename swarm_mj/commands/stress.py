@@ -24,6 +24,7 @@ The flights themselves are :mod:`swarm_mj.stress`.
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 from ..stress import (  # noqa: F401
     RULES,
@@ -69,6 +70,13 @@ def add_parser(sub) -> None:
         "--workers", type=int, default=None, help="worker processes (default: the CPUs this process may use)"
     )
     p.add_argument("--aero", choices=AERO_NAMES, help="physics preset (default: paper; docs/aero.md)")
+    p.add_argument(
+        "--vehicle",
+        metavar="NAME|FILE",
+        help="the drones flown: a bundled vehicle (paper, crazyflie21) or a vehicle file (default: the "
+        "paper's drone; docs/vehicles.md), with the gains its file names unless --gains",
+    )
+    p.add_argument("--gains", metavar="FILE", help="gains file flown (default: the vehicle's, else Table 4)")
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument(
         "--save-scenario",
@@ -91,6 +99,20 @@ def main(args: argparse.Namespace) -> int:
         from ..atomic import check_output_path
 
         check_output_path(save, "--save-scenario", (".toml",))
+    vehicle, gains = args.vehicle, args.gains
+    if vehicle is not None:
+        from ..vehicles import load_vehicle
+
+        v = load_vehicle(vehicle)
+        v.params()  # one clear line now if the file cannot fly
+        if gains is None and v.gains_file is not None:
+            gains = str(v.gains_file)
+        vehicle = str(Path(vehicle).resolve()) if Path(vehicle).is_file() else vehicle
+    if gains is not None:
+        from ..control.backstepping import load_gains
+
+        load_gains(gains)
+        gains = str(Path(gains).resolve())
     table, rows = stress(
         rules,
         args.starts,
@@ -103,6 +125,8 @@ def main(args: argparse.Namespace) -> int:
         args.sensing_range,
         progress=not args.quiet,
         aero=args.aero or "paper",
+        vehicle=vehicle,
+        gains=gains,
     )
     if save:
         from ..atomic import write_text_atomic
@@ -117,6 +141,8 @@ def main(args: argparse.Namespace) -> int:
             args.duration,
             args.sensing_range,
             aero=args.aero or "paper",
+            vehicle=vehicle,
+            gains=gains,
         )
         write_text_atomic(
             save,

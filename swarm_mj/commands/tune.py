@@ -19,6 +19,7 @@ import json
 import math
 import sys
 import time
+from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -51,7 +52,8 @@ def add_parser(sub) -> None:
         choices=("step-bars", "none"),
         default="step-bars",
         help="step-bars (default): gains must also meet the step bars (overshoot ≤ 1 %%, 2 %% settling "
-        "x, y ≤ 2 s, z ≤ 1.5 s, ψ ≤ 2 s, steady-state error ≤ 1 mm, tilt ≤ 55°), ranked by Deb's "
+        "x, y ≤ 2 s, z ≤ 1.5 s, ψ ≤ 2 s, each + 2τ under a rotor lag τ, steady-state error ≤ 1 mm, "
+        "tilt ≤ 55°), ranked by Deb's "
         "feasibility rules; none: the ISE of eq. (25) alone, as in the paper",
     )
     p.add_argument(
@@ -60,6 +62,22 @@ def add_parser(sub) -> None:
         default="table4",
         help="table4 (default): the paper's Table 4 gains are one flower of the initial population, "
         "the rest uniform; random: all uniform, as in the paper's Fig. 3",
+    )
+    p.add_argument(
+        "--vehicle",
+        default="paper",
+        metavar="NAME|FILE",
+        help="the vehicle flown through the step: a bundled vehicle (paper, crazyflie21) or a vehicle file "
+        "(docs/vehicles.md; default paper, Table 1)",
+    )
+    p.add_argument(
+        "--motor-tau",
+        type=float,
+        default=None,
+        metavar="S",
+        help="rotor time constant (s) of the step: > 0 flies it with rotor lag and the controller of a "
+        "lagged run (attitude-priority mixing, lag compensation); default: the vehicle file's motor_tau, "
+        "0 (ideal rotors, the paper) where it gives none",
     )
     p.add_argument("-o", "--output", default="tuned_gains.toml", help="gains file (default tuned_gains.toml)")
     p.add_argument(
@@ -80,6 +98,29 @@ def add_parser(sub) -> None:
     p.set_defaults(func=main)
 
 
+#: Each 2 % settling bar grows by this many rotor time constants τ under rotor lag (docs/vehicles.md,
+#: "Tuning for a vehicle"): a first-order lag delays a response by about τ, in the attitude loop and
+#: again in the position loop that waits for it.
+LAG_SETTLING_FACTOR = 2.0
+
+
+def lagged_bars(motor_tau: float):  # noqa: ANN201 - a StepBars (imported lazily, as the command does)
+    """The step bars for rotors with time constant ``motor_tau`` (s): the paper's
+    (:class:`~swarm_mj.tuning.constraints.StepBars`) with each settling bar + LAG_SETTLING_FACTOR·τ;
+    exactly the paper's for τ = 0."""
+    from ..tuning.constraints import StepBars
+
+    b = StepBars()
+    d = LAG_SETTLING_FACTOR * float(motor_tau)
+    return replace(
+        b,
+        settling_x_s=b.settling_x_s + d,
+        settling_y_s=b.settling_y_s + d,
+        settling_z_s=b.settling_z_s + d,
+        settling_psi_s=b.settling_psi_s + d,
+    )
+
+
 # --------------------------------------------------------------------------- the gains file
 
 
@@ -97,8 +138,9 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def gains_toml(outcome, created: datetime | None = None) -> str:
-    """The gains file for a :class:`~swarm_mj.tuning.cost.TuneOutcome` (read by ``load_gains``)."""
+def gains_toml(outcome, created: datetime | None = None, vehicle: str = "paper") -> str:
+    """The gains file for a :class:`~swarm_mj.tuning.cost.TuneOutcome` (read by ``load_gains``);
+    ``vehicle``: the name of the vehicle flown (``--vehicle``), recorded in ``[settings]``."""
     from .. import __version__
 
     o, s = outcome.options, outcome.settings
@@ -136,6 +178,8 @@ def gains_toml(outcome, created: datetime | None = None) -> str:
             f"lower = {_toml_value(float(o.lower))}",
             f"upper = {_toml_value(float(o.upper))}",
             f"t_sim = {_toml_value(float(s.t_sim))}",
+            f"vehicle = {_toml_value(vehicle)}",
+            f"motor_tau = {_toml_value(float(s.motor_tau))}",
             f"control_period = {_toml_value(float(s.control_period))}",
             f"timestep = {_toml_value(float(s.timestep))}",
             f"integrator = {_toml_value(s.integrator)}",
@@ -170,9 +214,9 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     _write(path, text)
 
 
-def write_gains_file(path: str | Path, outcome) -> None:
+def write_gains_file(path: str | Path, outcome, vehicle: str = "paper") -> None:
     """Atomically write the gains file of ``outcome`` (see :func:`gains_toml`)."""
-    write_text_atomic(path, gains_toml(outcome))
+    write_text_atomic(path, gains_toml(outcome, vehicle=vehicle))
 
 
 # --------------------------------------------------------------------------- the command
@@ -187,7 +231,7 @@ def _check_output(path: Path) -> None:
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
     from ..progress import Progress
-    from ..tuning.constraints import INFEASIBLE, StepBars
+    from ..tuning.constraints import INFEASIBLE
     from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
     # Validate everything before any worker starts.
@@ -207,7 +251,16 @@ def main(args: argparse.Namespace) -> int:
 
     check_seed(args.seed, "--seed")
     check_duration(args.t_sim, 0.01, max(int(args.population), 1), "--t-sim")
-    settings = StepCostSettings(t_sim=float(args.t_sim), bars=StepBars() if args.constraints == "step-bars" else None)
+    from ..vehicles import load_vehicle
+
+    vehicle = load_vehicle(args.vehicle)
+    tau = args.motor_tau if args.motor_tau is not None else (vehicle.motor_tau or 0.0)
+    settings = StepCostSettings(
+        t_sim=float(args.t_sim),
+        bars=lagged_bars(float(tau)) if args.constraints == "step-bars" else None,
+        params=vehicle.params(),
+        motor_tau=float(tau),
+    )
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     if args.ray is not None:
@@ -234,6 +287,10 @@ def main(args: argparse.Namespace) -> int:
         f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}"
     )
     say(
+        f"  vehicle: {vehicle.name} ({vehicle.mass:g} kg, arm {vehicle.arm_length:g} m); rotor lag "
+        + (f"{1000 * settings.motor_tau:g} ms" if settings.motor_tau > 0 else "none (ideal rotors)")
+    )
+    say(
         "  cost: ISE of eq. (25)"
         + (", subject to the step bars (Deb's rules)" if settings.bars else "")
         + (
@@ -249,7 +306,7 @@ def main(args: argparse.Namespace) -> int:
 
     def on_iteration(o) -> None:
         last[:] = [o]
-        write_gains_file(out, o)
+        write_gains_file(out, o, vehicle.name)
         it = len(o.history) - 1
         best = (
             f"best ISE {o.best_ise:10.5f}"
@@ -273,7 +330,7 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         raise
-    write_gains_file(out, res)
+    write_gains_file(out, res, vehicle.name)
     if not quiet:
         print(format_outcome(res, out))
     return 0

@@ -54,8 +54,10 @@ import numpy as np
 
 from .._jit import jit
 from ..control.backstepping import Backstepping
+from ..control.lag import AttitudePredictor
 from ..errors import UserError
 from ..metrics import ise, step_metrics_batch
+from ..mixing import attitude_priority
 from ..observation import attitude_kernel
 from ..paper import TABLE4_GAINS
 from ..params import DEFAULT_PARAMS, QuadParams
@@ -97,6 +99,10 @@ class StepCostSettings:
     max_distance: float = 100.0
     attitude_map: str = "exact"
     params: QuadParams = field(default=DEFAULT_PARAMS)
+    #: rotor time constant (s): > 0 flies the step with first-order rotor lag and the controller of a
+    #: lagged run (attitude-priority mixing, the attitude predicted τ + T ahead; docs/aero.md), as
+    #: ``swarm-mj tune --vehicle`` does under the vehicle's lag (docs/vehicles.md); 0: the paper's
+    motor_tau: float = 0.0
     #: the step bars as constraints of the tune (Deb's rules, :mod:`.constraints`); None: ISE only
     bars: StepBars | None = field(default=StepBars())
 
@@ -111,6 +117,11 @@ class StepCostSettings:
             raise UserError(f"unknown integrator {self.integrator!r}; choose one of {sorted(INTEGRATORS)}")
         if self.attitude_map not in ("exact", "paper"):
             raise UserError(f"attitude_map must be 'exact' or 'paper', got {self.attitude_map!r}")
+        tau = self.motor_tau
+        if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
+            raise UserError(f"motor-tau must be a time constant >= 0 s, got {tau!r}")
+        if 0 < tau < self.timestep:
+            raise UserError(f"motor-tau must be 0 or at least the physics timestep {self.timestep:g} s, got {tau:g}")
         object.__setattr__(self, "target", tuple(float(v) for v in self.target))
         object.__setattr__(self, "start", tuple(float(v) for v in self.start))
         if len(self.target) != 3 or len(self.start) != 3:
@@ -235,6 +246,7 @@ class BatchEvaluator:
                     params=s.params,
                     timestep=s.timestep,
                     integrator=s.integrator,
+                    motor_tau=s.motor_tau,
                 )
             self.sims.append(
                 Sim(
@@ -298,6 +310,9 @@ class BatchEvaluator:
         self.diverged_at[~alive] = 0
         g = np.where(alive[:, None], g, TABLE4_GAINS)  # placeholders for the dead
         ctl = Backstepping(m, g, params=s.params, control_period=s.control_period, attitude_map=s.attitude_map)
+        lagged = s.motor_tau > 0  # the controller of a run with rotor lag (Scenario.lag_horizons, mixer "auto")
+        T, p = s.control_period, s.params
+        predictor = AttitudePredictor(m, s.motor_tau + T, s.motor_tau, T) if lagged else None
         for sim in self.sims:
             sim.reset()
         pos_d, zero3, yaw_d = self._pos_d, self._zero3, self._yaw_d
@@ -317,7 +332,12 @@ class BatchEvaluator:
                     self._kill(alive, bad, k)
                     break
                 pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
-                U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
+                if predictor is None:
+                    U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
+                else:
+                    rpy_p, rate_p, omega_p = predictor(rpy, rate, omega)
+                    U = ctl.compute(rpy_p, rate_p, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega_p)
+                    U = attitude_priority(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
                 error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k], bad)
                 if self._kill(alive, bad, k) or must_park:
                     if not alive.any():

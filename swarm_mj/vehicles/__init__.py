@@ -2,7 +2,14 @@
 
 A vehicle file has at least ``mass`` (kg), ``arm_length`` (m, centre to motor) and ``rotor_radius``
 (m) under these names; the bundled vehicles (``paper``, ``crazyflie21``) are such files in this folder.
-:func:`load_vehicle` takes a bundled name or a path and returns a :class:`Vehicle`.
+:func:`load_vehicle` takes a bundled name or a path and returns a :class:`Vehicle`. To be flown, a
+vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N·s/m) and ``max_thrust``
+(N per rotor); it may give ``min_thrust`` (N, default 0), ``yaw_torque_coefficient`` (m: the
+rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
+default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
+realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms) and ``gains`` (the gains
+file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them).
+:meth:`Vehicle.params` gives the :class:`~swarm_mj.params.QuadParams` the simulator and the controller use.
 """
 
 from __future__ import annotations
@@ -14,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError
+from ..params import QuadParams
 
 _HERE = Path(__file__).resolve().parent
 #: The keys every vehicle file must have, with their units.
@@ -29,6 +37,79 @@ class Vehicle:
     arm_length: float
     rotor_radius: float
     extra: dict[str, Any] = field(default_factory=dict)
+    path: str = ""
+
+    def _number(self, key: str, unit: str, default: float | None = None) -> float | None:
+        v = self.extra.get(key, default)
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+            raise UserError(f"{self.path}: vehicle key {key!r} must be a positive number ({unit}), got {v!r}")
+        return float(v)
+
+    def _triple(self, key: str, unit: str, positive: bool) -> list[float]:
+        v = self.extra.get(key)
+        if v is None:
+            raise UserError(f"{self.path}: vehicle key {key!r} is needed to fly it: 3 numbers ({unit})")
+        ok = (
+            isinstance(v, list)
+            and len(v) == 3
+            and all(not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in v)
+        )
+        if not ok or any((x <= 0) if positive else (x < 0) for x in v):
+            need = "positive" if positive else ">= 0"
+            raise UserError(f"{self.path}: vehicle key {key!r} must be 3 {need} numbers ({unit}), got {v!r}")
+        return [float(x) for x in v]
+
+    def params(self) -> QuadParams:
+        """The :class:`~swarm_mj.params.QuadParams` of this vehicle (module docstring for the keys).
+
+        Raises :class:`~swarm_mj.errors.UserError` naming the file and the key when a key needed to
+        fly is missing or out of range."""
+        Ix, Iy, Iz = self._triple("inertia", "kg·m²", True)
+        Kx, Ky, Kz = self._triple("drag", "N·s/m", False)
+        f_max = self._number("max_thrust", "N per rotor")
+        if f_max is None:
+            raise UserError(f"{self.path}: vehicle key 'max_thrust' is needed to fly it (N per rotor)")
+        f_min = self.extra.get("min_thrust", 0.0)
+        if isinstance(f_min, bool) or not isinstance(f_min, int | float) or not 0 <= f_min < f_max:
+            raise UserError(f"{self.path}: vehicle key 'min_thrust' must be >= 0 and < max_thrust, got {f_min!r}")
+        try:
+            return QuadParams(
+                m=self.mass,
+                Ix=Ix,
+                Iy=Iy,
+                Iz=Iz,
+                L=self.arm_length,
+                Kx=Kx,
+                Ky=Ky,
+                Kz=Kz,
+                f_min=float(f_min),
+                f_max=f_max,
+                rotor_radius=self.rotor_radius,
+                collision_radius=self._number("collision_radius", "m"),
+                yaw_coefficient=self._number("yaw_torque_coefficient", "m"),
+                motor_tau=self.motor_tau,
+            )
+        except UserError as e:
+            raise UserError(f"{self.path}: {e}") from None
+
+    @property
+    def gains_file(self) -> Path | None:
+        """The gains tuned for this vehicle (the file's ``gains``, a gains file written by ``swarm-mj tune
+        --vehicle``, relative to the vehicle file), or None; ``swarm-mj stress --vehicle`` flies them."""
+        g = self.extra.get("gains")
+        if g is None:
+            return None
+        p = Path(self.path).parent / g if isinstance(g, str) else None
+        if p is None or not p.is_file():
+            raise UserError(f"{self.path}: vehicle key 'gains' must name a gains file, got {g!r}")
+        return p.resolve()
+
+    @property
+    def motor_tau(self) -> float | None:
+        """The rotor time constant the file gives (s), or None."""
+        return self._number("motor_tau", "s")
 
     @property
     def rotor_span(self) -> float:
@@ -62,4 +143,4 @@ def load_vehicle(name_or_path: str | Path) -> Vehicle:
     if not isinstance(name, str):
         raise UserError(f"{path}: vehicle key 'name' must be a string, got {name!r}")
     extra = {k: v for k, v in data.items() if k not in REQUIRED and k != "name"}
-    return Vehicle(name, float(data["mass"]), float(data["arm_length"]), float(data["rotor_radius"]), extra)
+    return Vehicle(name, float(data["mass"]), float(data["arm_length"]), float(data["rotor_radius"]), extra, str(path))

@@ -361,6 +361,7 @@ class SwarmVectorEnv(VectorEnv):
                     timestep=sc.timestep,
                     integrator=sc.integrator,
                     contact_groups=b,
+                    params=sc.params,
                 )
             self._blocks.append(_Block(Sim(worlds[b], T, n_copies=b), c0, b, n))
         self.params = self._blocks[0].sim.params
