@@ -119,7 +119,7 @@ def _jet(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: 
     f = np.zeros((len(flight.t), 3))
     for j, up in enumerate(logs):
         if j != d:
-            f += jet_force(
+            f += setups[j].vehicle.downwash_gain * jet_force(
                 up.pos,
                 rotation_z_axis(up.quat),
                 thrust[j] * G / 1000.0,
@@ -129,7 +129,7 @@ def _jet(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: 
                 setups[d].vehicle,
                 *plates(setups[d].vehicle, p),
             )
-    return p.jet_gain * f
+    return f
 
 
 def _gym(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: int, p: ValidationParams) -> np.ndarray:
@@ -162,10 +162,10 @@ def _wake(
             tau = transport_time(s, u_h, 2.0 * src.arm_length)
             now = emitted_state(t, tau, t, state)
         pos = now[:, :3] + wake_offset(t, tau, np.asarray(p.wind))
-        f += jet_force(
+        f += src.downwash_gain * jet_force(
             pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle, *plates(setups[d].vehicle, p)
         )
-    return p.jet_gain * f
+    return f
 
 
 MODEL_FNS: dict[str, ModelFn] = {"jet": _jet, "wake": _wake, "gym": _gym}
@@ -301,8 +301,8 @@ def load_all(data: Path, progress: Callable[[str], None] | None = None) -> list[
 
 
 def calibrate_gain(passes: list[PassResult]) -> float:
-    """Least-squares gain k on the jet model over the single passes given (k = Σ p m / Σ p²): the
-    predictions must have been made with jet_gain = 1."""
+    """Least-squares factor k on the jet model's predictions over the single passes given
+    (k = Σ p m / Σ p²): 1 when the upper vehicles' ``downwash_gain`` is the fit on these passes."""
     m = np.concatenate([q.measured for q in passes])
     pr = np.concatenate([q.predicted["jet"] for q in passes])
     return float(np.dot(pr, m) / np.dot(pr, pr))

@@ -38,10 +38,6 @@ class ValidationParams:
     hub_area: float = 0.033 * 0.033
     #: Rotor layout of the Neural-Swarm drones: Crazyflies fly "x" (rotors at 45° to the body axes).
     rotor_layout: str = "x"
-    #: Gain on the jet model's force: the least-squares fit of the model (gain 1) to the measured
-    #: Fa_z over the single passes of the calibration flights only (the JSON's
-    #: ``calibration_fit`` refits it on every run; docs/validation.md, "Calibration").
-    jet_gain: float = 1.288
     #: gym-pybullet-drones' empirical downwash (BaseAviary._downwash, cf2x.urdf): dw_coeff_1..3.
     gym_coeffs: tuple[float, float, float] = (2267.18, 0.16, -0.11)
     #: Wind (m/s, world frame) that carries the wake sideways: none in the lab.

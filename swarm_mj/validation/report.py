@@ -12,7 +12,10 @@ from .params import CALIBRATION
 
 #: What each model column is.
 MODEL_NOTES = {
-    "jet": "swarm_mj.aero.downwash: Bauersfeld et al. 2024 turbulent jet, five-plate drag (docs/aero.md), x jet_gain",
+    "jet": (
+        "swarm_mj.aero.downwash: Bauersfeld et al. 2024 turbulent jet, five-plate drag (docs/aero.md), "
+        "x the upper vehicle's downwash_gain"
+    ),
     "wake": "the same jet with a travelling wake (swarm_mj.aero.wake): each upper drone's state when the air left it",
     "gym": "gym-pybullet-drones BaseAviary._downwash, cf2x.urdf coefficients, the upper drone's rotor radius",
     "none": "Fa = 0",
@@ -66,6 +69,7 @@ def validate_downwash(data: Path, setup: Setup, progress: Callable[[str], None] 
             raise_unknown(drone, data, "--mass")
     results: list[PassResult] = []
     drones: dict[str, dict] = {}
+    gains: dict[str, float] = {}  # vehicle -> its downwash_gain (from its vehicle file)
     left_out: list[dict] = []
     for f in flights:
         found = analyse_flight(f, setup, left_out=left_out)
@@ -73,6 +77,7 @@ def validate_downwash(data: Path, setup: Setup, progress: Callable[[str], None] 
         for d in f.drones:
             s = drone_setup(f, d, setup)
             drones.setdefault(d, {"vehicle": s.vehicle.name, "sysid": s.thrust.source, "mass_g": s.mass_g})
+            gains[s.vehicle.name] = s.vehicle.downwash_gain
         if progress:
             n1 = sum(not q.p.stack for q in found)
             progress(f"analysed {f.name}: {n1} single passes, {len(found) - n1} under a stack")
@@ -92,8 +97,9 @@ def validate_downwash(data: Path, setup: Setup, progress: Callable[[str], None] 
         },
         "drones": drones,
         "calibration_fit": {
-            "jet_gain_used": p.jet_gain,
-            "jet_gain_fitted": p.jet_gain * calibrate_gain(cal) if cal else None,
+            "downwash_gain_used": gains,
+            # one factor on top of the gains used (every calibration flight flies one vehicle kind)
+            "refit_factor": calibrate_gain(cal) if cal else None,
             "fitted_on": "single passes of the calibration flights",
         },
         "rows": rows,
@@ -167,11 +173,12 @@ def format_doc(doc: dict, passes: bool = False) -> str:
     """The printed report: each row's table, the stacks', the bars on the held-out flights."""
     fit = doc["calibration_fit"]
     out = [
-        f"downwash validation, forces in gf (Fa_z < 0: pushed down); jet gain {fit['jet_gain_used']:.3f} "
+        "downwash validation, forces in gf (Fa_z < 0: pushed down); the vehicles' downwash_gain: "
+        + ", ".join(f"{name} {g:.3f}" for name, g in fit["downwash_gain_used"].items())
         + (
-            f"(refitted on the calibration flights: {fit['jet_gain_fitted']:.3f})"
-            if fit["jet_gain_fitted"] is not None
-            else "(no calibration flight under --data to refit it on)"
+            f" (a refit on the calibration flights would multiply it by {fit['refit_factor']:.4f})"
+            if fit["refit_factor"] is not None
+            else " (no calibration flight under --data to refit it on)"
         )
     ]
     for row in doc["rows"]:

@@ -112,6 +112,15 @@ class Vehicle:
         return self._number("motor_tau", "s")
 
     @property
+    def downwash_gain(self) -> float:
+        """Gain on the jet model's force on the drones below this one (the file's ``downwash_gain``,
+        1 where it gives none): fitted on the calibration flights of ``swarm-mj validate downwash``
+        only (docs/validation.md, "Calibration"); the simulator's downwash stage uses the same number."""
+        g = self._number("downwash_gain", "dimensionless", 1.0)
+        assert g is not None
+        return g
+
+    @property
     def rotor_span(self) -> float:
         """Centre to rotor tip: ``arm_length + rotor_radius`` (m), the vehicle's horizontal size."""
         return self.arm_length + self.rotor_radius
