@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..parallel import RAY_INSTALL_HINT, Executor, default_workers
-from .evaluator import StepCostSettings, evaluate_batch
+from .evaluator import StepCostSettings, _check_count, evaluate_batch
 
 __all__ = [
     "InProcessCost",
@@ -35,6 +35,7 @@ class PopulationCost(Protocol):
 
     backend: str
     workers: int
+    threads: int
 
     def __call__(self, X: np.ndarray) -> np.ndarray: ...
 
@@ -58,21 +59,23 @@ class _Closing:
 
 
 class InProcessCost(_Closing):
-    """The whole population in batched models in this process (``--workers 1``)."""
+    """The whole population in batched models in this process, flown by ``threads`` threads
+    (default: the CPUs this process may use; :class:`~swarm_mj.tuning.evaluator.BatchEvaluator`)."""
 
     backend = "in-process"
     workers = 1
 
-    def __init__(self, settings: StepCostSettings = StepCostSettings()) -> None:
+    def __init__(self, settings: StepCostSettings = StepCostSettings(), threads: int | None = None) -> None:
         self.settings = settings
+        self.threads = default_workers() if threads is None else _check_count("threads", threads)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
-        return evaluate_batch(X, self.settings)
+        return evaluate_batch(X, self.settings, self.threads)
 
 
-def _worker_eval(args: tuple[StepCostSettings, np.ndarray]) -> np.ndarray:
-    settings, X = args
-    return evaluate_batch(X, settings)
+def _worker_eval(args: tuple[StepCostSettings, np.ndarray, int]) -> np.ndarray:
+    settings, X, threads = args
+    return evaluate_batch(X, settings, threads)
 
 
 class _ExecutorCost(_Closing):
@@ -81,6 +84,7 @@ class _ExecutorCost(_Closing):
 
     backend: str
     workers: int
+    threads: int = 1  # the evaluator's threads in each worker
     settings: StepCostSettings
     _ex: Executor | None
 
@@ -89,7 +93,7 @@ class _ExecutorCost(_Closing):
             raise RuntimeError(f"this {type(self).__name__} is closed")
         X = np.asarray(X, dtype=float)
         parts = _chunks(X, self.workers)
-        results = self._ex.map(_worker_eval, [(self.settings, c) for c in parts])
+        results = self._ex.map(_worker_eval, [(self.settings, c, self.threads) for c in parts])
         return np.concatenate(results) if results else np.empty(0)
 
     def close(self) -> None:
@@ -108,11 +112,14 @@ class ProcessPoolCost(_ExecutorCost):
 
     backend = "processes"
 
-    def __init__(self, settings: StepCostSettings = StepCostSettings(), workers: int | None = None) -> None:
+    def __init__(
+        self, settings: StepCostSettings = StepCostSettings(), workers: int | None = None, threads: int = 1
+    ) -> None:
         self.settings = settings
         self.workers = default_workers() if workers is None else int(workers)
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
+        self.threads = _check_count("threads", threads)
         self._ex = Executor(self.workers)
 
 
@@ -128,29 +135,43 @@ class RayCost(_ExecutorCost):
     backend = "ray"
 
     def __init__(
-        self, settings: StepCostSettings = StepCostSettings(), address: str = "local", workers: int | None = None
+        self,
+        settings: StepCostSettings = StepCostSettings(),
+        address: str = "local",
+        workers: int | None = None,
+        threads: int = 1,
     ) -> None:
         if workers is not None and int(workers) < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
         self.settings = settings
+        self.threads = _check_count("threads", threads)
         self._ex = Executor(workers, ray_address=address)
         self.workers = self._ex.workers
 
 
 def make_population_cost(
-    settings: StepCostSettings = StepCostSettings(), *, workers: int | None = None, ray_address: str | None = None
+    settings: StepCostSettings = StepCostSettings(),
+    *,
+    workers: int | None = None,
+    threads: int | None = None,
+    ray_address: str | None = None,
 ) -> InProcessCost | ProcessPoolCost | RayCost:
     """The batched eq.-(25) cost for :func:`~swarm_mj.tuning.fpa`, on the chosen backend.
 
-    ray_address given: Ray (``workers`` actors, default one per cluster CPU);
-    else ``workers`` local processes (default: the CPUs available), ``workers=1`` in-process.
+    Default (``workers`` None or 1): in this process, ``threads`` threads (default: the CPUs
+    available; docs/design.md, "The tuner on every core": threads beat worker processes on one machine,
+    which each pay an interpreter, imports and models of their own);
+    ``workers`` > 1: that many local processes, each with ``threads`` threads (default 1);
+    ray_address given: Ray (``workers`` actors, default one per cluster CPU; ``threads`` each, default 1).
+    The costs are the same whatever the backend, workers and threads.
     Use it as a context manager (or call ``close()``) to stop the workers.
     """
-    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, (int, np.integer)) or workers < 1):
-        raise UserError(f"workers must be an integer >= 1, got {workers!r}")
+    if workers is not None:
+        _check_count("workers", workers)
+    if threads is not None:
+        _check_count("threads", threads)
     if ray_address is not None:
-        return RayCost(settings, ray_address, workers)
-    w = default_workers() if workers is None else int(workers)
-    if w == 1:
-        return InProcessCost(settings)
-    return ProcessPoolCost(settings, w)
+        return RayCost(settings, ray_address, workers, threads or 1)
+    if workers is None or workers == 1:
+        return InProcessCost(settings, threads)
+    return ProcessPoolCost(settings, int(workers), threads or 1)
