@@ -66,15 +66,15 @@ def add_parser(sub) -> None:
         "--workers",
         type=int,
         default=None,
-        help="worker processes (default 1: in this process, on --threads threads); with --ray: actors "
-        "(default: one per cluster CPU)",
+        help="worker processes (default: one per usable CPU; 1 = in this process, on --threads threads); "
+        "with --ray: actors (default: one per cluster CPU)",
     )
     p.add_argument(
         "--threads",
         type=int,
         default=None,
-        help="threads flying the candidates in this process (default: one per usable CPU) or, with "
-        "--workers N > 1 or --ray, in each worker (default 1); the tune is the same whatever the number",
+        help="threads flying the candidates: in this process with --workers 1 or without --workers "
+        "(default: one per usable CPU), else in each worker (default 1); the tune is the same whatever the number",
     )
     p.add_argument(
         "--ray",
@@ -237,7 +237,7 @@ def main(args: argparse.Namespace) -> int:
     if args.ray is not None:
         where = f"Ray at {args.ray}" + (f", {args.workers} actors" if args.workers else "")
     else:
-        w = 1 if args.workers is None else args.workers
+        w = (default_workers() if args.threads is None else 1) if args.workers is None else args.workers
         t = (default_workers() if w == 1 else 1) if args.threads is None else args.threads
         where = (f"in this process, {t} thread(s)" if w == 1 else f"{w} worker processes") + (
             f", {t} thread(s) each" if w > 1 and t > 1 else ""

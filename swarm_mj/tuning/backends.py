@@ -11,6 +11,9 @@ affinity, Ctrl-C, optional extra ``swarm-mj[ray]`` for Ray).
 
 from __future__ import annotations
 
+import multiprocessing
+import sys
+import threading
 from typing import Protocol
 
 import numpy as np
@@ -19,12 +22,26 @@ from ..errors import UserError
 from ..parallel import RAY_INSTALL_HINT, Executor, default_workers
 from .evaluator import StepCostSettings, _check_count, evaluate_batch
 
+
+def worker_start_method() -> str:
+    """How the tuner's local worker processes start: ``"fork"`` where the platform has it (Linux) and
+    this process runs no other thread, else ``"spawn"``. A forked worker is a copy of this process with
+    MuJoCo, the compiled kernels and the evaluator already loaded, ready in milliseconds, where a
+    spawned one first imports and loads them (about 1.5 s of CPU each; docs/physics_step.md, "The
+    tuner on every core"). The evaluator's own threads end with each call, so ``swarm-mj tune``
+    forks from a single-threaded process; a caller with threads of its own (a notebook kernel)
+    gets spawned workers, which never inherit a lock another thread held."""
+    forkable = sys.platform.startswith("linux") and "fork" in multiprocessing.get_all_start_methods()
+    return "fork" if forkable and threading.active_count() == 1 else "spawn"
+
+
 __all__ = [
     "InProcessCost",
     "PopulationCost",
     "ProcessPoolCost",
     "RAY_INSTALL_HINT",
     "RayCost",
+    "worker_start_method",
     "default_workers",
     "make_population_cost",
 ]
@@ -120,7 +137,8 @@ class ProcessPoolCost(_ExecutorCost):
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
         self.threads = _check_count("threads", threads)
-        self._ex = Executor(self.workers)
+        self.start_method = worker_start_method()
+        self._ex = Executor(self.workers, start_method=self.start_method)
 
 
 class RayCost(_ExecutorCost):
@@ -158,11 +176,13 @@ def make_population_cost(
 ) -> InProcessCost | ProcessPoolCost | RayCost:
     """The batched eq.-(25) cost for :func:`~swarm_mj.tuning.fpa`, on the chosen backend.
 
-    Default (``workers`` None or 1): in this process, ``threads`` threads (default: the CPUs
-    available; docs/design.md, "The tuner on every core": threads beat worker processes on one machine,
-    which each pay an interpreter, imports and models of their own);
+    Default (``workers`` and ``threads`` None): one local worker process per usable CPU, started by
+    :func:`worker_start_method`, one thread each (in this process where there is one CPU);
     ``workers`` > 1: that many local processes, each with ``threads`` threads (default 1);
-    ray_address given: Ray (``workers`` actors, default one per cluster CPU; ``threads`` each, default 1).
+    ``workers`` 1, or only ``threads`` given: in this process on ``threads`` threads (default: the
+    usable CPUs); ray_address given: Ray (``workers`` actors, default one per cluster CPU;
+    ``threads`` each, default 1). Processes beat threads on the tune (docs/physics_step.md, "The
+    tuner on every core": the threads hand the GIL over many times per control period).
     The costs are the same whatever the backend, workers and threads.
     Use it as a context manager (or call ``close()``) to stop the workers.
     """
@@ -172,6 +192,8 @@ def make_population_cost(
         _check_count("threads", threads)
     if ray_address is not None:
         return RayCost(settings, ray_address, workers, threads or 1)
+    if workers is None and threads is None:
+        workers = default_workers()
     if workers is None or workers == 1:
         return InProcessCost(settings, threads)
     return ProcessPoolCost(settings, int(workers), threads or 1)

@@ -149,8 +149,12 @@ class StepCostSettings:
 #: 3×nv Jacobian per actuator and forward pass, i.e. O(m²) work for m copies in one model. A
 #: batch is therefore flown as blocks of at most this many copies, each its own model and
 #: ``Sim``, all driven by ONE vectorised controller call (measured per batch of 50: blocks of
-#: 13–25 copies cost the same, one model of 50 20 % more).
-DEFAULT_BLOCK = 20
+#: 13–25 copies cost the same, one model of 50 20 % more). 25 rather than fewer: on threads, each
+#: block's step hands the GIL over several times per control period (``mj_step`` and every
+#: ``nogil`` kernel), and fewer, larger blocks per thread scale better (the tune's 50 candidates
+#: on 2 threads: groups of 25 as one model each 1.41x one thread, as two models of 13 and 12
+#: 1.09x; docs/physics_step.md, "The tuner on every core").
+DEFAULT_BLOCK = 25
 
 
 def _record_samples():

@@ -1,9 +1,12 @@
-"""The tuner's evaluator on several threads (issue 30): each copy's result is the same bit for bit
-whatever the number of threads, the tune too, and the number of threads defaults to the usable CPUs."""
+"""The tuner on every core (issue 30): the evaluator on several threads gives each copy's result bit for
+bit as one thread, the tune too; the threads default to the usable CPUs; by default the tune's workers
+are processes forked from a single-threaded parent (spawned otherwise), with the same results."""
 
 from __future__ import annotations
 
 import os
+import sys
+import threading
 
 import numpy as np
 import pytest
@@ -13,6 +16,7 @@ from swarm_mj.errors import UserError
 from swarm_mj.paper import TABLE4_GAINS
 from swarm_mj.tuning import BatchEvaluator, StepCostSettings, TuneOptions, make_population_cost, tune_gains
 from swarm_mj.tuning import evaluator as evaluator_mod
+from swarm_mj.tuning.backends import worker_start_method
 from swarm_mj.tuning.evaluator import evaluate_batch
 
 SHORT = StepCostSettings(t_sim=2.0)
@@ -73,13 +77,46 @@ def test_same_tune_whatever_the_number_of_threads():
 
 def test_threads_default_to_the_usable_cpus():
     usable = len(os.sched_getaffinity(0))
-    with make_population_cost(SHORT) as cost:
+    with make_population_cost(SHORT, workers=1) as cost:  # in this process: one thread per usable CPU
         assert cost.backend == "in-process" and cost.threads == usable
+    with make_population_cost(SHORT, threads=3) as cost:  # only threads given: in this process
+        assert cost.backend == "in-process" and cost.threads == 3
     with make_population_cost(SHORT, workers=2) as cost:  # processes: one thread each unless asked
         assert cost.backend == "processes" and cost.threads == 1
+    with make_population_cost(SHORT) as cost:  # the default: a process per usable CPU (one CPU: in-process)
+        assert cost.workers == usable and cost.threads == 1
+        assert cost.backend == ("processes" if usable > 1 else "in-process")
     X = _batch()[:3]
     evaluate_batch(X, SHORT)
     assert (SHORT, 3, min(usable, 3)) in evaluator_mod._EVALUATORS
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="fork: Linux only")
+def test_workers_fork_from_a_single_threaded_process_and_spawn_otherwise():
+    alone = threading.active_count() == 1  # (other tests of the session may have left a thread)
+    assert worker_start_method() == ("fork" if alone else "spawn")
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        assert worker_start_method() == "spawn"
+    finally:
+        stop.set()
+        other.join()
+    with make_population_cost(SHORT, workers=2) as cost:
+        assert cost.start_method == ("fork" if alone else "spawn")
+
+
+def test_forked_and_spawned_workers_give_the_in_process_costs(monkeypatch):
+    from swarm_mj.tuning import backends
+
+    X = _batch()
+    here = BatchEvaluator(len(X), SHORT, threads=1).ranked(X)
+    for method in ("fork", "spawn") if sys.platform.startswith("linux") else ("spawn",):
+        monkeypatch.setattr(backends, "worker_start_method", lambda m=method: m)
+        with make_population_cost(SHORT, workers=2) as cost:
+            assert cost.start_method == method
+            np.testing.assert_array_equal(cost(X), here)
 
 
 def test_an_error_in_one_thread_is_raised_and_stops_the_others(monkeypatch):
