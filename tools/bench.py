@@ -26,7 +26,7 @@ Rows:
   cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory: every kernel compiles; the
   fused path compiles in a background process, whose time is reported, and the run after it);
 * tuning: ``tuning.cost.tune_gains`` (paper Table 2: population 50, 14 iterations) on one
-  thread, on one thread per CPU (the default) and on one worker process per CPU (speed-up);
+  thread, on one thread per CPU and on one worker process per CPU (the default; speed-up);
   baseline: raw mj_step on a 10-copy model (the cost's block size) for the same drone-seconds;
 * video: ``video.render_video`` frames per second (640x360, H.264), beside a bare
   ``mujoco.Renderer`` on the same model (if rendering is available);
@@ -476,11 +476,11 @@ def bench_tuning(quick: bool, repeats: int) -> None:
     t_probe = raw_seconds(w, int(probe_s / settings.timestep))
     raw_equiv = t_probe * drone_s / (block * probe_s)
     nw = default_workers()
-    # 1 thread in this process; the default (this process, one thread per CPU); one process per CPU
+    # 1 thread in this process; one thread per CPU in this process; the default (one process per CPU)
     configs = {"1 thread": {"workers": 1, "threads": 1}}
     if nw > 1:
-        configs[f"{nw} threads (default)"] = {}
-        configs[f"{nw} worker processes"] = {"workers": nw}
+        configs[f"{nw} threads"] = {"workers": 1, "threads": nw}
+        configs[f"{nw} worker processes (default)"] = {}
     times, cpu = {}, {}
     for label, kw in configs.items():
         t0, c0 = time.perf_counter(), time.process_time()
@@ -499,12 +499,12 @@ def bench_tuning(quick: bool, repeats: int) -> None:
     if nw > 1:
         row(
             "tuning",
-            f"tune speed-up, {nw} threads vs 1",
+            f"tune speed-up, {nw} worker processes (default) vs 1 thread",
             None,
             None,
-            value=times["1 thread"] / times[f"{nw} threads (default)"],
+            value=times["1 thread"] / times[f"{nw} worker processes (default)"],
             unit="×",
-            note=f"ideal {nw}×; {nw} worker processes: {times['1 thread'] / times[f'{nw} worker processes']:.2f}×",
+            note=f"ideal {nw}×; {nw} threads in this process: {times['1 thread'] / times[f'{nw} threads']:.2f}×",
         )
     else:
         row("tuning", "tune speed-up", None, None, note="one CPU: no speed-up to measure")
