@@ -183,8 +183,8 @@ def tune_gains(
     (KeyboardInterrupt) after the workers are stopped. The final outcome carries ``check``:
     the best gains flown through the step once more, with their step metrics.
     ``workers``, ``threads``, ``ray_address``: where the population is evaluated
-    (:func:`~swarm_mj.tuning.backends.make_population_cost`; by default in this process on every
-    CPU); the tune is the same whatever they are.
+    (:func:`~swarm_mj.tuning.backends.make_population_cost`; by default one worker process per
+    usable CPU); the tune is the same whatever they are.
     """
     import time
 
