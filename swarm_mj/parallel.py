@@ -172,11 +172,16 @@ class Executor:
 
     ``workers``: local processes (default: the CPUs this process may use; 1 runs in this process,
     with no pool); with ``ray_address``, the worker count reported in :attr:`workers` (default:
-    the cluster's CPUs).
+    the cluster's CPUs). ``start_method``: how local workers start (``"spawn"``, the default: a
+    fresh interpreter; ``"fork"``: a copy of this process, with its imports and compiled kernels
+    already loaded, for a caller whose process holds no threads or GL context, e.g. the tuner).
     """
 
-    def __init__(self, workers: int | None = None, *, ray_address: str | None = None) -> None:
+    def __init__(
+        self, workers: int | None = None, *, ray_address: str | None = None, start_method: str = "spawn"
+    ) -> None:
         self.ray_address = ray_address
+        self.start_method = start_method
         self._pool: Any = None
         self._ray: Any = None
         self._ray_started = False
@@ -246,7 +251,7 @@ class Executor:
             if progress is not None:
                 progress.note(f"starting {self.workers} worker processes (each loads MuJoCo and the compiled kernels)")
             self._pool = ProcessPoolExecutor(
-                max_workers=self.workers, mp_context=mp.get_context("spawn"), initializer=_worker_init
+                max_workers=self.workers, mp_context=mp.get_context(self.start_method), initializer=_worker_init
             )
         ok = False
         try:

@@ -1194,6 +1194,19 @@ def parse_settings(text: str) -> list[tuple[str, float]]:
     return out
 
 
+#: docs/physics_step.md from this line on is written by hand (measurements of other tools) and kept as it is
+#: when ``--docs`` rewrites the page above it.
+KEPT_MARK = "<!-- written by hand from here on: tools/accuracy.py --docs keeps it as it is -->"
+
+
+def keep_hand_written(path: str, text: str) -> str:
+    """``text`` followed by the hand-written tail (from :data:`KEPT_MARK`) of the file at ``path``, if any."""
+    p = Path(path)
+    old = p.read_text() if p.exists() else ""
+    i = old.find(KEPT_MARK)
+    return text if i < 0 else text.rstrip("\n") + "\n\n" + old[i:]
+
+
 def _write(path: str, text: str) -> None:
     p = Path(path)
     p.parent.mkdir(parents=True, exist_ok=True)
@@ -1347,7 +1360,7 @@ def main(argv: list[str] | None = None) -> int:
         _write(a.readme, replace_block(p.read_text(), "accuracy", short_table(doc)))
     if a.docs:
         contacts = json.loads(Path(a.contacts_json).read_text()) if a.contacts_json else None
-        _write(a.docs, render_docs(doc, contacts, source))
+        _write(a.docs, keep_hand_written(a.docs, render_docs(doc, contacts, source)))
     return 0
 
 

@@ -26,8 +26,8 @@ Rows:
   cache (``NUMBA_CACHE_DIR`` pointed at a new temporary directory: every kernel compiles; the
   fused path compiles in a background process, whose time is reported, and the run after it);
 * tuning: ``tuning.cost.tune_gains`` (paper Table 2: population 50, 14 iterations) on one
-  worker and on all CPUs (speed-up); baseline: raw mj_step on a 10-copy model (the cost's
-  block size) for the same drone-seconds;
+  thread, on one thread per CPU and on one worker process per CPU (the default; speed-up);
+  baseline: raw mj_step on a 10-copy model (the cost's block size) for the same drone-seconds;
 * video: ``video.render_video`` frames per second (640x360, H.264), beside a bare
   ``mujoco.Renderer`` on the same model (if rendering is available);
 * scaling: ``runner.run`` of a circle with N = 6, 25, 100 drones (followers starting on
@@ -38,7 +38,13 @@ Rows:
   time of the loop per simulated second (the "raw" column is the paper run; bar: 1.3×; at least
   5 interleaved repeats, the best of each).
 
-If ``tools/bench_tune.py``, ``bench_video.py``, ``bench_env.py`` or ``bench_core.py``
+``tools/bench_peers.py`` adds swarm-mj beside its peers: crazyflow's ``Sim`` (64 worlds x 6 drones,
+state control) beside ``SwarmVectorEnv(64)`` with constant commands and with the backstepping
+policy, and the time to a first result (a new process flying six drones for 180 s and writing its
+log: ours on empty caches and later, crazyflow); the crazyflow rows run when it is installed
+(``pip install -e '.[bench]'``).
+
+If ``tools/bench_tune.py``, ``bench_video.py``, ``bench_env.py``, ``bench_core.py`` or ``bench_peers.py``
 defines ``measure(quick: bool) -> list[dict]`` (rows with the keys below), its rows are
 added under "extra".
 
@@ -58,6 +64,10 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
+# crazyflow (tools/bench_peers.py) must find SciPy's array API on, which is read when SciPy is first
+# imported (by a dependency of swarm_mj); swarm_mj itself does not use SciPy.
+os.environ.setdefault("SCIPY_ARRAY_API", "1")
 
 # isort: off
 import swarm_mj  # noqa: F401  (first: it sets MUJOCO_GL before mujoco is imported)
@@ -466,32 +476,39 @@ def bench_tuning(quick: bool, repeats: int) -> None:
     t_probe = raw_seconds(w, int(probe_s / settings.timestep))
     raw_equiv = t_probe * drone_s / (block * probe_s)
     nw = default_workers()
-    times = {}
-    for workers in sorted({1, nw}):
-        t0 = time.perf_counter()
-        out = tune_gains(opts, settings, workers=workers)
-        times[workers] = time.perf_counter() - t0
+    # 1 thread in this process; one thread per CPU in this process; the default (one process per CPU)
+    configs = {"1 thread": {"workers": 1, "threads": 1}}
+    if nw > 1:
+        configs[f"{nw} threads"] = {"workers": 1, "threads": nw}
+        configs[f"{nw} worker processes (default)"] = {}
+    times, cpu = {}, {}
+    for label, kw in configs.items():
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = tune_gains(opts, settings, **kw)
+        times[label], cpu[label] = time.perf_counter() - t0, time.process_time() - c0
         row(
             "tuning",
-            f"tune_gains N={pop}, {iters} it., {workers} worker(s)",
-            times[workers],
+            f"tune_gains N={pop}, {iters} it., {label}",
+            times[label],
             raw_equiv,
-            value=evals / times[workers],
+            value=evals / times[label],
             unit="ISE evals/s",
-            note=f"{times[workers]:.1f} s; best ISE {out.best_ise:.4f} ({out.backend})",
+            note=f"{times[label]:.1f} s (CPU of this process {cpu[label]:.1f} s); best ISE {out.best_ise:.10g} "
+            f"({out.backend})",
         )
     if nw > 1:
         row(
             "tuning",
-            f"tune speed-up, {nw} workers vs 1",
+            f"tune speed-up, {nw} worker processes (default) vs 1 thread",
             None,
             None,
-            value=times[1] / times[nw],
+            value=times["1 thread"] / times[f"{nw} worker processes (default)"],
             unit="×",
-            note=f"ideal {nw}×",
+            note=f"ideal {nw}×; {nw} threads in this process: {times['1 thread'] / times[f'{nw} threads']:.2f}×",
         )
     else:
         row("tuning", "tune speed-up", None, None, note="one CPU: no speed-up to measure")
+    best = min(times.values())
     # Speed-up over evaluating candidates one at a time with the product's loop (tools/bench_tune.py).
     bt = _load_tool("bench_tune")
     if bt is None or not hasattr(bt, "runner_ise"):
@@ -515,10 +532,10 @@ def bench_tuning(quick: bool, repeats: int) -> None:
         f"one at a time: runner.run per candidate, x{evals} (extrapolated)",
         one_by_one,
         raw_equiv,
-        value=one_by_one / times[nw],
+        value=one_by_one / best,
         unit="× slower than the tune",
-        note=f"{per:.3f} s per candidate over {len(sample)}; the batched tune on {nw} worker(s) is "
-        f"{one_by_one / times[nw]:.1f}× faster",
+        note=f"{per:.3f} s per candidate over {len(sample)}; the batched tune (fastest of the above) is "
+        f"{one_by_one / best:.1f}× faster",
     )
     # The stricter baseline: the tune's own evaluator flying one copy per model (batching alone).
     from swarm_mj.tuning.cost import evaluate_batch
@@ -534,10 +551,10 @@ def bench_tuning(quick: bool, repeats: int) -> None:
         f"one at a time: the tune's evaluator, one copy per model, x{evals} (extrapolated)",
         alone,
         raw_equiv,
-        value=alone / times[nw],
+        value=alone / best,
         unit="× slower than the tune",
-        note=f"{per1 * 1e3:.1f} ms per candidate over {len(sample)}; batching alone (1 worker): "
-        f"{alone / times[1]:.1f}×",
+        note=f"{per1 * 1e3:.1f} ms per candidate over {len(sample)}; batching alone (1 thread): "
+        f"{alone / times['1 thread']:.1f}×",
     )
 
 
@@ -727,7 +744,7 @@ def _load_tool(name: str):
 
 
 def extra(quick: bool) -> None:
-    for name in ("bench_core", "bench_env", "bench_tune", "bench_video"):
+    for name in ("bench_core", "bench_env", "bench_tune", "bench_video", "bench_peers"):
         mod = _load_tool(name)
         if mod is None:
             continue

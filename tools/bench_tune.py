@@ -62,30 +62,31 @@ def main(argv: list[str] | None = None) -> int:
         "--runner-sample", type=int, default=3, help="candidates run through runner.run (default 3; 0 to skip)"
     )
     ap.add_argument("--seed", type=int, default=1, help="FPA seed (default 1)")
-    ap.add_argument("--workers", type=int, default=None, help="worker processes (default: one per CPU)")
-    ap.add_argument("--skip-in-process", action="store_true", help="do not time the 1-process tune")
+    ap.add_argument("--workers", type=int, default=None, help="worker processes (default 1: in this process)")
+    ap.add_argument("--threads", type=int, default=None, help="threads (default: one per CPU in this process)")
+    ap.add_argument("--skip-in-process", action="store_true", help="do not time the 1-thread in-process tune")
     args = ap.parse_args(argv)
     if args.sample < 1 or args.runner_sample < 0:
         ap.error("--sample must be >= 1 and --runner-sample >= 0")
 
     opts = TuneOptions(seed=args.seed)
     settings = StepCostSettings()
-    workers = default_workers() if args.workers is None else args.workers
+    workers = 1 if args.workers is None else args.workers
     n_eval = opts.population * (opts.iterations + 1) + 1  # + the Table 4 reference
     table4_ise(settings)  # warm-up (JIT kernels, imports)
 
     rows: list[tuple[str, float]] = []
     in_process_s = float("nan")
     t0 = time.perf_counter()
-    par = tune_gains(opts, settings, workers=workers)
-    rows.append((f"FPA tune, batched, {par.workers} process(es)", time.perf_counter() - t0))
-    if workers == 1:
+    par = tune_gains(opts, settings, workers=workers, threads=args.threads)
+    rows.append((f"FPA tune, batched, {par.workers} process(es) x {par.threads} thread(s)", time.perf_counter() - t0))
+    if workers == 1 and par.threads == 1:
         in_process_s = rows[0][1]
-    if not args.skip_in_process and workers != 1:
+    elif not args.skip_in_process:
         t0 = time.perf_counter()
-        one = tune_gains(opts, settings, workers=1)
+        one = tune_gains(opts, settings, workers=1, threads=1)
         in_process_s = time.perf_counter() - t0
-        rows.append(("FPA tune, batched, in-process", in_process_s))
+        rows.append(("FPA tune, batched, in-process, 1 thread", in_process_s))
         if not (np.array_equal(one.best_x, par.best_x) and one.best_ise == par.best_ise):
             print("WARNING: the 1-process and multi-process tunes differ")
 
@@ -112,7 +113,8 @@ def main(argv: list[str] | None = None) -> int:
 
     print(
         f"Full FPA tune: N = {opts.population}, {opts.iterations} iterations, t_sim = {settings.t_sim:g} s, "
-        f"seed {opts.seed}: {n_eval} evaluations; {workers} worker process(es) on {default_workers()} CPU(s)"
+        f"seed {opts.seed}: {n_eval} evaluations; {workers} worker process(es) x {par.threads} thread(s) "
+        f"on {default_workers()} CPU(s)"
     )
     print(
         f"  initial best ISE {par.initial_ise:.5f}, final {par.best_ise:.5f} "

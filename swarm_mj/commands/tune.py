@@ -84,8 +84,15 @@ def add_parser(sub) -> None:
         "--workers",
         type=int,
         default=None,
-        help="worker processes (default: one per CPU; 1 = in this process); with --ray: actors "
-        "(default: one per cluster CPU)",
+        help="worker processes (default: one per usable CPU; 1 = in this process, on --threads threads); "
+        "with --ray: actors (default: one per cluster CPU)",
+    )
+    p.add_argument(
+        "--threads",
+        type=int,
+        default=None,
+        help="threads flying the candidates: in this process with --workers 1 or without --workers "
+        "(default: one per usable CPU), else in each worker (default 1); the tune is the same whatever the number",
     )
     p.add_argument(
         "--ray",
@@ -191,6 +198,7 @@ def gains_toml(outcome, created: datetime | None = None, vehicle: str = "paper")
             f"init = {_toml_value(o.init)}",
             f"backend = {_toml_value(outcome.backend)}",
             f"workers = {int(outcome.workers)}",
+            f"threads = {int(outcome.threads)}",
             f"swarm_mj_version = {_toml_value(__version__)}",
             "",
         ]
@@ -263,6 +271,8 @@ def main(args: argparse.Namespace) -> int:
     )
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
     if args.ray is not None:
         if not args.ray.strip():
             raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
@@ -280,8 +290,11 @@ def main(args: argparse.Namespace) -> int:
     if args.ray is not None:
         where = f"Ray at {args.ray}" + (f", {args.workers} actors" if args.workers else "")
     else:
-        w = default_workers() if args.workers is None else args.workers
-        where = "in this process" if w == 1 else f"{w} worker processes"
+        w = (default_workers() if args.threads is None else 1) if args.workers is None else args.workers
+        t = (default_workers() if w == 1 else 1) if args.threads is None else args.threads
+        where = (f"in this process, {t} thread(s)" if w == 1 else f"{w} worker processes") + (
+            f", {t} thread(s) each" if w > 1 and t > 1 else ""
+        )
     say(
         f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
         f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}"
@@ -319,7 +332,14 @@ def main(args: argparse.Namespace) -> int:
 
     try:
         try:
-            res = tune_gains(opts, settings, workers=args.workers, ray_address=args.ray, on_iteration=on_iteration)
+            res = tune_gains(
+                opts,
+                settings,
+                workers=args.workers,
+                threads=args.threads,
+                ray_address=args.ray,
+                on_iteration=on_iteration,
+            )
         finally:
             bar.close()
     except KeyboardInterrupt:
@@ -360,7 +380,8 @@ def format_outcome(res, out: Path | str) -> str:
     )
     gains = ", ".join(f"{g:.4f}" for g in res.best_x)
     rows = [
-        f"FPA tune finished in {res.wall_s:.1f} s ({res.backend}, {res.workers} worker(s))",
+        f"FPA tune finished in {res.wall_s:.1f} s ({res.backend}, {res.workers} worker(s), "
+        f"{res.threads} thread(s){' each' if res.workers > 1 else ''})",
         f"  initial best ISE   {res.initial_ise:10.5f}"
         + ("   (best of the initial population meeting the bars)" if bars is not None else ""),
         f"  final ISE          {best:10.5f}",

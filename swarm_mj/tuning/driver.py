@@ -103,6 +103,7 @@ class TuneOutcome:
     wall_s: float
     complete: bool
     check: StepCheck | None = None  # at the end: best_x flown through the step (ISE, metrics, bars)
+    threads: int = 1  # the evaluator's threads (in each worker)
 
     def _decode(self, cost: float) -> tuple[bool, float]:
         """(feasible, ISE or violation) of a ranked cost; without bars every finite cost is an ISE."""
@@ -169,6 +170,7 @@ def tune_gains(
     settings: StepCostSettings = StepCostSettings(),
     *,
     workers: int | None = None,
+    threads: int | None = None,
     ray_address: str | None = None,
     on_iteration: TuneCallback | None = None,
 ) -> TuneOutcome:
@@ -180,12 +182,15 @@ def tune_gains(
     the gains file, so that an interruption leaves the best gains found. A Ctrl-C propagates
     (KeyboardInterrupt) after the workers are stopped. The final outcome carries ``check``:
     the best gains flown through the step once more, with their step metrics.
+    ``workers``, ``threads``, ``ray_address``: where the population is evaluated
+    (:func:`~swarm_mj.tuning.backends.make_population_cost`; by default one worker process per
+    usable CPU); the tune is the same whatever they are.
     """
     import time
 
     t0 = time.perf_counter()
     t4 = table4_ise(settings)  # in-process: same cost, bitwise, whatever the backend
-    with make_population_cost(settings, workers=workers, ray_address=ray_address) as cost:
+    with make_population_cost(settings, workers=workers, threads=threads, ray_address=ray_address) as cost:
 
         def progress(iteration: int, best_x: np.ndarray, best_cost: float, history: np.ndarray) -> None:
             if on_iteration is not None:
@@ -203,6 +208,7 @@ def tune_gains(
                         cost.workers,
                         time.perf_counter() - t0,
                         False,
+                        threads=cost.threads,
                     )
                 )
 
@@ -217,7 +223,7 @@ def tune_gains(
             x0=options.x0,
             callback=progress,
         )
-        backend, n_workers = cost.backend, cost.workers
+        backend, n_workers, n_threads = cost.backend, cost.workers, cost.threads
     check = step_check(res.best_x, settings)
     return TuneOutcome(
         res,
@@ -233,4 +239,5 @@ def tune_gains(
         time.perf_counter() - t0,
         True,
         check,
+        n_threads,
     )

@@ -47,12 +47,14 @@ The backends that spread a population over processes or a Ray cluster are in
 from __future__ import annotations
 
 import math
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from .._jit import jit
+from .._mjstep import profiler_paused
 from ..control.backstepping import Backstepping
 from ..control.lag import AttitudePredictor
 from ..errors import UserError
@@ -60,6 +62,7 @@ from ..metrics import ise, step_metrics_batch
 from ..mixing import attitude_priority
 from ..observation import attitude_kernel
 from ..paper import TABLE4_GAINS
+from ..parallel import default_workers
 from ..params import DEFAULT_PARAMS, QuadParams
 from ..sim import Sim
 from ..world import INTEGRATORS, build_world
@@ -157,8 +160,12 @@ class StepCostSettings:
 #: 3×nv Jacobian per actuator and forward pass, i.e. O(m²) work for m copies in one model. A
 #: batch is therefore flown as blocks of at most this many copies, each its own model and
 #: ``Sim``, all driven by ONE vectorised controller call (measured per batch of 50: blocks of
-#: 13–25 copies cost the same, one model of 50 20 % more).
-DEFAULT_BLOCK = 20
+#: 13–25 copies cost the same, one model of 50 20 % more). 25 rather than fewer: on threads, each
+#: block's step hands the GIL over several times per control period (``mj_step`` and every
+#: ``nogil`` kernel), and fewer, larger blocks per thread scale better (the tune's 50 candidates
+#: on 2 threads: groups of 25 as one model each 1.41x one thread, as two models of 13 and 12
+#: 1.09x; docs/physics_step.md, "The tuner on every core").
+DEFAULT_BLOCK = 25
 
 
 def _record_samples():
@@ -207,6 +214,25 @@ def error_kernel(
                 bad[i] = True
 
 
+def _check_count(name: str, v: Any) -> int:
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+        raise UserError(f"{name} must be an integer >= 1, got {v!r}")
+    return int(v)
+
+
+@dataclass
+class _Group:
+    """The copies one thread flies: rows ``rows`` of the batch, in blocks ``(sim, slice within the group)``,
+    with the group's own gather buffers, health codes and record of x, y, z, ψ."""
+
+    rows: slice
+    blocks: list[tuple[Sim, slice]]
+    qpos: np.ndarray  # (m_g, 7) gathered state (unused with one block: the views are used)
+    qvel: np.ndarray  # (m_g, 6)
+    codes: np.ndarray  # (m_g,) int8 health mask
+    track: np.ndarray  # (K+1, m_g, 4) x, y, z, ψ
+
+
 class BatchEvaluator:
     """m independent copies of one drone flying the step together, in blocks of ONE model each.
 
@@ -218,38 +244,49 @@ class BatchEvaluator:
     ranked by Deb's feasibility rules when ``settings.bars`` is set (:mod:`.constraints`).
     The models are built once and reused (``Sim.reset`` between batches). ``block`` copies
     at most per model (see :data:`DEFAULT_BLOCK`); ``block >= m`` gives one model for all.
+
+    **Threads.** ``threads`` > 1 splits the m copies in that many contiguous groups (at most m),
+    each flown by its own thread with its own controller and blocks, for the whole run: the
+    copies do not interact, so each copy's result is the same bit for bit whatever the split
+    (tested against one thread). MuJoCo releases the GIL in ``mj_step`` and the kernels are
+    compiled ``nogil`` (swarm_mj/_jit.py), so the groups' physics runs on as many cores.
+    A block whose copies have all diverged is no longer stepped (its copies are parked and
+    their cost is already ``inf``).
     """
 
-    def __init__(self, m: int, settings: StepCostSettings = StepCostSettings(), *, block: int = DEFAULT_BLOCK) -> None:
-        if not isinstance(m, (int, np.integer)) or m < 1:
-            raise UserError(f"batch size must be an integer >= 1, got {m!r}")
-        if not isinstance(block, (int, np.integer)) or block < 1:
-            raise UserError(f"block must be an integer >= 1, got {block!r}")
+    def __init__(
+        self, m: int, settings: StepCostSettings = StepCostSettings(), *, block: int = DEFAULT_BLOCK, threads: int = 1
+    ) -> None:
+        self.m = _check_count("batch size", m)
+        block = _check_count("block", block)
+        self.threads = min(_check_count("threads", threads), self.m)
         s = settings
-        self.m = int(m)
         self.settings = s
-        n_blocks = -(-self.m // int(block))
-        sizes = [len(c) for c in np.array_split(np.arange(self.m), n_blocks)]
-        bounds = np.cumsum([0] + sizes)
-        self.slices = [slice(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
-        worlds = {}
+        self.K = s.n_samples
+        worlds: dict[int, Any] = {}
         self.sims: list[Sim] = []
-        for b in sizes:
-            if b not in worlds:
-                starts = np.tile(np.asarray(s.start, float), (b, 1))  # (b, 3) all at the same point
-                # collisions=False: contacts are off, so the overlapping copies never touch.
-                worlds[b] = build_world(
-                    b,
-                    positions=starts,
-                    collisions=False,
-                    floor=False,
-                    params=s.params,
-                    timestep=s.timestep,
-                    integrator=s.integrator,
-                    motor_tau=s.motor_tau,
-                )
-            self.sims.append(
-                Sim(
+        self.slices: list[slice] = []  # each block's rows in the batch
+        self.groups: list[_Group] = []
+        for rows in np.array_split(np.arange(self.m), self.threads):
+            a, mg = int(rows[0]), len(rows)
+            sizes = [len(c) for c in np.array_split(np.arange(mg), -(-mg // block))]
+            bounds = np.cumsum([0] + sizes)
+            blocks = []
+            for b, lo, hi in zip(sizes, bounds[:-1], bounds[1:]):
+                if b not in worlds:
+                    starts = np.tile(np.asarray(s.start, float), (b, 1))  # (b, 3) all at the same point
+                    # collisions=False: contacts are off, so the overlapping copies never touch.
+                    worlds[b] = build_world(
+                        b,
+                        positions=starts,
+                        collisions=False,
+                        floor=False,
+                        params=s.params,
+                        timestep=s.timestep,
+                        integrator=s.integrator,
+                        motor_tau=s.motor_tau,
+                    )
+                sim = Sim(
                     worlds[b],
                     s.control_period,
                     n_copies=b,
@@ -257,98 +294,146 @@ class BatchEvaluator:
                     max_distance=s.max_distance,
                     max_tilt=np.deg2rad(s.max_tilt_deg),
                 )
+                blocks.append((sim, slice(int(lo), int(hi))))
+                self.sims.append(sim)
+                self.slices.append(slice(a + int(lo), a + int(hi)))
+            self.groups.append(
+                _Group(
+                    slice(a, a + mg),
+                    blocks,
+                    np.empty((mg, 7)),
+                    np.empty((mg, 6)),
+                    np.zeros(mg, dtype=np.int8),
+                    np.zeros((self.K + 1, mg, 4)),
+                )
             )
-        self.K = s.n_samples
         self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))  # (m, 3) step set-point
         self._zero3 = np.zeros((self.m, 3))  # (m, 3) v_d = a_d = 0
         self._yaw_d = np.full(self.m, np.deg2rad(s.yaw_deg))  # (m,)
-        self._qpos = np.empty((self.m, 7))  # (m, 7) gathered state
-        self._qvel = np.empty((self.m, 6))  # (m, 6)
-        self._codes = np.zeros(self.m, dtype=np.int8)  # (m,) the health mask
         self._errors = np.empty((self.K, self.m, 6))  # (K, m, 6) e_x..e_ψ
-        self._track = np.zeros((self.K + 1, self.m, 4))  # (K+1, m, 4) x, y, z, ψ
         self._t = np.arange(self.K + 1) * s.control_period  # (K+1,) sample times
+        self._stop = False  # set when one thread fails: the others stop at their next period
         self.max_tilt_deg = np.zeros(self.m)  # (m,) of the last batch
         self.violation = np.zeros(self.m)  # (m,) of the last batch
         self.step: dict[str, dict[str, np.ndarray]] = {}
         #: (m,) control period at which each copy of the last batch diverged (-1: never).
         self.diverged_at = np.full(self.m, -1, dtype=np.int64)
 
-    def _gather(self) -> tuple[np.ndarray, np.ndarray]:
-        """Current qpos (m, 7) and qvel (m, 6) of all copies (views when there is one block)."""
-        if len(self.sims) == 1:
-            return self.sims[0].qpos, self.sims[0].qvel
-        np.concatenate([sim.qpos for sim in self.sims], out=self._qpos)
-        np.concatenate([sim.qvel for sim in self.sims], out=self._qvel)
-        return self._qpos, self._qvel
+    @staticmethod
+    def _gather(grp: _Group) -> tuple[np.ndarray, np.ndarray]:
+        """Current qpos (m_g, 7) and qvel (m_g, 6) of a group's copies (views when it has one block)."""
+        if len(grp.blocks) == 1:
+            return grp.blocks[0][0].qpos, grp.blocks[0][0].qvel
+        np.concatenate([sim.qpos for sim, _ in grp.blocks], out=grp.qpos)
+        np.concatenate([sim.qvel for sim, _ in grp.blocks], out=grp.qvel)
+        return grp.qpos, grp.qvel
 
-    def _health(self) -> np.ndarray:
-        """The health mask (m,) of all copies (:meth:`Sim.health` of each block): True where unhealthy."""
-        codes = self._codes
-        for sim, sl in zip(self.sims, self.slices):
-            sim.health(out=codes[sl])
-        return codes != 0
+    @staticmethod
+    def _health(grp: _Group) -> np.ndarray:
+        """The health mask (m_g,) of a group's copies (:meth:`Sim.health` of each block): True where unhealthy."""
+        for sim, sl in grp.blocks:
+            sim.health(out=grp.codes[sl])
+        return grp.codes != 0
 
-    def _kill(self, alive: np.ndarray, bad: np.ndarray, k: int) -> bool:
-        """Mark copies newly ``bad`` (m,) as diverged at control period k (``alive`` updated in place);
-        True if there were any."""
+    @staticmethod
+    def _kill(alive: np.ndarray, bad: np.ndarray, k: int, diverged_at: np.ndarray) -> bool:
+        """Mark copies newly ``bad`` as diverged at control period k (``alive``, ``diverged_at`` updated
+        in place; all three (m_g,) of one group); True if there were any."""
         newly = bad & alive
         if newly.any():
             alive &= ~bad
-            self.diverged_at[newly] = k
+            diverged_at[newly] = k
             return True
         return False
+
+    def _fly(self, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
+        """Fly one group's copies through the step: gains g (m, 12) and alive (m,), tilt (m,) of the
+        whole batch (the group's rows are written). The loop of the module docstring."""
+        s, rows = self.settings, grp.rows
+        m_g = rows.stop - rows.start
+        g, alive, tilt, diverged_at = g[rows], alive[rows], tilt[rows], self.diverged_at[rows]  # views
+        ctl = Backstepping(m_g, g, params=s.params, control_period=s.control_period, attitude_map=s.attitude_map)
+        # the controller of a run with rotor lag (Scenario.lag_horizons, mixer "auto"; docs/vehicles.md)
+        T, p = s.control_period, s.params
+        predictor = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T) if s.motor_tau > 0 else None
+        pos_d, zero3, yaw_d = self._pos_d[rows], self._zero3[rows], self._yaw_d[rows]
+        errors, track = self._errors, grp.track
+        blocks = grp.blocks
+        must_park = not alive.all()  # invalid gains: parked from the start
+        for k in range(self.K + 1):
+            if self._stop:
+                return
+            qpos, qvel = self._gather(grp)
+            # Angles and rates, the record of x, y, z, ψ and the health mask (docs/interpretations.md
+            # §6) at every sample and at the end of the run.
+            rpy, rate = attitude_kernel(qpos, qvel)
+            record_kernel(qpos, rpy, k, track, tilt)
+            bad = self._health(grp)
+            if k == self.K:
+                self._kill(alive, bad, k, diverged_at)
+                break
+            pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
+            if predictor is None:
+                U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m_g, 4)
+            else:
+                rpy_p, rate_p, omega_p = predictor(rpy, rate, omega)
+                U = ctl.compute(rpy_p, rate_p, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega_p)
+                U = attitude_priority(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
+            error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k, rows], bad)
+            if self._kill(alive, bad, k, diverged_at) or must_park:
+                if not alive.any():
+                    break
+                for sim, sl in blocks:  # no input, held at the start
+                    if not alive[sl].all():
+                        sim.park(~alive[sl])
+                must_park = False
+            for sim, sl in blocks:
+                if alive[sl].any():  # a block of diverged copies only: nothing left to fly
+                    sim.step(U[sl])
+
+    def _fly_or_stop(self, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
+        """:meth:`_fly`; an exception (or Ctrl-C) in it stops the other threads at their next period."""
+        try:
+            self._fly(grp, g, alive, tilt)
+        except BaseException:
+            self._stop = True
+            raise
+
+    def _fly_all(self, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
+        """Every group, each on its own thread (the first on this one); the first exception is raised here."""
+        self._stop = False
+        if len(self.groups) == 1:
+            self._fly(self.groups[0], g, alive, tilt)
+            return
+        with ThreadPoolExecutor(len(self.groups) - 1, thread_name_prefix="swarm-mj-tune") as pool:
+            futures = [pool.submit(self._fly_or_stop, grp, g, alive, tilt) for grp in self.groups[1:]]
+            try:
+                self._fly_or_stop(self.groups[0], g, alive, tilt)
+            finally:
+                for f in futures:  # every thread has ended when this returns or raises
+                    f.exception()
+            for f in futures:
+                f.result()
 
     def evaluate(self, gains: np.ndarray) -> np.ndarray:
         """ISE (m,) of eq. (25) for gains (m, 12); ``inf`` where a copy diverged."""
         g = np.asarray(gains, dtype=float)
         if g.shape != (self.m, 12):
             raise UserError(f"gains must have shape ({self.m}, 12), got {g.shape}")
-        m, s = self.m, self.settings
+        s = self.settings
         alive = np.isfinite(g).all(axis=1) & (g > 0).all(axis=1)  # (m,)
         self.diverged_at[:] = -1
         self.diverged_at[~alive] = 0
         g = np.where(alive[:, None], g, TABLE4_GAINS)  # placeholders for the dead
-        ctl = Backstepping(m, g, params=s.params, control_period=s.control_period, attitude_map=s.attitude_map)
-        lagged = s.motor_tau > 0  # the controller of a run with rotor lag (Scenario.lag_horizons, mixer "auto")
-        T, p = s.control_period, s.params
-        predictor = AttitudePredictor(m, s.motor_tau + T, s.motor_tau, T) if lagged else None
         for sim in self.sims:
             sim.reset()
-        pos_d, zero3, yaw_d = self._pos_d, self._zero3, self._yaw_d
-        errors, track = self._errors, self._track
-        tilt = np.zeros(m)  # (m,) max |roll|, |pitch| (rad)
-        blocks = list(zip(self.sims, self.slices))
-        must_park = not alive.all()  # invalid gains: parked from the start
-        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
-            for k in range(self.K + 1):
-                qpos, qvel = self._gather()
-                # Angles and rates, the record of x, y, z, ψ and the health mask (docs/interpretations.md
-                # §6) at every sample and at the end of the run.
-                rpy, rate = attitude_kernel(qpos, qvel)
-                record_kernel(qpos, rpy, k, track, tilt)
-                bad = self._health()
-                if k == self.K:
-                    self._kill(alive, bad, k)
-                    break
-                pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
-                if predictor is None:
-                    U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m, 4)
-                else:
-                    rpy_p, rate_p, omega_p = predictor(rpy, rate, omega)
-                    U = ctl.compute(rpy_p, rate_p, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega_p)
-                    U = attitude_priority(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
-                error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k], bad)
-                if self._kill(alive, bad, k) or must_park:
-                    if not alive.any():
-                        break
-                    for sim, sl in blocks:  # no input, held at the start
-                        if not alive[sl].all():
-                            sim.park(~alive[sl])
-                    must_park = False
-                for sim, sl in blocks:
-                    sim.step(U[sl])
-        cost = ise(errors, s.control_period)  # (m,) eq. (25)
+        tilt = np.zeros(self.m)  # (m,) max |roll|, |pitch| (rad)
+        # MuJoCo's profiling clock off once for every thread (Sim.step's own pause is per call, and
+        # the clock is a global of libmujoco: threads pausing and resuming it would race).
+        with profiler_paused(), np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            self._fly_all(g, alive, tilt)
+            cost = ise(self._errors, s.control_period)  # (m,) eq. (25)
+        track = self.groups[0].track if len(self.groups) == 1 else np.concatenate([gr.track for gr in self.groups], 1)
         cost[~alive] = np.inf
         cost[~np.isfinite(cost)] = np.inf
         self.max_tilt_deg = np.where(alive, np.rad2deg(tilt), np.inf)
@@ -371,32 +456,37 @@ class BatchEvaluator:
         return cost if self.settings.bars is None else ranked_cost(cost, self.violation)
 
 
-_EVALUATORS: dict[tuple[StepCostSettings, int], BatchEvaluator] = {}
+_EVALUATORS: dict[tuple[StepCostSettings, int, int], BatchEvaluator] = {}
 
 
-def _evaluator(m: int, settings: StepCostSettings) -> BatchEvaluator:
-    """A cached batched model of m copies (built once per worker, size and settings)."""
-    key = (settings, m)
+def _evaluator(m: int, settings: StepCostSettings, threads: int = 1) -> BatchEvaluator:
+    """A cached batched model of m copies (built once per worker, size, settings and threads)."""
+    key = (settings, m, min(threads, m))
     ev = _EVALUATORS.get(key)
     if ev is None:
         if len(_EVALUATORS) >= 8:  # bounded: a few chunk sizes per tune
             _EVALUATORS.pop(next(iter(_EVALUATORS)))
-        ev = _EVALUATORS[key] = BatchEvaluator(m, settings)
+        ev = _EVALUATORS[key] = BatchEvaluator(m, settings, threads=threads)
     return ev
 
 
-def evaluate_batch(gains: np.ndarray, settings: StepCostSettings = StepCostSettings()) -> np.ndarray:
+def evaluate_batch(
+    gains: np.ndarray, settings: StepCostSettings = StepCostSettings(), threads: int | None = None
+) -> np.ndarray:
     """The tune's cost (m,) for gains (m, 12) in one batched model (``BatchEvaluator.ranked``):
     the ISE of eq. (25), ranked by Deb's rules when ``settings.bars`` is set.
 
     This is what each worker runs on its chunk; in-process it is the whole population.
+    ``threads``: the evaluator's threads (default: the CPUs this process may use,
+    :func:`swarm_mj.parallel.default_workers`); the result is the same whatever their number.
     """
     g = np.atleast_2d(np.asarray(gains, dtype=float))
     if g.ndim != 2 or g.shape[1] != 12:
         raise UserError(f"gains must have shape (m, 12), got {np.shape(gains)}")
+    t = default_workers() if threads is None else _check_count("threads", threads)
     if g.shape[0] == 0:
         return np.empty(0)
-    return _evaluator(g.shape[0], settings).ranked(g)
+    return _evaluator(g.shape[0], settings, t).ranked(g)
 
 
 def step_ise(gains: np.ndarray, settings: StepCostSettings = StepCostSettings()) -> np.ndarray | float:

@@ -1,0 +1,75 @@
+"""The benchmark tools of issue 30: tools/accuracy.py keeps docs/physics_step.md's hand-written tail,
+tools/bench_peers.py's crazyflow flight writes its log (when crazyflow is installed), and
+tools/bench_step_contacts.py's summary counts what each run reports."""
+
+from __future__ import annotations
+
+import importlib.util
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+TOOLS = Path(__file__).resolve().parents[2] / "tools"
+
+
+def _tool(name: str):
+    spec = importlib.util.spec_from_file_location(f"_test_tool_{name}", TOOLS / f"{name}.py")
+    mod = importlib.util.module_from_spec(spec)
+    sys.path.insert(0, str(TOOLS))
+    try:
+        spec.loader.exec_module(mod)
+    finally:
+        sys.path.remove(str(TOOLS))
+    return mod
+
+
+def test_accuracy_docs_keep_the_hand_written_tail(tmp_path):
+    acc = _tool("accuracy")
+    page = tmp_path / "physics_step.md"
+    assert acc.keep_hand_written(str(page), "generated\n") == "generated\n"  # no file yet
+    page.write_text("old generated\n\n" + acc.KEPT_MARK + "\n\n## Measured by hand\n")
+    out = acc.keep_hand_written(str(page), "new generated\n")
+    assert out == "new generated\n\n" + acc.KEPT_MARK + "\n\n## Measured by hand\n"
+    page.write_text("old generated, no mark\n")
+    assert acc.keep_hand_written(str(page), "new\n") == "new\n"
+
+
+def test_the_repository_page_has_the_mark():
+    acc = _tool("accuracy")
+    text = (TOOLS.parent / "docs" / "physics_step.md").read_text()
+    assert text.count(acc.KEPT_MARK) == 1
+
+
+def test_step_contacts_summary_sums_each_step():
+    sc = _tool("bench_step_contacts")
+    rows = [
+        {"seed": 0, "timestep_s": 0.005, "contacts": 3, "contact_steps": 10, "pairs": 2, "stopped": True},
+        {"seed": 0, "timestep_s": 0.01, "contacts": 2, "contact_steps": 4, "pairs": 2, "stopped": True},
+        {"seed": 1, "timestep_s": 0.005, "contacts": 0, "contact_steps": 0, "pairs": 0, "stopped": False},
+        {"seed": 1, "timestep_s": 0.01, "contacts": 1, "contact_steps": 1, "pairs": 1, "stopped": False},
+    ]
+    s = sc.summarize(rows)
+    assert s["5 ms"] == {
+        "starts": 2,
+        "seeds_with_contact": [0],
+        "contacts": 3,
+        "contact_steps": 10,
+        "pairs": 2,
+        "stopped": 1,
+    }
+    assert s["10 ms"]["seeds_with_contact"] == [0, 1] and s["10 ms"]["contact_steps"] == 5
+
+
+@pytest.mark.skipif(importlib.util.find_spec("crazyflow") is None, reason="crazyflow not installed (.[bench])")
+def test_crazyflow_flight_writes_its_log(tmp_path):
+    out = tmp_path / "cf.npz"
+    cmd = [sys.executable, str(TOOLS / "bench_peers.py"), "--crazyflow-flight", str(out), "--duration", "0.5"]
+    subprocess.run(cmd, check=True, cwd=tmp_path, capture_output=True, timeout=600)
+    log = np.load(out)
+    assert log["pos"].shape == (50, 6, 3) and log["t"].shape == (50,)
+    assert np.isfinite(log["pos"]).all()
+    # the drones climb toward the circle's height of 1 m from the ground
+    assert (log["pos"][-1, :, 2] > log["pos"][0, :, 2]).all()
