@@ -40,7 +40,10 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.control.backstepping",
     "swarm_mj.control.lag",
     "swarm_mj.env",
-    "swarm_mj.fused",
+    "swarm_mj.aero.downwash",
+    "swarm_mj.aero.ground_effect",
+    "swarm_mj.aero.ground",
+    "swarm_mj.period",
 )
 
 Samples = Callable[[], Iterable[tuple[Any, ...]]]
@@ -71,7 +74,7 @@ def jit(fn: Callable[..., Any] | None = None, *, samples: Samples | None = None,
     ``@jit`` or ``@jit(samples=lambda: [(arg, ...), ...])``: the argument tuples :func:`warm_up`
     calls the kernel with (a kernel only called from another kernel needs none).
     ``deferred``: not registered, so :func:`warm_up` leaves it alone (a large kernel its caller
-    compiles when it chooses, with :func:`compile_samples`; see :mod:`swarm_mj.fused`).
+    compiles when it chooses, with :func:`compile_samples`).
     """
 
     def register(f: Callable[..., Any]) -> Callable[..., Any]:

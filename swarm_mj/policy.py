@@ -18,6 +18,8 @@ from .env import Command
 from .formation.anticollision import make_rule, resolve_rule
 from .mixing import attitude_priority
 from .params import DEFAULT_PARAMS, QuadParams
+from .period import feedforward_force
+from .records import Feedforward
 from .scenario import Scenario
 
 
@@ -36,27 +38,21 @@ class DownwashFeedforward:
 
         self.n = n
         st = DownwashStage()  # its coefficients; the kernel is called directly (one call per step)
-        self._args = (n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, st.rotor_radius)
-        self._pos = np.zeros((n, 3))
-        self._quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-        self._rotor = np.zeros((n, 4))
         self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
-        self._torque = np.zeros((n, 3))
-        self._sum_force = np.zeros((n, 3))
-        self._sum_torque = np.zeros((n, 3))
+        z3 = np.zeros((n, 3))
+        self._record = Feedforward(
+            True, n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, np.zeros((n, 3)),
+            np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 4)), self.force, z3, z3.copy(), z3.copy(),
+        )  # fmt: skip
+
+    def record(self) -> Feedforward:
+        """The feedforward for a compiled driver (swarm_mj.records)."""
+        return self._record
 
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
-        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
-        from .aero.downwash import downwash_kernel
-
-        self._pos[:] = pos
-        self._quat[:] = quat
-        self._rotor[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
-        self._sum_force[:] = 0.0
-        self._sum_torque[:] = 0.0
-        downwash_kernel(
-            self._pos, self._quat, self._rotor, *self._args, self.force, self._torque, self._sum_force, self._sum_torque
-        )
+        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)
+        (:func:`swarm_mj.period.feedforward_force`, the function the compiled driver calls)."""
+        feedforward_force(self._record, pos, quat, np.asarray(thrust, dtype=float))
         return self.force
 
 

@@ -46,12 +46,21 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
+from . import _mjstep
 from ._jit import jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
 from .params import QuadParams
+from .records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
 from .world import World
+
+try:
+    from numba.extending import overload
+except ImportError:  # pragma: no cover - SWARM_MJ_NO_JIT or no numba: the Python fallbacks run
+
+    def overload(fn):  # type: ignore[no-redef]  # noqa: ARG001
+        return lambda impl: impl
 
 #: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
 HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
@@ -252,6 +261,81 @@ def floor_gate(world: World) -> tuple[int, int, float] | None:
     return fid, ct, float(m.geom_pos[fid, 2] + reach.max() + FLOOR_GATE_M)
 
 
+# --------------------------------------------------------------------------- compiled force stages
+
+
+def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by the overload when compiled
+    """Each compiled stage of the tuple ``stages`` (records) adds its force and torque (N, 3)."""
+    for rec in stages:
+        FORCE_KERNELS[type(rec)](rec, kin, force, torque)
+
+
+@overload(_apply_stages)
+def _apply_stages_compiled(stages, kin, force, torque):
+    """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
+    kernels = [FORCE_KERNELS[t.instance_class] for t in stages.types]
+    body = "".join(f"    k{i}(stages[{i}], kin, force, torque)\n" for i in range(len(kernels)))
+    src = "def impl(stages, kin, force, torque):\n" + body + "    return None\n"
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec(src, scope)  # noqa: S102 - source built from the registry above, no outside text
+    return scope["impl"]
+
+
+def _log_stages(stages, rows, k):  # pragma: no cover - replaced by the overload when compiled
+    for j, rec in enumerate(stages):
+        rows[j, k] = rec.force
+
+
+@overload(_log_stages)
+def _log_stages_compiled(stages, rows, k):
+    """rows[j, k] (S, K+1, N, 3) = the j-th stage's force of the last physics step."""
+    body = "".join(f"    rows[{j}, k] = stages[{j}].force\n" for j in range(len(stages.types)))
+    src = "def impl(stages, rows, k):\n" + body + "    return None\n"
+    scope: dict = {}
+    exec(src, scope)  # noqa: S102
+    return scope["impl"]
+
+
+def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overload when compiled
+    for rec in monitors:
+        MONITOR_KERNELS[type(rec)](rec, kin)
+
+
+@overload(_track_monitors)
+def _track_monitors_compiled(monitors, kin):
+    """The monitor tuple unrolled at compile time: each record's registered step in turn."""
+    kernels = [MONITOR_KERNELS[t.instance_class] for t in monitors.types]
+    body = "".join(f"    k{i}(monitors[{i}], kin)\n" for i in range(len(kernels)))
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
+    return scope["impl"]
+
+
+@jit
+def track_monitors(monitors, kin) -> None:
+    """Each compiled monitor's step after a physics step without any contact (records.MONITOR_KERNELS)."""
+    _track_monitors(monitors, kin)
+
+
+@jit
+def apply_forces(phys, stages, kin, xf, xtorque) -> None:
+    """One physics step's forces into xfrc_applied (xf, xtorque (N, 3) views): drag −K·v + the wind
+    held over the period (eq. 1, eq. 37), the produced rotor thrusts of lagged rotors, then each
+    compiled force stage's force and torque (their sum added, the torque set; the sums zeroed)."""
+    drag_kernel(kin.vel, phys.neg_drag, phys.wind, xf)
+    if phys.lag:
+        unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
+    if len(stages) > 0:
+        _apply_stages(stages, kin, phys.force, phys.torque)
+        flush_stage_forces(xf, xtorque, phys.force, phys.torque)
+
+
+@jit
+def log_stage_forces(stages, rows, k) -> None:
+    """The force (N, 3) of each stage of ``stages`` into rows[j, k] (S, K+1, N, 3)."""
+    _log_stages(stages, rows, k)
+
+
 # --------------------------------------------------------------------------- force stages
 
 
@@ -373,6 +457,8 @@ class Sim:
         self.rotor_command = np.zeros((N, 4))  # (N, 4)
         self._force = np.zeros((N, 3))  # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
+        self.kinematics = Kinematics(self.pos, self.quat, self.vel, self.rotor_thrust)  # what force stages read
+        self._ncon = _mjstep.ncon_view(d)
         self.drag = DragStage()
         self.wind = WindStage()
         self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
@@ -392,6 +478,7 @@ class Sim:
     def floor_gate(self, on: bool) -> None:
         self._gate_on = bool(on) and self._gate is not None
         self._floor_solid()
+        self._record = self._physics()
 
     def _floor_solid(self) -> None:
         if self._gate is not None:
@@ -431,6 +518,57 @@ class Sim:
         head = [type(s) for s in self.stages[:2]]
         self._fused = head == [DragStage, WindStage]
         self._extra = self.stages[2:] if self._fused else []
+        self._record = self._physics()
+        why = self.not_compiled()
+        self._compiled = None if why else tuple(st.record() for st in self._extra)  # type: ignore[attr-defined]
+
+    def not_compiled(self) -> str | None:
+        """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
+        not drag, wind or a stage with a registered compiled kernel (``record()`` returning a record of
+        :data:`swarm_mj.records.FORCE_KERNELS`), named."""
+        if not self._fused:
+            return "force stages other than drag and wind first"
+        for st in self._extra:
+            make = getattr(st, "record", None)
+            if make is None or type(make()) not in FORCE_KERNELS:
+                return f"the force stage {getattr(st, 'name', type(st).__name__)!r} has no compiled kernel"
+        return None
+
+    def monitors_not_compiled(self) -> str | None:
+        """Why the monitors cannot fly in a compiled driver (None: they can), naming the first one
+        without a registered compiled step (:data:`swarm_mj.records.MONITOR_KERNELS`)."""
+        for mon in self.monitors:
+            make = getattr(mon, "record", None)
+            if make is None or type(make()) not in MONITOR_KERNELS:
+                return f"the monitor {getattr(mon, 'name', type(mon).__name__)!r} has no compiled step"
+        return None
+
+    def compiled_stages(self) -> tuple:
+        """The records of the extra force stages, in order, for a compiled driver (see :meth:`not_compiled`)."""
+        if self._compiled is None:
+            raise RuntimeError(f"internal: {self.not_compiled()}")
+        return self._compiled
+
+    def _physics(self) -> Physics:
+        d = self.data
+        ids = np.asarray(self.world.body_ids)
+        fid, solid, z_near = self._gate or (0, 0, 0.0)
+        addr = _mjstep.mj_step_address() or 0
+        return Physics(
+            np.uint64(addr), np.uint64(self.model._address), np.uint64(d._address),
+            self._ncon if self._ncon is not None else np.zeros(1, dtype=np.int32), self._warnings, self.qpos,
+            self.qvel, self.ctrl, d.xfrc_applied, int(ids[0]), int(ids[1] - ids[0]) if len(ids) > 1 else 1,
+            self.rotor_thrust, self.rotor_command, self._act if self._act is not None else np.zeros((self.n_total, 4)),
+            bool(self.motor_lag), self.wind.force, np.ascontiguousarray(self.drag.neg_drag, dtype=float), self._force,
+            self._torque, UNMIX_T, MIX_T, float(self._f_min), float(self._f_max), int(self.n_substeps),
+            float(self.control_period), float(self.floor_z), float(self.max_distance), float(self.max_tilt),
+            bool(self._gate_on), float(z_near), self.model.geom_contype, int(fid), int(solid),
+        )  # fmt: skip
+
+    def record(self) -> Physics:
+        """The simulator for a compiled driver (:class:`swarm_mj.records.Physics`), valid until the next
+        :meth:`reset` or change of the stages or the floor gate."""
+        return self._record
 
     # ------------------------------------------------------------------ state
     @property
@@ -531,19 +669,27 @@ class Sim:
 
     def _substeps_fused(self) -> None:
         """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
-        then the extra stages' sum added (and their torque set)."""
+        then the extra stages' sum added (and their torque set): :func:`apply_forces`, the function
+        the compiled driver calls (swarm_mj/period.py), where every extra stage has a compiled kernel."""
         m, d = self.model, self.data
-        xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
+        xf, xt = self._xfrc_force, self._xfrc_torque
+        if self._compiled is not None:
+            phys, stages, kin = self._record, self._compiled, self.kinematics
+            for _ in range(self.n_substeps):
+                apply_forces(phys, stages, kin, xf, xt)
+                mujoco.mj_step(m, d)
+                self.after_physics_step()
+            return
+        vel, ext, k = self.vel, self.wind.force, self.drag.neg_drag
         extra, lag = self._extra, self.motor_lag
         force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
             if lag:
                 unmix_kernel(self._act, UNMIX_T, self.rotor_thrust)  # produced rotor thrusts
-            if extra:
-                for stage in extra:
-                    stage.apply(self, force, torque)
-                flush_stage_forces(xf, self._xfrc_torque, force, torque)  # xf += f, torque = tq; f, tq = 0
+            for stage in extra:
+                stage.apply(self, force, torque)
+            flush_stage_forces(xf, xt, force, torque)  # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             self.after_physics_step()
 
