@@ -43,6 +43,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.aero.downwash",
     "swarm_mj.aero.ground_effect",
     "swarm_mj.aero.ground",
+    "swarm_mj.aero.updraft",
     "swarm_mj.period",
 )
 

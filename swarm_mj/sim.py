@@ -47,7 +47,7 @@ import mujoco
 import numpy as np
 
 from . import _mjstep
-from ._jit import jit
+from ._jit import KERNEL_MODULES, jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
@@ -378,6 +378,21 @@ class WindStage:
 # --------------------------------------------------------------------------- the pipeline
 
 
+def _why_not_registered(part, registry: dict, kind: str, what: str) -> str | None:  # noqa: ANN001
+    """Why a force stage or monitor cannot fly in a compiled driver (None: it can): it has no
+    ``record()`` whose type has a registered compiled kernel, or that kernel's module is not in
+    :data:`swarm_mj._jit.KERNEL_MODULES` (then a change to it would not invalidate the driver's cache)."""
+    name = getattr(part, "name", type(part).__name__)
+    make = getattr(part, "record", None)
+    kernel = registry.get(type(make())) if make is not None else None
+    if kernel is None:
+        return f"the {kind} {name!r} has no compiled {what}"
+    module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
+    if module not in KERNEL_MODULES:
+        return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
+    return None
+
+
 def _index(ids: np.ndarray) -> slice | np.ndarray:
     """A slice when ids form an arithmetic progression (numpy then returns views), else the ids."""
     ids = np.asarray(ids)
@@ -529,18 +544,18 @@ class Sim:
         if not self._fused:
             return "force stages other than drag and wind first"
         for st in self._extra:
-            make = getattr(st, "record", None)
-            if make is None or type(make()) not in FORCE_KERNELS:
-                return f"the force stage {getattr(st, 'name', type(st).__name__)!r} has no compiled kernel"
+            why = _why_not_registered(st, FORCE_KERNELS, "force stage", "kernel")
+            if why is not None:
+                return why
         return None
 
     def monitors_not_compiled(self) -> str | None:
         """Why the monitors cannot fly in a compiled driver (None: they can), naming the first one
         without a registered compiled step (:data:`swarm_mj.records.MONITOR_KERNELS`)."""
         for mon in self.monitors:
-            make = getattr(mon, "record", None)
-            if make is None or type(make()) not in MONITOR_KERNELS:
-                return f"the monitor {getattr(mon, 'name', type(mon).__name__)!r} has no compiled step"
+            why = _why_not_registered(mon, MONITOR_KERNELS, "monitor", "step")
+            if why is not None:
+                return why
         return None
 
     def compiled_stages(self) -> tuple:
