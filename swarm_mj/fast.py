@@ -39,8 +39,8 @@ import numpy as np
 
 from . import _jit, _mjstep
 from .errors import UserError
-from .formation.anticollision import OVERLAP_M, G, CompensatedRule, JetAwareRule, LayeredRule, NoRule
-from .records import Control, Feedforward, LogRows, Obs, Predictor, Refs, Rule
+from .formation.anticollision import OVERLAP_M, CompensatedRule, G, JetAwareRule, LayeredRule, NoRule
+from .records import Control, Feedforward, LogRows, Obs, Predictor, Rule
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
@@ -100,17 +100,6 @@ def _rule_record(rule, n: int, on: bool, jet_aware: bool, prev_t: np.ndarray, al
     )  # fmt: skip
 
 
-def _refs(env) -> Refs:  # noqa: ANN001
-    c = np.ascontiguousarray
-    ref, wind = env.reference, env.wind
-    return Refs(
-        c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float),
-        c(env.D, dtype=float), env._unit_offsets, env._prev_leader, env._leader_vel,
-        float(env.scenario.sensing_range), c(wind.force, dtype=float), c(wind.speed, dtype=float),
-        bool(env._wind_known),
-    )  # fmt: skip
-
-
 class FastLoop:
     """The chunk driver for one run of the built-in policy: :meth:`build`, then :meth:`run` per chunk.
 
@@ -129,7 +118,7 @@ class FastLoop:
         self._obs = Obs.empty(n)
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._jet_aware = self._layered and isinstance(policy.rule, JetAwareRule)
-        self._refs = _refs(env)
+        self._refs = env._refs
         self._U = np.zeros((n, 4))
         z3, z4 = np.zeros((n, 3)), np.zeros((n, 4))
         self._no_ff = Feedforward(False, n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4.copy(), z3.copy(), *(z3.copy(),) * 3)

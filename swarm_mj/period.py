@@ -21,7 +21,7 @@ force stages               :func:`apply_forces` (drag + wind, then each register
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj._mjstep.step_call`
 monitors                   :func:`~swarm_mj.sim.track_monitors` (the steps without a contact)
 health check               :func:`unhealthy`
-observation                :func:`observe_into`
+observation                :func:`observe` (:func:`observe_into` its buffers)
 =========================  =====================================================================
 
 A compiled driver hands control back to Python for what the per-period path does in Python
@@ -35,6 +35,7 @@ import numpy as np
 
 from . import _mjstep
 from ._jit import jit
+from .aero import downwash as _downwash
 from .control.backstepping import backstepping_kernel
 from .control.lag import predict_kernel
 from .formation.anticollision import any_below, horizontal_distances, merge_rows, react_needed
@@ -42,7 +43,7 @@ from .formation.layered import formed_step_kernel
 from .formation.slots import setpoints_kernel
 from .mixing import attitude_priority_kernel, saturate_kernel
 from .observation import observe_kernel
-from .records import Kinematics
+from .records import Kinematics, Obs
 from .sim import (
     DIVERGENCE_WARNING_IDS,
     apply_forces,
@@ -52,9 +53,6 @@ from .sim import (
     track_monitors,
     unmix_kernel,
 )
-
-from .aero import downwash as _downwash  # noqa: E402, I001 - the feedforward's kernel
-
 
 #: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
 #: a contact to count (then resume); unhealthy (Python raises); a non-finite command.
@@ -198,32 +196,43 @@ def unhealthy(phys) -> bool:
 
 
 @jit
-def observe_into(phys, refs, obs, k) -> None:
-    """The observation of period k into obs (SwarmEnv's keys): the state, the neighbours within
-    sensing range, the formation setpoints (leader velocity estimated, paper §4), the known wind
-    force (refs.wind_force[k] when the controller is given it, else zero)."""
+def observe(phys, refs, k):
+    """The observation of period k (:class:`~swarm_mj.records.Obs`, fresh arrays; SwarmEnv's keys):
+    the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
+    estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
+    (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
     n = phys.qpos.shape[0]
     pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(phys.qpos, phys.qvel, refs.sensing_range)
     sp, spv, spa, yaw = setpoints_kernel(
         k, phys.T, pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
         refs.D[k], refs.unit_offsets,
     )  # fmt: skip
-    obs.pos[:] = pos
-    obs.vel[:] = vel
-    obs.quat[:] = quat
-    obs.omega[:] = omega
-    obs.rpy[:] = rpy
-    obs.rpy_rate[:] = rpy_rate
-    obs.rel[:] = rel
-    obs.mask[:] = mask
-    obs.dist[:] = dist
-    obs.sp[:] = sp
-    obs.spv[:] = spv
-    obs.spa[:] = spa
-    obs.yaw[:] = yaw
-    for i in range(n):
-        for j in range(3):
-            obs.wf[i, j] = refs.wind_force[k, j] if refs.wind_known else 0.0
+    wf = np.zeros((n, 3))
+    if refs.wind_known:
+        for i in range(n):
+            for j in range(3):
+                wf[i, j] = refs.wind_force[k, j]
+    return Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf)
+
+
+@jit
+def observe_into(phys, refs, obs, k) -> None:
+    """:func:`observe` into the buffers of ``obs`` (the chunk driver's observation)."""
+    o = observe(phys, refs, k)
+    obs.pos[:] = o.pos
+    obs.vel[:] = o.vel
+    obs.quat[:] = o.quat
+    obs.omega[:] = o.omega
+    obs.rpy[:] = o.rpy
+    obs.rpy_rate[:] = o.rpy_rate
+    obs.rel[:] = o.rel
+    obs.mask[:] = o.mask
+    obs.dist[:] = o.dist
+    obs.sp[:] = o.sp
+    obs.spv[:] = o.spv
+    obs.spa[:] = o.spa
+    obs.yaw[:] = o.yaw
+    obs.wf[:] = o.wf
 
 
 # --------------------------------------------------------------------------- the chunk driver

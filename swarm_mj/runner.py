@@ -70,11 +70,13 @@ class RunLog:
         """NaN-filled series for k samples, and zero-filled force rows for the force stages named ``stages``."""
         n = len(names)
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
-        shapes = ((k,), (k, n, 3), (k, n, 3), (k, n, 4), (k, n, 3), (k, n, 3), (k, n, 3), (k, n, 3), (k, n, 4))
-        shapes += ((k, n, 4), (k, 3), (k, n, 3), (k,))
+        shapes: list[tuple[int, ...]] = [(k,), (k, n, 3), (k, n, 3), (k, n, 4), (k, n, 3), (k, n, 3), (k, n, 3)]
+        shapes += [(k, n, 3), (k, n, 4), (k, n, 4), (k, 3), (k, n, 3), (k,)]
         if len(set(stages)) != len(stages):
             raise UserError(f"force stages must have distinct names, got {list(stages)}")
-        return cls(names, *(z(*s) for s in shapes), *_named_rows(np.zeros((len(stages), k, n, 3)), stages))
+        rows = np.zeros((len(stages), k, n, 3))
+        series = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
+        return cls(names, **series, stage_rows=rows, forces=_named(rows, stages))
 
     def force(self, name: str) -> np.ndarray:
         """The force (k, n, 3) of the stage ``name``; zeros when the run had no such stage."""
@@ -119,13 +121,14 @@ class RunLog:
         self.stage_rows[:, k] = self.stage_rows[:, k - 1]
 
     def truncated(self, k: int) -> RunLog:
-        return RunLog(
-            self.names, *(getattr(self, f)[:k] for f in _SERIES), *_named_rows(self.stage_rows[:, :k], self.forces)
-        )
+        rows = self.stage_rows[:, :k]
+        series = {f: getattr(self, f)[:k] for f in _SERIES}
+        return RunLog(self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
 
 
-def _named_rows(rows: np.ndarray, names) -> tuple[np.ndarray, dict[str, np.ndarray]]:  # noqa: ANN001
-    return rows, {name: rows[j] for j, name in enumerate(names)}
+def _named(rows: np.ndarray, names: Sequence[str] | dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The force rows (S, k, n, 3) by stage name: views rows[j]."""
+    return {name: rows[j] for j, name in enumerate(names)}
 
 
 @dataclass

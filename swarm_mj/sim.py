@@ -47,20 +47,13 @@ import mujoco
 import numpy as np
 
 from . import _mjstep
-from ._jit import KERNEL_MODULES, jit
+from ._jit import AVAILABLE, KERNEL_MODULES, jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
 from .params import QuadParams
 from .records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
 from .world import World
-
-try:
-    from numba.extending import overload
-except ImportError:  # pragma: no cover - SWARM_MJ_NO_JIT or no numba: the Python fallbacks run
-
-    def overload(fn):  # type: ignore[no-redef]  # noqa: ARG001
-        return lambda impl: impl
 
 #: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
 HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
@@ -270,7 +263,6 @@ def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by
         FORCE_KERNELS[type(rec)](rec, kin, force, torque)
 
 
-@overload(_apply_stages)
 def _apply_stages_compiled(stages, kin, force, torque):
     """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
     kernels = [FORCE_KERNELS[t.instance_class] for t in stages.types]
@@ -286,7 +278,6 @@ def _log_stages(stages, rows, k):  # pragma: no cover - replaced by the overload
         rows[j, k] = rec.force
 
 
-@overload(_log_stages)
 def _log_stages_compiled(stages, rows, k):
     """rows[j, k] (S, K+1, N, 3) = the j-th stage's force of the last physics step."""
     body = "".join(f"    rows[{j}, k] = stages[{j}].force\n" for j in range(len(stages.types)))
@@ -301,7 +292,6 @@ def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overlo
         MONITOR_KERNELS[type(rec)](rec, kin)
 
 
-@overload(_track_monitors)
 def _track_monitors_compiled(monitors, kin):
     """The monitor tuple unrolled at compile time: each record's registered step in turn."""
     kernels = [MONITOR_KERNELS[t.instance_class] for t in monitors.types]
@@ -309,6 +299,14 @@ def _track_monitors_compiled(monitors, kin):
     scope = {f"k{i}": k for i, k in enumerate(kernels)}
     exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
     return scope["impl"]
+
+
+if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above run as they are otherwise
+    from numba.extending import overload
+
+    overload(_apply_stages)(_apply_stages_compiled)
+    overload(_log_stages)(_log_stages_compiled)
+    overload(_track_monitors)(_track_monitors_compiled)
 
 
 @jit

@@ -129,7 +129,9 @@ class GroundEffectStage:
         self.arm = float(sim.params.L)
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
-        self._record = GroundEffectRecord(self.arm, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque)
+        self._record = GroundEffectRecord(
+            self.arm, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque
+        )
 
     def record(self) -> GroundEffectRecord:
         """This stage for a compiled driver (valid until the next :meth:`reset`)."""

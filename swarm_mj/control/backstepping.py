@@ -204,7 +204,26 @@ def _kernel_samples():
     z1, z3, g = np.zeros(n), np.zeros((n, 3)), np.ones((n, 3))
     gains = Gains(g, g, g, g, g, g, np.ones(3), 0.5, 9.81, np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01)
     return [
-        (gains, z3.copy(), z3, z3, z3, z3, z3, z3, z3, z1, z1, z1, z3, False, np.zeros((n, 2)), first, exact, np.zeros((n, 3)))
+        (
+            gains,
+            z3.copy(),
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z3,
+            z1,
+            z1,
+            z1,
+            z3,
+            False,
+            np.zeros((n, 2)),
+            first,
+            exact,
+            np.zeros((n, 3)),
+        )
         for exact in (True, False)
         for first in (True, False)
     ]

@@ -231,3 +231,27 @@ def test_one_signature_per_set_of_stages_and_monitors():
         run(name, aero=aero, duration=2.0, progress=False, fused=True)
     assert len(period.fly_chunk.signatures) == 2, period.fly_chunk.signatures
     assert os.environ.get("SWARM_MJ_NO_JIT", "") in ("", "0")
+
+
+def test_the_design_docs_force_stage_runs_as_written(tmp_path, monkeypatch):
+    # the code block of docs/design.md, "A new force stage", as a module of its own
+    import importlib
+    import re
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[2] / "docs" / "design.md").read_text()
+    section = doc[doc.index("### A new force stage") :]
+    block = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    (tmp_path / "doc_updraft.py").write_text(block)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    mod = importlib.import_module("doc_updraft")
+    res = run("circle", duration=2.0, progress=False, fused=True, force_stages=[mod.UpdraftStage(lift=0.3)])
+    # not registered in _jit.KERNEL_MODULES: refused by name, flown step by step, still applied and logged
+    assert "doc_updraft is not in _jit.KERNEL_MODULES" in res.extra["fast_path"], res.extra
+    assert res.extra["fused_periods"] == 0
+    f = res.log.forces["updraft"][:, :, 2]
+    inside = np.hypot(res.log.pos[:, :, 0], res.log.pos[:, :, 1]) <= 1.0
+    assert (f[inside[:, :]] == 0.3).mean() > 0.9 and (f[~inside] == 0.0).mean() > 0.9
+    monkeypatch.setattr(_jit, "KERNEL_MODULES", (*_jit.KERNEL_MODULES, "doc_updraft"))
+    env = SwarmEnv("circle", force_stages=[mod.UpdraftStage()])
+    assert env.sim.not_compiled() is None  # with its registration line, it is compilable
