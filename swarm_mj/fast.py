@@ -40,7 +40,7 @@ import numpy as np
 from . import _jit, _mjstep
 from .errors import UserError
 from .formation.anticollision import OVERLAP_M, CompensatedRule, G, JetAwareRule, LayeredRule, NoRule
-from .records import Control, Feedforward, LogRows, Obs, Predictor, Rule
+from .records import LogRows, Obs, Rule
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
@@ -119,10 +119,6 @@ class FastLoop:
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._jet_aware = self._layered and isinstance(policy.rule, JetAwareRule)
         self._refs = env._refs
-        self._U = np.zeros((n, 4))
-        z3, z4 = np.zeros((n, 3)), np.zeros((n, 4))
-        self._no_ff = Feedforward(False, n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4.copy(), z3.copy(), *(z3.copy(),) * 3)
-        self._no_pred = Predictor(False, 0.0, 0.0, z3.copy(), z3.copy())
         self._log = LogRows(
             log.t, log.pos, log.vel, log.quat, log.rpy, log.pos_d, log.slot, log.att_d, log.U, log.rotor,
             log.wind_speed, log.wind_force, log.D, log.stage_rows,
@@ -152,18 +148,12 @@ class FastLoop:
         env, policy = self.env, self.policy
         sim = env.sim
         rule = _rule_record(policy.rule, env.n, self._layered, self._jet_aware, self._prev_t, self._alt)
-        ctl = policy.controller
-        control = Control(
-            ctl.record, ctl._prev_att_d if ctl._prev_att_d is not None else np.zeros((env.n, 2)), ctl.att_d, self._U,
-            ctl.attitude_map == "exact", bool(ctl.wind_feedforward), bool(policy.attitude_priority),
-        )  # fmt: skip
-        ff = policy.downwash_ff.record() if policy.downwash_ff is not None else self._no_ff
-        pred = policy.predictor.record() if policy.predictor is not None else self._no_pred
+        ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
         return (
-            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, control, ff, pred, self._log,
-            sim.compiled_stages(), monitors,
+            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, policy.control_record(), ff, pred,
+            self._log, sim.compiled_stages(), monitors,
         )  # fmt: skip
 
     def ready(self) -> bool:
@@ -174,11 +164,7 @@ class FastLoop:
             self._cool -= 1
             return False
         env, policy = self.env, self.policy
-        if env.k < 1 or not policy._started or policy.controller._prev_att_d is None or env.sim._pairs_in_contact:
-            return False
-        if policy.predictor is not None and policy.predictor._first:
-            return False
-        if policy.downwash_ff is not None and not policy._ff_started:
+        if env.k < 1 or not policy.started() or env.sim._pairs_in_contact:
             return False
         if not all(mon.compiled_ready() for mon in env.sim.monitors):
             return False
@@ -203,7 +189,7 @@ class FastLoop:
         if self._layered:
             self._prev_t[0] = rule._prev_t
         ctl = policy.controller
-        self._U[:] = ctl.U  # the last command (the downwash feedforward's thrust)
+        policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
         args = list(self._args(env.k, k_end))
         k0 = env.k
         with _mjstep.profiler_paused():  # MuJoCo's profiling clock off, as in Sim.step
@@ -217,7 +203,7 @@ class FastLoop:
                 break
         self.status = status
         self.periods += k - k0
-        ctl.U = self._U.copy()
+        ctl.U = policy.U_last.copy()
         if self._layered:
             rule._prev_t = float(self._prev_t[0])
             if self._jet_aware and k > k0:

@@ -15,12 +15,12 @@ lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
                            :func:`~swarm_mj.mixing.attitude_priority_kernel`
 log rows                   :func:`log_inputs`, :func:`log_outputs`
-saturation, floor gate     :func:`hold_inputs`
+saturation, floor gate     :func:`~swarm_mj.sim.hold_inputs`
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
                            :data:`swarm_mj.records.FORCE_KERNELS`, in the simulator's order)
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj._mjstep.step_call`
 monitors                   :func:`~swarm_mj.sim.track_monitors` (the steps without a contact)
-health check               :func:`unhealthy`
+health check               :func:`~swarm_mj.sim.unhealthy`
 observation                :func:`observe` (:func:`observe_into` its buffers)
 =========================  =====================================================================
 
@@ -41,18 +41,10 @@ from .control.lag import predict_kernel
 from .formation.anticollision import any_below, horizontal_distances, merge_rows, react_needed
 from .formation.layered import formed_step_kernel
 from .formation.slots import setpoints_kernel
-from .mixing import attitude_priority_kernel, saturate_kernel
+from .mixing import attitude_priority_kernel
 from .observation import observe_kernel
 from .records import Kinematics, Obs
-from .sim import (
-    DIVERGENCE_WARNING_IDS,
-    apply_forces,
-    first_unhealthy,
-    floor_gate_kernel,
-    log_stage_forces,
-    track_monitors,
-    unmix_kernel,
-)
+from .sim import apply_forces, hold_inputs, log_stage_forces, track_monitors, unhealthy, unmix_kernel
 
 #: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
 #: a contact to count (then resume); unhealthy (Python raises); a non-finite command.
@@ -124,11 +116,12 @@ def feedforward_force(ff, pos, quat, thrust) -> None:
 
 
 @jit
-def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, phys):
+def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
     """U1..U4 (n, 4) of the built-in policy from the references (n, 3): the known external force
     (the wind given to the controller, plus the downwash feedforward from the last command),
     the attitude predicted over the rotors' lag, backstepping (eqs. 17–24), the attitude-priority
-    mixer (the rotor limits of ``phys``). Writes ctl.att_d, ctl.U_last."""
+    mixer. Reads of ``obs`` the drones' state, yaw references and wind force only. Writes ctl.att_d,
+    ctl.U_last (the thrust the next feedforward uses)."""
     n = obs.pos.shape[0]
     zeros1 = np.zeros(n)
     zeros3 = np.zeros((n, 3))
@@ -153,7 +146,7 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, phys):
     )  # fmt: skip
     if ctl.priority:
         Up = np.empty_like(U)
-        attitude_priority_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, Up)
+        attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, Up)
         U = Up
     ctl.U_last[:] = U
     return U
@@ -172,27 +165,6 @@ def log_inputs(log, k, t, obs, pos_d, att_d, refs) -> None:
     log.att_d[k] = att_d
     log.wind_speed[k] = refs.wind_speed[k]
     log.D[k] = refs.D[k]
-
-
-@jit
-def hold_inputs(phys, U) -> None:
-    """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
-    ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
-    saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
-    if phys.lag:
-        phys.rotor_command[:] = phys.rotor_thrust
-    if phys.gate_on:
-        floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
-
-
-@jit
-def unhealthy(phys) -> bool:
-    """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
-    for w in DIVERGENCE_WARNING_IDS:
-        if phys.warn[w]:
-            return True
-    n = phys.qpos.shape[0]
-    return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
 
 
 @jit
@@ -259,7 +231,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
                 react, pos_d, vel_d, acc_d = rule_formed_step(rule, obs, t)
                 if react:
                     return REACT, k, 0
-            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, phys)
+            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d)
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0

@@ -16,10 +16,10 @@ from .control.backstepping import Backstepping
 from .control.lag import AttitudePredictor
 from .env import Command
 from .formation.anticollision import make_rule, resolve_rule
-from .mixing import attitude_priority
+from .mixing import MIX_T, UNMIX_T, attitude_priority
 from .params import DEFAULT_PARAMS, QuadParams
-from .period import feedforward_force
-from .records import Feedforward
+from .period import command, feedforward_force
+from .records import Control, Feedforward, Obs, Predictor
 from .scenario import Scenario
 
 
@@ -93,6 +93,40 @@ class BacksteppingPolicy:
         )
         self._ff_started = False
         self._started = False
+        self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the compiled command reads it
+        self._no_dist = np.zeros((0, 0))  # the command reads no distances
+        z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
+        self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
+        self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
+
+    def control_record(self) -> Control:
+        """The controller for the compiled :func:`swarm_mj.period.command` (its own arrays; ``U_last``
+        the buffer of the last command)."""
+        ctl = self.controller
+        p = ctl.params
+        prev = ctl._prev_att_d if ctl._prev_att_d is not None else np.zeros((self.n, 2))  # not started yet
+        return Control(
+            ctl.record, prev, ctl.att_d, self.U_last, ctl.attitude_map == "exact", bool(ctl.wind_feedforward),
+            bool(self.attitude_priority), UNMIX_T, MIX_T, float(p.f_min), float(p.f_max),
+        )  # fmt: skip
+
+    def feedforward_record(self) -> Feedforward:
+        """The downwash feedforward's record (a stand-in with ``on`` False where there is none)."""
+        return self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
+
+    def predictor_record(self) -> Predictor:
+        """The lag prediction's record (a stand-in with ``on`` False where there is none)."""
+        return self.predictor.record() if self.predictor is not None else self._no_pred
+
+    def started(self) -> bool:
+        """Past the first command: every memory of the controller (the attitude history, the lag
+        prediction's last rates, the feedforward's last thrust) holds a value."""
+        return (
+            self._started
+            and self.controller._prev_att_d is not None
+            and (self.predictor is None or not self.predictor._first)
+            and (self.downwash_ff is None or self._ff_started)
+        )
 
     def reset(self) -> None:
         self.controller.reset()
@@ -118,6 +152,18 @@ class BacksteppingPolicy:
                 float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
             )
         ctl = self.controller
+        if self.started():  # the function the chunk driver calls (swarm_mj/period.py)
+            o = Obs(
+                obs["pos"], obs["vel"], obs["quat"], obs["body_rates"], obs["rpy"], obs["rpy_rate"], obs["neighbours"],
+                obs["neighbour_mask"], self._no_dist, obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"],
+                obs["setpoint_yaw"], obs["wind_force"],
+            )  # fmt: skip
+            self.U_last[:] = ctl.U
+            U = command(
+                self.control_record(), self.feedforward_record(), self.predictor_record(), o, pos_d, vel_d, acc_d
+            )
+            ctl.U = U
+            return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
         ext = obs["wind_force"]
         if self.downwash_ff is not None:  # the rule's downwash feedforward (docs/interpretations.md §4)
             thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)

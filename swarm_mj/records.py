@@ -171,6 +171,10 @@ class Control(NamedTuple):
     exact: bool  # attitude_map == "exact"
     use_wind: bool  # wind feedforward
     priority: bool  # attitude-priority mixer
+    unmix_t: np.ndarray  # (4, 4) U → rotor thrusts, transposed (the mixer's)
+    mix_t: np.ndarray  # (4, 4) rotor thrusts → U, transposed
+    f_min: float  # rotor thrust limits (N)
+    f_max: float
 
 
 class Feedforward(NamedTuple):

@@ -334,6 +334,27 @@ def log_stage_forces(stages, rows, k) -> None:
     _log_stages(stages, rows, k)
 
 
+@jit
+def hold_inputs(phys, U) -> None:
+    """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
+    ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
+    saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
+    if phys.lag:
+        phys.rotor_command[:] = phys.rotor_thrust
+    if phys.gate_on:
+        floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
+
+
+@jit
+def unhealthy(phys) -> bool:
+    """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
+    for w in DIVERGENCE_WARNING_IDS:
+        if phys.warn[w]:
+            return True
+    n = phys.qpos.shape[0]
+    return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
+
+
 # --------------------------------------------------------------------------- force stages
 
 
@@ -660,13 +681,8 @@ class Sim:
         parked = self._any_parked
         if parked:
             U = self._hold_parked(U)
-        saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
+        hold_inputs(self._record, U)  # saturation, the lagged rotors' command, the floor gate
         self.wind.set(wind_force)
-        if self.motor_lag:
-            self.rotor_command[:] = self.rotor_thrust
-        if self._gate_on:
-            fid, solid, z_near = self._gate  # type: ignore[misc]
-            floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/_mjstep.py)
         try:
             if self._fused:
@@ -750,6 +766,8 @@ class Sim:
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
+        if not unhealthy(self._record):  # the chunk driver's test
+            return
         if self.mujoco_warned():
             code = MUJOCO_WARNING
         else:
