@@ -10,7 +10,7 @@ whether a run can use it and gathers the records from the run's objects:
   rule of this run compilable? A force stage or monitor is when its ``record()`` returns a record
   with a registered compiled kernel (:data:`swarm_mj.records.FORCE_KERNELS`, ``MONITOR_KERNELS``);
   the rule when it is the layered family or none. Otherwise the run flies step by step and
-  :attr:`FastLoop.reason` (``RunResult.extra["fast_path"]``) names what refused it.
+  ``RunResult.extra["fast_path"]`` names what refused it (the run also says so on stderr).
 * **Compiling.** The driver's signature comes from the records themselves (Numba types them), one
   per set of force stages and monitors. Compiling it takes Numba 10–20 s, more than a run saves,
   so ``runner.run(fused=None)`` uses it only when Numba's on-disk cache holds that signature for

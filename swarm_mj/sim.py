@@ -724,7 +724,7 @@ class Sim:
 
     def after_physics_step(self) -> None:
         """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
-        monitors (the fused path, swarm_mj/fused.py, hands each step with a contact back to this)."""
+        monitors (the chunk driver, swarm_mj/period.py, hands each step with a contact back to this)."""
         if self.data.ncon or self._pairs_in_contact:
             self._count_contacts()
         for mon in self.monitors:
