@@ -64,7 +64,7 @@ from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
 from .period import observe
-from .records import Refs
+from .records import Obs, Refs
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage, Sim
 from .wind import WindField
@@ -381,6 +381,8 @@ class SwarmEnv(dm_env.Environment):
         ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.fast`)
         hands back after a chunk."""
         self._dist = dist
+        #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
+        self.obs_record = Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, sp_vel, sp_acc, yaw, wf)
         return {
             "time": np.float64(self.k * self.T),
             "pos": pos,

@@ -40,7 +40,7 @@ import numpy as np
 from . import _jit, _mjstep
 from .errors import UserError
 from .formation.anticollision import OVERLAP_M, CompensatedRule, G, JetAwareRule, LayeredRule, NoRule
-from .records import LogRows, Obs, Rule
+from .records import Obs, Rule
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
@@ -119,10 +119,7 @@ class FastLoop:
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._jet_aware = self._layered and isinstance(policy.rule, JetAwareRule)
         self._refs = env._refs
-        self._log = LogRows(
-            log.t, log.pos, log.vel, log.quat, log.rpy, log.pos_d, log.slot, log.att_d, log.U, log.rotor,
-            log.wind_speed, log.wind_force, log.D, log.stage_rows,
-        )  # fmt: skip
+        self._log = log.rows
 
     @classmethod
     def build(cls, env, policy, log, *, compile: bool = False, announce=None) -> FastLoop | None:  # noqa: ANN001, A002

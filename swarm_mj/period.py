@@ -153,8 +153,9 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
 
 
 @jit
-def log_inputs(log, k, t, obs, pos_d, att_d, refs) -> None:
-    """Row k of the log from the observation and the command computed from it (RunLog.observe)."""
+def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
+    """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
+    wind speed (3,) and D of that instant (RunLog.observe calls it too)."""
     log.t[k] = t
     log.pos[k] = obs.pos
     log.vel[k] = obs.vel
@@ -163,8 +164,8 @@ def log_inputs(log, k, t, obs, pos_d, att_d, refs) -> None:
     log.pos_d[k] = pos_d
     log.slot[k] = obs.sp
     log.att_d[k] = att_d
-    log.wind_speed[k] = refs.wind_speed[k]
-    log.D[k] = refs.D[k]
+    log.wind_speed[k] = wind_speed
+    log.D[k] = D
 
 
 @jit
@@ -235,7 +236,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0
-            log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs)
+            log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
             for i in range(n):  # the wind force of period k, held over it
                 for j in range(3):
                     phys.wind[i, j] = refs.wind_force[k, j]

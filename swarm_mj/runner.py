@@ -11,6 +11,7 @@ a flag, checked once per control period, so that it never lands inside a compile
 
 from __future__ import annotations
 
+import functools
 import sys
 import time as _time
 from collections.abc import Sequence
@@ -25,8 +26,10 @@ from .errors import SimulationDiverged, UserError
 from .fast import CHUNK, FastLoop, why_not
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
+from .period import log_inputs
 from .policy import BacksteppingPolicy
 from .progress import Progress
+from .records import LogRows, Obs
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage
 
@@ -93,18 +96,16 @@ class RunLog:
         """(k, n, 3) the ground-effect force on each drone, N; zeros without that stage."""
         return self.force("ground_effect")
 
-    def observe(self, k: int, obs: dict, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
-        """Sample k from the observation and the command computed from it (before the step)."""
-        self.t[k] = obs["time"]
-        self.pos[k] = obs["pos"]
-        self.vel[k] = obs["vel"]
-        self.quat[k] = obs["quat"]
-        self.rpy[k] = obs["rpy"]
-        self.pos_d[k] = cmd.pos_d
-        self.slot[k] = obs["setpoint"]
-        self.att_d[k] = cmd.att_d
-        self.wind_speed[k] = wind_speed
-        self.D[k] = D
+    @functools.cached_property
+    def rows(self) -> LogRows:
+        """The series as one record (what the compiled log rows write: swarm_mj.period.log_inputs)."""
+        series = {f: getattr(self, f) for f in _SERIES}
+        return LogRows(**series, forces=self.stage_rows)
+
+    def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
+        """Sample k (time t) from the observation and the command computed from it (before the step):
+        :func:`swarm_mj.period.log_inputs`, the chunk driver's row."""
+        log_inputs(self.rows, k, t, obs, cmd.pos_d, cmd.att_d, wind_speed, D)
 
     def applied(self, k: int, rec: StepRecord) -> None:
         """What the environment applied over the period after sample k (each force stage by its name)."""
@@ -220,7 +221,7 @@ def run(
                     if fast.status == 0:  # done: the chunk flew to its end
                         continue
                 cmd = policy.command(obs)
-                log.observe(k, obs, cmd, wind_speed[k], env.D[k])
+                log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
                 if k >= K:
                     break
                 if interrupt.requested:
