@@ -298,9 +298,9 @@ def compiled(sig: tuple) -> bool:
     return fresh and (sig in _driver().overloads or sig in _cached_signatures())
 
 
-def compile_now(signatures: list[tuple] | None = None) -> float:
-    """Compile the driver for ``signatures`` into the cache (default: those of the bundled physics
-    presets, :func:`preset_signatures`), dropping a stale cache first; returns the seconds spent."""
+def compile_now(signatures: list[tuple]) -> float:
+    """Compile the driver for ``signatures`` into the cache (e.g. :func:`swarm_mj.runner.preset_signatures`),
+    dropping a stale cache first; returns the seconds spent."""
     t0 = time.perf_counter()
     stamp = _stamp()
     if stamp is None or not _mjstep.available():
@@ -312,7 +312,7 @@ def compile_now(signatures: list[tuple] | None = None) -> float:
         fresh = False
     if not fresh:
         fly._cache.flush()  # Numba would load a stale one
-    for sig in preset_signatures() if signatures is None else signatures:
+    for sig in signatures:
         fly.compile(sig)
     try:
         tmp = stamp.with_suffix(f".{os.getpid()}.tmp")
@@ -321,25 +321,6 @@ def compile_now(signatures: list[tuple] | None = None) -> float:
     except OSError:
         pass
     return time.perf_counter() - t0
-
-
-def preset_signatures() -> list[tuple]:
-    """The driver's signatures for the physics presets (paper, realistic), from a short circle under each."""
-    from .env import SwarmEnv
-    from .policy import BacksteppingPolicy
-    from .runner import RunLog
-    from .scenario import load_scenario
-
-    out = []
-    for aero in ("paper", "realistic"):
-        from .aero.presets import with_aero
-
-        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05), aero)
-        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
-        policy = BacksteppingPolicy(sc, env.params)
-        log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
-        out.append(signature(FastLoop(env, policy, log)._args(0, 0)))
-    return out
 
 
 def _lock_path() -> Path:
@@ -397,8 +378,8 @@ def _background_main(argv: list[str]) -> None:
     try:
         if hasattr(os, "nice"):
             os.nice(10)
-        sig = pickle.loads(lock.read_bytes()) if lock is not None else None  # noqa: S301 - our own file
-        compile_now([sig] if sig is not None else None)
+        if lock is not None:
+            compile_now([pickle.loads(lock.read_bytes())])  # noqa: S301 - our own file
     finally:
         if lock is not None:
             lock.unlink(missing_ok=True)

@@ -23,7 +23,7 @@ from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged, UserError
-from .fast import CHUNK, FastLoop, why_not
+from .fast import CHUNK, FastLoop, signature, why_not
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .period import log_inputs
@@ -253,6 +253,19 @@ def run(
     # of the K flown, the periods the chunk driver flew (swarm_mj/fast.py); why none could, if so
     extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
     return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error, extra)
+
+
+def preset_signatures() -> list[tuple]:
+    """The chunk driver's compile signatures for the physics presets (paper, realistic), from the
+    records of a short circle under each (what ``swarm-mj warm-up`` compiles)."""
+    out = []
+    for aero in ("paper", "realistic"):
+        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05), aero)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
+        policy = BacksteppingPolicy(sc, env.params)
+        log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        out.append(signature(FastLoop(env, policy, log)._args(0, 0)))
+    return out
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:

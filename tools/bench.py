@@ -788,10 +788,10 @@ def main(argv: list[str] | None = None) -> int:
         f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
         flush=True,
     )
-    from swarm_mj import _jit, fast
+    from swarm_mj import _jit, fast, runner
 
     t_jit = _jit.warm_up()
-    sigs = fast.preset_signatures()
+    sigs = runner.preset_signatures()
     t_fused = fast.compile_now(sigs)  # (loads it when cached) every run below may use the chunk driver
     ready = all(fast.compiled(sig) for sig in sigs)
     print(

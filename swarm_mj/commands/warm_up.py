@@ -17,14 +17,14 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .. import _jit, fast
+    from .. import _jit, fast, runner
 
     if not _jit.AVAILABLE:
         print("Numba is not in use (SWARM_MJ_NO_JIT or not installed): nothing to compile", file=sys.stderr)
         return 0
     print("compiling the per-step kernels…", file=sys.stderr, flush=True)
     t_kernels = _jit.warm_up()
-    sigs = fast.preset_signatures()
+    sigs = runner.preset_signatures()
     if all(fast.compiled(sig) for sig in sigs):
         t_fast = 0.0
     else:

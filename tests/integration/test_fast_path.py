@@ -18,7 +18,7 @@ import pytest
 from swarm_mj import _jit, _mjstep, fast
 from swarm_mj.aero.updraft import UpdraftStage
 from swarm_mj.env import SwarmEnv
-from swarm_mj.runner import _SERIES, run
+from swarm_mj.runner import _SERIES, preset_signatures, run
 from swarm_mj.scenario import load_scenario
 
 pytestmark = [
@@ -220,7 +220,7 @@ def test_warm_up_command_leaves_the_fast_path_compiled():
     )
     assert out.returncode == 0, out.stderr
     assert "fast path ready" in out.stderr, out.stderr
-    assert all(fast.compiled(sig) for sig in fast.preset_signatures())
+    assert all(fast.compiled(sig) for sig in preset_signatures())
 
 
 def test_one_signature_per_set_of_stages_and_monitors():
