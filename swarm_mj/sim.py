@@ -46,8 +46,8 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
-from . import _mjstep
-from ._jit import AVAILABLE, KERNEL_MODULES, jit
+from . import _jit, _mjstep
+from ._jit import AVAILABLE, jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import MIX_T, UNMIX_T, saturate_kernel
@@ -407,7 +407,7 @@ def _why_not_registered(part, registry: dict, kind: str, what: str) -> str | Non
     if kernel is None:
         return f"the {kind} {name!r} has no compiled {what}"
     module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
-    if module not in KERNEL_MODULES:
+    if module not in _jit.KERNEL_MODULES:
         return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
     return None
 
