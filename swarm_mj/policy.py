@@ -18,8 +18,8 @@ from .env import Command
 from .formation.anticollision import make_rule, resolve_rule
 from .mixing import MIX_T, UNMIX_T, attitude_priority
 from .params import DEFAULT_PARAMS, QuadParams
-from .period import command, feedforward_force
-from .records import Control, Feedforward, Obs, Predictor
+from .period import feedforward_force
+from .records import Control, Feedforward, Predictor
 from .scenario import Scenario
 
 
@@ -94,7 +94,6 @@ class BacksteppingPolicy:
         self._ff_started = False
         self._started = False
         self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the compiled command reads it
-        self._no_dist = np.zeros((0, 0))  # the command reads no distances
         z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
         self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
         self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
@@ -152,18 +151,6 @@ class BacksteppingPolicy:
                 float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
             )
         ctl = self.controller
-        if self.started():  # the function the chunk driver calls (swarm_mj/period.py)
-            o = Obs(
-                obs["pos"], obs["vel"], obs["quat"], obs["body_rates"], obs["rpy"], obs["rpy_rate"], obs["neighbours"],
-                obs["neighbour_mask"], self._no_dist, obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"],
-                obs["setpoint_yaw"], obs["wind_force"],
-            )  # fmt: skip
-            self.U_last[:] = ctl.U
-            U = command(
-                self.control_record(), self.feedforward_record(), self.predictor_record(), o, pos_d, vel_d, acc_d
-            )
-            ctl.U = U
-            return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
         ext = obs["wind_force"]
         if self.downwash_ff is not None:  # the rule's downwash feedforward (docs/interpretations.md §4)
             thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)

@@ -26,7 +26,6 @@ from .errors import SimulationDiverged, UserError
 from .fast import CHUNK, FastLoop, signature, why_not
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
-from .period import log_inputs
 from .policy import BacksteppingPolicy
 from .progress import Progress
 from .records import LogRows, Obs
@@ -103,9 +102,19 @@ class RunLog:
         return LogRows(**series, forces=self.stage_rows)
 
     def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
-        """Sample k (time t) from the observation and the command computed from it (before the step):
-        :func:`swarm_mj.period.log_inputs`, the chunk driver's row."""
-        log_inputs(self.rows, k, t, obs, cmd.pos_d, cmd.att_d, wind_speed, D)
+        """Sample k (time t) from the observation and the command computed from it (before the step);
+        the chunk driver writes the same row with :func:`swarm_mj.period.log_inputs` (kept in Python
+        here: a compiled call taking the log's record costs ~1.6 s of compiling on a first run)."""
+        self.t[k] = t
+        self.pos[k] = obs.pos
+        self.vel[k] = obs.vel
+        self.quat[k] = obs.quat
+        self.rpy[k] = obs.rpy
+        self.pos_d[k] = cmd.pos_d
+        self.slot[k] = obs.sp
+        self.att_d[k] = cmd.att_d
+        self.wind_speed[k] = wind_speed
+        self.D[k] = D
 
     def applied(self, k: int, rec: StepRecord) -> None:
         """What the environment applied over the period after sample k (each force stage by its name)."""

@@ -681,8 +681,13 @@ class Sim:
         parked = self._any_parked
         if parked:
             U = self._hold_parked(U)
-        hold_inputs(self._record, U)  # saturation, the lagged rotors' command, the floor gate
+        saturate_kernel(U, UNMIX_T, MIX_T, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         self.wind.set(wind_force)
+        if self.motor_lag:
+            self.rotor_command[:] = self.rotor_thrust
+        if self._gate_on:
+            fid, solid, z_near = self._gate  # type: ignore[misc]
+            floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/_mjstep.py)
         try:
             if self._fused:
