@@ -260,9 +260,10 @@ def signature(args: tuple) -> tuple:
 
 
 def _sources_hash() -> str:
-    """A hash of the sources the driver is compiled from: every module of ``_jit.KERNEL_MODULES``."""
+    """A hash of the sources the driver is compiled from: every module of ``_jit.KERNEL_MODULES``, the
+    records and the compiler switch itself."""
     h = hashlib.sha1(usedforsecurity=False)
-    for name in sorted({*_jit.KERNEL_MODULES, "swarm_mj._mjstep", "swarm_mj.records"}):
+    for name in sorted({*_jit.KERNEL_MODULES, "swarm_mj._jit", "swarm_mj._mjstep", "swarm_mj.records"}):
         spec = importlib.util.find_spec(name)
         if spec is not None and spec.origin:
             h.update(Path(spec.origin).read_bytes())
