@@ -2,8 +2,15 @@
 and the chunk driver that flies many periods in one compiled call (docs/design.md, "The control
 period, written once").
 
-The per-period path (:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.sim.Sim.step`,
-:class:`swarm_mj.policy.BacksteppingPolicy`) and :func:`fly_chunk` call the same stage functions:
+:func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
+(:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.sim.Sim.step`,
+:class:`swarm_mj.policy.BacksteppingPolicy`) calls the same ones for the observation
+(:func:`observe`), the forces of a physics step (:func:`~swarm_mj.sim.apply_forces`, the force
+stages' and the monitors' kernels), the health check (:func:`~swarm_mj.sim.unhealthy`) and the
+feedforward (:func:`feedforward_force`); for saturation, the command and the log's input row it
+calls the same kernels from Python (a compiled function taking a large record costs 2-5 s of
+compiling on a first run), and the layered rule's formed step is the rule's own Python
+(swarm_mj/formation), which :func:`rule_formed_step` mirrors; the parity tests keep them equal:
 
 =========================  =====================================================================
 stage                      function
@@ -155,7 +162,7 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
 @jit
 def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
     """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
-    wind speed (3,) and D of that instant (RunLog.observe calls it too)."""
+    wind speed (3,) and D of that instant (RunLog.observe writes the same row in Python)."""
     log.t[k] = t
     log.pos[k] = obs.pos
     log.vel[k] = obs.vel
