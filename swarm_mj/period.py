@@ -61,7 +61,7 @@ DONE, REACT, CONTACT, UNHEALTHY, BAD_ACTION = 0, 1, 2, 3, 4
 # --------------------------------------------------------------------------- the stages
 
 
-@jit
+@jit(inline=True)
 def rule_formed_step(rule, obs, t):
     """The layered rule's update once every follower is formed (LayeredRule.update, JetAwareRule's
     checks): returns (react, pos_d, vel_d, acc_d); react True when Fig. 5 has work to do (the
@@ -104,7 +104,7 @@ def rule_formed_step(rule, obs, t):
     return False, out, vel_d, acc_d
 
 
-@jit
+@jit(inline=True)
 def feedforward_force(ff, pos, quat, thrust) -> None:
     """The downwash feedforward (swarm_mj.policy.DownwashFeedforward): ff.force (n, 3) = the jets'
     force on each drone at pos (n, 3), quat (n, 4), each drone's thrust (n,) shared over its rotors."""
@@ -122,7 +122,7 @@ def feedforward_force(ff, pos, quat, thrust) -> None:
     )  # fmt: skip
 
 
-@jit
+@jit(inline=True)
 def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
     """U1..U4 (n, 4) of the built-in policy from the references (n, 3): the known external force
     (the wind given to the controller, plus the downwash feedforward from the last command),
@@ -159,7 +159,7 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
     return U
 
 
-@jit
+@jit(inline=True)
 def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
     """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
     wind speed (3,) and D of that instant (RunLog.observe writes the same row in Python)."""
@@ -175,7 +175,7 @@ def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
     log.D[k] = D
 
 
-@jit
+@jit(inline=True)
 def observe(phys, refs, k):
     """The observation of period k (:class:`~swarm_mj.records.Obs`, fresh arrays; SwarmEnv's keys):
     the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
@@ -195,7 +195,7 @@ def observe(phys, refs, k):
     return Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf)
 
 
-@jit
+@jit(inline=True)
 def observe_into(phys, refs, obs, k) -> None:
     """:func:`observe` into the buffers of ``obs`` (the chunk driver's observation)."""
     o = observe(phys, refs, k)
@@ -265,13 +265,13 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
     return DONE, k, 0
 
 
-@jit
+@jit(inline=True)
 def _kinematics(phys):
     """The drones' state views a force stage reads (:class:`~swarm_mj.records.Kinematics`)."""
     return Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
 
 
-@jit
+@jit(inline=True)
 def log_outputs(log, k, phys, stages) -> None:
     """Row k of the log from what the period applied (RunLog.applied): the produced rotor thrusts
     (read from the lagged rotors' states) and each force stage's force."""

@@ -309,13 +309,13 @@ if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above r
     overload(_track_monitors)(_track_monitors_compiled)
 
 
-@jit
+@jit(inline=True)
 def track_monitors(monitors, kin) -> None:
     """Each compiled monitor's step after a physics step without any contact (records.MONITOR_KERNELS)."""
     _track_monitors(monitors, kin)
 
 
-@jit
+@jit(inline=True)
 def apply_forces(phys, stages, kin, xf, xtorque) -> None:
     """One physics step's forces into xfrc_applied (xf, xtorque (N, 3) views): drag −K·v + the wind
     held over the period (eq. 1, eq. 37), the produced rotor thrusts of lagged rotors, then each
@@ -328,13 +328,13 @@ def apply_forces(phys, stages, kin, xf, xtorque) -> None:
         flush_stage_forces(xf, xtorque, phys.force, phys.torque)
 
 
-@jit
+@jit(inline=True)
 def log_stage_forces(stages, rows, k) -> None:
     """The force (N, 3) of each stage of ``stages`` into rows[j, k] (S, K+1, N, 3)."""
     _log_stages(stages, rows, k)
 
 
-@jit
+@jit(inline=True)
 def hold_inputs(phys, U) -> None:
     """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
     ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
@@ -345,7 +345,7 @@ def hold_inputs(phys, U) -> None:
         floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
 
 
-@jit
+@jit(inline=True)
 def unhealthy(phys) -> bool:
     """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
     for w in DIVERGENCE_WARNING_IDS:
