@@ -1,4 +1,4 @@
-"""MuJoCo's own ``mj_step``, callable from a compiled kernel (the fused built-in path, docs/design.md).
+"""MuJoCo's own ``mj_step``, callable from a compiled kernel (the chunk driver, docs/design.md).
 
 A control loop that calls ``mujoco.mj_step`` from Python pays the interpreter between every
 physics step. :func:`step_call` is a Numba intrinsic that calls the C function ``mj_step(m, d)``
@@ -149,7 +149,7 @@ def _ncon_offset() -> int | None:
         d.qpos[2], d.qpos[9] = 0.8, 0.4  # both in the air, apart: none
         mujoco.mj_forward(m, d)
         seen.append((int(_view(d, off)[0]), int(d.ncon)))
-    except Exception:  # noqa: BLE001 - any surprise: no fused path
+    except Exception:  # noqa: BLE001 - any surprise: no chunk driver
         return None
     ok = all(a == b for a, b in seen) and sorted({b for _, b in seen}) == [0, 1, 2]
     return off if ok else None

@@ -62,8 +62,9 @@ from .aero.ground import REST_HEIGHT, rest_positions
 from .aero.presets import install as install_aero
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
-from .formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
-from .observation import observe_kernel
+from .formation.slots import DiameterSchedule, polygon_offsets
+from .period import observe
+from .records import Obs, Refs
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage, Sim
 from .wind import WindField
@@ -216,6 +217,7 @@ class SwarmEnv(dm_env.Environment):
         self._prev_leader = self.sim.pos[0].copy()
         self._leader_vel = np.zeros(3)
         self._contacts_seen = 0
+        self._refs = self._references()
         self.last_applied: StepRecord | None = None
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
@@ -343,30 +345,26 @@ class SwarmEnv(dm_env.Environment):
         return rec.wind_force if rec is not None else np.zeros((self.n, 3))
 
     def _observe(self) -> dict:
-        sim, k, n = self.sim, self.k, self.n
-        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(
-            sim.qpos, sim.qvel, self.scenario.sensing_range
+        """The observation of period ``self.k``: :func:`swarm_mj.period.observe`, the function the chunk
+        driver calls (with the wind on the relative airspeed, the known wind force from the field)."""
+        o = observe(self.sim.record(), self._refs, self.k)
+        wf = o.wf
+        if self._wind_known and self.wind.relative_airspeed:
+            wf = self.wind.drone_forces(self.k, o.vel)
+        return self._observation(
+            o.pos, o.vel, o.quat, o.omega, o.rpy, o.rpy_rate, o.rel, o.mask, o.dist, o.sp, o.spv, o.spa, o.yaw, wf
         )
-        ref = self.reference
-        # Formation (paper §4): the followers' slots from the leader's CURRENT position and D only.
-        sp, sp_vel, sp_acc, yaw = setpoints_kernel(
-            k,
-            self.T,
-            pos[0],
-            self._prev_leader,
-            self._leader_vel,
-            ref.pos[k],
-            ref.vel[k],
-            ref.acc[k],
-            float(ref.yaw[k]),
-            float(self.D[k]),
-            self._unit_offsets,
-        )
-        if self._wind_known:
-            wf = self.wind.drone_forces(k, vel)
-        else:
-            wf = np.zeros((n, 3))
-        return self._observation(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, sp_vel, sp_acc, yaw, wf)
+
+    def _references(self) -> Refs:
+        """The run's references as a record (:class:`swarm_mj.records.Refs`; the wind of this episode)."""
+        c = np.ascontiguousarray
+        ref, wind = self.reference, self.wind
+        return Refs(
+            c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float),
+            c(self.D, dtype=float), self._unit_offsets, self._prev_leader, self._leader_vel,
+            float(self.scenario.sensing_range), c(wind.force, dtype=float), c(wind.speed, dtype=float),
+            bool(self._wind_known),
+        )  # fmt: skip
 
     def _observation(
         self,
@@ -386,9 +384,11 @@ class SwarmEnv(dm_env.Environment):
         wf: np.ndarray,
     ) -> dict:
         """The observation dict of period ``self.k`` from its arrays (see :meth:`observation_spec`);
-        ``dist`` (n, n) is kept for the reward. Also what the fused path (:mod:`swarm_mj.fused`)
+        ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.fast`)
         hands back after a chunk."""
         self._dist = dist
+        #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
+        self.obs_record = Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, sp_vel, sp_acc, yaw, wf)
         return {
             "time": np.float64(self.k * self.T),
             "pos": pos,

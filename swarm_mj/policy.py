@@ -18,6 +18,8 @@ from .env import Command
 from .formation.anticollision import make_rule, resolve_rule
 from .mixing import attitude_priority
 from .params import DEFAULT_PARAMS, QuadParams
+from .period import feedforward_force
+from .records import Control, Feedforward, Predictor
 from .scenario import Scenario
 
 
@@ -38,27 +40,21 @@ class DownwashFeedforward:
         s = params.size_scale  # the vehicle's rotors and body (docs/vehicles.md); 1 for the paper's
         # its coefficients; the kernel is called directly (one call per step)
         st = DownwashStage(rotor_radius=params.rotor_radius, body_area=BODY_AREA * s * s)
-        self._args = (n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, st.rotor_radius)
-        self._pos = np.zeros((n, 3))
-        self._quat = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-        self._rotor = np.zeros((n, 4))
         self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
-        self._torque = np.zeros((n, 3))
-        self._sum_force = np.zeros((n, 3))
-        self._sum_torque = np.zeros((n, 3))
+        z3 = np.zeros((n, 3))
+        self._record = Feedforward(
+            True, n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, np.zeros((n, 3)),
+            np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 4)), self.force, z3, z3.copy(), z3.copy(),
+        )  # fmt: skip
+
+    def record(self) -> Feedforward:
+        """The feedforward for a compiled driver (swarm_mj.records)."""
+        return self._record
 
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
-        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)."""
-        from .aero.downwash import downwash_kernel
-
-        self._pos[:] = pos
-        self._quat[:] = quat
-        self._rotor[:] = (np.asarray(thrust, dtype=float) / 4.0)[:, None]
-        self._sum_force[:] = 0.0
-        self._sum_torque[:] = 0.0
-        downwash_kernel(
-            self._pos, self._quat, self._rotor, *self._args, self.force, self._torque, self._sum_force, self._sum_torque
-        )
+        """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)
+        (:func:`swarm_mj.period.feedforward_force`, the function the compiled driver calls)."""
+        feedforward_force(self._record, pos, quat, np.asarray(thrust, dtype=float))
         return self.force
 
 
@@ -99,6 +95,39 @@ class BacksteppingPolicy:
         )
         self._ff_started = False
         self._started = False
+        self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the compiled command reads it
+        z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
+        self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
+        self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
+
+    def control_record(self) -> Control:
+        """The controller for the compiled :func:`swarm_mj.period.command` (its own arrays; ``U_last``
+        the buffer of the last command)."""
+        ctl = self.controller
+        p = ctl.params
+        prev = ctl._prev_att_d if ctl._prev_att_d is not None else np.zeros((self.n, 2))  # not started yet
+        return Control(
+            ctl.record, prev, ctl.att_d, self.U_last, ctl.attitude_map == "exact", bool(ctl.wind_feedforward),
+            bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max),
+        )  # fmt: skip
+
+    def feedforward_record(self) -> Feedforward:
+        """The downwash feedforward's record (a stand-in with ``on`` False where there is none)."""
+        return self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
+
+    def predictor_record(self) -> Predictor:
+        """The lag prediction's record (a stand-in with ``on`` False where there is none)."""
+        return self.predictor.record() if self.predictor is not None else self._no_pred
+
+    def started(self) -> bool:
+        """Past the first command: every memory of the controller (the attitude history, the lag
+        prediction's last rates, the feedforward's last thrust) holds a value."""
+        return (
+            self._started
+            and self.controller._prev_att_d is not None
+            and (self.predictor is None or not self.predictor._first)
+            and (self.downwash_ff is None or self._ff_started)
+        )
 
     def reset(self) -> None:
         self.controller.reset()

@@ -16,8 +16,9 @@ Entities, on the ``sim_time`` timeline:
   ``plots/rotors/<name>``: F1..F4; ``plots/distance/leader/<follower>`` and
   ``plots/distance/followers/<fi>_<fj>`` (paper Fig. 14); ``plots/wind/speed`` and
   ``plots/wind/force`` (x, y); ``plots/anti_collision`` events as text;
-* with an aero preset that adds them (docs/aero.md): ``plots/aero/downwash/<name>`` and
-  ``plots/aero/ground_effect/<name>`` (force x, y, z in N) and each drone's jet drawn under it
+* each extra force stage's force by the stage's name (x, y, z in N): ``plots/aero/<stage>/<name>``,
+  e.g. ``plots/aero/downwash/<name>`` and ``plots/aero/ground_effect/<name>`` under the realistic
+  preset (docs/aero.md); where the physics has the downwash, each drone's jet drawn under it
   (``world/drones/<name>/jet``: a frustum along the body's −z axis whose size follows the
   thrust, 1 m deep and as wide as the jet's half-width at hover thrust).
 
@@ -63,7 +64,7 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
                     rrb.TimeSeriesView(origin="/plots/rotors", name="rotor thrusts (N)"),
                     rrb.TimeSeriesView(origin="/plots/wind", name="wind"),
                     rrb.TextLogView(origin="/plots/anti_collision", name="anti-collision"),
-                    *([rrb.TimeSeriesView(origin="/plots/aero", name="downwash / ground effect (N)")] if aero else []),
+                    *([rrb.TimeSeriesView(origin="/plots/aero", name="force stages (N)")] if aero else []),
                 ),
             ),
             column_shares=[3, 2],
@@ -200,13 +201,8 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
 
 
 def _has_aero(result) -> bool:
-    """True when the run's physics preset added downwash or ground effect (docs/aero.md)."""
-    aero = result.summary.get("aero") if isinstance(getattr(result, "summary", None), dict) else None
-    return bool(
-        aero
-        and (aero.get("downwash") or aero.get("ground_effect"))
-        and getattr(result.log, "downwash", None) is not None
-    )
+    """True when the run had extra force stages (the log keeps each one's force by name)."""
+    return bool(getattr(result.log, "forces", None))
 
 
 def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
@@ -233,9 +229,9 @@ def _log_aero(result, names: list[str], times) -> None:
     m_g = DEFAULT_PARAMS.hover_thrust
     jet = _jet_frustum()
     for i, name in enumerate(names):
-        _scalars(f"/plots/aero/downwash/{name}", times, log.downwash[:, i], ["Fx", "Fy", "Fz"])
-        _scalars(f"/plots/aero/ground_effect/{name}", times, log.ground_effect[:, i], ["Fx", "Fy", "Fz"])
-        if result.summary["aero"].get("downwash"):
+        for stage, force in log.forces.items():
+            _scalars(f"/plots/aero/{stage}/{name}", times, force[:, i], ["Fx", "Fy", "Fz"])
+        if result.summary.get("aero", {}).get("downwash"):
             base = f"/world/drones/{name}/jet"
             rr.log(base, rr.LineStrips3D(jet, colors=[[120, 190, 255, 110]], radii=0.004), static=True)
             scale = np.nan_to_num(log.rotor[:, i].sum(axis=1) / m_g, nan=0.0).clip(0.0, 3.0)

@@ -11,6 +11,7 @@ a flag, checked once per control period, so that it never lands inside a compile
 
 from __future__ import annotations
 
+import functools
 import sys
 import time as _time
 from collections.abc import Sequence
@@ -21,12 +22,13 @@ import numpy as np
 from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
-from .errors import SimulationDiverged
-from .fused import CHUNK, DONE, FusedLoop
+from .errors import SimulationDiverged, UserError
+from .fast import CHUNK, FastLoop, signature, why_not
 from .interrupt import CooperativeInterrupt
 from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
 from .policy import BacksteppingPolicy
 from .progress import Progress
+from .records import LogRows, Obs
 from .scenario import Scenario, load_scenario
 from .sim import ForceStage
 
@@ -37,6 +39,9 @@ __all__ = [
     "run",
     "summarize",
 ]
+
+
+_SERIES = ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor", "wind_speed", "wind_force", "D")
 
 
 @dataclass
@@ -57,83 +62,83 @@ class RunLog:
     wind_speed: np.ndarray  # (k, 3)
     wind_force: np.ndarray  # (k, n, 3) applied wind force over the following period
     D: np.ndarray  # (k,)
-    downwash: np.ndarray | None = None  # (k, n, 3) downwash force on each drone (docs/aero.md), N
-    ground_effect: np.ndarray | None = None  # (k, n, 3) ground-effect force on each drone, N
+    #: (S, k, n, 3) the force (N) of each extra force stage of the simulator over the last physics step
+    #: of the following period, in the simulator's stage order; ``forces`` names them
+    stage_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0, 3)))
+    forces: dict[str, np.ndarray] = field(default_factory=dict)  # stage name -> (k, n, 3), views of stage_rows
 
     @classmethod
-    def allocate(cls, names: list[str], k: int) -> RunLog:
+    def allocate(cls, names: list[str], k: int, stages: Sequence[str] = ()) -> RunLog:
+        """NaN-filled series for k samples, and zero-filled force rows for the force stages named ``stages``."""
         n = len(names)
         z = lambda *s: np.full(s, np.nan)  # noqa: E731
-        return cls(
-            names,
-            z(k),
-            z(k, n, 3),
-            z(k, n, 3),
-            z(k, n, 4),
-            z(k, n, 3),
-            z(k, n, 3),
-            z(k, n, 3),
-            z(k, n, 3),
-            z(k, n, 4),
-            z(k, n, 4),
-            z(k, 3),
-            z(k, n, 3),
-            z(k),
-            z(k, n, 3),
-            z(k, n, 3),
-        )
+        shapes: list[tuple[int, ...]] = [(k,), (k, n, 3), (k, n, 3), (k, n, 4), (k, n, 3), (k, n, 3), (k, n, 3)]
+        shapes += [(k, n, 3), (k, n, 4), (k, n, 4), (k, 3), (k, n, 3), (k,)]
+        if len(set(stages)) != len(stages):
+            raise UserError(f"force stages must have distinct names, got {list(stages)}")
+        rows = np.zeros((len(stages), k, n, 3))
+        series = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
+        return cls(names, **series, stage_rows=rows, forces=_named(rows, stages))
 
-    def observe(self, k: int, obs: dict, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
-        """Sample k from the observation and the command computed from it (before the step)."""
-        self.t[k] = obs["time"]
-        self.pos[k] = obs["pos"]
-        self.vel[k] = obs["vel"]
-        self.quat[k] = obs["quat"]
-        self.rpy[k] = obs["rpy"]
+    def force(self, name: str) -> np.ndarray:
+        """The force (k, n, 3) of the stage ``name``; zeros when the run had no such stage."""
+        f = self.forces.get(name)
+        return np.zeros_like(self.pos) if f is None else f
+
+    @property
+    def downwash(self) -> np.ndarray:
+        """(k, n, 3) the downwash force on each drone (docs/aero.md), N; zeros without that stage."""
+        return self.force("downwash")
+
+    @property
+    def ground_effect(self) -> np.ndarray:
+        """(k, n, 3) the ground-effect force on each drone, N; zeros without that stage."""
+        return self.force("ground_effect")
+
+    @functools.cached_property
+    def rows(self) -> LogRows:
+        """The series as one record (what the compiled log rows write: swarm_mj.period.log_inputs)."""
+        series = {f: getattr(self, f) for f in _SERIES}
+        return LogRows(**series, forces=self.stage_rows)
+
+    def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
+        """Sample k (time t) from the observation and the command computed from it (before the step);
+        the chunk driver writes the same row with :func:`swarm_mj.period.log_inputs` (kept in Python
+        here: a compiled call taking the log's record costs ~1.6 s of compiling on a first run)."""
+        self.t[k] = t
+        self.pos[k] = obs.pos
+        self.vel[k] = obs.vel
+        self.quat[k] = obs.quat
+        self.rpy[k] = obs.rpy
         self.pos_d[k] = cmd.pos_d
-        self.slot[k] = obs["setpoint"]
+        self.slot[k] = obs.sp
         self.att_d[k] = cmd.att_d
         self.wind_speed[k] = wind_speed
         self.D[k] = D
 
     def applied(self, k: int, rec: StepRecord) -> None:
-        """What the environment applied over the period after sample k."""
+        """What the environment applied over the period after sample k (each force stage by its name)."""
         self.U[k] = rec.U
         self.rotor[k] = rec.rotor_thrust
         self.wind_force[k] = rec.wind_force
-        if rec.aero_forces:
-            if "downwash" in rec.aero_forces:
-                assert self.downwash is not None  # allocated by RunLog.allocate
-                self.downwash[k] = rec.aero_forces["downwash"]
-            if "ground_effect" in rec.aero_forces:
-                assert self.ground_effect is not None  # allocated by RunLog.allocate
-                self.ground_effect[k] = rec.aero_forces["ground_effect"]
+        for name, f in (rec.aero_forces or {}).items():
+            if name in self.forces:
+                self.forces[name][k] = f
+
+    def hold_last(self, k: int) -> None:
+        """Sample k (the last, with no following period) holds the inputs of k − 1 (zero-order hold)."""
+        self.U[k], self.rotor[k] = self.U[k - 1], self.rotor[k - 1]
+        self.stage_rows[:, k] = self.stage_rows[:, k - 1]
 
     def truncated(self, k: int) -> RunLog:
-        log = RunLog(
-            self.names,
-            *(
-                getattr(self, f)[:k]
-                for f in (
-                    "t",
-                    "pos",
-                    "vel",
-                    "quat",
-                    "rpy",
-                    "pos_d",
-                    "slot",
-                    "att_d",
-                    "U",
-                    "rotor",
-                    "wind_speed",
-                    "wind_force",
-                    "D",
-                )
-            ),
-        )
-        log.downwash = None if self.downwash is None else self.downwash[:k]
-        log.ground_effect = None if self.ground_effect is None else self.ground_effect[:k]
-        return log
+        rows = self.stage_rows[:, :k]
+        series = {f: getattr(self, f)[:k] for f in _SERIES}
+        return RunLog(self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
+
+
+def _named(rows: np.ndarray, names: Sequence[str] | dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The force rows (S, k, n, 3) by stage name: views rows[j]."""
+    return {name: rows[j] for j, name in enumerate(names)}
 
 
 @dataclass
@@ -169,8 +174,8 @@ def run(
     ``interrupt``: a :class:`~swarm_mj.interrupt.CooperativeInterrupt` the caller entered earlier
     (``swarm-mj run`` does, before it loads anything), so that a Ctrl-C during its own set-up stops
     this run at its start, with a recording of it.
-    ``fused``: fly formed flight through the fused built-in path where the run qualifies
-    (:mod:`swarm_mj.fused`; the same results bit for bit): None when it is compiled (else it is
+    ``fused``: fly formed flight through the chunk driver where every stage of the run compiles
+    (:mod:`swarm_mj.fast`; the same results bit for bit): None when it is compiled (else it is
     compiled in the background for later runs), True compiling it first if needed, False never.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
@@ -196,10 +201,7 @@ def run(
         env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
         policy = BacksteppingPolicy(sc, env.params)
         K = env.n_steps
-        log = RunLog.allocate(env.names, K + 1)
-        assert log.downwash is not None and log.ground_effect is not None  # allocate fills every field
-        log.downwash[:] = 0.0  # zero under the paper's model (no such stage)
-        log.ground_effect[:] = 0.0
+        log = RunLog.allocate(env.names, K + 1, [st.name for st in env.sim.force_stages])
         bar = Progress(K, sc.name, progress)
         error: BaseException | None = None
         wall0 = _time.perf_counter()
@@ -207,10 +209,13 @@ def run(
         obs = ts.observation
         k = 0
         wind_speed = env.wind.speed
-        # the fused built-in path (swarm_mj/fused.py) flies chunks of formed flight, when it can
+        # the chunk driver (swarm_mj/fast.py) flies chunks of formed flight, when every stage compiles
+        reason = "fused=False" if fused is False else why_not(env, policy)
+        if reason is not None and fused is not False and progress is not False:
+            announce(f"flying step by step: {reason}")
         fast = (
-            FusedLoop.build(env, policy, log, compile=bool(fused), announce=None if progress is False else announce)
-            if fused is not False
+            FastLoop.build(env, policy, log, compile=bool(fused), announce=None if progress is False else announce)
+            if reason is None
             else None
         )
         try:
@@ -222,10 +227,10 @@ def run(
                     bar.update(k)
                     if interrupt.requested:
                         raise KeyboardInterrupt
-                    if fast.status == DONE:
+                    if fast.status == 0:  # done: the chunk flew to its end
                         continue
                 cmd = policy.command(obs)
-                log.observe(k, obs, cmd, wind_speed[k], env.D[k])
+                log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
                 if k >= K:
                     break
                 if interrupt.requested:
@@ -248,15 +253,28 @@ def run(
     n_samples = k + 1 if error is None else k
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)
-        log.U[k], log.rotor[k] = log.U[k - 1], log.rotor[k - 1]
-        log.downwash[k], log.ground_effect[k] = log.downwash[k - 1], log.ground_effect[k - 1]
+        log.hold_last(k)
         log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
     log = log.truncated(max(n_samples, 1))
     summary = summarize(sc, log, env, policy, wall)
     if error is not None:
         summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
-    extra = {"fused_periods": fast.periods if fast is not None else 0}  # of the K flown (swarm_mj/fused.py)
+    # of the K flown, the periods the chunk driver flew (swarm_mj/fast.py); why none could, if so
+    extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
     return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error, extra)
+
+
+def preset_signatures() -> list[tuple]:
+    """The chunk driver's compile signatures for the physics presets (paper, realistic), from the
+    records of a short circle under each (what ``swarm-mj warm-up`` compiles)."""
+    out = []
+    for aero in ("paper", "realistic"):
+        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05), aero)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
+        policy = BacksteppingPolicy(sc, env.params)
+        log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        out.append(signature(FastLoop(env, policy, log)._args(0, 0)))
+    return out
 
 
 def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:
@@ -311,7 +329,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     }
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
-    if log.downwash is not None and len(t):
+    if len(t):
         out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos)

@@ -46,11 +46,13 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
-from ._jit import jit
+from . import _jit, _mjstep
+from ._jit import AVAILABLE, jit
 from ._mjstep import timer_pause, timer_resume
 from .errors import SimulationDiverged, UserError
 from .mixing import saturate_kernel
 from .params import QuadParams
+from .records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
 from .world import World
 
 #: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
@@ -252,6 +254,107 @@ def floor_gate(world: World) -> tuple[int, int, float] | None:
     return fid, ct, float(m.geom_pos[fid, 2] + reach.max() + FLOOR_GATE_M)
 
 
+# --------------------------------------------------------------------------- compiled force stages
+
+
+def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by the overload when compiled
+    """Each compiled stage of the tuple ``stages`` (records) adds its force and torque (N, 3)."""
+    for rec in stages:
+        FORCE_KERNELS[type(rec)](rec, kin, force, torque)
+
+
+def _apply_stages_compiled(stages, kin, force, torque):
+    """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
+    kernels = [FORCE_KERNELS[t.instance_class] for t in stages.types]
+    body = "".join(f"    k{i}(stages[{i}], kin, force, torque)\n" for i in range(len(kernels)))
+    src = "def impl(stages, kin, force, torque):\n" + body + "    return None\n"
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec(src, scope)  # noqa: S102 - source built from the registry above, no outside text
+    return scope["impl"]
+
+
+def _log_stages(stages, rows, k):  # pragma: no cover - replaced by the overload when compiled
+    for j, rec in enumerate(stages):
+        rows[j, k] = rec.force
+
+
+def _log_stages_compiled(stages, rows, k):
+    """rows[j, k] (S, K+1, N, 3) = the j-th stage's force of the last physics step."""
+    body = "".join(f"    rows[{j}, k] = stages[{j}].force\n" for j in range(len(stages.types)))
+    src = "def impl(stages, rows, k):\n" + body + "    return None\n"
+    scope: dict = {}
+    exec(src, scope)  # noqa: S102
+    return scope["impl"]
+
+
+def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overload when compiled
+    for rec in monitors:
+        MONITOR_KERNELS[type(rec)](rec, kin)
+
+
+def _track_monitors_compiled(monitors, kin):
+    """The monitor tuple unrolled at compile time: each record's registered step in turn."""
+    kernels = [MONITOR_KERNELS[t.instance_class] for t in monitors.types]
+    body = "".join(f"    k{i}(monitors[{i}], kin)\n" for i in range(len(kernels)))
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
+    return scope["impl"]
+
+
+if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above run as they are otherwise
+    from numba.extending import overload
+
+    overload(_apply_stages)(_apply_stages_compiled)
+    overload(_log_stages)(_log_stages_compiled)
+    overload(_track_monitors)(_track_monitors_compiled)
+
+
+@jit(inline=True)
+def track_monitors(monitors, kin) -> None:
+    """Each compiled monitor's step after a physics step without any contact (records.MONITOR_KERNELS)."""
+    _track_monitors(monitors, kin)
+
+
+@jit(inline=True)
+def apply_forces(phys, stages, kin, xf, xtorque) -> None:
+    """One physics step's forces into xfrc_applied (xf, xtorque (N, 3) views): drag −K·v + the wind
+    held over the period (eq. 1, eq. 37), the produced rotor thrusts of lagged rotors, then each
+    compiled force stage's force and torque (their sum added, the torque set; the sums zeroed)."""
+    drag_kernel(kin.vel, phys.neg_drag, phys.wind, xf)
+    if phys.lag:
+        unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
+    if len(stages) > 0:
+        _apply_stages(stages, kin, phys.force, phys.torque)
+        flush_stage_forces(xf, xtorque, phys.force, phys.torque)
+
+
+@jit(inline=True)
+def log_stage_forces(stages, rows, k) -> None:
+    """The force (N, 3) of each stage of ``stages`` into rows[j, k] (S, K+1, N, 3)."""
+    _log_stages(stages, rows, k)
+
+
+@jit(inline=True)
+def hold_inputs(phys, U) -> None:
+    """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
+    ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
+    saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
+    if phys.lag:
+        phys.rotor_command[:] = phys.rotor_thrust
+    if phys.gate_on:
+        floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
+
+
+@jit(inline=True)
+def unhealthy(phys) -> bool:
+    """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
+    for w in DIVERGENCE_WARNING_IDS:
+        if phys.warn[w]:
+            return True
+    n = phys.qpos.shape[0]
+    return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
+
+
 # --------------------------------------------------------------------------- force stages
 
 
@@ -292,6 +395,21 @@ class WindStage:
 
 
 # --------------------------------------------------------------------------- the pipeline
+
+
+def _why_not_registered(part, registry: dict, kind: str, what: str) -> str | None:  # noqa: ANN001
+    """Why a force stage or monitor cannot fly in a compiled driver (None: it can): it has no
+    ``record()`` whose type has a registered compiled kernel, or that kernel's module is not in
+    :data:`swarm_mj._jit.KERNEL_MODULES` (then a change to it would not invalidate the driver's cache)."""
+    name = getattr(part, "name", type(part).__name__)
+    make = getattr(part, "record", None)
+    kernel = registry.get(type(make())) if make is not None else None
+    if kernel is None:
+        return f"the {kind} {name!r} has no compiled {what}"
+    module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
+    if module not in _jit.KERNEL_MODULES:
+        return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
+    return None
 
 
 def _index(ids: np.ndarray) -> slice | np.ndarray:
@@ -374,6 +492,8 @@ class Sim:
         self.rotor_command = np.zeros((N, 4))  # (N, 4)
         self._force = np.zeros((N, 3))  # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
+        self.kinematics = Kinematics(self.pos, self.quat, self.vel, self.rotor_thrust)  # what force stages read
+        self._ncon = _mjstep.ncon_view(d)
         self.drag = DragStage()
         self.wind = WindStage()
         self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
@@ -393,6 +513,7 @@ class Sim:
     def floor_gate(self, on: bool) -> None:
         self._gate_on = bool(on) and self._gate is not None
         self._floor_solid()
+        self._record = self._physics()
 
     def _floor_solid(self) -> None:
         if self._gate is not None:
@@ -432,6 +553,57 @@ class Sim:
         head = [type(s) for s in self.stages[:2]]
         self._fused = head == [DragStage, WindStage]
         self._extra = self.stages[2:] if self._fused else []
+        self._record = self._physics()
+        why = self.not_compiled()
+        self._compiled = None if why else tuple(st.record() for st in self._extra)  # type: ignore[attr-defined]
+
+    def not_compiled(self) -> str | None:
+        """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
+        not drag, wind or a stage with a registered compiled kernel (``record()`` returning a record of
+        :data:`swarm_mj.records.FORCE_KERNELS`), named."""
+        if not self._fused:
+            return "force stages other than drag and wind first"
+        for st in self._extra:
+            why = _why_not_registered(st, FORCE_KERNELS, "force stage", "kernel")
+            if why is not None:
+                return why
+        return None
+
+    def monitors_not_compiled(self) -> str | None:
+        """Why the monitors cannot fly in a compiled driver (None: they can), naming the first one
+        without a registered compiled step (:data:`swarm_mj.records.MONITOR_KERNELS`)."""
+        for mon in self.monitors:
+            why = _why_not_registered(mon, MONITOR_KERNELS, "monitor", "step")
+            if why is not None:
+                return why
+        return None
+
+    def compiled_stages(self) -> tuple:
+        """The records of the extra force stages, in order, for a compiled driver (see :meth:`not_compiled`)."""
+        if self._compiled is None:
+            raise RuntimeError(f"internal: {self.not_compiled()}")
+        return self._compiled
+
+    def _physics(self) -> Physics:
+        d = self.data
+        ids = np.asarray(self.world.body_ids)
+        fid, solid, z_near = self._gate or (0, 0, 0.0)
+        addr = _mjstep.mj_step_address() or 0
+        return Physics(
+            np.uint64(addr), np.uint64(self.model._address), np.uint64(d._address),
+            self._ncon if self._ncon is not None else np.zeros(1, dtype=np.int32), self._warnings, self.qpos,
+            self.qvel, self.ctrl, d.xfrc_applied, int(ids[0]), int(ids[1] - ids[0]) if len(ids) > 1 else 1,
+            self.rotor_thrust, self.rotor_command, self._act if self._act is not None else np.zeros((self.n_total, 4)),
+            bool(self.motor_lag), self.wind.force, np.ascontiguousarray(self.drag.neg_drag, dtype=float), self._force,
+            self._torque, self._unmix_t, self._mix_t, float(self._f_min), float(self._f_max), int(self.n_substeps),
+            float(self.control_period), float(self.floor_z), float(self.max_distance), float(self.max_tilt),
+            bool(self._gate_on), float(z_near), self.model.geom_contype, int(fid), int(solid),
+        )  # fmt: skip
+
+    def record(self) -> Physics:
+        """The simulator for a compiled driver (:class:`swarm_mj.records.Physics`), valid until the next
+        :meth:`reset` or change of the stages or the floor gate."""
+        return self._record
 
     # ------------------------------------------------------------------ state
     @property
@@ -532,25 +704,33 @@ class Sim:
 
     def _substeps_fused(self) -> None:
         """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
-        then the extra stages' sum added (and their torque set)."""
+        then the extra stages' sum added (and their torque set): :func:`apply_forces`, the function
+        the compiled driver calls (swarm_mj/period.py), where every extra stage has a compiled kernel."""
         m, d = self.model, self.data
-        xf, vel, ext, k = self._xfrc_force, self.vel, self.wind.force, self.drag.neg_drag
+        xf, xt = self._xfrc_force, self._xfrc_torque
+        if self._compiled is not None:
+            phys, stages, kin = self._record, self._compiled, self.kinematics
+            for _ in range(self.n_substeps):
+                apply_forces(phys, stages, kin, xf, xt)
+                mujoco.mj_step(m, d)
+                self.after_physics_step()
+            return
+        vel, ext, k = self.vel, self.wind.force, self.drag.neg_drag
         extra, lag = self._extra, self.motor_lag
         force, torque = self._force, self._torque
         for _ in range(self.n_substeps):
             drag_kernel(vel, k, ext, xf)
             if lag:
                 unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)  # produced rotor thrusts
-            if extra:
-                for stage in extra:
-                    stage.apply(self, force, torque)
-                flush_stage_forces(xf, self._xfrc_torque, force, torque)  # xf += f, torque = tq; f, tq = 0
+            for stage in extra:
+                stage.apply(self, force, torque)
+            flush_stage_forces(xf, xt, force, torque)  # xf += f, torque = tq; f, tq = 0
             mujoco.mj_step(m, d)
             self.after_physics_step()
 
     def after_physics_step(self) -> None:
         """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
-        monitors (the fused path, swarm_mj/fused.py, hands each step with a contact back to this)."""
+        monitors (the chunk driver, swarm_mj/period.py, hands each step with a contact back to this)."""
         if self.data.ncon or self._pairs_in_contact:
             self._count_contacts()
         for mon in self.monitors:
@@ -592,6 +772,8 @@ class Sim:
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
+        if not unhealthy(self._record):  # the chunk driver's test
+            return
         if self.mujoco_warned():
             code = MUJOCO_WARNING
         else:

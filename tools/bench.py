@@ -15,7 +15,7 @@ Rows:
 * runs: real-time factor of ``runner.run`` for ``lemniscate_single`` and ``circle`` (180 s;
   30 s with --quick), without and with recording (``recording.write_recording`` to a temp
   file; overhead in %), and step by step (``fused=False``: the ordinary path the fused one,
-  swarm_mj/fused.py, is compared with; the bench compiles the fused path before it starts);
+  swarm_mj/fast.py, is compared with; the bench compiles the chunk driver before it starts);
 * env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
 * vector: ``SwarmVectorEnv`` with 64 copies of the six-drone circle, random U near hover, in
   drone-steps per second, against raw mj_step on the same batched models (its blocks), beside
@@ -454,7 +454,7 @@ def _wait_background_compile(limit_s: float = 300.0) -> float:
     """Seconds until no background compile of the fused path (its lock file) is left, at most ``limit_s``."""
     t0 = time.perf_counter()
     locks = Path(tempfile.gettempdir()).glob
-    while any(locks("swarm_mj-fused-*.lock")) and time.perf_counter() - t0 < limit_s:
+    while any(locks("swarm_mj-fast-*.lock")) and time.perf_counter() - t0 < limit_s:
         time.sleep(0.25)
     return time.perf_counter() - t0
 
@@ -805,13 +805,14 @@ def main(argv: list[str] | None = None) -> int:
         f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
         flush=True,
     )
-    from swarm_mj import _jit, fused
+    from swarm_mj import _jit, fast, runner
 
     t_jit = _jit.warm_up()
-    t_fused = fused.compile_now()  # (loads it when cached) every run below may use the fused path
+    sigs = runner.preset_signatures()
+    t_fused = fast.compile_now(sigs)  # (loads it when cached) every run below may use the chunk driver
+    ready = all(fast.compiled(sig) for sig in sigs)
     print(
-        f"kernels ready ({t_jit:.1f} s), fused path {'ready' if fused.compiled() else 'NOT available'} "
-        f"({t_fused:.1f} s)",
+        f"kernels ready ({t_jit:.1f} s), fast path {'ready' if ready else 'NOT available'} ({t_fused:.1f} s)",
         flush=True,
     )
     t0 = time.perf_counter()

@@ -32,10 +32,12 @@ lower drone's own motion through the air is the paper's linear drag, left as it 
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from .._jit import jit
+from ..records import Kinematics, force_kernel
 from ._frames import body_axes, rotor_offset
 from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
 
@@ -162,6 +164,29 @@ def downwash_kernel(
             add_torque[j, c] += torque[j, c]
 
 
+class DownwashRecord(NamedTuple):
+    """:class:`DownwashStage` for a compiled driver (swarm_mj.records)."""
+
+    n_per_copy: int  # drones per copy: jets act within a copy only
+    arm: float  # L (m)
+    rho: float  # air density (kg/m³)
+    rotor_radius: float  # m
+    half_cda: float  # ½·ρ·C_d·A of a rotor disc
+    half_cda_body: float  # ½·ρ·C_d·A of the body
+    force: np.ndarray  # (N, 3) this stage's force over the last physics step (N)
+    torque: np.ndarray  # (N, 3)
+
+
+@force_kernel(DownwashRecord)
+@jit
+def downwash_apply(rec: DownwashRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
+    """The downwash stage's step: :func:`downwash_kernel` at the drones' state, added to force, torque (N, 3)."""
+    downwash_kernel(
+        kin.pos, kin.quat, kin.rotor_thrust, rec.n_per_copy, rec.arm, rec.rho, rec.rotor_radius, rec.half_cda,
+        rec.half_cda_body, rec.rotor_radius, rec.force, rec.torque, force, torque,
+    )  # fmt: skip
+
+
 class DownwashStage:
     """Force stage: the turbulent-jet downwash of every drone on the drones below it (module docstring).
 
@@ -190,21 +215,14 @@ class DownwashStage:
         self.arm = float(sim.params.L)
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
+        self._record = DownwashRecord(
+            self.n_per_copy, self.arm, self.rho, self.rotor_radius, self.half_cda, self.half_cda_body, self.force,
+            self.torque,
+        )  # fmt: skip
+
+    def record(self) -> DownwashRecord:
+        """This stage for a compiled driver (valid until the next :meth:`reset`)."""
+        return self._record
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
-        downwash_kernel(
-            sim.pos,
-            sim.quat,
-            sim.rotor_thrust,
-            self.n_per_copy,
-            self.arm,
-            self.rho,
-            self.rotor_radius,
-            self.half_cda,
-            self.half_cda_body,
-            self.rotor_radius,
-            self.force,
-            self.torque,
-            force,
-            torque,
-        )
+        downwash_apply(self._record, sim.kinematics, force, torque)

@@ -25,6 +25,9 @@ import math
 import mujoco
 import numpy as np
 
+from .._jit import jit
+from ..records import GroundTrack, Kinematics, monitor_kernel
+
 #: Landing gear: a strut (a capsule site, drawn only, radius STRUT_RADIUS) under the hub down to a thin square skid
 #: plate turned 45° about z, corners 0.12 m from the centre under the arms, half-sizes
 #: (SKID_HALF, SKID_HALF, SKID_HALF_Z), centred at z = SKID_Z in the body frame; the skid's bottom
@@ -47,6 +50,15 @@ def rest_positions(positions: np.ndarray, rest_height: float = REST_HEIGHT) -> n
     p = np.array(positions, dtype=float)
     p[:, 2] = np.maximum(p[:, 2], rest_height)
     return p
+
+
+@monitor_kernel(GroundTrack)
+@jit
+def ground_track(rec: GroundTrack, kin: Kinematics) -> None:
+    """The touchdown speed's bookkeeping after every physics step: the velocity (N, 3) at the start of
+    the last step, and now."""
+    rec.vel_before[:] = rec.vel_now
+    rec.vel_now[:] = kin.vel
 
 
 class GroundContacts:
@@ -78,6 +90,20 @@ class GroundContacts:
         self._takeoff_z = REST_HEIGHT * sim.params.size_scale + TAKEOFF_CLEARANCE  # gear scales with the arm
         self._vel_before = sim.vel.copy()  # (N, 3) velocity at the start of the last step
         self._vel_now = sim.vel.copy()
+        self._record = GroundTrack(self._vel_before, self._vel_now)
+
+    def record(self) -> GroundTrack:
+        """This monitor's per-step bookkeeping for a compiled driver (valid until the next :meth:`reset`)."""
+        return self._record
+
+    def compiled_ready(self) -> bool:
+        """Its compiled step (:func:`ground_track`) is all it does now: every drone has taken off and
+        none touches the ground."""
+        return self._all_airborne and not self._any_contact
+
+    def holds_steps(self) -> bool:
+        """Its Python must see every physics step (a drone touches the ground)."""
+        return self._any_contact
 
     def _contacts(self, sim) -> np.ndarray:
         d = sim.data
@@ -97,8 +123,7 @@ class GroundContacts:
     def after_step(self, sim) -> None:
         # the touchdown speed is the speed before the step in which the contact began (the contact
         # impulse of that step has already slowed the drone down)
-        self._vel_before, self._vel_now = self._vel_now, self._vel_before
-        self._vel_now[:] = sim.vel
+        ground_track(self._record, sim.kinematics)
         if not self._all_airborne:
             newly = ~self.airborne & ~self.in_contact & (sim.pos[:, 2] > self._takeoff_z)
             if newly.any():

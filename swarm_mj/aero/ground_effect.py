@@ -15,9 +15,12 @@ adds ΔF_k = (T_IGE/T_OGE − 1)·F_k along the drone's body z axis at the rotor
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from .._jit import jit
+from ..records import Kinematics, force_kernel
 from ._frames import body_axes, rotor_offset
 from .constants import ROTOR_PLANE_Z, ROTOR_RADIUS
 
@@ -83,6 +86,27 @@ def ground_effect_kernel(
         add_torque[j, 2] += tz
 
 
+class GroundEffectRecord(NamedTuple):
+    """:class:`GroundEffectStage` for a compiled driver (swarm_mj.records)."""
+
+    arm: float  # L (m)
+    rotor_z: float  # rotor plane above the centre of mass (m)
+    rotor_radius: float  # m
+    z_clip: float  # smallest rotor height the factor is evaluated at (m)
+    force: np.ndarray  # (N, 3) this stage's force over the last physics step (N)
+    torque: np.ndarray  # (N, 3)
+
+
+@force_kernel(GroundEffectRecord)
+@jit
+def ground_effect_apply(rec: GroundEffectRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
+    """The ground-effect stage's step: :func:`ground_effect_kernel` at the drones' state, added to force, torque."""
+    ground_effect_kernel(
+        kin.pos, kin.quat, kin.rotor_thrust, rec.arm, rec.rotor_z, rec.rotor_radius, rec.z_clip, rec.force,
+        rec.torque, force, torque,
+    )  # fmt: skip
+
+
 class GroundEffectStage:
     """Force stage: Cheeseman–Bennett ground effect on every rotor (module docstring).
 
@@ -105,18 +129,13 @@ class GroundEffectStage:
         self.arm = float(sim.params.L)
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
+        self._record = GroundEffectRecord(
+            self.arm, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque
+        )
+
+    def record(self) -> GroundEffectRecord:
+        """This stage for a compiled driver (valid until the next :meth:`reset`)."""
+        return self._record
 
     def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
-        ground_effect_kernel(
-            sim.pos,
-            sim.quat,
-            sim.rotor_thrust,
-            self.arm,
-            self.rotor_z,
-            self.rotor_radius,
-            self.z_clip,
-            self.force,
-            self.torque,
-            force,
-            torque,
-        )
+        ground_effect_apply(self._record, sim.kinematics, force, torque)

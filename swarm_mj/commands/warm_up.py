@@ -1,8 +1,8 @@
-"""``swarm-mj warm-up``: compile every kernel into Numba's on-disk cache now (the fused path too).
+"""``swarm-mj warm-up``: compile every kernel into Numba's on-disk cache now (the fast path too).
 
-A first ``swarm-mj run`` compiles the per-step kernels itself and the fused path in the background
-(``swarm_mj/fused.py``); this does both in the foreground, e.g. once after installing, so that
-every later run starts fast.
+A first ``swarm-mj run`` compiles the per-step kernels itself and the chunk driver in the background
+(``swarm_mj/fast.py``); this does both in the foreground, for the paper's and the realistic physics,
+e.g. once after installing, so that every later run starts fast.
 """
 
 from __future__ import annotations
@@ -17,22 +17,23 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .. import _jit, fused
+    from .. import _jit, fast, runner
 
     if not _jit.AVAILABLE:
         print("Numba is not in use (SWARM_MJ_NO_JIT or not installed): nothing to compile", file=sys.stderr)
         return 0
     print("compiling the per-step kernels…", file=sys.stderr, flush=True)
     t_kernels = _jit.warm_up()
-    if fused.compiled():
-        t_fused = 0.0
+    sigs = runner.preset_signatures()
+    if all(fast.compiled(sig) for sig in sigs):
+        t_fast = 0.0
     else:
-        print("compiling the fused path…", file=sys.stderr, flush=True)
-        t_fused = fused.compile_now()
-    ok = fused.compiled()
+        print("compiling the fast path…", file=sys.stderr, flush=True)
+        t_fast = fast.compile_now(sigs)
+    ok = all(fast.compiled(sig) for sig in sigs)
     print(
-        f"kernels ready in {t_kernels:.1f} s; fused path "
-        + (f"ready in {t_fused:.1f} s" if ok else "not available here (runs fly step by step)"),
+        f"kernels ready in {t_kernels:.1f} s; fast path "
+        + (f"ready in {t_fast:.1f} s" if ok else "not available here (runs fly step by step)"),
         file=sys.stderr,
     )
     return 0

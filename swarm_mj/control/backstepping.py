@@ -38,6 +38,7 @@ from .._jit import jit
 from ..errors import UserError
 from ..paper import TABLE4_GAINS
 from ..params import DEFAULT_PARAMS, QuadParams
+from ..records import Gains
 
 __all__ = ["TABLE4_GAINS", "Backstepping", "backstepping_kernel", "check_gains", "load_gains"]
 MAX_TILT = np.deg2rad(45.0)
@@ -116,6 +117,11 @@ class Backstepping:
         self._cor = np.array([(p.Iy - p.Iz) / p.Ix, (p.Iz - p.Ix) / p.Iy, (p.Ix - p.Iy) / p.Iz])
         self._torque_scale = self._inertia / p.L
         self._drag_over_m = p.drag / p.m
+        #: the constants of eqs. (17)–(24) as one record (what the kernel takes)
+        self.record = Gains(
+            self._a_pos, self._c1_pos, self._c2_pos, self._a_att, self._c1_att, self._c2_att, self._drag_over_m,
+            float(p.m), float(p.g), self._inertia, self._torque_scale, self._cor, float(p.L), self.T,
+        )  # fmt: skip
         self.reset()
 
     def reset(self) -> None:
@@ -157,8 +163,8 @@ class Backstepping:
         first = self._prev_att_d is None
         if first:
             self._prev_att_d = np.zeros((n, 2))
-        p = self.params
         U = backstepping_kernel(
+            self.record,
             rpy,
             rpy_rate,
             omega,
@@ -172,20 +178,6 @@ class Backstepping:
             yaw_acc,
             wind,
             use_wind,
-            self._a_pos,
-            self._c1_pos,
-            self._c2_pos,
-            self._a_att,
-            self._c1_att,
-            self._c2_att,
-            self._drag_over_m,
-            p.m,
-            p.g,
-            self._inertia,
-            self._torque_scale,
-            self._cor,
-            p.L,
-            self.T,
             self._prev_att_d,
             first,
             exact,
@@ -210,10 +202,11 @@ def _per_drone3(v, n: int) -> np.ndarray:
 def _kernel_samples():
     n = 2
     z1, z3, g = np.zeros(n), np.zeros((n, 3)), np.ones((n, 3))
-    rpy = z3.copy()
+    gains = Gains(g, g, g, g, g, g, np.ones(3), 0.5, 9.81, np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01)
     return [
         (
-            rpy,
+            gains,
+            z3.copy(),
             z3,
             z3,
             z3,
@@ -226,20 +219,6 @@ def _kernel_samples():
             z1,
             z3,
             False,
-            g,
-            g,
-            g,
-            g,
-            g,
-            g,
-            np.ones(3),
-            0.5,
-            9.81,
-            np.ones(3),
-            np.ones(3),
-            np.ones(3),
-            0.25,
-            0.01,
             np.zeros((n, 2)),
             first,
             exact,
@@ -252,6 +231,7 @@ def _kernel_samples():
 
 @jit(samples=_kernel_samples)
 def backstepping_kernel(
+    gains: Gains,
     rpy,
     rpy_rate,
     omega,
@@ -265,20 +245,6 @@ def backstepping_kernel(
     yaw_acc_d,
     wind,
     use_wind,
-    a_pos,
-    c1_pos,
-    c2_pos,
-    a_att,
-    c1_att,
-    c2_att,
-    drag_over_m,
-    m,
-    g,
-    inertia,
-    torque_scale,
-    cor,
-    L,
-    T,
     prev_att_d,
     first,
     exact,
@@ -289,6 +255,7 @@ def backstepping_kernel(
     One drone per iteration, with scalar numpy functions: per element the same operations in
     the same order as the array form it replaces (compiled: the same results bit for bit), and
     several times faster for Numba to compile."""
+    a_pos, c1_pos, c2_pos, a_att, c1_att, c2_att, drag_over_m, m, g, inertia, torque_scale, cor, L, T = gains
     n = rpy.shape[0]
     U = np.empty((n, 4))
     v = np.empty(3)

@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
+from ..records import Predictor
 
 __all__ = ["AttitudePredictor", "predict_kernel"]
 
@@ -81,7 +82,12 @@ class AttitudePredictor:
         self._first = True
         self._prev_rate = np.zeros((self.n, 3))
         self._prev_body = np.zeros((self.n, 3))
+        self._record = Predictor(True, self.d_att, self.k_rate, self._prev_rate, self._prev_body)
         self._out = np.empty((3, self.n, 3))  # (η_p, η̇_p, ω_p), rewritten by every call
+
+    def record(self) -> Predictor:
+        """The predictor for a compiled driver (swarm_mj.records; valid until the next :meth:`reset`)."""
+        return self._record
 
     def __call__(
         self, rpy: np.ndarray, rpy_rate: np.ndarray, body_rates: np.ndarray

@@ -47,16 +47,7 @@ def _formed_samples():
             z1.copy(),
             z1.copy(),
             z1.copy(),
-            6.0,
-            120.0,
-            15.0,
-            4.0,
-            0.5,
-            9.81,
-            4.0,
-            8.0,
-            1.5,
-            5.0,
+            np.array([6.0, 120.0, 15.0, 4.0, 0.5, 9.81, 4.0, 8.0, 1.5, 5.0]),
             z3.copy(),
             z3.copy(),
             z3.copy(),
@@ -191,6 +182,12 @@ def advance_altitude_kernel(
         zp[i] += zv[i] * dt
 
 
+#: The order of :func:`formed_step_kernel`'s ``limits``: the horizontal paths' acceleration limit,
+#: jerk, velocity gain, speed limit, tan(max tilt), g, then the altitude paths' climb speed and
+#: acceleration, descent speed and acceleration (the rule's fields of the same names).
+FORMED_LIMITS = ("a_max", "jerk", "k_v", "v_max", "tan_tilt", "g", "vu", "au", "vd", "ad")
+
+
 @jit(samples=_formed_samples)
 def formed_step_kernel(
     dt: float,
@@ -205,16 +202,7 @@ def formed_step_kernel(
     zp: np.ndarray,
     zv: np.ndarray,
     za: np.ndarray,
-    a_max: float,
-    jerk: float,
-    k_v: float,
-    v_max: float,
-    tan_tilt: float,
-    g: float,
-    vu: float,
-    au: float,
-    vd: float,
-    ad: float,
+    limits: np.ndarray,
     out_pos: np.ndarray,
     out_vel: np.ndarray,
     out_acc: np.ndarray,
@@ -223,7 +211,10 @@ def formed_step_kernel(
     reactive rule has set the altitude offsets (n,): the horizontal paths p, v, a (n, 2) follow
     the slots pos_d[:, :2] moving at the leader's velocity lead_vel (3,), the altitude paths
     zp, zv, za (n,) follow formation_alt + offset; writes the followers' references into
-    out_pos (from pos_d), out_vel, out_acc (n, 3) (the leader's row: pos_d, zero, zero)."""
+    out_pos (from pos_d), out_vel, out_acc (n, 3) (the leader's row: pos_d, zero, zero).
+    ``limits`` (10,): a_max, jerk, k_v, v_max, tan_tilt, g, vu, au, vd, ad (:data:`FORMED_LIMITS`)."""
+    a_max, jerk, k_v, v_max, tan_tilt, g = limits[0], limits[1], limits[2], limits[3], limits[4], limits[5]
+    vu, au, vd, ad = limits[6], limits[7], limits[8], limits[9]
     n = pos_d.shape[0]
     blocked[:] = False
     if dt > 0.0:

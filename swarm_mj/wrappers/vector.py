@@ -62,7 +62,7 @@ from __future__ import annotations
 import types
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any
+from typing import Any, NamedTuple
 
 import gymnasium
 import numpy as np
@@ -107,6 +107,19 @@ OBS_KEYS = (
 )
 
 
+class CopyRefs(NamedTuple):
+    """The references every copy of the vector environment shares (its leader trajectory and D(t))."""
+
+    T: float  # control period (s)
+    sensing_range: float  # m
+    pos: np.ndarray  # (K+1, 3) leader trajectory
+    vel: np.ndarray  # (K+1, 3)
+    acc: np.ndarray  # (K+1, 3)
+    yaw: np.ndarray  # (K+1,)
+    D: np.ndarray  # (K+1,) formation diameter
+    unit_offsets: np.ndarray  # (n−1, 3) slot offsets for D = 1
+
+
 def _observe_samples():
     n, m, K = 2, 2, 3
     qpos = np.zeros((m * n, 7))
@@ -119,17 +132,10 @@ def _observe_samples():
             qpos,
             np.zeros((m * n, 6)),
             n,
-            2.0,
+            CopyRefs(0.01, 2.0, z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3))),
             np.arange(m, dtype=np.int64),
             0,
             np.zeros(m, np.int64),
-            0.01,
-            z,
-            z,
-            z,
-            np.zeros(K),
-            np.ones(K),
-            np.zeros((n - 1, 3)),
             np.zeros((m, 3)),
             np.zeros((m, 3)),
             np.zeros((m, n, 3)),
@@ -147,17 +153,10 @@ def observe_copies_kernel(
     qpos: np.ndarray,
     qvel: np.ndarray,
     n: int,
-    sensing_range: float,
+    refs: CopyRefs,
     copies: np.ndarray,
     c0: int,
     ks: np.ndarray,
-    T: float,
-    ref_pos: np.ndarray,
-    ref_vel: np.ndarray,
-    ref_acc: np.ndarray,
-    ref_yaw: np.ndarray,
-    D: np.ndarray,
-    unit_offsets: np.ndarray,
     prev_leader: np.ndarray,
     leader_vel: np.ndarray,
     wind_obs: np.ndarray,
@@ -169,7 +168,7 @@ def observe_copies_kernel(
 ) -> None:
     """SwarmEnv's observation, reward and minimum separation for the given copies (global indices;
     copy c's drones are rows (c − c0)·n .. of this block's qpos (b·n, 7), qvel (b·n, 6)), each
-    at its own sample ks[c] of the leader reference ref_* (K+1, ...) and D (K+1,): the same
+    at its own sample ks[c] of the references ``refs``: the same
     kernels as :meth:`SwarmEnv._observe` (observe_kernel, setpoints_kernel; prev_leader and
     leader_vel (m, 3) updated in place) and :func:`formation_reward`. The observation of copy c
     goes to out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i]; wind_obs (m, n, 3) is its
@@ -190,22 +189,22 @@ def observe_copies_kernel(
         if not finite:
             continue
         k = ks[c]
-        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(q, v, sensing_range)
+        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(q, v, refs.sensing_range)
         sp, sp_vel, sp_acc, yaw = setpoints_kernel(
             k,
-            T,
+            refs.T,
             pos[0],
             prev_leader[c],
             leader_vel[c],
-            ref_pos[k],
-            ref_vel[k],
-            ref_acc[k],
-            ref_yaw[k],
-            D[k],
-            unit_offsets,
+            refs.pos[k],
+            refs.vel[k],
+            refs.acc[k],
+            refs.yaw[k],
+            refs.D[k],
+            refs.unit_offsets,
         )
         o = out[c]
-        o[offs[0]] = k * T
+        o[offs[0]] = k * refs.T
         for i in range(n):
             for j in range(3):
                 o[offs[1] + 3 * i + j] = pos[i, j]
@@ -309,12 +308,13 @@ class SwarmVectorEnv(VectorEnv):
         # the leader's reference and D at every control instant (SwarmEnv's)
         self.times = np.arange(self.n_steps + 1) * T  # (K+1,)
         ref = sc.make_trajectory()(self.times)
-        self._ref_pos = np.ascontiguousarray(ref.pos, dtype=np.float64)  # (K+1, 3)
-        self._ref_vel = np.ascontiguousarray(ref.vel, dtype=np.float64)
-        self._ref_acc = np.ascontiguousarray(ref.acc, dtype=np.float64)
-        self._ref_yaw = np.ascontiguousarray(ref.yaw, dtype=np.float64)  # (K+1,)
-        self._D = np.ascontiguousarray(DiameterSchedule(sc.diameter)(self.times), dtype=np.float64)
-        self._unit_offsets = np.ascontiguousarray(polygon_offsets(n - 1, 1.0), dtype=np.float64).reshape(n - 1, 3)
+        c = np.ascontiguousarray
+        self._refs = CopyRefs(
+            float(T), float(sc.sensing_range), c(ref.pos, dtype=np.float64), c(ref.vel, dtype=np.float64),
+            c(ref.acc, dtype=np.float64), c(ref.yaw, dtype=np.float64),
+            c(DiameterSchedule(sc.diameter)(self.times), dtype=np.float64),
+            c(polygon_offsets(n - 1, 1.0), dtype=np.float64).reshape(n - 1, 3),
+        )  # fmt: skip
         self._random_starts = sc.n_followers > 0 and sc.follower_starts is None
         self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
         self._relative_wind = bool(sc.wind.enabled and getattr(sc.wind, "relative_airspeed", False))
@@ -460,17 +460,10 @@ class SwarmVectorEnv(VectorEnv):
                     blk.sim.qpos,
                     blk.sim.qvel,
                     self.n,
-                    self.scenario.sensing_range,
+                    self._refs,
                     cs,
                     blk.c0,
                     self.k,
-                    self.T,
-                    self._ref_pos,
-                    self._ref_vel,
-                    self._ref_acc,
-                    self._ref_yaw,
-                    self._D,
-                    self._unit_offsets,
                     self._prev_leader,
                     self._leader_vel,
                     self._wind_obs,

@@ -37,6 +37,7 @@ from swarm_mj.aero.presets import (
 )
 from swarm_mj.errors import UserError
 from swarm_mj.params import DEFAULT_PARAMS as P
+from swarm_mj.records import Kinematics
 from swarm_mj.scenario import load_scenario, parse_scenario
 from swarm_mj.sim import FLOOR_GATE_M, Sim, floor_gate
 from swarm_mj.world import build_world
@@ -178,6 +179,7 @@ def test_downwash_copies_do_not_interact():
         pos = np.array([[0, 0, 2.0], [0, 0, 1.6], [0, 0, 1.6], [0, 0, 2.0]])
         quat = np.tile([1.0, 0, 0, 0], (4, 1))
         rotor_thrust = np.full((4, 4), 1.2)
+        kinematics = Kinematics(pos, quat, np.zeros((4, 3)), rotor_thrust)  # what a stage reads (swarm_mj.records)
 
     st = DownwashStage()
     sim = FakeSim()
@@ -448,21 +450,22 @@ def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch, touchdown_scenar
     from swarm_mj.runner import RunLog, run
 
     sc = touchdown_scenario
-    kernel, floor_on = sim_module.floor_gate_kernel, []
+    step, floor_on = sim_module.Sim.step, []
 
-    def spy(qpos, qvel, z_near, horizon, contype, fid, solid):  # noqa: ANN001, ANN202
-        kernel(qpos, qvel, z_near, horizon, contype, fid, solid)
-        floor_on.append(bool(contype[fid]))
+    def spy(self, U, wind_force=None):  # noqa: ANN001, ANN202 - the floor's state over each period
+        step(self, U, wind_force)
+        floor_on.append(bool(self.model.geom_contype[self._gate[0]]))
 
-    monkeypatch.setattr(sim_module, "floor_gate_kernel", spy)
+    monkeypatch.setattr(sim_module.Sim, "step", spy)
     gated = run(sc, progress=False, fused=False)
+    monkeypatch.setattr(sim_module.Sim, "step", step)
     switches = np.flatnonzero(np.diff(floor_on))
     assert len(switches) == 2 and floor_on.count(False) > 100  # on at rest, off aloft, on for the touchdown
     monkeypatch.setattr(sim_module, "floor_gate", lambda world: None)
     tested = run(sc, progress=False, fused=False)
     assert gated.summary["ground_contacts"] == 1 and gated.summary["crashes"] == 0
     for f in RunLog.__dataclass_fields__:
-        if f != "names":
+        if f not in ("names", "forces"):  # forces: views of stage_rows
             assert np.array_equal(getattr(gated.log, f), getattr(tested.log, f), equal_nan=True), f
 
 
