@@ -20,7 +20,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..parallel import RAY_INSTALL_HINT, Executor, default_workers
-from .evaluator import StepCostSettings, _check_count, evaluate_batch
+from .evaluator import StepCostSettings, check_count, evaluate_batch
 
 
 def worker_start_method() -> str:
@@ -84,7 +84,7 @@ class InProcessCost(_Closing):
 
     def __init__(self, settings: StepCostSettings = StepCostSettings(), threads: int | None = None) -> None:
         self.settings = settings
-        self.threads = default_workers() if threads is None else _check_count("threads", threads)
+        self.threads = default_workers() if threads is None else check_count("threads", threads)
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         return evaluate_batch(X, self.settings, self.threads)
@@ -136,7 +136,7 @@ class ProcessPoolCost(_ExecutorCost):
         self.workers = default_workers() if workers is None else int(workers)
         if self.workers < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
-        self.threads = _check_count("threads", threads)
+        self.threads = check_count("threads", threads)
         self.start_method = worker_start_method()
         self._ex = Executor(self.workers, start_method=self.start_method)
 
@@ -162,7 +162,7 @@ class RayCost(_ExecutorCost):
         if workers is not None and int(workers) < 1:
             raise UserError(f"workers must be >= 1, got {workers!r}")
         self.settings = settings
-        self.threads = _check_count("threads", threads)
+        self.threads = check_count("threads", threads)
         self._ex = Executor(workers, ray_address=address)
         self.workers = self._ex.workers
 
@@ -187,9 +187,9 @@ def make_population_cost(
     Use it as a context manager (or call ``close()``) to stop the workers.
     """
     if workers is not None:
-        _check_count("workers", workers)
+        check_count("workers", workers)
     if threads is not None:
-        _check_count("threads", threads)
+        check_count("threads", threads)
     if ray_address is not None:
         return RayCost(settings, ray_address, workers, threads or 1)
     if workers is None and threads is None:

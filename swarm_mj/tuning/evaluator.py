@@ -214,7 +214,7 @@ def error_kernel(
                 bad[i] = True
 
 
-def _check_count(name: str, v: Any) -> int:
+def check_count(name: str, v: Any) -> int:
     if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
         raise UserError(f"{name} must be an integer >= 1, got {v!r}")
     return int(v)
@@ -257,9 +257,9 @@ class BatchEvaluator:
     def __init__(
         self, m: int, settings: StepCostSettings = StepCostSettings(), *, block: int = DEFAULT_BLOCK, threads: int = 1
     ) -> None:
-        self.m = _check_count("batch size", m)
-        block = _check_count("block", block)
-        self.threads = min(_check_count("threads", threads), self.m)
+        self.m = check_count("batch size", m)
+        block = check_count("block", block)
+        self.threads = min(check_count("threads", threads), self.m)
         s = settings
         self.settings = s
         self.K = s.n_samples
@@ -483,7 +483,7 @@ def evaluate_batch(
     g = np.atleast_2d(np.asarray(gains, dtype=float))
     if g.ndim != 2 or g.shape[1] != 12:
         raise UserError(f"gains must have shape (m, 12), got {np.shape(gains)}")
-    t = default_workers() if threads is None else _check_count("threads", threads)
+    t = default_workers() if threads is None else check_count("threads", threads)
     if g.shape[0] == 0:
         return np.empty(0)
     return _evaluator(g.shape[0], settings, t).ranked(g)
