@@ -1,0 +1,441 @@
+"""Safety barrier certificates for the swarm (docs/barrier.md): a downwash-aware ellipsoidal keep-out,
+its control-barrier constraint per pair of drones, and the per-drone filter that changes a nominal
+acceleration command as little as possible so that every constraint holds.
+
+The functional core is independent of the rule classes: :func:`keepout_radii` (the keep-out of a
+vehicle), :func:`pair_constraint` (one barrier constraint) and :func:`filter_accelerations` (the
+decentralised filter, compiled), configured by one frozen record, :class:`BarrierParams`.
+
+**Keep-out.** Drones i and j are apart when the centre offset p = p_i − p_j lies outside the
+ellipsoid of radii (a, a, c): with q = S·p, S = diag(1/a, 1/a, 1/c), the *normalised ellipsoidal
+distance* is ρ = ‖q‖ (ρ = 1 on the ellipsoid). a = 2·(L + r_rotor) is the centre distance at which
+two level drones' rotor tips touch; c = ``downwash_multiple``·a, taller than wide, because a drone
+below another sits in its downwash (Preiss et al., Crazyswarm, ICRA 2017: radii 0.12, 0.12, 0.3 m;
+the Crazyflie firmware: 0.3, 0.3, 0.9 m — a ratio of 2.5 to 3).
+
+**Barrier.** h = ρ² − 1 = pᵀ S² p − 1 ≥ 0 outside the keep-out. Under double-integrator dynamics
+(p̈_i = u_i) it has relative degree two: ḣ = 2 qᵀq̇, ḧ = 2 q̇ᵀq̇ + 2 (S q)ᵀ (u_i − u_j). The
+exponential (second-order) control-barrier condition with the class-K functions α(s) = k·s,
+
+    ḧ + 2k·ḣ + k²·h ≥ 0,                                                        (B)
+
+keeps ψ1 = ḣ + k·h and h non-negative for all time if both are at the start (Nguyen & Sreenath,
+ACC 2016; Wang, Ames & Egerstedt, IEEE T-RO 2017, whose decentralised split is used): (B) is linear
+in the relative acceleration, A·(u_i − u_j) ≥ b with A = 2 S q and b = −2‖q̇‖² − 2k·ḣ − k²·h; drone i
+enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, s_ij = ½ between two drones that
+both filter (Wang et al.'s equal split), s_ij = 1 when j does not (the leader, which flies its
+trajectory): their sum is (B) (the leader's acceleration is unknown to a follower and taken as 0).
+
+**Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
+constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
+tilt-limit disc of radius (g − a_down)·tan θ_max, the vertical one within [−a_down, a_up]). It
+acts only when the nominal command violates a barrier constraint (otherwise u_i = u_nom,i exactly,
+the controller saturating as before). The QP is solved exactly: its solution is the projection of
+u_nom onto the affine hull of a linearly independent subset (at most 3) of its active constraints
+(KKT with Carathéodory), so the feasible candidate of least cost over all such subsets is the
+optimum (:func:`project_polyhedron`). A neighbour's constraint that no input within the limits can
+violate is dropped first (exactly: its minimum over the limits' vertices).
+
+**Infeasible.** When no input within the limits satisfies every constraint, the barrier constraints
+are relaxed by a common slack δ ≥ 0 in metres per second squared along each constraint's normal,
+A·u ≥ b − δ·‖A‖, with cost ‖u − u_nom‖² + w·δ² (the limits stay hard: they are physics); the
+drone's ``relaxed`` flag is set and counted.
+
+**Deadlock tie-break.** Two drones flying head-on at each other are stopped by (B) face to face
+(the nominal and the constraint's normal are collinear). When a drone's nominal violates the
+constraint of a neighbour it is closing on (ḣ < 0), a *keep-right* acceleration of ``tiebreak``
+m/s², horizontal and perpendicular to the line joining them (ẑ × n̂, n̂ from j to i), is added to
+its nominal before filtering: each of the two sees the other on its own left, so they pass
+each other (the roundabout rule).
+
+**Tracking.** The filter works on the reference each drone's controller tracks; the real, lagged
+drone is within ``tracking_margin_m`` of it (measured: docs/barrier.md), so the filter's keep-out
+is the vehicle's inflated by twice that margin.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .._jit import jit
+from ..aero.constants import ROTOR_RADIUS
+from ..errors import UserError
+from ..params import DEFAULT_PARAMS, QuadParams
+
+#: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
+#: 0.3/0.12 = 2.5, the Crazyflie firmware 0.9/0.3 = 3 (docs/barrier.md, "keep-out").
+DOWNWASH_MULTIPLE = 3.0
+
+
+def keepout_radii(
+    vehicle: QuadParams = DEFAULT_PARAMS,
+    rotor_radius: float = ROTOR_RADIUS,
+    downwash_multiple: float = DOWNWASH_MULTIPLE,
+    margin: float = 0.0,
+) -> np.ndarray:
+    """Radii (a, a, c) (3,) of the pairwise keep-out of a vehicle (m): a = 2·(L + r_rotor) + 2·margin,
+    the centre distance at which two level drones' rotor tips touch (plus each drone's margin);
+    c = downwash_multiple·2·(L + r_rotor) + 2·margin (docs/barrier.md, "keep-out")."""
+    span = float(vehicle.L) + float(rotor_radius)
+    a = 2.0 * span + 2.0 * margin
+    c = float(downwash_multiple) * 2.0 * span + 2.0 * margin
+    return np.array([a, a, c])
+
+
+@dataclass(frozen=True)
+class BarrierParams:
+    """The filter's parameters (docs/barrier.md, "parameters", gives each one's reason).
+
+    ``downwash_multiple`` (–): vertical radius / horizontal radius of the keep-out.
+    ``tracking_margin_m`` (m): the real drone's distance from the reference it tracks.
+    ``gain`` k (1/s): the class-K functions α(s) = k·s of (B), both of them (critically damped).
+    ``max_tilt_deg`` (°), ``accel_up``, ``accel_down`` (m/s²): the input limits.
+    ``tiebreak`` (m/s²): the keep-right acceleration of the deadlock tie-break.
+    ``relax_weight`` (–): w, the cost of the slack δ when the constraints are infeasible.
+    ``sensing_range`` (m): a drone filters against the drones within this 3D distance.
+    ``leader_filters`` (bool): whether drone 0 takes its share (False: the followers take all of it).
+    """
+
+    downwash_multiple: float = DOWNWASH_MULTIPLE
+    tracking_margin_m: float = 0.035
+    gain: float = 3.0
+    max_tilt_deg: float = 30.0
+    accel_up: float = 5.0
+    accel_down: float = 3.0
+    tiebreak: float = 1.0
+    relax_weight: float = 100.0
+    sensing_range: float = 4.0
+    leader_filters: bool = False
+
+    def __post_init__(self) -> None:
+        positive = ("downwash_multiple", "gain", "accel_up", "accel_down", "relax_weight", "sensing_range")
+        for name in positive:
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
+        for name in ("tracking_margin_m", "tiebreak"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
+        if not (0.0 < self.max_tilt_deg < 90.0):
+            raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
+        if self.accel_down >= 9.81:
+            raise UserError(f"barrier parameter accel_down must be below g, got {self.accel_down!r}")
+
+    def radii(self, vehicle: QuadParams = DEFAULT_PARAMS) -> np.ndarray:
+        """The filter's keep-out radii (3,): the vehicle's, inflated by the tracking margin."""
+        return keepout_radii(vehicle, downwash_multiple=self.downwash_multiple, margin=self.tracking_margin_m)
+
+    def horizontal_limit(self, g: float = 9.81) -> float:
+        """Radius of the horizontal acceleration disc (m/s²): (g − a_down)·tan θ_max, what the tilt
+        limit allows at the lowest thrust the vertical limit leaves."""
+        return float((g - self.accel_down) * np.tan(np.radians(self.max_tilt_deg)))
+
+
+# ------------------------------------------------------------------------------------------ kernels
+_TOL = 1e-9  # feasibility tolerance of a constraint, relative to (1 + |b|)
+
+
+@jit
+def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray) -> bool:
+    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting; False if singular."""
+    M = np.empty((4, 5))
+    scale = 0.0
+    for i in range(s):
+        for j in range(s):
+            M[i, j] = G[i, j]
+            scale = max(scale, abs(G[i, j]))
+        M[i, s] = r[i]
+    if scale == 0.0:
+        return False
+    for c in range(s):
+        p = c
+        for i in range(c + 1, s):
+            if abs(M[i, c]) > abs(M[p, c]):
+                p = i
+        if abs(M[p, c]) <= 1e-10 * scale:
+            return False
+        if p != c:
+            for j in range(s + 1):
+                tmp = M[c, j]
+                M[c, j] = M[p, j]
+                M[p, j] = tmp
+        for i in range(c + 1, s):
+            f = M[i, c] / M[c, c]
+            for j in range(c, s + 1):
+                M[i, j] -= f * M[c, j]
+    for i in range(s - 1, -1, -1):
+        acc = M[i, s]
+        for j in range(i + 1, s):
+            acc -= M[i, j] * x[j]
+        x[i] = acc / M[i, i]
+    return True
+
+
+@jit
+def _candidate(
+    w0: np.ndarray, A: np.ndarray, b: np.ndarray, m: int, idx: np.ndarray, s: int, w: np.ndarray, lam: np.ndarray
+) -> bool:
+    """Projection w of w0 onto {w: A[idx[k]]·w = b[idx[k]], k < s}; True if it exists and satisfies
+    every constraint A[:m]·w ≥ b[:m] (within the tolerance)."""
+    d = w0.shape[0]
+    G = np.empty((4, 4))
+    r = np.empty(4)
+    for k in range(s):
+        rk = b[idx[k]]
+        for c in range(d):
+            rk -= A[idx[k], c] * w0[c]
+        r[k] = rk
+        for l2 in range(s):
+            g = 0.0
+            for c in range(d):
+                g += A[idx[k], c] * A[idx[l2], c]
+            G[k, l2] = g
+    if s > 0 and not _solve_small(G, r, s, lam):
+        return False
+    for c in range(d):
+        v = w0[c]
+        for k in range(s):
+            v += A[idx[k], c] * lam[k]
+        w[c] = v
+    for k in range(m):
+        v = 0.0
+        for c in range(d):
+            v += A[k, c] * w[c]
+        if v < b[k] - _TOL * (1.0 + abs(b[k])):
+            return False
+    return True
+
+
+@jit
+def _consider(w0, A, b, m, idx, s, best, cand, lam) -> bool:
+    """Evaluate the candidate of the subset idx[:s]; keep it in ``best`` (cost in best[d]) if cheaper."""
+    d = w0.shape[0]
+    if not _candidate(w0, A, b, m, idx, s, cand, lam):
+        return False
+    cost = 0.0
+    for c in range(d):
+        cost += (cand[c] - w0[c]) ** 2
+    if cost < best[d]:
+        for c in range(d):
+            best[c] = cand[c]
+        best[d] = cost
+    return True
+
+
+@jit(samples=lambda: [(np.zeros(3), np.array([[1.0, 0.0, 0.0]]), np.array([1.0]))])
+def project_polyhedron(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """argmin ‖w − w0‖² subject to A·w ≥ b (A (m, d), d ≤ 4), exactly, and whether it is feasible.
+
+    The optimum w* satisfies w* − w0 = A_Sᵀλ, λ ≥ 0, over its active set S; by Carathéodory a
+    linearly independent subset S' ⊆ S (|S'| ≤ d) carries the same combination, so w* is the
+    projection of w0 onto the affine set A_S'·w = b_S'. Every such projection that satisfies all
+    the constraints is a feasible point, so the cheapest of them over all linearly independent
+    subsets of at most d rows is w* (and w0 itself, the empty subset, when it is feasible).
+    Returns (w0, False) when no candidate is feasible (then the set is empty)."""
+    m, d = A.shape
+    w0c = w0.copy()
+    best = np.empty(d + 1)
+    best[d] = np.inf
+    cand = np.empty(d)
+    lam = np.empty(4)
+    idx = np.empty(4, dtype=np.int64)
+    if _consider(w0c, A, b, m, idx, 0, best, cand, lam):
+        return w0c, True
+    for i0 in range(m):
+        idx[0] = i0
+        _consider(w0c, A, b, m, idx, 1, best, cand, lam)
+        if d < 2:
+            continue
+        for i1 in range(i0 + 1, m):
+            idx[1] = i1
+            _consider(w0c, A, b, m, idx, 2, best, cand, lam)
+            if d < 3:
+                continue
+            for i2 in range(i1 + 1, m):
+                idx[2] = i2
+                _consider(w0c, A, b, m, idx, 3, best, cand, lam)
+                if d < 4:
+                    continue
+                for i3 in range(i2 + 1, m):
+                    idx[3] = i3
+                    _consider(w0c, A, b, m, idx, 4, best, cand, lam)
+    if best[d] == np.inf:
+        return w0c, False
+    return best[:d].copy(), True
+
+
+@jit(samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
+def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
+    """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
+
+    p = p_i − p_j, v = v_i − v_j (3,); q = S·p, S = diag(1/radii); h = ‖q‖² − 1, ḣ = 2 qᵀq̇;
+    A = 2·S·q; b = −2‖q̇‖² − 2k·ḣ − k²·h; b_share = share·b (plus nothing for the other drone:
+    its share is its own constraint, or 0 taken for its acceleration when it does not filter)."""
+    A = np.empty(3)
+    h = -1.0
+    hd = 0.0
+    qd2 = 0.0
+    for c in range(3):
+        q = p[c] / radii[c]
+        qd = v[c] / radii[c]
+        h += q * q
+        hd += 2.0 * q * qd
+        qd2 += qd * qd
+        A[c] = 2.0 * q / radii[c]
+    b = -2.0 * qd2 - 2.0 * gain * hd - gain * gain * h
+    return A, share * b, h, hd
+
+
+@jit
+def _limit_rows(A: np.ndarray, b: np.ndarray, a_h: float, a_up: float, a_down: float) -> int:
+    """Write the input limits as 10 rows of A·u ≥ b (A (m, d), columns ≥ 3 zero): an octagon inscribed
+    in the disc ‖u_xy‖ ≤ a_h, and −a_down ≤ u_z ≤ a_up. Returns the number of rows (10)."""
+    face = a_h * np.cos(np.pi / 8.0)
+    for k in range(8):
+        ang = k * np.pi / 4.0
+        for c in range(A.shape[1]):
+            A[k, c] = 0.0
+        A[k, 0] = -np.cos(ang)
+        A[k, 1] = -np.sin(ang)
+        b[k] = -face
+    for k in range(8, 10):
+        for c in range(A.shape[1]):
+            A[k, c] = 0.0
+    A[8, 2] = -1.0
+    b[8] = -a_up
+    A[9, 2] = 1.0
+    b[9] = -a_down
+    return 10
+
+
+@jit
+def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> float:
+    """min of a·u (a (3,)) over the limit polytope of :func:`_limit_rows` (its 16 vertices)."""
+    best = np.inf
+    for k in range(8):
+        ang = (k + 0.5) * np.pi / 4.0
+        v = a_h * (a[0] * np.cos(ang) + a[1] * np.sin(ang))
+        best = min(best, v)
+    return best + min(a[2] * a_up, -a[2] * a_down)
+
+
+def _filter_samples():
+    z = np.zeros((2, 3))
+    pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
+    return [(pos, z, pos, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0)]
+
+
+@jit(samples=_filter_samples)
+def filter_accelerations(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    sensed_pos: np.ndarray,
+    sensed_vel: np.ndarray,
+    u_nom: np.ndarray,
+    filters: np.ndarray,
+    radii: np.ndarray,
+    gain: float,
+    a_h: float,
+    a_up: float,
+    a_down: float,
+    tiebreak: float,
+    relax_weight: float,
+    sensing_range: float,
+):
+    """The decentralised barrier filter of the module docstring, for n drones at once.
+
+    pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel (n, 3): what the
+    others sense of it; u_nom (n, 3) nominal accelerations; filters (n,) bool: which drones filter
+    (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint).
+    Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
+    constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
+    constraints kept after the exact pruning)."""
+    n = pos.shape[0]
+    u = u_nom.copy()
+    active = np.zeros(n, dtype=np.bool_)
+    relaxed = np.zeros(n, dtype=np.bool_)
+    kept = np.zeros(n, dtype=np.int64)
+    m_max = n + 10
+    A = np.zeros((m_max, 3))
+    b = np.zeros(m_max)
+    A4 = np.zeros((m_max + 1, 4))
+    b4 = np.zeros(m_max + 1)
+    p = np.empty(3)
+    v = np.empty(3)
+    un = np.empty(3)
+    r2 = sensing_range * sensing_range
+    for i in range(n):
+        if not filters[i]:
+            continue
+        m = 0
+        violated = False
+        for c in range(3):
+            un[c] = u_nom[i, c]
+        for j in range(n):
+            if j == i:
+                continue
+            d2 = 0.0
+            for c in range(3):
+                p[c] = pos[i, c] - sensed_pos[j, c]
+                v[c] = vel[i, c] - sensed_vel[j, c]
+                d2 += p[c] * p[c]
+            if d2 > r2:
+                continue
+            share = 0.5 if filters[j] else 1.0
+            a, bs, h, hd = pair_constraint(p, v, radii, gain, share)
+            lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
+            if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
+                continue  # no input within the limits can violate it, nor does the nominal: redundant
+            if lhs < bs:
+                violated = True
+                if hd < 0.0 and tiebreak > 0.0:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
+                    nh = np.sqrt(p[0] * p[0] + p[1] * p[1])
+                    if nh > 1e-9:
+                        un[0] += tiebreak * (-p[1] / nh)
+                        un[1] += tiebreak * (p[0] / nh)
+            for c in range(3):
+                A[m, c] = a[c]
+            b[m] = bs
+            m += 1
+        kept[i] = m
+        if not violated:
+            continue  # the nominal satisfies every barrier constraint: unchanged
+        active[i] = True
+        ml = _limit_rows(A[m:], b[m:], a_h, a_up, a_down)
+        w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
+        if not ok:
+            # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
+            sw = np.sqrt(relax_weight)
+            for k in range(m):
+                nrm = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2)
+                for c in range(3):
+                    A4[k, c] = A[k, c]
+                A4[k, 3] = nrm / sw
+                b4[k] = b[k]
+            _limit_rows(A4[m:], b4[m:], a_h, a_up, a_down)
+            A4[m + ml, :] = 0.0
+            A4[m + ml, 3] = 1.0
+            b4[m + ml] = 0.0
+            w0 = np.zeros(4)
+            for c in range(3):
+                w0[c] = un[c]
+            w4, ok4 = project_polyhedron(w0, A4[: m + ml + 1], b4[: m + ml + 1])
+            relaxed[i] = True
+            for c in range(3):
+                w[c] = w4[c]
+        for c in range(3):
+            u[i, c] = w[c]
+    return u, active, relaxed, kept
+
+
+__all__ = [
+    "DOWNWASH_MULTIPLE",
+    "BarrierParams",
+    "filter_accelerations",
+    "keepout_radii",
+    "pair_constraint",
+    "project_polyhedron",
+]
