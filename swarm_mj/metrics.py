@@ -277,3 +277,11 @@ def keepout_time_s(t: np.ndarray, pos: np.ndarray, radii: np.ndarray, airborne: 
         return 0.0
     inside = keepout_per_sample(pos, radii, airborne) < 1.0
     return float(inside.sum() * np.median(np.diff(t)))
+
+
+def keepout_summary(t: np.ndarray, pos: np.ndarray, radii: np.ndarray) -> dict:
+    """The run summary's keep-out keys: ``keepout_min_distance`` (None for one drone, +inf when
+    never two are airborne) and ``keepout_time_s`` (docs/barrier.md, "the invariant measured")."""
+    if np.asarray(pos).shape[1] < 2:
+        return {"keepout_min_distance": None, "keepout_time_s": 0.0}
+    return {"keepout_min_distance": keepout_min_distance(pos, radii), "keepout_time_s": keepout_time_s(t, pos, radii)}

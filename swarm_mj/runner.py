@@ -22,9 +22,18 @@ from ._jit import warm_up
 from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged
+from .formation.barrier import keepout_radii
 from .fused import CHUNK, DONE, FusedLoop
 from .interrupt import CooperativeInterrupt
-from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
+from .metrics import (
+    downwash_dip,
+    formation_settling,
+    keepout_summary,
+    leader_distances,
+    min_separation,
+    rmse,
+    step_metrics,
+)
 from .policy import BacksteppingPolicy
 from .progress import Progress
 from .scenario import Scenario, load_scenario
@@ -311,6 +320,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     }
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
+    out.update(keepout_summary(t, log.pos, keepout_radii(policy.controller.params)))  # docs/barrier.md
     if log.downwash is not None and len(t):
         out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:

@@ -24,7 +24,7 @@ ACC 2016; Wang, Ames & Egerstedt, IEEE T-RO 2017, whose decentralised split is u
 in the relative acceleration, A·(u_i − u_j) ≥ b with A = 2 S q and b = −2‖q̇‖² − 2k·ḣ − k²·h; drone i
 enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, s_ij = ½ between two drones that
 both filter (Wang et al.'s equal split), s_ij = 1 when j does not (the leader, which flies its
-trajectory): their sum is (B) (the leader's acceleration is unknown to a follower and taken as 0).
+trajectory): their sum is (B) (a follower takes the leader's acceleration as 0: A·u_i ≥ b + A·a_j with a_j = 0).
 
 **Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
 constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
@@ -43,10 +43,16 @@ drone's ``relaxed`` flag is set and counted.
 
 **Deadlock tie-break.** Two drones flying head-on at each other are stopped by (B) face to face
 (the nominal and the constraint's normal are collinear). When a drone's nominal violates the
-constraint of a neighbour it is closing on (ḣ < 0), a *keep-right* acceleration of ``tiebreak``
+constraint of a neighbour (pushes into it), a *keep-right* acceleration of ``tiebreak``
 m/s², horizontal and perpendicular to the line joining them (ẑ × n̂, n̂ from j to i), is added to
 its nominal before filtering: each of the two sees the other on its own left, so they pass
-each other (the roundabout rule).
+each other (the roundabout rule); a follower pressed against the keep-out of a drone that does
+not give way (the leader) slides round it the same way.
+
+**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while it is inside
+the keep-out of a drone of lower index or of an airborne one: the barrier cannot push a drone on
+the ground sideways, and lifting off inside a keep-out would start the pair with h < 0, where (B)
+only brings h back exponentially.
 
 **Tracking.** The filter works on the reference each drone's controller tracks; the real, lagged
 drone is within ``tracking_margin_m`` of it (measured: docs/barrier.md), so the filter's keep-out
@@ -56,6 +62,7 @@ is the vehicle's inflated by twice that margin.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -63,6 +70,7 @@ from .._jit import jit
 from ..aero.constants import ROTOR_RADIUS
 from ..errors import UserError
 from ..params import DEFAULT_PARAMS, QuadParams
+from .anticollision import ANTI_COLLISION_RULES, Rule
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
 #: 0.3/0.12 = 2.5, the Crazyflie firmware 0.9/0.3 = 3 (docs/barrier.md, "keep-out").
@@ -96,6 +104,9 @@ class BarrierParams:
     ``relax_weight`` (–): w, the cost of the slack δ when the constraints are infeasible.
     ``sensing_range`` (m): a drone filters against the drones within this 3D distance.
     ``leader_filters`` (bool): whether drone 0 takes its share (False: the followers take all of it).
+    ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
+    towards the formation's (critically damped at 2 rad/s).
+    ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -108,9 +119,13 @@ class BarrierParams:
     relax_weight: float = 100.0
     sensing_range: float = 4.0
     leader_filters: bool = False
+    nominal_kp: float = 4.0
+    nominal_kd: float = 4.0
+    floor_m: float = 0.1
 
     def __post_init__(self) -> None:
         positive = ("downwash_multiple", "gain", "accel_up", "accel_down", "relax_weight", "sensing_range")
+        positive += ("nominal_kp", "nominal_kd")
         for name in positive:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
@@ -325,7 +340,7 @@ def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> f
 def _filter_samples():
     z = np.zeros((2, 3))
     pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
-    return [(pos, z, pos, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0)]
+    return [(pos, z, pos, z, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0, 0.1)]
 
 
 @jit(samples=_filter_samples)
@@ -334,6 +349,7 @@ def filter_accelerations(
     vel: np.ndarray,
     sensed_pos: np.ndarray,
     sensed_vel: np.ndarray,
+    sensed_acc: np.ndarray,
     u_nom: np.ndarray,
     filters: np.ndarray,
     radii: np.ndarray,
@@ -344,15 +360,19 @@ def filter_accelerations(
     tiebreak: float,
     relax_weight: float,
     sensing_range: float,
+    floor: float,
 ):
     """The decentralised barrier filter of the module docstring, for n drones at once.
 
-    pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel (n, 3): what the
-    others sense of it; u_nom (n, 3) nominal accelerations; filters (n,) bool: which drones filter
+    pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
+    what the others sense of it (the acceleration only enters the constraint against a drone that
+    does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
+    accelerations; filters (n,) bool: which drones filter
     (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint).
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
-    constraints kept after the exact pruning)."""
+    constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
+    (on the ground, sensed_pos) is not filtered."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
@@ -382,16 +402,18 @@ def filter_accelerations(
                 p[c] = pos[i, c] - sensed_pos[j, c]
                 v[c] = vel[i, c] - sensed_vel[j, c]
                 d2 += p[c] * p[c]
-            if d2 > r2:
+            if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
                 continue
             share = 0.5 if filters[j] else 1.0
             a, bs, h, hd = pair_constraint(p, v, radii, gain, share)
+            if not filters[j]:
+                bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
             lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
             if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
                 continue  # no input within the limits can violate it, nor does the nominal: redundant
             if lhs < bs:
                 violated = True
-                if hd < 0.0 and tiebreak > 0.0:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
+                if tiebreak > 0.0:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
                     nh = np.sqrt(p[0] * p[0] + p[1] * p[1])
                     if nh > 1e-9:
                         un[0] += tiebreak * (-p[1] / nh)
@@ -431,9 +453,130 @@ def filter_accelerations(
     return u, active, relaxed, kept
 
 
+class BarrierRule(Rule):
+    """``anti_collision = "barrier"`` (docs/barrier.md): the formation's references made safe by the
+    barrier filter, with no other separation logic.
+
+    Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
+    acceleration references). Every period its nominal acceleration is the PD of :class:`BarrierParams`
+    towards the formation's references (limited to the filter's input limits),
+    u_nom = a_slot + kp·(p_slot − r) + kd·(v_slot − ṙ); :func:`filter_accelerations` changes it as
+    little as possible so that (B) holds against every drone within ``sensing_range`` (their positions
+    as sensed, their velocities estimated from successive positions), and (r, ṙ) advance with the
+    result (semi-implicit Euler over the control period). The leader flies its trajectory and does
+    not filter; the followers take all of each constraint with it. A relaxation is an event
+    ``{t, drone, other: -1, action: "relax"}`` (the first period of each stretch).
+    """
+
+    name = "barrier"
+
+    def __init__(self, n: int, **params: Any) -> None:
+        self.n = n
+        known = {k: v for k, v in params.items() if k in BarrierParams.__dataclass_fields__}
+        self.params = BarrierParams(**known)
+        self.events: list[dict] = []
+        self.vel_d = np.zeros((n, 3))
+        self.acc_d = np.zeros((n, 3))
+        self.radii = self.params.radii()
+        self.a_h = self.params.horizontal_limit()
+        self.filters = np.ones(n, dtype=np.bool_)
+        self.filters[0] = bool(self.params.leader_filters)
+        self.relaxed_periods = 0
+        self.active_periods = 0
+
+    def reset(self, positions: np.ndarray) -> None:
+        self.events = []
+        self.ref = np.array(positions, dtype=float)  # (n, 3) r
+        self.ref_vel = np.zeros((self.n, 3))  # (n, 3) ṙ
+        self.sensed_vel = np.zeros((self.n, 3))
+        self._no_acc = np.zeros((self.n, 3))
+        self._prev_pos = np.array(positions, dtype=float)
+        self._prev_t: float | None = None
+        self._was_relaxed = np.zeros(self.n, dtype=bool)
+        self.relaxed_periods = 0
+        self.active_periods = 0
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """With zero formation velocity and acceleration references (see :meth:`references`)."""
+        z = np.zeros((self.n, 3))
+        pos_out, _, _ = self.references(t, positions, pos_d, z, z, formation_alt)
+        return pos_out, self.filters.copy()
+
+    def references(
+        self,
+        t: float,
+        positions: np.ndarray,
+        pos_d: np.ndarray,
+        vel_d: np.ndarray,
+        acc_d: np.ndarray,
+        formation_alt: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pos_d, vel_d, acc_d) (n, 3): the followers' filtered reference states, the leader's own."""
+        bp = self.params
+        positions = np.asarray(positions, dtype=float)
+        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
+        if dt > 0.0:
+            self.sensed_vel = (positions - self._prev_pos) / dt
+        self._prev_t = float(t)
+        self._prev_pos = positions.copy()
+        u_nom = np.asarray(acc_d, float) + bp.nominal_kp * (pos_d - self.ref) + bp.nominal_kd * (vel_d - self.ref_vel)
+        nh = np.sqrt(u_nom[:, 0] ** 2 + u_nom[:, 1] ** 2)
+        u_nom[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / np.maximum(nh, 1e-12))[:, None]
+        u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
+        # take-off gate (module docstring): a follower on the ground inside the keep-out of a lower index
+        # or an airborne drone holds where it is and does not filter this period
+        ground = positions[:, 2] < bp.floor_m
+        rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / self.radii, axis=2)
+        idx = np.arange(self.n)
+        blocking = (rho < 1.0) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
+        np.fill_diagonal(blocking, False)
+        wait = ground & blocking.any(axis=1) & self.filters
+        filters = self.filters & ~wait
+        self.ref[wait] = positions[wait]
+        self.ref_vel[wait] = 0.0
+        u_nom[wait] = 0.0
+        u, active, relaxed, _ = filter_accelerations(
+            np.ascontiguousarray(self.ref),
+            np.ascontiguousarray(self.ref_vel),
+            positions,
+            np.ascontiguousarray(self.sensed_vel),
+            self._no_acc,  # the leader's acceleration taken as 0: docs/barrier.md, "measured"
+            u_nom,
+            filters,
+            self.radii,
+            bp.gain,
+            self.a_h,
+            bp.accel_up,
+            bp.accel_down,
+            bp.tiebreak,
+            bp.relax_weight,
+            bp.sensing_range,
+            bp.floor_m,
+        )
+        self.active_periods += int(active.sum())
+        self.relaxed_periods += int(relaxed.sum())
+        for i in np.flatnonzero(relaxed & ~self._was_relaxed):
+            self.events.append({"t": float(t), "drone": int(i), "other": -1, "action": "relax"})
+        self._was_relaxed = relaxed
+        f = filters
+        self.ref_vel[f] += u[f] * dt
+        self.ref[f] += self.ref_vel[f] * dt
+        self.ref[f, 2] = np.maximum(self.ref[f, 2], 0.0)  # never below the ground
+        out_p, out_v, out_a = np.array(pos_d, dtype=float), np.array(vel_d, dtype=float), np.array(acc_d, dtype=float)
+        out_p[f], out_v[f], out_a[f] = self.ref[f], self.ref_vel[f], u[f]
+        out_p[wait], out_v[wait], out_a[wait] = positions[wait], 0.0, 0.0
+        self.vel_d, self.acc_d = out_v, out_a
+        return out_p, out_v, out_a
+
+
+ANTI_COLLISION_RULES["barrier"] = BarrierRule  # the registration (docs/barrier.md)
+
 __all__ = [
     "DOWNWASH_MULTIPLE",
     "BarrierParams",
+    "BarrierRule",
     "filter_accelerations",
     "keepout_radii",
     "pair_constraint",

@@ -210,7 +210,22 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread):
     bp = BarrierParams(gain=gain, max_tilt_deg=tilt, accel_up=up, accel_down=down, tiebreak=0.0)
     radii, a_h = bp.radii(), bp.horizontal_limit()
     u, active, relaxed, _ = filter_accelerations(
-        pos, vel, pos, vel, u_nom, filters, radii, gain, a_h, up, down, 0.0, bp.relax_weight, 1e9
+        pos,
+        vel,
+        pos,
+        vel,
+        np.zeros_like(pos),
+        u_nom,
+        filters,
+        radii,
+        gain,
+        a_h,
+        up,
+        down,
+        0.0,
+        bp.relax_weight,
+        1e9,
+        -1.0,
     )
     for i in range(n):
         rows = [
@@ -246,8 +261,8 @@ def test_relaxation_is_used_and_flagged():
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
     bp = BarrierParams(max_tilt_deg=5.0)
     u, active, relaxed, _ = filter_accelerations(
-        pos, vel, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_), bp.radii(), bp.gain,
-        bp.horizontal_limit(), bp.accel_up, bp.accel_down, 0.0, bp.relax_weight, bp.sensing_range,
+        pos, vel, pos, vel, np.zeros((2, 3)), np.zeros((2, 3)), np.ones(2, dtype=np.bool_), bp.radii(), bp.gain,
+        bp.horizontal_limit(), bp.accel_up, bp.accel_down, 0.0, bp.relax_weight, bp.sensing_range, bp.floor_m,
     )  # fmt: skip
     assert active.all() and relaxed.all()
     for i in range(2):
@@ -273,8 +288,8 @@ def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
         u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
         u, _, relaxed, _ = filter_accelerations(
-            pos, vel, pos, vel, u_nom, filters, radii, bp.gain, a_h, bp.accel_up, bp.accel_down,
-            bp.tiebreak, bp.relax_weight, bp.sensing_range,
+            pos, vel, pos, vel, np.zeros_like(pos), u_nom, filters, radii, bp.gain, a_h, bp.accel_up, bp.accel_down,
+            bp.tiebreak, bp.relax_weight, bp.sensing_range, bp.floor_m,
         )  # fmt: skip
         n_relaxed += int(relaxed.sum())
         vel += u * dt
