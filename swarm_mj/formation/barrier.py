@@ -107,6 +107,9 @@ class BarrierParams:
     ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
     towards the formation's (critically damped at 2 rad/s).
     ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
+    ``priority_share`` (–): the share of a pair's constraint the lower index takes (the higher takes
+    the rest); ½ is Wang et al.'s equal split.
+    ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -122,10 +125,20 @@ class BarrierParams:
     nominal_kp: float = 4.0
     nominal_kd: float = 4.0
     floor_m: float = 0.1
+    priority_share: float = 0.5
+    leash_m: float = 0.25
 
     def __post_init__(self) -> None:
-        positive = ("downwash_multiple", "gain", "accel_up", "accel_down", "relax_weight", "sensing_range")
-        positive += ("nominal_kp", "nominal_kd")
+        positive = (
+            "downwash_multiple",
+            "gain",
+            "accel_up",
+            "accel_down",
+            "relax_weight",
+            "sensing_range",
+            "nominal_kp",
+            "nominal_kd",
+        )
         for name in positive:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
@@ -134,6 +147,10 @@ class BarrierParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
+        if not (0.0 <= self.priority_share <= 1.0):
+            raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
+        if not (np.isfinite(self.leash_m) and self.leash_m > 0):
+            raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
         if not (0.0 < self.max_tilt_deg < 90.0):
             raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
         if self.accel_down >= 9.81:
@@ -340,7 +357,9 @@ def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> f
 def _filter_samples():
     z = np.zeros((2, 3))
     pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
-    return [(pos, z, pos, z, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0, 0.1)]
+    return [
+        (pos, z, pos, z, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0, 0.1, 0.5)
+    ]
 
 
 @jit(samples=_filter_samples)
@@ -361,6 +380,7 @@ def filter_accelerations(
     relax_weight: float,
     sensing_range: float,
     floor: float,
+    priority_share: float,
 ):
     """The decentralised barrier filter of the module docstring, for n drones at once.
 
@@ -368,7 +388,8 @@ def filter_accelerations(
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
     accelerations; filters (n,) bool: which drones filter
-    (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint).
+    (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
+    priority_share: the share the lower index of a pair of filtering drones takes (½: equal).
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
     constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
@@ -404,7 +425,7 @@ def filter_accelerations(
                 d2 += p[c] * p[c]
             if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
                 continue
-            share = 0.5 if filters[j] else 1.0
+            share = (priority_share if i < j else 1.0 - priority_share) if filters[j] else 1.0
             a, bs, h, hd = pair_constraint(p, v, radii, gain, share)
             if not filters[j]:
                 bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
@@ -451,6 +472,42 @@ def filter_accelerations(
         for c in range(3):
             u[i, c] = w[c]
     return u, active, relaxed, kept
+
+
+def apply_filter(
+    bp: BarrierParams,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    u_nom: np.ndarray,
+    filters: np.ndarray,
+    sensed: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    vehicle: QuadParams = DEFAULT_PARAMS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
+
+    pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
+    the others sense (default: pos, vel and zero). Returns (u, active, relaxed, n_constraints)."""
+    c = np.ascontiguousarray
+    sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
+    return filter_accelerations(
+        c(pos, dtype=np.float64),
+        c(vel, dtype=np.float64),
+        c(sp, dtype=np.float64),
+        c(sv, dtype=np.float64),
+        c(sa, dtype=np.float64),
+        c(u_nom, dtype=np.float64),
+        c(filters, dtype=np.bool_),
+        bp.radii(vehicle),
+        bp.gain,
+        bp.horizontal_limit(vehicle.g),
+        bp.accel_up,
+        bp.accel_down,
+        bp.tiebreak,
+        bp.relax_weight,
+        bp.sensing_range,
+        bp.floor_m,
+        bp.priority_share,
+    )
 
 
 class BarrierRule(Rule):
@@ -537,24 +594,8 @@ class BarrierRule(Rule):
         self.ref[wait] = positions[wait]
         self.ref_vel[wait] = 0.0
         u_nom[wait] = 0.0
-        u, active, relaxed, _ = filter_accelerations(
-            np.ascontiguousarray(self.ref),
-            np.ascontiguousarray(self.ref_vel),
-            positions,
-            np.ascontiguousarray(self.sensed_vel),
-            self._no_acc,  # the leader's acceleration taken as 0: docs/barrier.md, "measured"
-            u_nom,
-            filters,
-            self.radii,
-            bp.gain,
-            self.a_h,
-            bp.accel_up,
-            bp.accel_down,
-            bp.tiebreak,
-            bp.relax_weight,
-            bp.sensing_range,
-            bp.floor_m,
-        )
+        sensed = (positions, self.sensed_vel, self._no_acc)  # the leader's acceleration taken as 0: docs/barrier.md
+        u, active, relaxed, _ = apply_filter(bp, self.ref, self.ref_vel, u_nom, filters, sensed)
         self.active_periods += int(active.sum())
         self.relaxed_periods += int(relaxed.sum())
         for i in np.flatnonzero(relaxed & ~self._was_relaxed):
@@ -564,6 +605,12 @@ class BarrierRule(Rule):
         self.ref_vel[f] += u[f] * dt
         self.ref[f] += self.ref_vel[f] * dt
         self.ref[f, 2] = np.maximum(self.ref[f, 2], 0.0)  # never below the ground
+        # the leash: a reference that a drone cannot follow (held by another, or by the ground) is
+        # kept within leash_m of it, so that the filter works on where the drone can be
+        gap = self.ref - positions
+        far = np.linalg.norm(gap, axis=1)
+        pull = f & (far > bp.leash_m)
+        self.ref[pull] = positions[pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
         out_p, out_v, out_a = np.array(pos_d, dtype=float), np.array(vel_d, dtype=float), np.array(acc_d, dtype=float)
         out_p[f], out_v[f], out_a[f] = self.ref[f], self.ref_vel[f], u[f]
         out_p[wait], out_v[wait], out_a[wait] = positions[wait], 0.0, 0.0
@@ -577,6 +624,7 @@ __all__ = [
     "DOWNWASH_MULTIPLE",
     "BarrierParams",
     "BarrierRule",
+    "apply_filter",
     "filter_accelerations",
     "keepout_radii",
     "pair_constraint",

@@ -12,7 +12,7 @@ from hypothesis import strategies as st
 
 from swarm_mj.formation.barrier import (
     BarrierParams,
-    filter_accelerations,
+    apply_filter,
     keepout_radii,
     pair_constraint,
     project_polyhedron,
@@ -200,36 +200,31 @@ vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
     up=st.floats(1.0, 8.0),
     down=st.floats(1.0, 6.0),
     spread=st.floats(0.3, 3.0),
+    prio=st.floats(0.0, 1.0),
 )
-def test_filter_properties(n, seed, gain, tilt, up, down, spread):
+def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio):
     rng = np.random.default_rng(seed)
     pos = rng.normal(scale=spread, size=(n, 3)) + np.array([0, 0, 3.0])
     vel = rng.normal(scale=1.5, size=(n, 3))
     u_nom = rng.normal(scale=2.0, size=(n, 3))
     filters = rng.random(n) < 0.8
-    bp = BarrierParams(gain=gain, max_tilt_deg=tilt, accel_up=up, accel_down=down, tiebreak=0.0)
-    radii, a_h = bp.radii(), bp.horizontal_limit()
-    u, active, relaxed, _ = filter_accelerations(
-        pos,
-        vel,
-        pos,
-        vel,
-        np.zeros_like(pos),
-        u_nom,
-        filters,
-        radii,
-        gain,
-        a_h,
-        up,
-        down,
-        0.0,
-        bp.relax_weight,
-        1e9,
-        -1.0,
+    bp = BarrierParams(
+        gain=gain,
+        max_tilt_deg=tilt,
+        accel_up=up,
+        accel_down=down,
+        tiebreak=0.0,
+        sensing_range=1e9,
+        floor_m=-1.0,
+        priority_share=prio,
     )
+    radii, a_h = bp.radii(), bp.horizontal_limit()
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
     for i in range(n):
         rows = [
-            _constraint(pos[i], vel[i], pos[j], vel[j], radii, gain, 0.5 if filters[j] else 1.0)
+            _constraint(
+                pos[i], vel[i], pos[j], vel[j], radii, gain, (prio if i < j else 1 - prio) if filters[j] else 1.0
+            )
             for j in range(n)
             if j != i
         ]
@@ -260,10 +255,7 @@ def test_relaxation_is_used_and_flagged():
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
     bp = BarrierParams(max_tilt_deg=5.0)
-    u, active, relaxed, _ = filter_accelerations(
-        pos, vel, pos, vel, np.zeros((2, 3)), np.zeros((2, 3)), np.ones(2, dtype=np.bool_), bp.radii(), bp.gain,
-        bp.horizontal_limit(), bp.accel_up, bp.accel_down, 0.0, bp.relax_weight, bp.sensing_range, bp.floor_m,
-    )  # fmt: skip
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
     assert active.all() and relaxed.all()
     for i in range(2):
         assert _limits_ok(u[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
@@ -280,17 +272,14 @@ def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
     filters = np.ones(n, dtype=np.bool_)
     if leader is not None:
         filters[leader] = False
-    radii, a_h = bp.radii(), bp.horizontal_limit()
+    a_h = bp.horizontal_limit()
     out, n_relaxed = [pos.copy()], 0
     for _ in range(int(T / dt)):
         u_nom = kp * (goal - pos) - kd * vel
         nh = np.linalg.norm(u_nom[:, :2], axis=1, keepdims=True)
         u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        u, _, relaxed, _ = filter_accelerations(
-            pos, vel, pos, vel, np.zeros_like(pos), u_nom, filters, radii, bp.gain, a_h, bp.accel_up, bp.accel_down,
-            bp.tiebreak, bp.relax_weight, bp.sensing_range, bp.floor_m,
-        )  # fmt: skip
+        u, _, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
         n_relaxed += int(relaxed.sum())
         vel += u * dt
         pos += vel * dt
