@@ -110,6 +110,10 @@ class BarrierParams:
     ``priority_share`` (–): the share of a pair's constraint the lower index takes (the higher takes
     the rest); ½ is Wang et al.'s equal split.
     ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
+    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad): the rule's nominal goes round the
+    leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
+    ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
+    > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -125,8 +129,12 @@ class BarrierParams:
     nominal_kp: float = 4.0
     nominal_kd: float = 4.0
     floor_m: float = 0.1
-    priority_share: float = 0.5
+    priority_share: float = 0.2
     leash_m: float = 0.25
+    accel_filter_s: float = 0.0
+    lanes: bool = True
+    lane_speed: float = 2.0
+    arrive_angle: float = 0.5
 
     def __post_init__(self) -> None:
         positive = (
@@ -149,6 +157,8 @@ class BarrierParams:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
         if not (0.0 <= self.priority_share <= 1.0):
             raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
+        if not (np.isfinite(self.accel_filter_s) and self.accel_filter_s >= 0):
+            raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
         if not (np.isfinite(self.leash_m) and self.leash_m > 0):
             raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
         if not (0.0 < self.max_tilt_deg < 90.0):
@@ -510,6 +520,45 @@ def apply_filter(
     )
 
 
+def lane_nominal(
+    bp: BarrierParams,
+    ref: np.ndarray,
+    ref_vel: np.ndarray,
+    leader: np.ndarray,
+    pos_d: np.ndarray,
+    vel_d: np.ndarray,
+    acc_d: np.ndarray,
+    radius: float,
+) -> np.ndarray:
+    """The rule's nominal accelerations (n, 3): a two-lane roundabout round the leader (docs/barrier.md).
+
+    In the leader's frame (horizontal), a follower whose slot is more than ``arrive_angle`` round
+    the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring of
+    radius D_k + 2·``radius`` (D_k its slot's distance from the leader), clockwise on D_k +
+    3·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and the two lanes are a
+    keep-out apart, so the traffic in opposite directions does not meet head-on), at ``lane_speed``,
+    pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
+    slot. The vertical is the PD to the slot's altitude in both. Row 0 (the leader) is the PD too."""
+    kp, kd = bp.nominal_kp, bp.nominal_kd
+    u = acc_d + kp * (pos_d - ref) + kd * (vel_d - ref_vel)  # (n, 3) straight to the slot
+    if not bp.lanes:
+        return u
+    o = ref[:, :2] - leader[None, :2]  # (n, 2) offset from the leader
+    ok = pos_d[:, :2] - leader[None, :2]  # (n, 2) slot offset
+    phi, phik = np.arctan2(o[:, 1], o[:, 0]), np.arctan2(ok[:, 1], ok[:, 0])
+    gap = (phik - phi + np.pi) % (2.0 * np.pi) - np.pi  # (n,) the shorter way round, rad
+    go = np.abs(gap) > bp.arrive_angle
+    go[0] = False
+    r = np.maximum(np.linalg.norm(o, axis=1), 1e-9)
+    radial = o / r[:, None]  # (n, 2)
+    tangent = np.stack([-radial[:, 1], radial[:, 0]], axis=1) * np.sign(gap)[:, None]  # the way to go
+    lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, 2.0, 3.0) * radius  # (n,) lane radius
+    v_want = vel_d[:, :2] + bp.lane_speed * tangent + (kp / kd) * (lane - r)[:, None] * radial
+    u_lane = acc_d[:, :2] + kd * (v_want - ref_vel[:, :2])
+    u[go, :2] = u_lane[go]
+    return u
+
+
 class BarrierRule(Rule):
     """``anti_collision = "barrier"`` (docs/barrier.md): the formation's references made safe by the
     barrier filter, with no other separation logic.
@@ -546,7 +595,8 @@ class BarrierRule(Rule):
         self.ref = np.array(positions, dtype=float)  # (n, 3) r
         self.ref_vel = np.zeros((self.n, 3))  # (n, 3) ṙ
         self.sensed_vel = np.zeros((self.n, 3))
-        self._no_acc = np.zeros((self.n, 3))
+        self.sensed_acc = np.zeros((self.n, 3))
+        self._prev_dt = 0.0
         self._prev_pos = np.array(positions, dtype=float)
         self._prev_t: float | None = None
         self._was_relaxed = np.zeros(self.n, dtype=bool)
@@ -575,10 +625,15 @@ class BarrierRule(Rule):
         positions = np.asarray(positions, dtype=float)
         dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
         if dt > 0.0:
-            self.sensed_vel = (positions - self._prev_pos) / dt
+            vel = (positions - self._prev_pos) / dt
+            if bp.accel_filter_s > 0.0 and self._prev_dt > 0.0:
+                raw = (vel - self.sensed_vel) / dt
+                self.sensed_acc += (raw - self.sensed_acc) * (dt / (bp.accel_filter_s + dt))
+            self.sensed_vel = vel
+        self._prev_dt = dt
         self._prev_t = float(t)
         self._prev_pos = positions.copy()
-        u_nom = np.asarray(acc_d, float) + bp.nominal_kp * (pos_d - self.ref) + bp.nominal_kd * (vel_d - self.ref_vel)
+        u_nom = lane_nominal(bp, self.ref, self.ref_vel, positions[0], pos_d, vel_d, acc_d, float(self.radii[0]))
         nh = np.sqrt(u_nom[:, 0] ** 2 + u_nom[:, 1] ** 2)
         u_nom[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / np.maximum(nh, 1e-12))[:, None]
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
@@ -594,7 +649,7 @@ class BarrierRule(Rule):
         self.ref[wait] = positions[wait]
         self.ref_vel[wait] = 0.0
         u_nom[wait] = 0.0
-        sensed = (positions, self.sensed_vel, self._no_acc)  # the leader's acceleration taken as 0: docs/barrier.md
+        sensed = (positions, self.sensed_vel, self.sensed_acc)  # zero unless accel_filter_s > 0
         u, active, relaxed, _ = apply_filter(bp, self.ref, self.ref_vel, u_nom, filters, sensed)
         self.active_periods += int(active.sum())
         self.relaxed_periods += int(relaxed.sum())
@@ -625,6 +680,7 @@ __all__ = [
     "BarrierParams",
     "BarrierRule",
     "apply_filter",
+    "lane_nominal",
     "filter_accelerations",
     "keepout_radii",
     "pair_constraint",
