@@ -292,14 +292,14 @@ def test_head_on_swap_tiebreak():
     and never enter the keep-out; without it they stop face to face (the deadlock)."""
     pos0 = np.array([[-2.0, 0.0, 2.0], [2.0, 0.0, 2.0]])
     goal = pos0[::-1].copy()
-    bp = BarrierParams()
+    bp = BarrierParams(priority_share=0.5)  # Wang et al.'s equal split: the symmetric case
     traj, relaxed = _fly(pos0, goal, bp)
     radii = bp.radii()
     rho = keepout_distance(traj[:, 0] - traj[:, 1], radii)
     assert rho.min() > 0.99, rho.min()  # the discrete-time filter at 10 ms: within 1 % of the ellipsoid
     np.testing.assert_allclose(traj[-1], goal, atol=0.05)
     assert relaxed == 0
-    stuck, _ = _fly(pos0, goal, BarrierParams(tiebreak=0.0))
+    stuck, _ = _fly(pos0, goal, BarrierParams(priority_share=0.5, tiebreak=0.0))
     assert np.linalg.norm(stuck[-1] - goal, axis=1).min() > 1.0  # deadlock without the tie-break
     assert keepout_distance(stuck[:, 0] - stuck[:, 1], radii).min() > 0.99
 
