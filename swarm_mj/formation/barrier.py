@@ -110,8 +110,9 @@ class BarrierParams:
     ``priority_share`` (–): the share of a pair's constraint the lower index takes (the higher takes
     the rest); ½ is Wang et al.'s equal split.
     ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
-    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad): the rule's nominal goes round the
-    leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
+    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_inner``, ``lane_outer`` (–,
+    in keep-out radii beyond the slot's distance): the rule's nominal goes round the leader on two
+    lanes (:func:`lane_nominal`) instead of straight to the slot.
     ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     """
@@ -134,7 +135,9 @@ class BarrierParams:
     accel_filter_s: float = 0.0
     lanes: bool = True
     lane_speed: float = 2.0
-    arrive_angle: float = 0.5
+    arrive_angle: float = 0.8
+    lane_inner: float = 1.2
+    lane_outer: float = 2.4
 
     def __post_init__(self) -> None:
         positive = (
@@ -534,9 +537,9 @@ def lane_nominal(
 
     In the leader's frame (horizontal), a follower whose slot is more than ``arrive_angle`` round
     the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring of
-    radius D_k + 2·``radius`` (D_k its slot's distance from the leader), clockwise on D_k +
-    3·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and the two lanes are a
-    keep-out apart, so the traffic in opposite directions does not meet head-on), at ``lane_speed``,
+    radius D_k + ``lane_inner``·``radius`` (D_k its slot's distance from the leader), clockwise on
+    D_k + ``lane_outer``·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and
+    the two lanes are a keep-out apart, so traffic in opposite directions does not meet head-on), at ``lane_speed``,
     pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
     slot. The vertical is the PD to the slot's altitude in both. Row 0 (the leader) is the PD too."""
     kp, kd = bp.nominal_kp, bp.nominal_kd
@@ -552,7 +555,7 @@ def lane_nominal(
     r = np.maximum(np.linalg.norm(o, axis=1), 1e-9)
     radial = o / r[:, None]  # (n, 2)
     tangent = np.stack([-radial[:, 1], radial[:, 0]], axis=1) * np.sign(gap)[:, None]  # the way to go
-    lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, 2.0, 3.0) * radius  # (n,) lane radius
+    lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, bp.lane_inner, bp.lane_outer) * radius  # (n,)
     v_want = vel_d[:, :2] + bp.lane_speed * tangent + (kp / kd) * (lane - r)[:, None] * radial
     u_lane = acc_d[:, :2] + kd * (v_want - ref_vel[:, :2])
     u[go, :2] = u_lane[go]
