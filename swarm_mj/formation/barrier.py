@@ -107,10 +107,12 @@ class BarrierParams:
     ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
     towards the formation's (critically damped at 2 rad/s).
     ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
-    ``priority_share`` (–): the share of a pair's constraint the lower index takes (the higher takes
-    the rest); ½ is Wang et al.'s equal split.
+    ``priority_share`` (–): the share of a pair's constraint the lower index takes when the constraint
+    asks for an acceleration apart (b > 0; the higher takes the rest; room, b ≤ 0, is split in
+    halves); ½ is Wang et al.'s equal split.
     ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
-    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_inner``, ``lane_outer`` (–,
+    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
+    ``lane_inner``, ``lane_outer`` (–,
     in keep-out radii beyond the slot's distance): the rule's nominal goes round the leader on two
     lanes (:func:`lane_nominal`) instead of straight to the slot.
     ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
@@ -132,10 +134,11 @@ class BarrierParams:
     floor_m: float = 0.1
     priority_share: float = 0.2
     leash_m: float = 0.25
-    accel_filter_s: float = 0.0
+    accel_filter_s: float = 0.05
     lanes: bool = True
     lane_speed: float = 2.0
-    arrive_angle: float = 0.8
+    arrive_angle: float = 0.15
+    lane_turn_gain: float = 2.0
     lane_inner: float = 1.2
     lane_outer: float = 2.4
 
@@ -402,7 +405,8 @@ def filter_accelerations(
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
     accelerations; filters (n,) bool: which drones filter
     (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
-    priority_share: the share the lower index of a pair of filtering drones takes (½: equal).
+    priority_share: the share of a burden (b > 0) the lower index of a pair of filtering drones takes
+    (½: equal; room, b ≤ 0, is split in halves).
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
     constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
@@ -438,8 +442,16 @@ def filter_accelerations(
                 d2 += p[c] * p[c]
             if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
                 continue
-            share = (priority_share if i < j else 1.0 - priority_share) if filters[j] else 1.0
-            a, bs, h, hd = pair_constraint(p, v, radii, gain, share)
+            a, bs, h, hd = pair_constraint(p, v, radii, gain, 1.0)
+            # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
+            # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
+            if not filters[j]:
+                share = 1.0
+            elif bs > 0.0:
+                share = priority_share if i < j else 1.0 - priority_share
+            else:
+                share = 0.5
+            bs *= share
             if not filters[j]:
                 bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
             lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
@@ -539,9 +551,11 @@ def lane_nominal(
     the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring of
     radius D_k + ``lane_inner``·``radius`` (D_k its slot's distance from the leader), clockwise on
     D_k + ``lane_outer``·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and
-    the two lanes are a keep-out apart, so traffic in opposite directions does not meet head-on), at ``lane_speed``,
+    the two lanes are a keep-out apart, so traffic in opposite directions does not meet head-on), at
+    ``lane_speed`` (at most ``lane_turn_gain``·r·|angle left|, so that it stops on its slot's ray),
     pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
-    slot. The vertical is the PD to the slot's altitude in both. Row 0 (the leader) is the PD too."""
+    slot, radially in from the lane (the formed ring is not crossed). The vertical is the PD to the
+    slot's altitude in both. Row 0 (the leader) is the PD too."""
     kp, kd = bp.nominal_kp, bp.nominal_kd
     u = acc_d + kp * (pos_d - ref) + kd * (vel_d - ref_vel)  # (n, 3) straight to the slot
     if not bp.lanes:
@@ -556,7 +570,8 @@ def lane_nominal(
     radial = o / r[:, None]  # (n, 2)
     tangent = np.stack([-radial[:, 1], radial[:, 0]], axis=1) * np.sign(gap)[:, None]  # the way to go
     lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, bp.lane_inner, bp.lane_outer) * radius  # (n,)
-    v_want = vel_d[:, :2] + bp.lane_speed * tangent + (kp / kd) * (lane - r)[:, None] * radial
+    v_t = np.minimum(bp.lane_speed, bp.lane_turn_gain * r * np.abs(gap))  # (n,) slowing onto the slot's ray
+    v_want = vel_d[:, :2] + v_t[:, None] * tangent + (kp / kd) * (lane - r)[:, None] * radial
     u_lane = acc_d[:, :2] + kd * (v_want - ref_vel[:, :2])
     u[go, :2] = u_lane[go]
     return u
@@ -596,6 +611,7 @@ class BarrierRule(Rule):
     def reset(self, positions: np.ndarray) -> None:
         self.events = []
         self.ref = np.array(positions, dtype=float)  # (n, 3) r
+        self._start_z = self.ref[:, 2].copy()  # (n,) where each drone stands on the ground
         self.ref_vel = np.zeros((self.n, 3))  # (n, 3) ṙ
         self.sensed_vel = np.zeros((self.n, 3))
         self.sensed_acc = np.zeros((self.n, 3))
@@ -650,6 +666,7 @@ class BarrierRule(Rule):
         wait = ground & blocking.any(axis=1) & self.filters
         filters = self.filters & ~wait
         self.ref[wait] = positions[wait]
+        self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])  # stays down
         self.ref_vel[wait] = 0.0
         u_nom[wait] = 0.0
         sensed = (positions, self.sensed_vel, self.sensed_acc)  # zero unless accel_filter_s > 0
@@ -671,7 +688,7 @@ class BarrierRule(Rule):
         self.ref[pull] = positions[pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
         out_p, out_v, out_a = np.array(pos_d, dtype=float), np.array(vel_d, dtype=float), np.array(acc_d, dtype=float)
         out_p[f], out_v[f], out_a[f] = self.ref[f], self.ref_vel[f], u[f]
-        out_p[wait], out_v[wait], out_a[wait] = positions[wait], 0.0, 0.0
+        out_p[wait], out_v[wait], out_a[wait] = self.ref[wait], 0.0, 0.0
         self.vel_d, self.acc_d = out_v, out_a
         return out_p, out_v, out_a
 

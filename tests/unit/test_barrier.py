@@ -181,11 +181,20 @@ def _limits_ok(u: np.ndarray, a_h: float, a_up: float, a_down: float) -> bool:
 
 
 def _constraint(pi, vi, pj, vj, radii, k, share):
-    """(B) for drone i, written here again from docs/barrier.md: A·u_i ≥ share·b."""
+    """(B) for drone i, written here again from docs/barrier.md: A·u_i ≥ share(b)·b."""
     S = 1.0 / radii
     q, qd = S * (pi - pj), S * (vi - vj)
     h, hd = q @ q - 1.0, 2 * q @ qd
-    return 2 * S * q, share * (-2 * qd @ qd - 2 * k * hd - k * k * h)
+    b = -2 * qd @ qd - 2 * k * hd - k * k * h
+    return 2 * S * q, share(b) * b
+
+
+def _share(i, j, filters, prio):
+    """docs/barrier.md's split: all of it against a drone that does not filter; a burden (b > 0) by
+    priority (the lower index takes prio); room (b ≤ 0) in halves."""
+    if not filters[j]:
+        return lambda b: 1.0
+    return lambda b: (prio if i < j else 1 - prio) if b > 0 else 0.5
 
 
 vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
@@ -222,9 +231,7 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio):
     u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
     for i in range(n):
         rows = [
-            _constraint(
-                pos[i], vel[i], pos[j], vel[j], radii, gain, (prio if i < j else 1 - prio) if filters[j] else 1.0
-            )
+            _constraint(pos[i], vel[i], pos[j], vel[j], radii, gain, _share(i, j, filters, prio))
             for j in range(n)
             if j != i
         ]
