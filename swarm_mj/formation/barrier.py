@@ -107,6 +107,8 @@ class BarrierParams:
     ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
     towards the formation's (critically damped at 2 rad/s).
     ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
+    ``gate_rho`` (–): a follower on the ground lifts off only when ρ ≥ gate_rho to every drone of
+    lower index and every airborne drone (the take-off gate).
     ``priority_share`` (–): the share of a pair's constraint the lower index takes when the constraint
     asks for an acceleration apart (b > 0; the higher takes the rest; room, b ≤ 0, is split in
     halves); ½ is Wang et al.'s equal split.
@@ -120,7 +122,7 @@ class BarrierParams:
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
-    tracking_margin_m: float = 0.035
+    tracking_margin_m: float = 0.02
     gain: float = 3.0
     max_tilt_deg: float = 30.0
     accel_up: float = 5.0
@@ -139,11 +141,13 @@ class BarrierParams:
     lane_speed: float = 2.0
     arrive_angle: float = 0.15
     lane_turn_gain: float = 2.0
+    gate_rho: float = 1.2
     lane_inner: float = 1.2
     lane_outer: float = 2.4
 
     def __post_init__(self) -> None:
         positive = (
+            "gate_rho",
             "downwash_multiple",
             "gain",
             "accel_up",
@@ -661,7 +665,7 @@ class BarrierRule(Rule):
         ground = positions[:, 2] < bp.floor_m
         rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / self.radii, axis=2)
         idx = np.arange(self.n)
-        blocking = (rho < 1.0) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
+        blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
         np.fill_diagonal(blocking, False)
         wait = ground & blocking.any(axis=1) & self.filters
         filters = self.filters & ~wait
