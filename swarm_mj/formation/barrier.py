@@ -22,9 +22,11 @@ exponential (second-order) control-barrier condition with the class-K functions 
 keeps ψ1 = ḣ + k·h and h non-negative for all time if both are at the start (Nguyen & Sreenath,
 ACC 2016; Wang, Ames & Egerstedt, IEEE T-RO 2017, whose decentralised split is used): (B) is linear
 in the relative acceleration, A·(u_i − u_j) ≥ b with A = 2 S q and b = −2‖q̇‖² − 2k·ḣ − k²·h; drone i
-enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, s_ij = ½ between two drones that
-both filter (Wang et al.'s equal split), s_ij = 1 when j does not (the leader, which flies its
-trajectory): their sum is (B) (a follower takes the leader's acceleration as 0: A·u_i ≥ b + A·a_j with a_j = 0).
+enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, so that their sum is (B). Room
+(b ≤ 0) is split in halves (Wang et al.'s equal split); a burden (b > 0) by priority, the lower
+index taking ``priority_share`` (b is symmetric in i, j, so both drones split the same way). Against
+a drone that does not filter (the leader, which flies its trajectory) a follower takes all of it,
+A·u_i ≥ b + A·â_j, â_j the leader's acceleration estimated from its positions (low-passed).
 
 **Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
 constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
@@ -49,14 +51,19 @@ its nominal before filtering: each of the two sees the other on its own left, so
 each other (the roundabout rule); a follower pressed against the keep-out of a drone that does
 not give way (the leader) slides round it the same way.
 
-**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while it is inside
-the keep-out of a drone of lower index or of an airborne one: the barrier cannot push a drone on
+**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while its ρ to a
+drone of lower index or to an airborne one is below ``gate_rho``: the barrier cannot push a drone on
 the ground sideways, and lifting off inside a keep-out would start the pair with h < 0, where (B)
 only brings h back exponentially.
 
-**Tracking.** The filter works on the reference each drone's controller tracks; the real, lagged
-drone is within ``tracking_margin_m`` of it (measured: docs/barrier.md), so the filter's keep-out
-is the vehicle's inflated by twice that margin.
+**Tracking.** The filter works on the reference each drone's controller tracks (kept within
+``leash_m`` of the drone); the real, lagged drone is off it by its tracking error, for which the
+filter's keep-out is the vehicle's inflated by twice ``tracking_margin_m`` (docs/barrier.md gives
+the measured error and why the margin is smaller).
+
+**The rule** (:class:`BarrierRule`, ``anti_collision = "barrier"``): the filter on a nominal that
+goes round the leader on two lanes (:func:`lane_nominal`), so that followers do not meet the leader
+or each other head-on.
 """
 
 from __future__ import annotations
@@ -114,9 +121,8 @@ class BarrierParams:
     halves); ½ is Wang et al.'s equal split.
     ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
     ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
-    ``lane_inner``, ``lane_outer`` (–,
-    in keep-out radii beyond the slot's distance): the rule's nominal goes round the leader on two
-    lanes (:func:`lane_nominal`) instead of straight to the slot.
+    ``lane_inner``, ``lane_outer`` (–, in keep-out radii beyond the slot's distance): the rule's
+    nominal goes round the leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
     ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     """
@@ -156,6 +162,10 @@ class BarrierParams:
             "sensing_range",
             "nominal_kp",
             "nominal_kd",
+            "lane_speed",
+            "lane_turn_gain",
+            "lane_inner",
+            "lane_outer",
         )
         for name in positive:
             v = getattr(self, name)
@@ -167,6 +177,10 @@ class BarrierParams:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
         if not (0.0 <= self.priority_share <= 1.0):
             raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
+        if not (0.0 < self.arrive_angle < np.pi):
+            raise UserError(f"barrier parameter arrive_angle must be in (0, π), got {self.arrive_angle!r}")
+        if self.lane_outer <= self.lane_inner:
+            raise UserError(f"barrier parameter lane_outer must exceed lane_inner, got {self.lane_outer!r}")
         if not (np.isfinite(self.accel_filter_s) and self.accel_filter_s >= 0):
             raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
         if not (np.isfinite(self.leash_m) and self.leash_m > 0):
