@@ -123,6 +123,7 @@ class BarrierParams:
     ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
     ``lane_inner``, ``lane_outer`` (–, in keep-out radii beyond the slot's distance): the rule's
     nominal goes round the leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
+    ``both_states`` (bool): each constraint also on the drone's sensed state, not only its reference.
     ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     """
@@ -150,6 +151,7 @@ class BarrierParams:
     gate_rho: float = 1.2
     lane_inner: float = 1.2
     lane_outer: float = 2.4
+    both_states: bool = True
 
     def __post_init__(self) -> None:
         positive = (
@@ -392,7 +394,26 @@ def _filter_samples():
     z = np.zeros((2, 3))
     pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
     return [
-        (pos, z, pos, z, z, z, np.ones(2, dtype=np.bool_), np.ones(3), 3.0, 3.9, 5.0, 3.0, 1.0, 100.0, 4.0, 0.1, 0.5)
+        (
+            pos,
+            z,
+            pos,
+            z,
+            z,
+            z,
+            np.ones(2, dtype=np.bool_),
+            np.ones(3),
+            3.0,
+            3.9,
+            5.0,
+            3.0,
+            1.0,
+            100.0,
+            4.0,
+            0.1,
+            0.5,
+            True,
+        )
     ]
 
 
@@ -415,6 +436,7 @@ def filter_accelerations(
     sensing_range: float,
     floor: float,
     priority_share: float,
+    both_states: bool,
 ):
     """The decentralised barrier filter of the module docstring, for n drones at once.
 
@@ -428,13 +450,15 @@ def filter_accelerations(
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
     constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
-    (on the ground, sensed_pos) is not filtered."""
+    (on the ground, sensed_pos) is not filtered. ``both_states``: each neighbour's constraint is
+    also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a drone that
+    lags its reference is kept out too (docs/barrier.md, "tracking")."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
     relaxed = np.zeros(n, dtype=np.bool_)
     kept = np.zeros(n, dtype=np.int64)
-    m_max = n + 10
+    m_max = 2 * n + 10
     A = np.zeros((m_max, 3))
     b = np.zeros(m_max)
     A4 = np.zeros((m_max + 1, 4))
@@ -453,39 +477,46 @@ def filter_accelerations(
         for j in range(n):
             if j == i:
                 continue
-            d2 = 0.0
-            for c in range(3):
-                p[c] = pos[i, c] - sensed_pos[j, c]
-                v[c] = vel[i, c] - sensed_vel[j, c]
-                d2 += p[c] * p[c]
-            if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
-                continue
-            a, bs, h, hd = pair_constraint(p, v, radii, gain, 1.0)
-            # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
-            # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
-            if not filters[j]:
-                share = 1.0
-            elif bs > 0.0:
-                share = priority_share if i < j else 1.0 - priority_share
-            else:
-                share = 0.5
-            bs *= share
-            if not filters[j]:
-                bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
-            lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
-            if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
-                continue  # no input within the limits can violate it, nor does the nominal: redundant
-            if lhs < bs:
-                violated = True
-                if tiebreak > 0.0:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
-                    nh = np.sqrt(p[0] * p[0] + p[1] * p[1])
-                    if nh > 1e-9:
-                        un[0] += tiebreak * (-p[1] / nh)
-                        un[1] += tiebreak * (p[0] / nh)
-            for c in range(3):
-                A[m, c] = a[c]
-            b[m] = bs
-            m += 1
+            turned = False
+            for src in range(2 if both_states else 1):
+                d2 = 0.0
+                for c in range(3):
+                    if src == 0:  # the drone's own (reference) state
+                        p[c] = pos[i, c] - sensed_pos[j, c]
+                        v[c] = vel[i, c] - sensed_vel[j, c]
+                    else:  # its sensed (real) state
+                        p[c] = sensed_pos[i, c] - sensed_pos[j, c]
+                        v[c] = sensed_vel[i, c] - sensed_vel[j, c]
+                    d2 += p[c] * p[c]
+                if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
+                    continue
+                a, bs, h, hd = pair_constraint(p, v, radii, gain, 1.0)
+                # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
+                # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
+                if not filters[j]:
+                    share = 1.0
+                elif bs > 0.0:
+                    share = priority_share if i < j else 1.0 - priority_share
+                else:
+                    share = 0.5
+                bs *= share
+                if not filters[j]:
+                    bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
+                lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
+                if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
+                    continue  # no input within the limits can violate it, nor does the nominal: redundant
+                if lhs < bs:
+                    violated = True
+                    if tiebreak > 0.0 and not turned:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
+                        turned = True
+                        nh = np.sqrt(p[0] * p[0] + p[1] * p[1])
+                        if nh > 1e-9:
+                            un[0] += tiebreak * (-p[1] / nh)
+                            un[1] += tiebreak * (p[0] / nh)
+                for c in range(3):
+                    A[m, c] = a[c]
+                b[m] = bs
+                m += 1
         kept[i] = m
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
@@ -550,6 +581,7 @@ def apply_filter(
         bp.sensing_range,
         bp.floor_m,
         bp.priority_share,
+        bp.both_states,
     )
 
 
