@@ -210,8 +210,9 @@ vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
     down=st.floats(1.0, 6.0),
     spread=st.floats(0.3, 3.0),
     prio=st.floats(0.0, 1.0),
+    track=st.sampled_from([0.0, 0.05, 0.2]),
 )
-def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio):
+def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
     rng = np.random.default_rng(seed)
     pos = rng.normal(scale=spread, size=(n, 3)) + np.array([0, 0, 3.0])
     vel = rng.normal(scale=1.5, size=(n, 3))
@@ -228,12 +229,15 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio):
         priority_share=prio,
     )
     radii, a_h = bp.radii(), bp.horizontal_limit()
-    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
+    # what the others sense: each drone off its own (reference) state by a tracking error
+    sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))))
     for i in range(n):
         rows = [
-            _constraint(pos[i], vel[i], pos[j], vel[j], radii, gain, _share(i, j, filters, prio))
+            _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
             for j in range(n)
             if j != i
+            for own_p, own_v in ((pos[i], vel[i]), (sp[i], sv[i]))  # reference and sensed state
         ]
         nominal_ok = all(A @ u_nom[i] >= b for A, b in rows)
         if not filters[i] or nominal_ok:
