@@ -632,14 +632,16 @@ class BarrierRule(Rule):
     barrier filter, with no other separation logic.
 
     Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
-    acceleration references). Every period its nominal acceleration is the PD of :class:`BarrierParams`
-    towards the formation's references (limited to the filter's input limits),
-    u_nom = a_slot + kp·(p_slot − r) + kd·(v_slot − ṙ); :func:`filter_accelerations` changes it as
-    little as possible so that (B) holds against every drone within ``sensing_range`` (their positions
-    as sensed, their velocities estimated from successive positions), and (r, ṙ) advance with the
-    result (semi-implicit Euler over the control period). The leader flies its trajectory and does
-    not filter; the followers take all of each constraint with it. A relaxation is an event
-    ``{t, drone, other: -1, action: "relax"}`` (the first period of each stretch).
+    acceleration references). Every period its nominal acceleration is :func:`lane_nominal` (round
+    the leader on a lane, then the PD of :class:`BarrierParams` to the slot; limited to the filter's
+    input limits); :func:`filter_accelerations` changes it as little as possible so that (B) holds,
+    on its reference and on its sensed state, against every drone within ``sensing_range`` (their
+    positions as sensed, their velocities and the leader's acceleration estimated from successive
+    positions), and (r, ṙ) advance with the result (semi-implicit Euler over the control period),
+    kept within ``leash_m`` of the drone. A follower on the ground waits under the take-off gate.
+    The leader flies its trajectory and does not filter; the followers take all of each constraint
+    with it. A relaxation is an event ``{t, drone, other: -1, action: "relax"}`` (the first period of
+    each stretch); ``active_periods`` and ``relaxed_periods`` count drone-periods.
     """
 
     name = "barrier"
