@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import scipy.optimize as scipy_optimize  # the reference QP solver (the test extra)
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -19,8 +20,6 @@ from swarm_mj.formation.barrier import (
 )
 from swarm_mj.metrics import keepout_distance, keepout_min_distance, keepout_time_s
 from swarm_mj.params import QuadParams
-
-scipy_optimize = pytest.importorskip("scipy.optimize")
 
 
 def _reference_projection(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
