@@ -37,6 +37,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.formation.slots",
     "swarm_mj.formation.anticollision",
     "swarm_mj.formation.layered",
+    "swarm_mj.formation.barrier",
     "swarm_mj.control.backstepping",
     "swarm_mj.control.lag",
     "swarm_mj.env",

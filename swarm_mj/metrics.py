@@ -235,3 +235,53 @@ def downwash_dip(
     i = int(np.argmax(in_jets[kk, :, j]))
     out.update(worst_m=float(dips[kk, j]), drone=int(j), above=i if in_jets[kk, i, j] else -1, t_s=float(t[kk]))
     return out
+
+
+# ---------------------------------------------------------------------------- keep-out invariant
+#: A drone is airborne at a sample when its centre is above this altitude (m), the bar of
+#: ``min_separation_airborne_m`` (docs/barrier.md, "the invariant measured").
+AIRBORNE_M = 0.1
+
+
+def keepout_distance(offset: np.ndarray, radii: np.ndarray) -> np.ndarray:
+    """Normalised ellipsoidal distance ρ = ‖S·p‖ (...,) of centre offsets p (..., 3), S = diag(1/radii)
+    (docs/barrier.md, "keep-out"): ρ = 1 on the keep-out ellipsoid of radii (a, a, c), < 1 inside."""
+    return np.linalg.norm(np.asarray(offset, dtype=float) / np.asarray(radii, dtype=float), axis=-1)
+
+
+def keepout_per_sample(pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> np.ndarray:
+    """Smallest normalised ellipsoidal distance (k,) over the pairs of drones both airborne (centre
+    above ``airborne`` m) at each sample of pos (k, n, 3); +inf where no pair is."""
+    pos = np.asarray(pos, dtype=float)
+    k, n = pos.shape[:2]
+    if n < 2 or k == 0:
+        return np.full(k, np.inf)
+    i, j = np.triu_indices(n, 1)
+    rho = keepout_distance(pos[:, i, :] - pos[:, j, :], radii)  # (k, pairs)
+    up = pos[:, :, 2] > airborne  # (k, n)
+    rho = np.where(up[:, i] & up[:, j], rho, np.inf)
+    return rho.min(axis=1)
+
+
+def keepout_min_distance(pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> float:
+    """``keepout_min_distance``: the smallest normalised ellipsoidal distance between two airborne
+    drones over a run (pos (k, n, 3)); 1 = on the keep-out, < 1 = inside; +inf if never two airborne."""
+    return float(np.min(keepout_per_sample(pos, radii, airborne), initial=np.inf))
+
+
+def keepout_time_s(t: np.ndarray, pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> float:
+    """``keepout_time_s``: the time (s) during which some pair of airborne drones is inside the
+    keep-out (ρ < 1): the samples of t (k,) where that holds × the median sample period."""
+    t = np.asarray(t, dtype=float)
+    if len(t) < 2:
+        return 0.0
+    inside = keepout_per_sample(pos, radii, airborne) < 1.0
+    return float(inside.sum() * np.median(np.diff(t)))
+
+
+def keepout_summary(t: np.ndarray, pos: np.ndarray, radii: np.ndarray) -> dict:
+    """The run summary's keep-out keys: ``keepout_min_distance`` (None for one drone, +inf when
+    never two are airborne) and ``keepout_time_s`` (docs/barrier.md, "the invariant measured")."""
+    if np.asarray(pos).shape[1] < 2:
+        return {"keepout_min_distance": None, "keepout_time_s": 0.0}
+    return {"keepout_min_distance": keepout_min_distance(pos, radii), "keepout_time_s": keepout_time_s(t, pos, radii)}

@@ -24,8 +24,17 @@ from .aero.presets import with_aero
 from .env import Command, StepRecord, SwarmEnv
 from .errors import SimulationDiverged, UserError
 from .fast import CHUNK, FastLoop, signature, why_not
+from .formation.barrier import keepout_radii
 from .interrupt import CooperativeInterrupt
-from .metrics import downwash_dip, formation_settling, leader_distances, min_separation, rmse, step_metrics
+from .metrics import (
+    downwash_dip,
+    formation_settling,
+    keepout_summary,
+    leader_distances,
+    min_separation,
+    rmse,
+    step_metrics,
+)
 from .policy import BacksteppingPolicy
 from .progress import Progress
 from .records import LogRows, Obs
@@ -329,6 +338,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     }
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
+    out.update(keepout_summary(t, log.pos, keepout_radii(policy.controller.params)))  # docs/barrier.md
     if len(t):
         out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:

@@ -93,6 +93,8 @@ def fly_case(case: StressCase) -> dict:
         "ground_contacts": int(s.get("ground_contacts", 0)),
         "downwash_dip_m": float(s.get("downwash_dip_worst_m", 0.0)),
         "time_in_jet_s": float((s.get("downwash_dip") or {}).get("time_in_jet_s", 0.0)),
+        "keepout_min_distance": float(s.get("keepout_min_distance") or float("inf")),
+        "keepout_time_s": float(s.get("keepout_time_s", 0.0)),
     }
 
 
@@ -114,6 +116,11 @@ def summarize_rule(rows: list[dict]) -> dict:
         "crashes": sum(r.get("crashes", 0) for r in rows),
         "seeds_with_crash": [r["seed"] for r in rows if r.get("crashes", 0) > 0],
         "ground_contacts": sum(r.get("ground_contacts", 0) for r in rows),
+        # the keep-out invariant (docs/barrier.md): worst normalised distance, time inside
+        "keepout_min_distance": min((r["keepout_min_distance"] for r in rows), default=float("inf")),
+        "keepout_time_worst_s": max((r["keepout_time_s"] for r in rows), default=0.0),
+        "keepout_time_total_s": sum(r["keepout_time_s"] for r in rows),
+        "starts_in_keepout": sum(r["keepout_time_s"] > 0 for r in rows),
     }
 
 
@@ -178,7 +185,8 @@ def format_table(table: dict, followers: int) -> str:
     docs/aero.md; dip: the worst downwash dip, docs/interpretations.md §4)."""
     head = (
         f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
-        f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8}"
+        f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8} "
+        f"{'keep-out ρ':>10} {'in keep-out (s)':>15}"
         f"   ({followers} followers)"
     )
     lines = [head]
@@ -187,7 +195,7 @@ def format_table(table: dict, followers: int) -> str:
             f"{rule:<11} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
             f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
             f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
-            f"{r['downwash_dip_worst_m']:>8.3f}"
+            f"{r['downwash_dip_worst_m']:>8.3f} {r['keepout_min_distance']:>10.3f} {r['keepout_time_total_s']:>15.2f}"
         )
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]

@@ -1,0 +1,764 @@
+"""Safety barrier certificates for the swarm (docs/barrier.md): a downwash-aware ellipsoidal keep-out,
+its control-barrier constraint per pair of drones, and the per-drone filter that changes a nominal
+acceleration command as little as possible so that every constraint holds.
+
+The functional core is independent of the rule classes: :func:`keepout_radii` (the keep-out of a
+vehicle), :func:`pair_constraint` (one barrier constraint) and :func:`filter_accelerations` (the
+decentralised filter, compiled), configured by one frozen record, :class:`BarrierParams`.
+
+**Keep-out.** Drones i and j are apart when the centre offset p = p_i − p_j lies outside the
+ellipsoid of radii (a, a, c): with q = S·p, S = diag(1/a, 1/a, 1/c), the *normalised ellipsoidal
+distance* is ρ = ‖q‖ (ρ = 1 on the ellipsoid). a = 2·(L + r_rotor) is the centre distance at which
+two level drones' rotor tips touch; c = ``downwash_multiple``·a, taller than wide, because a drone
+below another sits in its downwash (Preiss et al., Crazyswarm, ICRA 2017: radii 0.12, 0.12, 0.3 m;
+the Crazyflie firmware: 0.3, 0.3, 0.9 m — a ratio of 2.5 to 3).
+
+**Barrier.** h = ρ² − 1 = pᵀ S² p − 1 ≥ 0 outside the keep-out. Under double-integrator dynamics
+(p̈_i = u_i) it has relative degree two: ḣ = 2 qᵀq̇, ḧ = 2 q̇ᵀq̇ + 2 (S q)ᵀ (u_i − u_j). The
+exponential (second-order) control-barrier condition with the class-K functions α(s) = k·s,
+
+    ḧ + 2k·ḣ + k²·h ≥ 0,                                                        (B)
+
+keeps ψ1 = ḣ + k·h and h non-negative for all time if both are at the start (Nguyen & Sreenath,
+ACC 2016; Wang, Ames & Egerstedt, IEEE T-RO 2017, whose decentralised split is used): (B) is linear
+in the relative acceleration, A·(u_i − u_j) ≥ b with A = 2 S q and b = −2‖q̇‖² − 2k·ḣ − k²·h; drone i
+enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, so that their sum is (B). Room
+(b ≤ 0) is split in halves (Wang et al.'s equal split); a burden (b > 0) by priority, the lower
+index taking ``priority_share`` (b is symmetric in i, j, so both drones split the same way). Against
+a drone that does not filter (the leader, which flies its trajectory) a follower takes all of it,
+A·u_i ≥ b + A·â_j, â_j the leader's acceleration estimated from its positions (low-passed).
+
+**Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
+constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
+tilt-limit disc of radius (g − a_down)·tan θ_max, the vertical one within [−a_down, a_up]). It
+acts only when the nominal command violates a barrier constraint (otherwise u_i = u_nom,i exactly,
+the controller saturating as before). The QP is solved exactly: its solution is the projection of
+u_nom onto the affine hull of a linearly independent subset (at most 3) of its active constraints
+(KKT with Carathéodory), so the feasible candidate of least cost over all such subsets is the
+optimum (:func:`project_polyhedron`). A neighbour's constraint that no input within the limits can
+violate is dropped first (exactly: its minimum over the limits' vertices).
+
+**Infeasible.** When no input within the limits satisfies every constraint, the barrier constraints
+are relaxed by a common slack δ ≥ 0 in metres per second squared along each constraint's normal,
+A·u ≥ b − δ·‖A‖, with cost ‖u − u_nom‖² + w·δ² (the limits stay hard: they are physics); the
+drone's ``relaxed`` flag is set and counted.
+
+**Deadlock tie-break.** Two drones flying head-on at each other are stopped by (B) face to face
+(the nominal and the constraint's normal are collinear). When a drone's nominal violates the
+constraint of a neighbour (pushes into it), a *keep-right* acceleration of ``tiebreak``
+m/s², horizontal and perpendicular to the line joining them (ẑ × n̂, n̂ from j to i), is added to
+its nominal before filtering: each of the two sees the other on its own left, so they pass
+each other (the roundabout rule); a follower pressed against the keep-out of a drone that does
+not give way (the leader) slides round it the same way.
+
+**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while its ρ to a
+drone of lower index or to an airborne one is below ``gate_rho``: the barrier cannot push a drone on
+the ground sideways, and lifting off inside a keep-out would start the pair with h < 0, where (B)
+only brings h back exponentially.
+
+**Tracking.** The filter works on the reference each drone's controller tracks (kept within
+``leash_m`` of the drone); the real, lagged drone is off it by its tracking error, for which the
+filter's keep-out is the vehicle's inflated by twice ``tracking_margin_m`` (docs/barrier.md gives
+the measured error and why the margin is smaller).
+
+**The rule** (:class:`BarrierRule`, ``anti_collision = "barrier"``): the filter on a nominal that
+goes round the leader on two lanes (:func:`lane_nominal`), so that followers do not meet the leader
+or each other head-on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .._jit import jit
+from ..aero.constants import ROTOR_RADIUS
+from ..errors import UserError
+from ..params import DEFAULT_PARAMS, QuadParams
+from .anticollision import ANTI_COLLISION_RULES, Rule
+from .rule_params import PRESETS, RuleParams
+
+#: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
+#: 0.3/0.12 = 2.5, the Crazyflie firmware 0.9/0.3 = 3 (docs/barrier.md, "keep-out").
+DOWNWASH_MULTIPLE = 3.0
+
+
+def keepout_radii(
+    vehicle: QuadParams = DEFAULT_PARAMS,
+    rotor_radius: float = ROTOR_RADIUS,
+    downwash_multiple: float = DOWNWASH_MULTIPLE,
+    margin: float = 0.0,
+) -> np.ndarray:
+    """Radii (a, a, c) (3,) of the pairwise keep-out of a vehicle (m): a = 2·(L + r_rotor) + 2·margin,
+    the centre distance at which two level drones' rotor tips touch (plus each drone's margin);
+    c = downwash_multiple·2·(L + r_rotor) + 2·margin (docs/barrier.md, "keep-out")."""
+    span = float(vehicle.L) + float(rotor_radius)
+    a = 2.0 * span + 2.0 * margin
+    c = float(downwash_multiple) * 2.0 * span + 2.0 * margin
+    return np.array([a, a, c])
+
+
+@dataclass(frozen=True)
+class BarrierParams:
+    """The filter's parameters (docs/barrier.md, "parameters", gives each one's reason).
+
+    ``downwash_multiple`` (–): vertical radius / horizontal radius of the keep-out.
+    ``tracking_margin_m`` (m): the real drone's distance from the reference it tracks.
+    ``gain`` k (1/s): the class-K functions α(s) = k·s of (B), both of them (critically damped).
+    ``max_tilt_deg`` (°), ``accel_up``, ``accel_down`` (m/s²): the input limits.
+    ``tiebreak`` (m/s²): the keep-right acceleration of the deadlock tie-break.
+    ``relax_weight`` (–): w, the cost of the slack δ when the constraints are infeasible.
+    ``sensing_range`` (m): a drone filters against the drones within this 3D distance.
+    ``leader_filters`` (bool): whether drone 0 takes its share (False: the followers take all of it).
+    ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
+    towards the formation's (critically damped at 2 rad/s).
+    ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
+    ``gate_rho`` (–): a follower on the ground lifts off only when ρ ≥ gate_rho to every drone of
+    lower index and every airborne drone (the take-off gate).
+    ``priority_share`` (–): the share of a pair's constraint the lower index takes when the constraint
+    asks for an acceleration apart (b > 0; the higher takes the rest; room, b ≤ 0, is split in
+    halves); ½ is Wang et al.'s equal split.
+    ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
+    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
+    ``lane_inner``, ``lane_outer`` (–, in keep-out radii beyond the slot's distance): the rule's
+    nominal goes round the leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
+    ``both_states`` (bool): each constraint also on the drone's sensed state, not only its reference.
+    ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
+    > 0: its acceleration is estimated from its positions, low-passed with this time constant.
+    """
+
+    downwash_multiple: float = DOWNWASH_MULTIPLE
+    tracking_margin_m: float = 0.02
+    gain: float = 3.0
+    max_tilt_deg: float = 30.0
+    accel_up: float = 5.0
+    accel_down: float = 3.0
+    tiebreak: float = 1.0
+    relax_weight: float = 100.0
+    sensing_range: float = 4.0
+    leader_filters: bool = False
+    nominal_kp: float = 4.0
+    nominal_kd: float = 4.0
+    floor_m: float = 0.1
+    priority_share: float = 0.2
+    leash_m: float = 0.25
+    accel_filter_s: float = 0.05
+    lanes: bool = True
+    lane_speed: float = 2.0
+    arrive_angle: float = 0.15
+    lane_turn_gain: float = 2.0
+    gate_rho: float = 1.2
+    lane_inner: float = 1.2
+    lane_outer: float = 2.4
+    both_states: bool = True
+
+    def __post_init__(self) -> None:
+        positive = (
+            "gate_rho",
+            "downwash_multiple",
+            "gain",
+            "accel_up",
+            "accel_down",
+            "relax_weight",
+            "sensing_range",
+            "nominal_kp",
+            "nominal_kd",
+            "lane_speed",
+            "lane_turn_gain",
+            "lane_inner",
+            "lane_outer",
+        )
+        for name in positive:
+            v = getattr(self, name)
+            if not np.isfinite(v) or v <= 0:
+                raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
+        for name in ("tracking_margin_m", "tiebreak"):
+            v = getattr(self, name)
+            if not np.isfinite(v) or v < 0:
+                raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
+        if not (0.0 <= self.priority_share <= 1.0):
+            raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
+        if not (0.0 < self.arrive_angle < np.pi):
+            raise UserError(f"barrier parameter arrive_angle must be in (0, π), got {self.arrive_angle!r}")
+        if self.lane_outer <= self.lane_inner:
+            raise UserError(f"barrier parameter lane_outer must exceed lane_inner, got {self.lane_outer!r}")
+        if not (np.isfinite(self.accel_filter_s) and self.accel_filter_s >= 0):
+            raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
+        if not (np.isfinite(self.leash_m) and self.leash_m > 0):
+            raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
+        if not (0.0 < self.max_tilt_deg < 90.0):
+            raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
+        if self.accel_down >= 9.81:
+            raise UserError(f"barrier parameter accel_down must be below g, got {self.accel_down!r}")
+
+    def radii(self, vehicle: QuadParams = DEFAULT_PARAMS) -> np.ndarray:
+        """The filter's keep-out radii (3,): the vehicle's, inflated by the tracking margin."""
+        return keepout_radii(vehicle, downwash_multiple=self.downwash_multiple, margin=self.tracking_margin_m)
+
+    def horizontal_limit(self, g: float = 9.81) -> float:
+        """Radius of the horizontal acceleration disc (m/s²): (g − a_down)·tan θ_max, what the tilt
+        limit allows at the lowest thrust the vertical limit leaves."""
+        return float((g - self.accel_down) * np.tan(np.radians(self.max_tilt_deg)))
+
+
+# ------------------------------------------------------------------------------------------ kernels
+_TOL = 1e-9  # feasibility tolerance of a constraint, relative to (1 + |b|)
+
+
+@jit
+def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray) -> bool:
+    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting; False if singular."""
+    M = np.empty((4, 5))
+    scale = 0.0
+    for i in range(s):
+        for j in range(s):
+            M[i, j] = G[i, j]
+            scale = max(scale, abs(G[i, j]))
+        M[i, s] = r[i]
+    if scale == 0.0:
+        return False
+    for c in range(s):
+        p = c
+        for i in range(c + 1, s):
+            if abs(M[i, c]) > abs(M[p, c]):
+                p = i
+        if abs(M[p, c]) <= 1e-10 * scale:
+            return False
+        if p != c:
+            for j in range(s + 1):
+                tmp = M[c, j]
+                M[c, j] = M[p, j]
+                M[p, j] = tmp
+        for i in range(c + 1, s):
+            f = M[i, c] / M[c, c]
+            for j in range(c, s + 1):
+                M[i, j] -= f * M[c, j]
+    for i in range(s - 1, -1, -1):
+        acc = M[i, s]
+        for j in range(i + 1, s):
+            acc -= M[i, j] * x[j]
+        x[i] = acc / M[i, i]
+    return True
+
+
+@jit
+def _candidate(
+    w0: np.ndarray, A: np.ndarray, b: np.ndarray, m: int, idx: np.ndarray, s: int, w: np.ndarray, lam: np.ndarray
+) -> bool:
+    """Projection w of w0 onto {w: A[idx[k]]·w = b[idx[k]], k < s}; True if it exists and satisfies
+    every constraint A[:m]·w ≥ b[:m] (within the tolerance)."""
+    d = w0.shape[0]
+    G = np.empty((4, 4))
+    r = np.empty(4)
+    for k in range(s):
+        rk = b[idx[k]]
+        for c in range(d):
+            rk -= A[idx[k], c] * w0[c]
+        r[k] = rk
+        for l2 in range(s):
+            g = 0.0
+            for c in range(d):
+                g += A[idx[k], c] * A[idx[l2], c]
+            G[k, l2] = g
+    if s > 0 and not _solve_small(G, r, s, lam):
+        return False
+    for c in range(d):
+        v = w0[c]
+        for k in range(s):
+            v += A[idx[k], c] * lam[k]
+        w[c] = v
+    for k in range(m):
+        v = 0.0
+        for c in range(d):
+            v += A[k, c] * w[c]
+        if v < b[k] - _TOL * (1.0 + abs(b[k])):
+            return False
+    return True
+
+
+@jit
+def _consider(w0, A, b, m, idx, s, best, cand, lam) -> bool:
+    """Evaluate the candidate of the subset idx[:s]; keep it in ``best`` (cost in best[d]) if cheaper."""
+    d = w0.shape[0]
+    if not _candidate(w0, A, b, m, idx, s, cand, lam):
+        return False
+    cost = 0.0
+    for c in range(d):
+        cost += (cand[c] - w0[c]) ** 2
+    if cost < best[d]:
+        for c in range(d):
+            best[c] = cand[c]
+        best[d] = cost
+    return True
+
+
+@jit(samples=lambda: [(np.zeros(3), np.array([[1.0, 0.0, 0.0]]), np.array([1.0]))])
+def project_polyhedron(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
+    """argmin ‖w − w0‖² subject to A·w ≥ b (A (m, d), d ≤ 4), exactly, and whether it is feasible.
+
+    The optimum w* satisfies w* − w0 = A_Sᵀλ, λ ≥ 0, over its active set S; by Carathéodory a
+    linearly independent subset S' ⊆ S (|S'| ≤ d) carries the same combination, so w* is the
+    projection of w0 onto the affine set A_S'·w = b_S'. Every such projection that satisfies all
+    the constraints is a feasible point, so the cheapest of them over all linearly independent
+    subsets of at most d rows is w* (and w0 itself, the empty subset, when it is feasible).
+    Returns (w0, False) when no candidate is feasible (then the set is empty)."""
+    m, d = A.shape
+    w0c = w0.copy()
+    best = np.empty(d + 1)
+    best[d] = np.inf
+    cand = np.empty(d)
+    lam = np.empty(4)
+    idx = np.empty(4, dtype=np.int64)
+    if _consider(w0c, A, b, m, idx, 0, best, cand, lam):
+        return w0c, True
+    for i0 in range(m):
+        idx[0] = i0
+        _consider(w0c, A, b, m, idx, 1, best, cand, lam)
+        if d < 2:
+            continue
+        for i1 in range(i0 + 1, m):
+            idx[1] = i1
+            _consider(w0c, A, b, m, idx, 2, best, cand, lam)
+            if d < 3:
+                continue
+            for i2 in range(i1 + 1, m):
+                idx[2] = i2
+                _consider(w0c, A, b, m, idx, 3, best, cand, lam)
+                if d < 4:
+                    continue
+                for i3 in range(i2 + 1, m):
+                    idx[3] = i3
+                    _consider(w0c, A, b, m, idx, 4, best, cand, lam)
+    if best[d] == np.inf:
+        return w0c, False
+    return best[:d].copy(), True
+
+
+@jit(samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
+def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
+    """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
+
+    p = p_i − p_j, v = v_i − v_j (3,); q = S·p, S = diag(1/radii); h = ‖q‖² − 1, ḣ = 2 qᵀq̇;
+    A = 2·S·q; b = −2‖q̇‖² − 2k·ḣ − k²·h; b_share = share·b (plus nothing for the other drone:
+    its share is its own constraint, or 0 taken for its acceleration when it does not filter)."""
+    A = np.empty(3)
+    h = -1.0
+    hd = 0.0
+    qd2 = 0.0
+    for c in range(3):
+        q = p[c] / radii[c]
+        qd = v[c] / radii[c]
+        h += q * q
+        hd += 2.0 * q * qd
+        qd2 += qd * qd
+        A[c] = 2.0 * q / radii[c]
+    b = -2.0 * qd2 - 2.0 * gain * hd - gain * gain * h
+    return A, share * b, h, hd
+
+
+@jit
+def _limit_rows(A: np.ndarray, b: np.ndarray, a_h: float, a_up: float, a_down: float) -> int:
+    """Write the input limits as 10 rows of A·u ≥ b (A (m, d), columns ≥ 3 zero): an octagon inscribed
+    in the disc ‖u_xy‖ ≤ a_h, and −a_down ≤ u_z ≤ a_up. Returns the number of rows (10)."""
+    face = a_h * np.cos(np.pi / 8.0)
+    for k in range(8):
+        ang = k * np.pi / 4.0
+        for c in range(A.shape[1]):
+            A[k, c] = 0.0
+        A[k, 0] = -np.cos(ang)
+        A[k, 1] = -np.sin(ang)
+        b[k] = -face
+    for k in range(8, 10):
+        for c in range(A.shape[1]):
+            A[k, c] = 0.0
+    A[8, 2] = -1.0
+    b[8] = -a_up
+    A[9, 2] = 1.0
+    b[9] = -a_down
+    return 10
+
+
+@jit
+def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> float:
+    """min of a·u (a (3,)) over the limit polytope of :func:`_limit_rows` (its 16 vertices)."""
+    best = np.inf
+    for k in range(8):
+        ang = (k + 0.5) * np.pi / 4.0
+        v = a_h * (a[0] * np.cos(ang) + a[1] * np.sin(ang))
+        best = min(best, v)
+    return best + min(a[2] * a_up, -a[2] * a_down)
+
+
+def _filter_samples():
+    z = np.zeros((2, 3))
+    pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
+    return [
+        (
+            pos,
+            z,
+            pos,
+            z,
+            z,
+            z,
+            np.ones(2, dtype=np.bool_),
+            np.ones(3),
+            3.0,
+            3.9,
+            5.0,
+            3.0,
+            1.0,
+            100.0,
+            4.0,
+            0.1,
+            0.5,
+            True,
+        )
+    ]
+
+
+@jit(samples=_filter_samples)
+def filter_accelerations(
+    pos: np.ndarray,
+    vel: np.ndarray,
+    sensed_pos: np.ndarray,
+    sensed_vel: np.ndarray,
+    sensed_acc: np.ndarray,
+    u_nom: np.ndarray,
+    filters: np.ndarray,
+    radii: np.ndarray,
+    gain: float,
+    a_h: float,
+    a_up: float,
+    a_down: float,
+    tiebreak: float,
+    relax_weight: float,
+    sensing_range: float,
+    floor: float,
+    priority_share: float,
+    both_states: bool,
+):
+    """The decentralised barrier filter of the module docstring, for n drones at once.
+
+    pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
+    what the others sense of it (the acceleration only enters the constraint against a drone that
+    does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
+    accelerations; filters (n,) bool: which drones filter
+    (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
+    priority_share: the share of a burden (b > 0) the lower index of a pair of filtering drones takes
+    (½: equal; room, b ≤ 0, is split in halves).
+    Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
+    constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
+    constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
+    (on the ground, sensed_pos) is not filtered. ``both_states``: each neighbour's constraint is
+    also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a drone that
+    lags its reference is kept out too (docs/barrier.md, "tracking")."""
+    n = pos.shape[0]
+    u = u_nom.copy()
+    active = np.zeros(n, dtype=np.bool_)
+    relaxed = np.zeros(n, dtype=np.bool_)
+    kept = np.zeros(n, dtype=np.int64)
+    m_max = 2 * n + 10
+    A = np.zeros((m_max, 3))
+    b = np.zeros(m_max)
+    A4 = np.zeros((m_max + 1, 4))
+    b4 = np.zeros(m_max + 1)
+    p = np.empty(3)
+    v = np.empty(3)
+    un = np.empty(3)
+    r2 = sensing_range * sensing_range
+    for i in range(n):
+        if not filters[i]:
+            continue
+        m = 0
+        violated = False
+        for c in range(3):
+            un[c] = u_nom[i, c]
+        for j in range(n):
+            if j == i:
+                continue
+            turned = False
+            for src in range(2 if both_states else 1):
+                d2 = 0.0
+                for c in range(3):
+                    if src == 0:  # the drone's own (reference) state
+                        p[c] = pos[i, c] - sensed_pos[j, c]
+                        v[c] = vel[i, c] - sensed_vel[j, c]
+                    else:  # its sensed (real) state
+                        p[c] = sensed_pos[i, c] - sensed_pos[j, c]
+                        v[c] = sensed_vel[i, c] - sensed_vel[j, c]
+                    d2 += p[c] * p[c]
+                if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
+                    continue
+                a, bs, h, hd = pair_constraint(p, v, radii, gain, 1.0)
+                # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
+                # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
+                if not filters[j]:
+                    share = 1.0
+                elif bs > 0.0:
+                    share = priority_share if i < j else 1.0 - priority_share
+                else:
+                    share = 0.5
+                bs *= share
+                if not filters[j]:
+                    bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
+                lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
+                if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
+                    continue  # no input within the limits can violate it, nor does the nominal: redundant
+                if lhs < bs:
+                    violated = True
+                    if tiebreak > 0.0 and not turned:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
+                        turned = True
+                        nh = np.sqrt(p[0] * p[0] + p[1] * p[1])
+                        if nh > 1e-9:
+                            un[0] += tiebreak * (-p[1] / nh)
+                            un[1] += tiebreak * (p[0] / nh)
+                for c in range(3):
+                    A[m, c] = a[c]
+                b[m] = bs
+                m += 1
+        kept[i] = m
+        if not violated:
+            continue  # the nominal satisfies every barrier constraint: unchanged
+        active[i] = True
+        ml = _limit_rows(A[m:], b[m:], a_h, a_up, a_down)
+        w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
+        if not ok:
+            # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
+            sw = np.sqrt(relax_weight)
+            for k in range(m):
+                nrm = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2)
+                for c in range(3):
+                    A4[k, c] = A[k, c]
+                A4[k, 3] = nrm / sw
+                b4[k] = b[k]
+            _limit_rows(A4[m:], b4[m:], a_h, a_up, a_down)
+            A4[m + ml, :] = 0.0
+            A4[m + ml, 3] = 1.0
+            b4[m + ml] = 0.0
+            w0 = np.zeros(4)
+            for c in range(3):
+                w0[c] = un[c]
+            w4, ok4 = project_polyhedron(w0, A4[: m + ml + 1], b4[: m + ml + 1])
+            relaxed[i] = True
+            for c in range(3):
+                w[c] = w4[c]
+        for c in range(3):
+            u[i, c] = w[c]
+    return u, active, relaxed, kept
+
+
+def apply_filter(
+    bp: BarrierParams,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    u_nom: np.ndarray,
+    filters: np.ndarray,
+    sensed: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    vehicle: QuadParams = DEFAULT_PARAMS,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
+
+    pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
+    the others sense (default: pos, vel and zero). Returns (u, active, relaxed, n_constraints)."""
+    c = np.ascontiguousarray
+    sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
+    return filter_accelerations(
+        c(pos, dtype=np.float64),
+        c(vel, dtype=np.float64),
+        c(sp, dtype=np.float64),
+        c(sv, dtype=np.float64),
+        c(sa, dtype=np.float64),
+        c(u_nom, dtype=np.float64),
+        c(filters, dtype=np.bool_),
+        bp.radii(vehicle),
+        bp.gain,
+        bp.horizontal_limit(vehicle.g),
+        bp.accel_up,
+        bp.accel_down,
+        bp.tiebreak,
+        bp.relax_weight,
+        bp.sensing_range,
+        bp.floor_m,
+        bp.priority_share,
+        bp.both_states,
+    )
+
+
+def lane_nominal(
+    bp: BarrierParams,
+    ref: np.ndarray,
+    ref_vel: np.ndarray,
+    leader: np.ndarray,
+    pos_d: np.ndarray,
+    vel_d: np.ndarray,
+    acc_d: np.ndarray,
+    radius: float,
+) -> np.ndarray:
+    """The rule's nominal accelerations (n, 3): a two-lane roundabout round the leader (docs/barrier.md).
+
+    In the leader's frame (horizontal), a follower whose slot is more than ``arrive_angle`` round
+    the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring of
+    radius D_k + ``lane_inner``·``radius`` (D_k its slot's distance from the leader), clockwise on
+    D_k + ``lane_outer``·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and
+    the two lanes are a keep-out apart, so traffic in opposite directions does not meet head-on), at
+    ``lane_speed`` (at most ``lane_turn_gain``·r·|angle left|, so that it stops on its slot's ray),
+    pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
+    slot, radially in from the lane (the formed ring is not crossed). The vertical is the PD to the
+    slot's altitude in both. Row 0 (the leader) is the PD too."""
+    kp, kd = bp.nominal_kp, bp.nominal_kd
+    u = acc_d + kp * (pos_d - ref) + kd * (vel_d - ref_vel)  # (n, 3) straight to the slot
+    if not bp.lanes:
+        return u
+    o = ref[:, :2] - leader[None, :2]  # (n, 2) offset from the leader
+    ok = pos_d[:, :2] - leader[None, :2]  # (n, 2) slot offset
+    phi, phik = np.arctan2(o[:, 1], o[:, 0]), np.arctan2(ok[:, 1], ok[:, 0])
+    gap = (phik - phi + np.pi) % (2.0 * np.pi) - np.pi  # (n,) the shorter way round, rad
+    go = np.abs(gap) > bp.arrive_angle
+    go[0] = False
+    r = np.maximum(np.linalg.norm(o, axis=1), 1e-9)
+    radial = o / r[:, None]  # (n, 2)
+    tangent = np.stack([-radial[:, 1], radial[:, 0]], axis=1) * np.sign(gap)[:, None]  # the way to go
+    lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, bp.lane_inner, bp.lane_outer) * radius  # (n,)
+    v_t = np.minimum(bp.lane_speed, bp.lane_turn_gain * r * np.abs(gap))  # (n,) slowing onto the slot's ray
+    v_want = vel_d[:, :2] + v_t[:, None] * tangent + (kp / kd) * (lane - r)[:, None] * radial
+    u_lane = acc_d[:, :2] + kd * (v_want - ref_vel[:, :2])
+    u[go, :2] = u_lane[go]
+    return u
+
+
+class BarrierRule(Rule):
+    """``anti_collision = "barrier"`` (docs/barrier.md): the formation's references made safe by the
+    barrier filter, with no other separation logic.
+
+    Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
+    acceleration references). Every period its nominal acceleration is :func:`lane_nominal` (round
+    the leader on a lane, then the PD of :class:`BarrierParams` to the slot; limited to the filter's
+    input limits); :func:`filter_accelerations` changes it as little as possible so that (B) holds,
+    on its reference and on its sensed state, against every drone within ``sensing_range`` (their
+    positions as sensed, their velocities and the leader's acceleration estimated from successive
+    positions), and (r, ṙ) advance with the result (semi-implicit Euler over the control period),
+    kept within ``leash_m`` of the drone. A follower on the ground waits under the take-off gate.
+    The leader flies its trajectory and does not filter; the followers take all of each constraint
+    with it. A relaxation is an event ``{t, drone, other: -1, action: "relax"}`` (the first period of
+    each stretch); ``active_periods`` and ``relaxed_periods`` count drone-periods.
+    """
+
+    name = "barrier"
+
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        """``params``/``overrides``: the anti-collision record's fields (its ``downwash_feedforward``,
+        ``sensing_range``); the keys of :class:`BarrierParams` among ``overrides`` set the filter."""
+        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+        super().__init__(n, params, **overrides)
+        self.barrier = BarrierParams(**barrier)
+        self.events: list[dict] = []
+        self.vel_d = np.zeros((n, 3))
+        self.acc_d = np.zeros((n, 3))
+        self.radii = self.barrier.radii()
+        self.a_h = self.barrier.horizontal_limit()
+        self.filters = np.ones(n, dtype=np.bool_)
+        self.filters[0] = bool(self.barrier.leader_filters)
+        self.relaxed_periods = 0
+        self.active_periods = 0
+
+    def reset(self, positions: np.ndarray) -> None:
+        self.events = []
+        self.ref = np.array(positions, dtype=float)  # (n, 3) r
+        self._start_z = self.ref[:, 2].copy()  # (n,) where each drone stands on the ground
+        self.ref_vel = np.zeros((self.n, 3))  # (n, 3) ṙ
+        self.sensed_vel = np.zeros((self.n, 3))
+        self.sensed_acc = np.zeros((self.n, 3))
+        self._prev_dt = 0.0
+        self._prev_pos = np.array(positions, dtype=float)
+        self._prev_t: float | None = None
+        self._was_relaxed = np.zeros(self.n, dtype=bool)
+        self.relaxed_periods = 0
+        self.active_periods = 0
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """With zero formation velocity and acceleration references (see :meth:`references`)."""
+        z = np.zeros((self.n, 3))
+        pos_out, _, _ = self.references(t, positions, pos_d, z, z, formation_alt)
+        return pos_out, self.filters.copy()
+
+    def references(
+        self,
+        t: float,
+        positions: np.ndarray,
+        pos_d: np.ndarray,
+        vel_d: np.ndarray,
+        acc_d: np.ndarray,
+        formation_alt: float,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pos_d, vel_d, acc_d) (n, 3): the followers' filtered reference states, the leader's own."""
+        bp = self.barrier
+        positions = np.asarray(positions, dtype=float)
+        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
+        if dt > 0.0:
+            vel = (positions - self._prev_pos) / dt
+            if bp.accel_filter_s > 0.0 and self._prev_dt > 0.0:
+                raw = (vel - self.sensed_vel) / dt
+                self.sensed_acc += (raw - self.sensed_acc) * (dt / (bp.accel_filter_s + dt))
+            self.sensed_vel = vel
+        self._prev_dt = dt
+        self._prev_t = float(t)
+        self._prev_pos = positions.copy()
+        u_nom = lane_nominal(bp, self.ref, self.ref_vel, positions[0], pos_d, vel_d, acc_d, float(self.radii[0]))
+        nh = np.sqrt(u_nom[:, 0] ** 2 + u_nom[:, 1] ** 2)
+        u_nom[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / np.maximum(nh, 1e-12))[:, None]
+        u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
+        # take-off gate (module docstring): a follower on the ground inside the keep-out of a lower index
+        # or an airborne drone holds where it is and does not filter this period
+        ground = positions[:, 2] < bp.floor_m
+        rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / self.radii, axis=2)
+        idx = np.arange(self.n)
+        blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
+        np.fill_diagonal(blocking, False)
+        wait = ground & blocking.any(axis=1) & self.filters
+        filters = self.filters & ~wait
+        self.ref[wait] = positions[wait]
+        self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])  # stays down
+        self.ref_vel[wait] = 0.0
+        u_nom[wait] = 0.0
+        sensed = (positions, self.sensed_vel, self.sensed_acc)  # zero unless accel_filter_s > 0
+        u, active, relaxed, _ = apply_filter(bp, self.ref, self.ref_vel, u_nom, filters, sensed)
+        self.active_periods += int(active.sum())
+        self.relaxed_periods += int(relaxed.sum())
+        for i in np.flatnonzero(relaxed & ~self._was_relaxed):
+            self.events.append({"t": float(t), "drone": int(i), "other": -1, "action": "relax"})
+        self._was_relaxed = relaxed
+        f = filters
+        self.ref_vel[f] += u[f] * dt
+        self.ref[f] += self.ref_vel[f] * dt
+        self.ref[f, 2] = np.maximum(self.ref[f, 2], 0.0)  # never below the ground
+        # the leash: a reference that a drone cannot follow (held by another, or by the ground) is
+        # kept within leash_m of it, so that the filter works on where the drone can be
+        gap = self.ref - positions
+        far = np.linalg.norm(gap, axis=1)
+        pull = f & (far > bp.leash_m)
+        self.ref[pull] = positions[pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
+        out_p, out_v, out_a = np.array(pos_d, dtype=float), np.array(vel_d, dtype=float), np.array(acc_d, dtype=float)
+        out_p[f], out_v[f], out_a[f] = self.ref[f], self.ref_vel[f], u[f]
+        out_p[wait], out_v[wait], out_a[wait] = self.ref[wait], 0.0, 0.0
+        self.vel_d, self.acc_d = out_v, out_a
+        return out_p, out_v, out_a
+
+
+ANTI_COLLISION_RULES["barrier"] = BarrierRule  # the registration (docs/barrier.md)
+PRESETS["barrier"] = RuleParams()  # its anti-collision record: the defaults (the filter's own are BarrierParams)
+
+__all__ = [
+    "DOWNWASH_MULTIPLE",
+    "BarrierParams",
+    "BarrierRule",
+    "apply_filter",
+    "lane_nominal",
+    "filter_accelerations",
+    "keepout_radii",
+    "pair_constraint",
+    "project_polyhedron",
+]

@@ -1,0 +1,49 @@
+"""``anti_collision = "barrier"`` flown in MuJoCo (docs/barrier.md): the keep-out invariant in the summary,
+the rule's references within their leash of the drones, and the take-off gate holding a follower
+that starts inside another drone's keep-out."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarm_mj.formation.barrier import BarrierParams, BarrierRule, keepout_radii
+from swarm_mj.metrics import keepout_min_distance, keepout_time_s
+from swarm_mj.runner import run
+from swarm_mj.stress import StressCase, stress_scenario
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.mark.parametrize("aero", ["paper", "realistic"])
+def test_barrier_flies_a_random_start(aero):
+    res = run(stress_scenario(StressCase("barrier", 3, 3, 2.5, 0.6, 8.0, aero=aero)), progress=False)
+    s, log = res.summary, res.log
+    assert s["anti_collision_rule"] == "barrier"
+    radii = keepout_radii()
+    # the summary's keys are the metrics of the log (an independent path to the same numbers)
+    assert s["keepout_min_distance"] == pytest.approx(keepout_min_distance(log.pos, radii))
+    assert s["keepout_time_s"] == pytest.approx(keepout_time_s(log.t, log.pos, radii))
+    assert s["keepout_time_s"] == 0.0 and s["contacts"] == 0 and s["crashes"] == 0
+    # every follower's reference within the leash of the drone (after the period that moved it)
+    lag = np.linalg.norm(log.pos_d[:, 1:] - log.pos[:, 1:], axis=2)
+    assert lag.max() <= BarrierParams().leash_m + 0.05
+
+
+def test_take_off_gate_holds_a_follower_under_a_lower_index():
+    """Follower 2 stands 0.3 m from follower 1: it stays on the ground (its reference its own
+    position, at its start altitude) while 1 is within gate_rho of it."""
+    rule = BarrierRule(3)
+    pos = np.array([[5.0, 0.0, 0.05], [0.0, 0.0, 0.05], [0.3, 0.0, 0.05]])
+    rule.reset(pos)
+    slot = pos + np.array([0.0, 0.0, 2.0])
+    z = np.zeros((3, 3))
+    p_d, v_d, a_d = rule.references(0.0, pos, slot, z, z, 2.0)
+    p_d, v_d, a_d = rule.references(0.01, pos, slot, z, z, 2.0)
+    np.testing.assert_allclose(p_d[2], pos[2])
+    np.testing.assert_allclose(a_d[2], 0.0)
+    assert a_d[1, 2] > 0.0  # the lower index climbs
+    far = pos.copy()
+    far[1] = [0.0, 0.0, 5.0]  # follower 1 well above: gate open
+    p_d, v_d, a_d = rule.references(0.02, far, slot, z, z, 2.0)
+    assert a_d[2, 2] > 0.0

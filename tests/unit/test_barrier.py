@@ -1,0 +1,328 @@
+"""The barrier filter's core (docs/barrier.md): the exact QP against a reference solver, the barrier
+constraint against finite differences, the filter's properties (hypothesis), the keep-out geometry
+and metrics against independent calculations, and closed-loop checks on a double integrator written
+here (a model of the filter's assumptions, not of the product's physics)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.optimize as scipy_optimize  # the reference QP solver (the test extra)
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from swarm_mj.formation.barrier import (
+    BarrierParams,
+    apply_filter,
+    keepout_radii,
+    pair_constraint,
+    project_polyhedron,
+)
+from swarm_mj.metrics import keepout_distance, keepout_min_distance, keepout_time_s
+from swarm_mj.params import QuadParams
+
+
+def _reference_projection(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """argmin ‖w − w0‖² s.t. A·w ≥ b with SciPy's SLSQP (the reference solver)."""
+    res = scipy_optimize.minimize(
+        lambda w: float(np.sum((w - w0) ** 2)),
+        w0,
+        jac=lambda w: 2.0 * (w - w0),
+        constraints=[{"type": "ineq", "fun": lambda w: A @ w - b, "jac": lambda w: A}],
+        method="SLSQP",
+        options={"ftol": 1e-12, "maxiter": 500},
+    )
+    # SLSQP may stop on its line search at this tolerance after converging (status 8): its point is
+    # the reference whenever it is feasible; else SciPy's interior-point trust-constr is asked
+    if res.success or np.all(A @ res.x >= b - 1e-9):
+        return res.x
+    res = scipy_optimize.minimize(
+        lambda w: float(np.sum((w - w0) ** 2)),
+        w0,
+        jac=lambda w: 2.0 * (w - w0),
+        hess=lambda w: 2.0 * np.eye(len(w0)),
+        constraints=[scipy_optimize.LinearConstraint(A, b, np.inf)],
+        method="trust-constr",
+        options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 5000},
+    )
+    assert np.all(A @ res.x >= b - 1e-8), res.message
+    return res.x
+
+
+def _random_feasible(rng: np.random.Generator, d: int, m: int):
+    """m random half-spaces A·w ≥ b in R^d that contain a random point, and a random w0."""
+    A = rng.normal(size=(m, d))
+    x = rng.normal(size=d)
+    b = A @ x - rng.exponential(0.5, size=m) * (rng.random(m) < 0.7)
+    return rng.normal(scale=2.0, size=d), A, b
+
+
+@pytest.mark.parametrize("d", [2, 3, 4])
+def test_projection_matches_reference_qp(d):
+    rng = np.random.default_rng(1234 + d)
+    worst = 0.0
+    for _ in range(150):
+        w0, A, b = _random_feasible(rng, d, int(rng.integers(1, 9)))
+        w, ok = project_polyhedron(w0, A, b)
+        assert ok
+        ref = _reference_projection(w0, A, b)
+        assert np.all(A @ w >= b - 1e-8 * (1 + np.abs(b)))
+        # the reference is feasible too, so our cost may not exceed it (ours is the exact optimum)
+        assert np.sum((w - w0) ** 2) <= np.sum((ref - w0) ** 2) + 1e-7
+        worst = max(worst, float(np.abs(w - ref).max()))
+    assert worst < 1e-5
+
+
+def test_projection_kkt_certificate():
+    """Independent of any solver: w − w0 = Aₐᵀλ with λ ≥ 0 over the active rows (NNLS)."""
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        w0, A, b = _random_feasible(rng, 3, int(rng.integers(1, 12)))
+        w, ok = project_polyhedron(w0, A, b)
+        assert ok
+        act = np.abs(A @ w - b) <= 1e-7 * (1 + np.abs(b))
+        if not act.any():
+            np.testing.assert_allclose(w, w0, atol=1e-12)
+            continue
+        lam, resid = scipy_optimize.nnls(A[act].T, w - w0)
+        assert resid < 1e-7 * (1 + np.linalg.norm(w - w0))
+
+
+def test_projection_reports_infeasible():
+    A = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    b = np.array([1.0, 0.0])  # x ≥ 1 and x ≤ 0
+    _, ok = project_polyhedron(np.zeros(3), A, b)
+    assert not ok
+
+
+def test_pair_constraint_finite_differences():
+    """h, ḣ and ḧ = 2‖q̇‖² + A·Δu of the module docstring against finite differences of h(p(t))."""
+    rng = np.random.default_rng(3)
+    radii = np.array([0.7, 0.7, 2.0])
+    for _ in range(20):
+        p, v, du = rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)
+        k = 2.5
+        A, b_full, h, hd = pair_constraint(p, v, radii, k, 1.0)
+        hf = lambda s, p=p, v=v, du=du: float(np.sum(((p + v * s + 0.5 * du * s * s) / radii) ** 2) - 1.0)  # noqa: E731
+        e = 1e-4
+        assert h == pytest.approx(hf(0.0), abs=1e-12)
+        assert hd == pytest.approx((hf(1e-6) - hf(-1e-6)) / 2e-6, rel=1e-6, abs=1e-8)
+        hdd = (hf(e) - 2 * hf(0.0) + hf(-e)) / (e * e)
+        qd = v / radii
+        assert hdd == pytest.approx(2 * qd @ qd + A @ du, rel=1e-4, abs=1e-5)
+        # (B) as printed: b = −2‖q̇‖² − 2k·ḣ − k²·h
+        assert b_full == pytest.approx(-2 * qd @ qd - 2 * k * hd - k * k * h, rel=1e-12, abs=1e-12)
+        _, b_half, _, _ = pair_constraint(p, v, radii, k, 0.5)
+        assert b_half == pytest.approx(0.5 * b_full, rel=1e-12, abs=1e-15)
+
+
+def test_keepout_radii_from_the_vehicle():
+    veh = QuadParams(L=0.3)
+    r = keepout_radii(veh, rotor_radius=0.1, downwash_multiple=2.0, margin=0.05)
+    np.testing.assert_allclose(r, [2 * 0.4 + 0.1, 2 * 0.4 + 0.1, 2.0 * 0.8 + 0.1])
+
+
+def test_keepout_distance_on_the_ellipsoid():
+    rng = np.random.default_rng(5)
+    radii = np.array([0.68, 0.68, 2.04])
+    th, ph = rng.uniform(0, np.pi, 50), rng.uniform(0, 2 * np.pi, 50)
+    pts = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], -1) * radii
+    np.testing.assert_allclose(keepout_distance(pts, radii), 1.0, rtol=1e-12)
+    np.testing.assert_allclose(keepout_distance(0.5 * pts, radii), 0.5, rtol=1e-12)
+
+
+def test_keepout_metrics_against_a_loop():
+    rng = np.random.default_rng(11)
+    radii = np.array([0.68, 0.68, 2.04])
+    k, n = 60, 4
+    pos = rng.uniform(-1.0, 1.0, size=(k, n, 3)) + np.array([0, 0, 1.0])
+    pos[:10, 2, 2] = 0.05  # drone 2 on the ground for the first samples: its pairs do not count
+    t = np.arange(k) * 0.01
+    best, inside = np.inf, 0
+    for s in range(k):
+        any_in = False
+        for i in range(n):
+            for j in range(i + 1, n):
+                if pos[s, i, 2] <= 0.1 or pos[s, j, 2] <= 0.1:
+                    continue
+                d = np.sqrt(sum(((pos[s, i, c] - pos[s, j, c]) / radii[c]) ** 2 for c in range(3)))
+                best = min(best, d)
+                any_in |= d < 1.0
+        inside += any_in
+    assert keepout_min_distance(pos, radii) == pytest.approx(best, rel=1e-12)
+    assert keepout_time_s(t, pos, radii) == pytest.approx(inside * 0.01, rel=1e-9)
+
+
+def test_keepout_time_of_a_pass():
+    """Drone 1 passes drone 0 horizontally at 1 m/s, 0.2 m to the side: inside |x| < √(a² − 0.04)."""
+    a = 0.68
+    radii = np.array([a, a, 3 * a])
+    t = np.arange(0.0, 4.0, 0.001)
+    pos = np.zeros((len(t), 2, 3))
+    pos[:, :, 2] = 1.0
+    pos[:, 1, 0] = t - 2.0
+    pos[:, 1, 1] = 0.2
+    expect = 2 * np.sqrt(a * a - 0.04)  # s inside
+    assert keepout_time_s(t, pos, radii) == pytest.approx(expect, abs=2e-3)
+    assert keepout_min_distance(pos, radii) == pytest.approx(0.2 / a, rel=1e-9)
+
+
+# ----------------------------------------------------------------------- the filter's properties
+P = BarrierParams()
+
+
+def _limits_ok(u: np.ndarray, a_h: float, a_up: float, a_down: float) -> bool:
+    """u within the octagon inscribed in ‖u_xy‖ ≤ a_h and −a_down ≤ u_z ≤ a_up (independently)."""
+    ang = np.arange(8) * np.pi / 4
+    face = a_h * np.cos(np.pi / 8)
+    tol = 1e-9 * (1 + a_h)
+    return bool(np.all(np.cos(ang) * u[0] + np.sin(ang) * u[1] <= face + tol) and -a_down - tol <= u[2] <= a_up + tol)
+
+
+def _constraint(pi, vi, pj, vj, radii, k, share):
+    """(B) for drone i, written here again from docs/barrier.md: A·u_i ≥ share(b)·b."""
+    S = 1.0 / radii
+    q, qd = S * (pi - pj), S * (vi - vj)
+    h, hd = q @ q - 1.0, 2 * q @ qd
+    b = -2 * qd @ qd - 2 * k * hd - k * k * h
+    return 2 * S * q, share(b) * b
+
+
+def _share(i, j, filters, prio):
+    """docs/barrier.md's split: all of it against a drone that does not filter; a burden (b > 0) by
+    priority (the lower index takes prio); room (b ≤ 0) in halves."""
+    if not filters[j]:
+        return lambda b: 1.0
+    return lambda b: (prio if i < j else 1 - prio) if b > 0 else 0.5
+
+
+vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    n=st.integers(2, 5),
+    seed=st.integers(0, 2**31 - 1),
+    gain=st.floats(0.5, 6.0),
+    tilt=st.floats(10.0, 45.0),
+    up=st.floats(1.0, 8.0),
+    down=st.floats(1.0, 6.0),
+    spread=st.floats(0.3, 3.0),
+    prio=st.floats(0.0, 1.0),
+    track=st.sampled_from([0.0, 0.05, 0.2]),
+)
+def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
+    rng = np.random.default_rng(seed)
+    pos = rng.normal(scale=spread, size=(n, 3)) + np.array([0, 0, 3.0])
+    vel = rng.normal(scale=1.5, size=(n, 3))
+    u_nom = rng.normal(scale=2.0, size=(n, 3))
+    filters = rng.random(n) < 0.8
+    bp = BarrierParams(
+        gain=gain,
+        max_tilt_deg=tilt,
+        accel_up=up,
+        accel_down=down,
+        tiebreak=0.0,
+        sensing_range=1e9,
+        floor_m=-1.0,
+        priority_share=prio,
+    )
+    radii, a_h = bp.radii(), bp.horizontal_limit()
+    # what the others sense: each drone off its own (reference) state by a tracking error
+    sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))))
+    for i in range(n):
+        rows = [
+            _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
+            for j in range(n)
+            if j != i
+            for own_p, own_v in ((pos[i], vel[i]), (sp[i], sv[i]))  # reference and sensed state
+        ]
+        nominal_ok = all(A @ u_nom[i] >= b for A, b in rows)
+        if not filters[i] or nominal_ok:
+            # the nominal, exactly, when no constraint is active
+            assert not active[i]
+            np.testing.assert_array_equal(u[i], u_nom[i])
+            continue
+        assert active[i]
+        assert _limits_ok(u[i], a_h, up, down)
+        if not relaxed[i]:
+            for A, b in rows:
+                assert A @ u[i] >= b - 1e-8 * (1 + abs(b))
+            # and minimal: the reference QP finds nothing closer to the nominal
+            ang = np.arange(8) * np.pi / 4
+            lim_A = np.vstack([np.stack([-np.cos(ang), -np.sin(ang), 0 * ang], 1), [[0, 0, -1.0], [0, 0, 1.0]]])
+            lim_b = np.concatenate([np.full(8, -a_h * np.cos(np.pi / 8)), [-up, -down]])
+            A_all = np.vstack([np.array([r[0] for r in rows]), lim_A])
+            b_all = np.concatenate([[r[1] for r in rows], lim_b])
+            ref = _reference_projection(u_nom[i], A_all, b_all)
+            assert np.sum((u[i] - u_nom[i]) ** 2) <= np.sum((ref - u_nom[i]) ** 2) + 1e-6
+
+
+def test_relaxation_is_used_and_flagged():
+    """Two drones closing at 4 m/s, 0.9 m apart (ρ = 1.2), the tilt limited to 5°: braking within the
+    limits cannot satisfy (B) (it asks for 2.5 m/s² each, the limits give 0.6)."""
+    pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
+    vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    bp = BarrierParams(max_tilt_deg=5.0)
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
+    assert active.all() and relaxed.all()
+    for i in range(2):
+        assert _limits_ok(u[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
+    # it still brakes as hard as it may along the line joining them
+    assert u[0, 0] < -0.9 * bp.horizontal_limit() * np.cos(np.pi / 8) and u[1, 0] > -u[0, 0] * 0.99
+
+
+# ---------------------------------------------------------- closed loop on a double integrator (test model)
+def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
+    """p̈ = u, u = filter(kp·(goal − p) − kd·ṗ clipped to the limits), explicit Euler at dt; returns
+    the positions (k, n, 3), the count of relaxed drone-periods."""
+    pos, vel = pos0.astype(float).copy(), np.zeros_like(pos0, dtype=float)
+    n = len(pos)
+    filters = np.ones(n, dtype=np.bool_)
+    if leader is not None:
+        filters[leader] = False
+    a_h = bp.horizontal_limit()
+    out, n_relaxed = [pos.copy()], 0
+    for _ in range(int(T / dt)):
+        u_nom = kp * (goal - pos) - kd * vel
+        nh = np.linalg.norm(u_nom[:, :2], axis=1, keepdims=True)
+        u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
+        u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
+        u, _, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
+        n_relaxed += int(relaxed.sum())
+        vel += u * dt
+        pos += vel * dt
+        out.append(pos.copy())
+    return np.array(out), n_relaxed
+
+
+def test_head_on_swap_tiebreak():
+    """Two drones swap places head-on, exactly symmetric: with the tie-break they pass each other
+    and never enter the keep-out; without it they stop face to face (the deadlock)."""
+    pos0 = np.array([[-2.0, 0.0, 2.0], [2.0, 0.0, 2.0]])
+    goal = pos0[::-1].copy()
+    bp = BarrierParams(priority_share=0.5)  # Wang et al.'s equal split: the symmetric case
+    traj, relaxed = _fly(pos0, goal, bp)
+    radii = bp.radii()
+    rho = keepout_distance(traj[:, 0] - traj[:, 1], radii)
+    assert rho.min() > 0.99, rho.min()  # the discrete-time filter at 10 ms: within 1 % of the ellipsoid
+    np.testing.assert_allclose(traj[-1], goal, atol=0.05)
+    assert relaxed == 0
+    stuck, _ = _fly(pos0, goal, BarrierParams(priority_share=0.5, tiebreak=0.0))
+    assert np.linalg.norm(stuck[-1] - goal, axis=1).min() > 1.0  # deadlock without the tie-break
+    assert keepout_distance(stuck[:, 0] - stuck[:, 1], radii).min() > 0.99
+
+
+def test_random_swaps_stay_out_of_the_keepout():
+    """Seeded random exchanges of 5 drones (one a leader that does not filter, flying straight):
+    the keep-out of the filter is never entered by more than the discretisation's 1 %."""
+    rng = np.random.default_rng(2024)
+    bp = BarrierParams()
+    radii = bp.radii()
+    for _ in range(4):
+        ang = rng.permutation(5) * 2 * np.pi / 5 + rng.normal(scale=0.05, size=5)
+        pos0 = np.stack([2.5 * np.cos(ang), 2.5 * np.sin(ang), 2.0 + rng.normal(scale=0.1, size=5)], 1)
+        goal = -pos0 + np.array([0, 0, 4.0])
+        traj, _ = _fly(pos0, goal, bp, T=15.0)
+        assert keepout_min_distance(traj, radii) > 0.99
