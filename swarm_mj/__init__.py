@@ -34,14 +34,14 @@ _API = {
     "SwarmEnv": "swarm_mj.env",
     "StepRecord": "swarm_mj.env",
     "Command": "swarm_mj.env",
-    "BacksteppingPolicy": "swarm_mj.policy",
+    "BacksteppingPolicy": "swarm_mj.control.policy",
     "load_scenario": "swarm_mj.scenario",
     "Scenario": "swarm_mj.scenario",
-    "run": "swarm_mj.runner",
-    "RunResult": "swarm_mj.runner",
-    "Sim": "swarm_mj.sim",
-    "ForceStage": "swarm_mj.sim",
-    "build_world": "swarm_mj.world",
+    "run": "swarm_mj.experiments.runner",
+    "RunResult": "swarm_mj.experiments.runner",
+    "Sim": "swarm_mj.physics.sim",
+    "ForceStage": "swarm_mj.physics.sim",
+    "build_world": "swarm_mj.physics.world",
 }
 __all__ = ["__version__", *_API]
 

@@ -1,14 +1,14 @@
 """The swarm as a ``dm_env.Environment`` (docs/design.md, "env").
 
-One :meth:`SwarmEnv.step` is one control period T of the step pipeline (:class:`~swarm_mj.sim.Sim`:
+One :meth:`SwarmEnv.step` is one control period T of the step pipeline (:class:`~swarm_mj.physics.sim.Sim`:
 saturation, force stages, ``mj_step``, contacts, health). ``swarm-mj run``, the
 Gymnasium/PettingZoo wrappers and user code step this class; they differ only in the policy
-they plug in and in what they observe. The tuner flies the same :class:`~swarm_mj.sim.Sim`
+they plug in and in what they observe. The tuner flies the same :class:`~swarm_mj.physics.sim.Sim`
 pipeline over many copies of one drone (:mod:`swarm_mj.tuning.evaluator`).
 
 What a step applied is in :attr:`SwarmEnv.last_applied`, a :class:`StepRecord`: the U1..U4
 after saturation and the rotor thrusts, the wind force, and, when the action was a
-:class:`Command` (what :class:`~swarm_mj.policy.BacksteppingPolicy.command` returns) or a
+:class:`Command` (what :class:`~swarm_mj.control.policy.BacksteppingPolicy.command` returns) or a
 setpoint, the references and the commanded attitude that produced it. The runner's log and
 the recording are built from these records.
 
@@ -58,17 +58,17 @@ import numpy as np
 from dm_env import specs
 
 from ._jit import jit
-from .aero.ground import REST_HEIGHT, rest_positions
-from .aero.presets import install as install_aero
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
-from .period import observe
-from .records import Obs, Refs
+from .physics.aero.ground import REST_HEIGHT, rest_positions
+from .physics.aero.presets import install as install_aero
+from .physics.sim import ForceStage, Sim
+from .physics.wind import WindField
+from .physics.world import build_world
+from .pipeline.period import observe
+from .pipeline.records import Obs, Refs
 from .scenario import Scenario, load_scenario
-from .sim import ForceStage, Sim
-from .wind import WindField
-from .world import build_world
 
 CLOSE_PASS_M = 0.5
 
@@ -139,7 +139,7 @@ def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, cl
 class SwarmEnv(dm_env.Environment):
     """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``.
 
-    ``force_stages``: extra :class:`~swarm_mj.sim.ForceStage` s of the simulator, applied after
+    ``force_stages``: extra :class:`~swarm_mj.physics.sim.ForceStage` s of the simulator, applied after
     drag and wind (e.g. aerodynamic effects between drones)."""
 
     def __init__(
@@ -345,7 +345,7 @@ class SwarmEnv(dm_env.Environment):
         return rec.wind_force if rec is not None else np.zeros((self.n, 3))
 
     def _observe(self) -> dict:
-        """The observation of period ``self.k``: :func:`swarm_mj.period.observe`, the function the chunk
+        """The observation of period ``self.k``: :func:`swarm_mj.pipeline.period.observe`, the function the chunk
         driver calls (with the wind on the relative airspeed, the known wind force from the field)."""
         o = observe(self.sim.record(), self._refs, self.k)
         wf = o.wf
@@ -356,7 +356,7 @@ class SwarmEnv(dm_env.Environment):
         )
 
     def _references(self) -> Refs:
-        """The run's references as a record (:class:`swarm_mj.records.Refs`; the wind of this episode)."""
+        """The run's references as a record (:class:`swarm_mj.pipeline.records.Refs`; the wind of this episode)."""
         c = np.ascontiguousarray
         ref, wind = self.reference, self.wind
         return Refs(
@@ -384,7 +384,7 @@ class SwarmEnv(dm_env.Environment):
         wf: np.ndarray,
     ) -> dict:
         """The observation dict of period ``self.k`` from its arrays (see :meth:`observation_spec`);
-        ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.fast`)
+        ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.pipeline.fast`)
         hands back after a chunk."""
         self._dist = dist
         #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)

@@ -132,7 +132,7 @@ def formation_settling(
 # ---------------------------------------------------------------------------- downwash dip
 #: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"). The jet below a
 #: drone is the turbulent round jet of Bauersfeld et al. (RA-L 2024, arXiv:2403.13321, their
-#: eqs. 6 and 9, the model swarm_mj.aero.downwash applies): half-width r_½(s) = l·S·(s/l − s0*)
+#: eqs. 6 and 9, the model swarm_mj.physics.aero.downwash applies): half-width r_½(s) = l·S·(s/l − s0*)
 #: at a depth s along the drone's thrust axis, l = 2L = 0.5 m the motor distance, S = 0.07668,
 #: s0* = −5.817. Its edge is taken at 2·r_½ (there the jet speed is 1/(1 + 4(√2 − 1))² = 14 % of
 #: the centreline's and its push on a rotor disc 2 %): ``JET_R0_M + JET_SPREAD·s``. A drone whose

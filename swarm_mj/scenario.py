@@ -20,17 +20,17 @@ from typing import Any
 
 import numpy as np
 
-from .aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
-from .mixing import MIXERS
-from .params import DEFAULT_PARAMS, QuadParams
+from .physics.aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
+from .physics.mixing import MIXERS
+from .physics.params import DEFAULT_PARAMS, QuadParams
+from .physics.wind import WindConfig
 from .resources import SCENARIOS_DIR
 from .trajectories import TRAJECTORIES, make_trajectory
-from .wind import WindConfig
 
 #: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
 LAG_COMPENSATION = ("auto", "on", "off")
@@ -129,7 +129,7 @@ class Scenario:
     @property
     def attitude_priority_on(self) -> bool:
         """Whether the controller desaturates its rotor commands with attitude priority
-        (:func:`~swarm_mj.mixing.attitude_priority`): ``mixer = "auto"`` does wherever the rotors
+        (:func:`~swarm_mj.physics.mixing.attitude_priority`): ``mixer = "auto"`` does wherever the rotors
         have lag (``--aero realistic``), and clips each rotor as the paper does otherwise."""
         return self.mixer == "attitude_priority" or (self.mixer == "auto" and self.aero.motor_tau > 0)
 
@@ -690,7 +690,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
 def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams]:
     """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
     a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the
-    scenario's folder). Returns (the model as given, its :class:`~swarm_mj.params.QuadParams`);
+    scenario's folder). Returns (the model as given, its :class:`~swarm_mj.physics.params.QuadParams`);
     :class:`UserError` naming the field or the vehicle file and key otherwise (docs/vehicles.md)."""
     from .vehicles import bundled, load_vehicle
 

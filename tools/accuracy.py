@@ -9,7 +9,7 @@
 Study mode (default). Each bundled scenario (``scenarios/*.toml``, flown with its own rule), plus
 the rule variants that the README's anti-collision table prints (``anti_collision``, ``scenario1..3``
 with each of ``layers``, ``paper``, ``off``; ``--no-rule-variants`` leaves them out), is flown with
-``swarm_mj.runner.run`` at every setting of ``--settings`` (default RK4 at 1, 2.5, 5 and 10 ms, and
+``swarm_mj.experiments.runner.run`` at every setting of ``--settings`` (default RK4 at 1, 2.5, 5 and 10 ms, and
 Euler and implicitfast at 5 and 10 ms, the two steps that divide the 10-ms control period and are
 candidates for the default). The 1-ms RK4 run is the reference. Per case and setting it gives
 
@@ -227,7 +227,7 @@ def fly_case(case: dict) -> dict:
     Each setting is compared with the reference and with ``case["current"]`` (the default step before
     this study, RK4 at 5 ms), whose figures the README printed.
     """
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     base = _case_scenario(case)
     settings = [tuple(s) for s in case["settings"]]
@@ -512,7 +512,7 @@ def study(
     """Fly the study and return the JSON document."""
     import mujoco
 
-    from swarm_mj.parallel import machine_description
+    from swarm_mj.experiments.parallel import machine_description
 
     cases = make_cases(names, duration, settings, rule_variants, perturb_m=perturb_m, perturb_dirs=perturb_dirs)
     t0 = time.perf_counter()
@@ -996,7 +996,7 @@ def fly_contacts(job: dict) -> dict:
     drawn around it) along x: the control run.
     """
     from swarm_mj.commands.stress import StressCase, stress_scenario
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     case = StressCase(**job["case"])
     sc = stress_scenario(case).with_overrides(timestep=float(job["timestep"]), integrator="RK4")

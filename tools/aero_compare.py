@@ -54,8 +54,8 @@ def _finite(x):
 
 def fly_scenario(job: tuple[str, str, str, float | None]) -> dict:
     """One bundled scenario under one rule and physics: the comparison's numbers."""
-    from swarm_mj.aero.presets import with_aero
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.physics.aero.presets import with_aero
     from swarm_mj.scenario import load_scenario
 
     name, rule, aero, duration = job

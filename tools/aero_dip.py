@@ -7,7 +7,7 @@ references, both under the paper's backstepping controller (Table 4 gains). For 
 prints the worst altitude dip of the lower drone while it is within 1 m (horizontally) of the
 upper one (its reference altitude minus its altitude), the same for the lower drone HOLDING
 directly below the upper one (steady state), and the jet's centreline speed and half-width
-at that depth (the turbulent-jet model, swarm_mj.aero.downwash).
+at that depth (the turbulent-jet model, swarm_mj.physics.aero.downwash).
 
     python tools/aero_dip.py                 # depths 0.4 0.8 1.2 m, 1 m/s
     python tools/aero_dip.py --depths 0.4 --speed 0.5 --json dip.json
@@ -30,11 +30,11 @@ def fly(
 ) -> dict:
     """One two-drone flight; returns the worst dip (m) of the lower drone near the upper one
     (``hold``: holding ``offset`` m aside of the point right below it)."""
-    from swarm_mj.aero import install, preset
     from swarm_mj.control.backstepping import TABLE4_GAINS, Backstepping
-    from swarm_mj.observation import observe_kernel
-    from swarm_mj.sim import Sim
-    from swarm_mj.world import build_world
+    from swarm_mj.physics.aero import install, preset
+    from swarm_mj.physics.observation import observe_kernel
+    from swarm_mj.physics.sim import Sim
+    from swarm_mj.physics.world import build_world
 
     cfg = preset(aero)
     T = 0.01
@@ -71,12 +71,8 @@ def fly(
 
 
 def main(argv: list[str] | None = None) -> int:
-    from swarm_mj.aero.downwash import (
-        centreline_velocity,
-        half_width,
-        hover_induced_velocity,
-    )
-    from swarm_mj.params import DEFAULT_PARAMS as P
+    from swarm_mj.physics.aero.downwash import centreline_velocity, half_width, hover_induced_velocity
+    from swarm_mj.physics.params import DEFAULT_PARAMS as P
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--depths", nargs="+", type=float, default=[0.4, 0.8, 1.2])

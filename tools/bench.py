@@ -2,7 +2,7 @@
 
 The baseline is raw ``mujoco.mj_step`` on the same compiled model (ctrl at hover thrust, a
 constant ``xfrc_applied``, the drones in the air), doing the same number of physics steps, with
-MuJoCo's profiling clock off as in our own steps (``swarm_mj._mjstep.timer_pause``: the Python
+MuJoCo's profiling clock off as in our own steps (``swarm_mj.physics._mjstep.timer_pause``: the Python
 bindings' default clock costs about a tenth of a step, so the baseline is MuJoCo at its fastest);
 each row gives our time and the raw time for the same simulated work (the best of 5 repeats each,
 ours and raw interleaved) and their ratio ("× raw": how many times the raw physics' time ours
@@ -15,7 +15,7 @@ Rows:
 * runs: real-time factor of ``runner.run`` for ``lemniscate_single`` and ``circle`` (180 s;
   30 s with --quick), without and with recording (``recording.write_recording`` to a temp
   file; overhead in %), and step by step (``fused=False``: the ordinary path the fused one,
-  swarm_mj/fast.py, is compared with; the bench compiles the chunk driver before it starts);
+  swarm_mj/pipeline/fast.py, is compared with; the bench compiles the chunk driver before it starts);
 * env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
 * vector: ``SwarmVectorEnv`` with 64 copies of the six-drone circle, random U near hover, in
   drone-steps per second, against raw mj_step on the same batched models (its blocks), beside
@@ -75,7 +75,7 @@ import mujoco
 import numpy as np
 # isort: on
 
-from swarm_mj._mjstep import profiler_paused
+from swarm_mj.physics._mjstep import profiler_paused
 
 SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero")
 ROWS: list[dict] = []
@@ -117,9 +117,9 @@ def row(
 
 
 def machine() -> dict:
-    """The machine (swarm_mj.parallel.machine_description) plus Numba and the load average."""
+    """The machine (swarm_mj.experiments.parallel.machine_description) plus Numba and the load average."""
     from swarm_mj import _jit
-    from swarm_mj.parallel import machine_description
+    from swarm_mj.experiments.parallel import machine_description
 
     try:
         import numba
@@ -161,7 +161,7 @@ def raw_seconds(world, n_steps: int, *, lift: float = 2.0, clock: bool = False) 
     d.xfrc_applied[world.body_ids, 0:3] = (0.05, -0.03, 0.0)
     mujoco.mj_forward(model, d)
     step = mujoco.mj_step
-    # paused as our runs step (swarm_mj/_mjstep.py): the baseline is MuJoCo at its fastest
+    # paused as our runs step (swarm_mj/physics/_mjstep.py): the baseline is MuJoCo at its fastest
     with contextlib.nullcontext() if clock else profiler_paused():
         t0 = time.perf_counter()
         for _ in range(n_steps):
@@ -173,8 +173,8 @@ def raw_seconds(world, n_steps: int, *, lift: float = 2.0, clock: bool = False) 
 
 
 def bench_core(quick: bool, repeats: int) -> None:
-    from swarm_mj.sim import Sim
-    from swarm_mj.world import build_world
+    from swarm_mj.physics.sim import Sim
+    from swarm_mj.physics.world import build_world
 
     n = 6
     world = build_world(n, positions=np.column_stack([2.0 * np.arange(n), np.zeros(n), np.full(n, 2.0)]))
@@ -206,8 +206,8 @@ def bench_core(quick: bool, repeats: int) -> None:
 
 
 def bench_runs(quick: bool, repeats: int) -> None:
-    from swarm_mj.recording import write_recording
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.output.recording import write_recording
     from swarm_mj.scenario import load_scenario
 
     dur = 30.0 if quick else 180.0
@@ -229,7 +229,7 @@ def bench_runs(quick: bool, repeats: int) -> None:
                 t0 = time.perf_counter()
                 write_recording(res, Path(tmp) / f"{name}.rrd")
                 t_rec.append(time.perf_counter() - t0)
-            from swarm_mj.world import build_world
+            from swarm_mj.physics.world import build_world
 
             w = build_world(
                 sc.n_drones, positions=sc.initial_positions(), timestep=sc.timestep, integrator=sc.integrator
@@ -278,8 +278,8 @@ def bench_runs(quick: bool, repeats: int) -> None:
 
 
 def bench_env(quick: bool, repeats: int) -> None:
+    from swarm_mj.control.policy import BacksteppingPolicy
     from swarm_mj.env import SwarmEnv
-    from swarm_mj.policy import BacksteppingPolicy
     from swarm_mj.scenario import load_scenario
 
     secs = 5.0 if quick else 10.0
@@ -404,7 +404,7 @@ def bench_startup(quick: bool, repeats: int) -> None:
         t_start = min(_wall(cli + ["--duration", "0.1", "--no-record"], base, tmp) for _ in range(repeats))
         t_bare = min(_wall([py, "-c", "import mujoco, numpy"], base, tmp) for _ in range(repeats))
         t_imp = min(
-            _wall([py, "-c", "import swarm_mj.cli, swarm_mj.runner, swarm_mj.recording"], base, tmp)
+            _wall([py, "-c", "import swarm_mj.cli, swarm_mj.experiments.runner, swarm_mj.output.recording"], base, tmp)
             for _ in range(repeats)
         )
         row(
@@ -460,8 +460,8 @@ def _wait_background_compile(limit_s: float = 300.0) -> float:
 
 
 def bench_tuning(quick: bool, repeats: int) -> None:
+    from swarm_mj.physics.world import build_world
     from swarm_mj.tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
-    from swarm_mj.world import build_world
 
     pop, iters = (20, 2) if quick else (50, 14)
     opts = TuneOptions(population=pop, iterations=iters, seed=1)
@@ -564,7 +564,7 @@ def bench_video(quick: bool, repeats: int) -> None:
     except ImportError as exc:
         row("video", "render_video", None, None, note=f"skipped: swarm_mj.video unavailable ({exc})")
         return
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     res = run("circle", duration=6.0, progress=False)
     frames = 30 if quick else 90
@@ -577,7 +577,7 @@ def bench_video(quick: bool, repeats: int) -> None:
                 res, Path(tmp) / "b.mp4", fps=fps, size=size, start=1.0, end=1.0 + frames / fps, progress=False
             )
             t_vid = time.perf_counter() - t0
-        from swarm_mj.world import build_world
+        from swarm_mj.physics.world import build_world
 
         sc = res.scenario
         w = build_world(sc.n_drones, positions=sc.initial_positions())
@@ -628,8 +628,8 @@ def polygon_scenario(n_drones: int, duration: float, rule: str = "paper"):
 
 
 def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
-    from swarm_mj.runner import run
-    from swarm_mj.world import build_world
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.physics.world import build_world
 
     dur = 2.0 if quick else 10.0
     for n in sizes:
@@ -664,7 +664,7 @@ def bench_scaling(quick: bool, repeats: int, sizes=(6, 25, 100)) -> None:
 
 def bench_aero(quick: bool, repeats: int) -> None:
     """The realistic physics preset's cost over the paper's, per simulated second (circle, 6 drones)."""
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
     from swarm_mj.scenario import load_scenario
 
     dur = 30.0 if quick else 60.0
@@ -687,8 +687,8 @@ def bench_aero(quick: bool, repeats: int) -> None:
     s = notes["realistic"]
     # the physics alone: Sim.step (saturation, force stages, mj_step, contacts, monitors) of the same
     # model under each preset, the drones hovering 2 m up at constant commands, no controller or rule
-    from swarm_mj.aero.presets import with_aero
     from swarm_mj.env import SwarmEnv
+    from swarm_mj.physics.aero.presets import with_aero
 
     steps = int(round(dur / sc.control_period))
     phys: dict[str, list[float]] = {"paper": [], "realistic": []}
@@ -805,7 +805,9 @@ def main(argv: list[str] | None = None) -> int:
         f"MuJoCo {mach['mujoco']}, NumPy {mach['numpy']}, Numba {mach['numba']}, load {mach['load_average']}",
         flush=True,
     )
-    from swarm_mj import _jit, fast, runner
+    from swarm_mj import _jit
+    from swarm_mj.experiments import runner
+    from swarm_mj.pipeline import fast
 
     t_jit = _jit.warm_up()
     sigs = runner.preset_signatures()

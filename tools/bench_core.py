@@ -1,4 +1,4 @@
-"""Cost of the simulation core (swarm_mj.sim.Sim.step) next to raw mujoco.mj_step.
+"""Cost of the simulation core (swarm_mj.physics.sim.Sim.step) next to raw mujoco.mj_step.
 
 For the 6-drone world at the default physics timestep, this times
   * raw:  ``mujoco.mj_step`` on the same model, ctrl at hover and a constant xfrc_applied,
@@ -19,9 +19,9 @@ import time
 import mujoco
 import numpy as np
 
-from swarm_mj._mjstep import profiler_paused
-from swarm_mj.sim import Sim
-from swarm_mj.world import build_world
+from swarm_mj.physics._mjstep import profiler_paused
+from swarm_mj.physics.sim import Sim
+from swarm_mj.physics.world import build_world
 
 GOAL = 1.3
 
@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         raw.xfrc_applied[world.body_ids, 0:3] = F
         mujoco.mj_forward(model, raw)
         step = mujoco.mj_step
-        with profiler_paused():  # as Sim.step steps (swarm_mj/_mjstep.py)
+        with profiler_paused():  # as Sim.step steps (swarm_mj/physics/_mjstep.py)
             t0 = time.perf_counter()
             for _ in range(n_phys):
                 step(model, raw)

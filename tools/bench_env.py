@@ -26,9 +26,9 @@ import time
 import mujoco
 import numpy as np
 
-from swarm_mj._mjstep import profiler_paused
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import SwarmEnv
-from swarm_mj.policy import BacksteppingPolicy
+from swarm_mj.physics._mjstep import profiler_paused
 from swarm_mj.scenario import load_scenario
 
 
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
         raw.xfrc_applied[env.world.body_ids, 0:3] = [0.1, -0.05, 0.02]
         mujoco.mj_forward(model, raw)
         step = mujoco.mj_step
-        with profiler_paused():  # as Sim.step steps (swarm_mj/_mjstep.py)
+        with profiler_paused():  # as Sim.step steps (swarm_mj/physics/_mjstep.py)
             t0 = time.perf_counter()
             for _ in range(K * n_sub):
                 step(model, raw)

@@ -64,7 +64,7 @@ def has_crazyflow() -> bool:
 
 def throughput(K: int, repeats: int) -> list[dict]:
     """The three throughput rows and the two ratios (module docstring), interleaved ``repeats`` times."""
-    from swarm_mj.policy import BacksteppingPolicy
+    from swarm_mj.control.policy import BacksteppingPolicy
     from swarm_mj.scenario import load_scenario
     from swarm_mj.wrappers.vector import SwarmVectorEnv
 

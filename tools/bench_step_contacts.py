@@ -1,6 +1,6 @@
 """Contacts of the paper's rule over the stress starts at two physics steps (issue 30; measurement only).
 
-The starts of ``swarm-mj stress --rule paper --starts 100`` (``swarm_mj.stress.StressCase``: 5 followers
+The starts of ``swarm-mj stress --rule paper --starts 100`` (``swarm_mj.experiments.stress.StressCase``: 5 followers
 within 3 m of the leader, at least 0.6 m apart, seeds 0..99, 15 s, the paper's physics), flown with
 ``runner.run`` at RK4 5 ms (the default) and RK4 10 ms (the control period) through a scenario
 override of ``timestep`` (the CLI has none). Per step it prints and writes (``--json``):
@@ -30,8 +30,8 @@ STEPS = (0.005, 0.01)  # RK4 physics steps compared (s)
 
 def fly(job: tuple[int, float, int, float, float, float]) -> dict:
     """One stress start (seed) at one physics step: the summary's contact figures."""
-    from swarm_mj.runner import run
-    from swarm_mj.stress import StressCase, stress_scenario
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.experiments.stress import StressCase, stress_scenario
 
     seed, timestep, followers, radius, min_spacing, duration = job
     case = StressCase("paper", seed, followers, radius, min_spacing, duration)
@@ -74,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=None, help="worker processes (default: the usable CPUs)")
     ap.add_argument("--json", metavar="PATH", help="write every run and the summary")
     a = ap.parse_args(argv)
-    from swarm_mj.parallel import map_ordered
+    from swarm_mj.experiments.parallel import map_ordered
 
     jobs = [(seed, h, a.followers, a.radius, a.min_spacing, a.duration) for seed in range(a.starts) for h in STEPS]
     t0 = time.perf_counter()

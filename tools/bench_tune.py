@@ -25,9 +25,9 @@ import time
 
 import numpy as np
 
+from swarm_mj.experiments.runner import run
 from swarm_mj.metrics import ise
-from swarm_mj.runner import run
-from swarm_mj.state import wrap_angle
+from swarm_mj.physics.state import wrap_angle
 from swarm_mj.tuning.cost import (
     StepCostSettings,
     TuneOptions,

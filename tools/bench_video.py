@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 import swarm_mj  # noqa: F401  (sets MUJOCO_GL before mujoco is imported)
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
 from swarm_mj.video import Replay, VideoStyle, frame_times, mujoco_gl_backend, parse_size, render_video
 
 

@@ -18,8 +18,8 @@ import argparse
 
 import numpy as np
 
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import SwarmEnv
-from swarm_mj.policy import BacksteppingPolicy
 from swarm_mj.scenario import load_scenario
 
 

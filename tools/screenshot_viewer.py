@@ -2,7 +2,7 @@
 
     python tools/screenshot_viewer.py circle.rrd -o docs/viewer.png
 
-Serves the file with ``swarm_mj.viewer.serve_web`` (the viewer bundled in rerun-sdk), opens the
+Serves the file with ``swarm_mj.output.viewer.serve_web`` (the viewer bundled in rerun-sdk), opens the
 page in headless Chromium through Playwright (WebGL on the CPU through SwiftShader), waits until
 the viewer holds the recording, waits for the 3D view to settle, and saves the screenshot.
 
@@ -104,7 +104,7 @@ def pixel_stats(png: str | Path, box: tuple[int, int, int, int] | None = None) -
 
 def rrd_contents(rrd: str | Path, timeout: float = 60) -> dict:
     """Application ids and entity paths of an .rrd, from ``rerun rrd print`` (bounded in time)."""
-    from swarm_mj.viewer import find_rerun
+    from swarm_mj.output.viewer import find_rerun
 
     out = subprocess.run(
         [str(find_rerun()), "rrd", "print", str(rrd)], capture_output=True, text=True, timeout=timeout, check=False
@@ -214,7 +214,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--chromium", default=CHROMIUM, help=f"browser executable (default {CHROMIUM})")
     a = ap.parse_args(argv)
     size = tuple(int(v) for v in a.size.lower().split("x"))
-    from swarm_mj.viewer import serve_web, web_url
+    from swarm_mj.output.viewer import serve_web, web_url
 
     if a.url:
         info = shoot(a.url, a.output, page_rrd=a.page_rrd, timeout=a.timeout, size=size, chromium=a.chromium)

@@ -16,8 +16,8 @@ import argparse
 import json
 import sys
 
+from swarm_mj.experiments.runner import run
 from swarm_mj.paper import PAPER_TABLE5
-from swarm_mj.runner import run
 
 ROWS = [  # (label, scenario, trajectory, wind, feedforward)
     ("circle, no wind", "circle_single", "circle", False, True),

@@ -7,7 +7,7 @@ import os
 import sys
 from pathlib import Path
 
-from ..interrupt import CooperativeInterrupt
+from ..output.interrupt import CooperativeInterrupt
 from . import AERO_NAMES, RULE_NAMES
 
 
@@ -50,8 +50,8 @@ def add_parser(sub) -> None:
 
 def write_json_atomic(path: str | Path, data: dict) -> None:
     """Strict JSON, written atomically (kept here for the callers of ``commands.run``; see
-    :mod:`swarm_mj.atomic`)."""
-    from ..atomic import write_json_atomic as _write
+    :mod:`swarm_mj.output.atomic`)."""
+    from ..output.atomic import write_json_atomic as _write
 
     _write(path, data)
 
@@ -60,8 +60,8 @@ def check_args(args: argparse.Namespace, sc) -> None:
     """Every option of ``swarm-mj run`` checked against the scenario before anything flies:
     --seed, --duration (finite, at least one control period, a log that fits in memory),
     every output path (-o, --summary, --video, --snapshot). Raises :class:`UserError`."""
-    from ..atomic import check_output_path
     from ..errors import UserError
+    from ..output.atomic import check_output_path
     from ..scenario import check_duration, check_seed
 
     if args.seed is not None:
@@ -102,8 +102,8 @@ def main(args: argparse.Namespace) -> int:
 def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     from ..control.backstepping import check_gains, load_gains
     from ..errors import UserError
-    from ..report_table import format_summary
-    from ..runner import run
+    from ..experiments.report_table import format_summary
+    from ..experiments.runner import run
     from ..scenario import load_scenario
 
     sc = load_scenario(args.scenario)
@@ -121,7 +121,7 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
 
         check_video_args(args)
     if args.web:
-        from ..viewer import check_port
+        from ..output.viewer import check_port
 
         if args.no_record:
             raise UserError("--web serves the recording: it cannot go with --no-record")
@@ -140,14 +140,14 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     out = None
     if not args.no_record:
         # imported here: Rerun's import costs ~0.3 s of start-up, needed only when recording
-        from ..recording import write_recording
+        from ..output.recording import write_recording
 
         out = Path(args.output) if args.output else Path(f"{sc.name}.rrd")
         write_recording(result, out, safety_distance=sc.rule_params.safety_distance)
         if not args.quiet:
             print(f"recording: {out}  (open with: swarm-mj view {out})", file=sys.stderr)
         if args.spawn:  # after the file is complete, so that the recording is kept whatever happens
-            from ..viewer import spawn_note
+            from ..output.viewer import spawn_note
 
             print(spawn_note(out), file=sys.stderr)
     if args.summary:
@@ -173,7 +173,7 @@ def _serve(args: argparse.Namespace, out: Path | None, rc: int) -> int:
     if not args.web:
         return rc
     assert out is not None  # --web cannot go with --no-record (main checks), so the recording exists
-    from ..viewer import serve_until_interrupted
+    from ..output.viewer import serve_until_interrupted
 
     try:
         served = serve_until_interrupted(out, args.port)

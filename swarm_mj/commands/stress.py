@@ -18,7 +18,7 @@ Short runs (``--duration`` 15 s) are enough to form up.
 
     swarm-mj stress --rule layers --rule paper --starts 100 --followers 5
 
-The flights themselves are :mod:`swarm_mj.stress`.
+The flights themselves are :mod:`swarm_mj.experiments.stress`.
 """
 
 from __future__ import annotations
@@ -26,7 +26,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from ..stress import (  # noqa: F401
+from ..experiments.stress import (  # noqa: F401
     RULES,
     StressCase,
     fly_case,
@@ -92,11 +92,11 @@ def main(args: argparse.Namespace) -> int:
     rules = args.rule or ["auto", "paper"]  # stress() resolves "auto" for the physics
     save = getattr(args, "save_scenario", None)
     if args.json:
-        from ..atomic import check_output_path
+        from ..output.atomic import check_output_path
 
         check_output_path(args.json, "--json", allow_stdout=True)
     if save:
-        from ..atomic import check_output_path
+        from ..output.atomic import check_output_path
 
         check_output_path(save, "--save-scenario", (".toml",))
     vehicle, gains = args.vehicle, args.gains
@@ -129,7 +129,7 @@ def main(args: argparse.Namespace) -> int:
         gains=gains,
     )
     if save:
-        from ..atomic import write_text_atomic
+        from ..output.atomic import write_text_atomic
         from ..scenario import scenario_toml
 
         case = StressCase(
@@ -155,13 +155,13 @@ def main(args: argparse.Namespace) -> int:
         "starts": rows,
     }
     if args.json and args.json != "-":
-        from ..atomic import write_json_atomic
+        from ..output.atomic import write_json_atomic
 
         write_json_atomic(args.json, doc)  # first: a reader that stops reading the table (| head) loses nothing
     print(format_table(table, args.followers))
     print("\n".join(replay_lines(table, rows, save)))
     if args.json == "-":
-        from ..atomic import write_json_atomic
+        from ..output.atomic import write_json_atomic
 
         write_json_atomic(args.json, doc)
     return 0

@@ -106,9 +106,9 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..atomic import write_json_atomic
+    from ..experiments.sweep import format_sweep, sweep
+    from ..output.atomic import write_json_atomic
     from ..scenario import load_scenario
-    from ..sweep import format_sweep, sweep
 
     if args.seeds < 1:
         raise UserError(f"--seeds must be >= 1, got {args.seeds}")
@@ -121,7 +121,7 @@ def main(args: argparse.Namespace) -> int:
 
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
     if args.json:
-        from ..atomic import check_output_path
+        from ..output.atomic import check_output_path
 
         check_output_path(args.json, "--json", allow_stdout=True)
     if args.gains:
@@ -129,7 +129,7 @@ def main(args: argparse.Namespace) -> int:
 
         sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
     if args.aero:
-        from ..aero import with_aero
+        from ..physics.aero import with_aero
 
         sc = with_aero(sc, args.aero)
     res = sweep(

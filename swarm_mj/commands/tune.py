@@ -214,10 +214,10 @@ def gains_toml(outcome, created: datetime | None = None, vehicle: str = "paper")
 
 
 def write_text_atomic(path: str | Path, text: str) -> None:
-    """Write ``text`` to ``path`` atomically (:func:`swarm_mj.atomic.write_text_atomic`): a reader
+    """Write ``text`` to ``path`` atomically (:func:`swarm_mj.output.atomic.write_text_atomic`): a reader
     (or an interruption) sees the old file or the new one, never half of one; a FIFO or device
     is written in place, a symlink through to its target."""
-    from ..atomic import write_text_atomic as _write
+    from ..output.atomic import write_text_atomic as _write
 
     _write(path, text)
 
@@ -231,14 +231,14 @@ def write_gains_file(path: str | Path, outcome, vehicle: str = "paper") -> None:
 
 
 def _check_output(path: Path) -> None:
-    from ..atomic import check_output_path
+    from ..output.atomic import check_output_path
 
     check_output_path(path, "-o/--output")
 
 
 def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
-    from ..progress import Progress
+    from ..output.progress import Progress
     from ..tuning.constraints import INFEASIBLE
     from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
 
@@ -276,7 +276,7 @@ def main(args: argparse.Namespace) -> int:
     if args.ray is not None:
         if not args.ray.strip():
             raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
-        from ..parallel import import_ray
+        from ..experiments.parallel import import_ray
 
         import_ray()  # one clear line if Ray is missing
     out = Path(args.output)

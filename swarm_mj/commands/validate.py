@@ -4,7 +4,7 @@ downwash model against real flight logs (docs/validation.md).
 Decodes the Neural-Swarm raw Crazyflie logs under DIR, computes each drone's measured vertical
 residual force Fa_z with the dataset's own system identification (the sysid file each session's
 readme.txt assigns to it), finds the passes of one drone under another, predicts the force from the
-logged states with our jet model (swarm_mj.aero.downwash), the same with a travelling wake,
+logged states with our jet model (swarm_mj.physics.aero.downwash), the same with a travelling wake,
 gym-pybullet-drones' empirical model and no model, and prints RMSE, the peaks' errors, correlation
 and the peaks per vertical-separation bin, for the calibration and the held-out flights, and for the
 bottom of three-drone stacks.
@@ -72,8 +72,8 @@ def _pairs(values: list[str], option: str) -> dict[str, str]:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..atomic import check_output_path, write_json_atomic
     from ..errors import UserError
+    from ..output.atomic import check_output_path, write_json_atomic
     from ..validation.analysis import Setup
     from ..validation.report import format_doc, validate_downwash
     from ..vehicles import load_vehicle

@@ -136,7 +136,7 @@ def add_parser(sub) -> None:
 
 def main(args: argparse.Namespace) -> int:
     from ..control.backstepping import load_gains
-    from ..runner import run
+    from ..experiments.runner import run
     from ..scenario import load_scenario
 
     sc = load_scenario(args.scenario)
@@ -169,7 +169,7 @@ def main(args: argparse.Namespace) -> int:
         print("swarm-mj: interrupted", file=sys.stderr)
         return 130
     if args.record:
-        from ..recording import write_recording
+        from ..output.recording import write_recording
 
         write_recording(result, Path(args.record), safety_distance=sc.rule_params.safety_distance)
         if not args.quiet:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from ..viewer import DEFAULT_PORT
+from ..output.viewer import DEFAULT_PORT
 
 
 def add_parser(sub) -> None:
@@ -36,7 +36,7 @@ def add_web_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..viewer import check_recording, open_desktop, serve_until_interrupted
+    from ..output.viewer import check_recording, open_desktop, serve_until_interrupted
 
     path = check_recording(args.file)
     if args.web:

@@ -1,7 +1,7 @@
 """``swarm-mj warm-up``: compile every kernel into Numba's on-disk cache now (the fast path too).
 
 A first ``swarm-mj run`` compiles the per-step kernels itself and the chunk driver in the background
-(``swarm_mj/fast.py``); this does both in the foreground, for the paper's and the realistic physics,
+(``swarm_mj/pipeline/fast.py``); this does both in the foreground, for the paper's and the realistic physics,
 e.g. once after installing, so that every later run starts fast.
 """
 
@@ -17,7 +17,9 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from .. import _jit, fast, runner
+    from .. import _jit
+    from ..experiments import runner
+    from ..pipeline import fast
 
     if not _jit.AVAILABLE:
         print("Numba is not in use (SWARM_MJ_NO_JIT or not installed): nothing to compile", file=sys.stderr)

@@ -24,7 +24,7 @@ out are finite differences of the commanded φ_d, θ_d over the control period T
 (docs/interpretations.md §2); ψ_d and its derivatives come from the reference.
 
 The state is read from MuJoCo: φ, θ, ψ from the quaternion and φ̇, θ̇, ψ̇ from the
-body angular velocity, see :mod:`swarm_mj.state`.
+body angular velocity, see :mod:`swarm_mj.physics.state`.
 """
 
 from __future__ import annotations
@@ -37,8 +37,8 @@ import numpy as np
 from .._jit import jit
 from ..errors import UserError
 from ..paper import TABLE4_GAINS
-from ..params import DEFAULT_PARAMS, QuadParams
-from ..records import Gains
+from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..pipeline.records import Gains
 
 __all__ = ["TABLE4_GAINS", "Backstepping", "backstepping_kernel", "check_gains", "load_gains"]
 MAX_TILT = np.deg2rad(45.0)

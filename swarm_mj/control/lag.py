@@ -27,7 +27,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from ..records import Predictor
+from ..pipeline.records import Predictor
 
 __all__ = ["AttitudePredictor", "predict_kernel"]
 
@@ -86,7 +86,7 @@ class AttitudePredictor:
         self._out = np.empty((3, self.n, 3))  # (η_p, η̇_p, ω_p), rewritten by every call
 
     def record(self) -> Predictor:
-        """The predictor for a compiled driver (swarm_mj.records; valid until the next :meth:`reset`)."""
+        """The predictor for a compiled driver (swarm_mj.pipeline.records; valid until the next :meth:`reset`)."""
         return self._record
 
     def __call__(

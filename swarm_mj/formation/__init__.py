@@ -1,6 +1,14 @@
 """Formation layer (paper §4, docs/interpretations.md §4): polygon slots around the leader and anti-collision."""
 
-from .anticollision import ANTI_COLLISION_RULES, AntiCollision, LayeredRule, NoRule, PaperRule, Rule, make_rule
+from .anticollision import (
+    ANTI_COLLISION_RULES,
+    AntiCollision,
+    LayeredRule,
+    NoRule,
+    PaperRule,
+    Rule,
+    make_rule,
+)
 from .barrier import BarrierRule  # registers "barrier" in ANTI_COLLISION_RULES
 from .rule_params import PRESETS, RuleParams
 from .separation import Sensed, SeparationFilter

@@ -74,9 +74,9 @@ from typing import Any
 import numpy as np
 
 from .._jit import jit
-from ..aero.constants import ROTOR_RADIUS
 from ..errors import UserError
-from ..params import DEFAULT_PARAMS, QuadParams
+from ..physics.aero.constants import ROTOR_RADIUS
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
 from .rule_params import PRESETS, RuleParams
 

@@ -9,7 +9,14 @@ import numpy as np
 from .layered import any_below, react_needed
 from .planner import CROSS, FORMED, LayeredRule, PlanStep, formed_step
 from .rules import pair_distances
-from .separation import closing_only, descending_onto, hold_above, never_through, offset_candidates, stacked_react
+from .separation import (
+    closing_only,
+    descending_onto,
+    hold_above,
+    never_through,
+    offset_candidates,
+    stacked_react,
+)
 
 
 class JetAwareRule(LayeredRule):
@@ -23,7 +30,7 @@ class JetAwareRule(LayeredRule):
     (:data:`~.rule_params.PRESETS`), 2.–4. and 7. its separation:
 
     1. *feedforward* — ``downwash_feedforward``: the controller compensates the downwash force
-       it predicts (:class:`~swarm_mj.policy.DownwashFeedforward`), as it does the wind.
+       it predicts (:class:`~swarm_mj.control.policy.DownwashFeedforward`), as it does the wind.
     2. *yield by the slots* — a follower whose slot is within D̄ of a lower index's yields to it
        by the slots, once, before they meet (:func:`~.separation.stacked_react`).
     3. *stacked offsets* — invariant: two drones of which one yields to the other are ``hop``

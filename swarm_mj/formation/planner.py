@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..params import DEFAULT_PARAMS
+from ..physics.params import DEFAULT_PARAMS
 from .layered import BRAKING_SHARE, advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm

@@ -24,9 +24,9 @@ from typing import Any
 
 import numpy as np
 
-from ..aero.constants import ROTOR_RADIUS
 from ..errors import UserError
-from ..params import DEFAULT_PARAMS, QuadParams
+from ..physics.aero.constants import ROTOR_RADIUS
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 
 
 def _p(
@@ -128,7 +128,7 @@ _FIELDS = {f.name: f for f in fields(RuleParams)}
 
 def vehicle_outline(vehicle: QuadParams = DEFAULT_PARAMS) -> float:
     """Centre to rotor tip (m) in plan view: the arm L plus the rotor radius (the drawn rotor discs of
-    ``assets/quadrotor.xml``, :data:`swarm_mj.aero.constants.ROTOR_RADIUS`)."""
+    ``assets/quadrotor.xml``, :data:`swarm_mj.physics.aero.constants.ROTOR_RADIUS`)."""
     return float(vehicle.L) + float(getattr(vehicle, "rotor_radius", ROTOR_RADIUS))
 
 

@@ -72,7 +72,7 @@ class Rule:
     @property
     def downwash_feedforward(self) -> bool:
         """Whether the controller is to compensate the downwash of the other drones (when the physics
-        has one; see :class:`~swarm_mj.policy.DownwashFeedforward`): the record's field."""
+        has one; see :class:`~swarm_mj.control.policy.DownwashFeedforward`): the record's field."""
         return self.params.downwash_feedforward
 
     def references(

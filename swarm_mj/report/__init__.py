@@ -2,7 +2,7 @@
 
 :func:`build_report` flies every experiment of the paper (and the checks of
 docs/interpretations.md §4 and §7) as independent jobs through the one executor
-(:func:`swarm_mj.parallel.map_ordered`), longest first, then draws the figures (matplotlib, Agg)
+(:func:`swarm_mj.experiments.parallel.map_ordered`), longest first, then draws the figures (matplotlib, Agg)
 and writes
 
 * ``results.json`` — every number (the README tables are generated from it, and so is the

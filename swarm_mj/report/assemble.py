@@ -11,10 +11,10 @@ import sys
 from dataclasses import asdict
 from typing import Any
 
-from ..atomic import json_safe
+from ..experiments.parallel import machine_description
+from ..experiments.sweep import compute_stats
+from ..output.atomic import json_safe
 from ..paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
-from ..parallel import machine_description
-from ..sweep import compute_stats
 from .jobs import JobResults
 from .plan import (
     ANTI_COLLISION_SCENARIOS,
@@ -278,5 +278,5 @@ def sweeps_section(jl: JobList, res: JobResults) -> dict:
 
 
 def jsonable(o: Any) -> Any:
-    """results.json's strict JSON: :func:`swarm_mj.atomic.json_safe` with infinities as "inf"/"-inf"."""
+    """results.json's strict JSON: :func:`swarm_mj.output.atomic.json_safe` with infinities as "inf"/"-inf"."""
     return json_safe(o, inf_as_string=True)

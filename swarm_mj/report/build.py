@@ -8,8 +8,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError
-from ..parallel import resolve_workers
-from ..progress import Progress, say
+from ..experiments.parallel import resolve_workers
+from ..output.progress import Progress, say
 from .assemble import assemble, jsonable
 from .figures import draw_all, draw_snapshot
 from .jobs import run_jobs
@@ -89,7 +89,7 @@ def _draw_figures(out: Path, R: dict, by_key: dict[str, Any], plan: Plan, tell) 
 
 def _write(out: Path, R: dict) -> dict:
     """results.json (strict JSON) and README.md, each written atomically; returns the JSON data."""
-    from ..atomic import write_json_atomic
+    from ..output.atomic import write_json_atomic
 
     data = jsonable(R)
     write_json_atomic(out / "results.json", data)

@@ -2,7 +2,7 @@
 
 Each job depends only on itself (scenario, seed, settings), so :func:`run_jobs` may run them in
 any order on any number of workers: it runs the longest first through the one executor
-(:func:`swarm_mj.parallel.map_ordered`) and puts the results back in plan order.
+(:func:`swarm_mj.experiments.parallel.map_ordered`) and puts the results back in plan order.
 """
 
 from __future__ import annotations
@@ -14,10 +14,10 @@ from typing import Any
 
 import numpy as np
 
-from ..parallel import map_ordered
-from ..progress import Progress
+from ..experiments.parallel import map_ordered
+from ..experiments.sweep import SweepTask, run_task
+from ..output.progress import Progress
 from ..scenario import Scenario
-from ..sweep import SweepTask, run_task
 
 
 @dataclass(frozen=True)
@@ -96,7 +96,7 @@ def do_job(job: Any) -> Any:
         from ..tuning.cost import step_ise
 
         return [float(step_ise(np.asarray(g))) for g in job.gains]
-    from ..runner import run
+    from ..experiments.runner import run
 
     res = run(job.scenario, seed=job.seed, progress=False, duration=job.duration)
     out: dict[str, Any] = {"summary": res.summary, "events": res.events, "wall_s": res.summary["wall_time_s"]}

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
+from ..experiments.sweep import SweepTask, apply_param
 from ..paper import PAPER_STEP_MAX_ANGLE_DEG, PAPER_TABLE3  # noqa: F401 (re-exported)
 from ..scenario import Scenario, load_scenario, parse_scenario
-from ..sweep import SweepTask, apply_param
 from .jobs import IseJob, RunJob, TuneJob
 
 GAINS_FILE = Path("scenarios/gains/fpa_seed1.toml")
@@ -126,7 +126,7 @@ class JobList:
         param: str | None = None,
         values: tuple = (None,),
     ) -> None:
-        """One seeded sweep: a :class:`~swarm_mj.sweep.SweepTask` per (value, seed)."""
+        """One seeded sweep: a :class:`~swarm_mj.experiments.sweep.SweepTask` per (value, seed)."""
         variants = [sc] if param is None else [apply_param(sc, param, v) for v in values]
         idx = []
         for vi, v in enumerate(variants):

@@ -6,7 +6,15 @@ processes or over a Ray cluster (:mod:`.backends`); the tune itself is :mod:`.dr
 from .backends import make_population_cost
 from .constraints import StepBars
 from .driver import TuneOptions, TuneOutcome, tune_gains
-from .evaluator import BatchEvaluator, StepCheck, StepCostSettings, evaluate_batch, step_check, step_ise, table4_ise
+from .evaluator import (
+    BatchEvaluator,
+    StepCheck,
+    StepCostSettings,
+    evaluate_batch,
+    step_check,
+    step_ise,
+    table4_ise,
+)
 from .fpa import FPAResult, fpa, levy_steps, random_search
 
 __all__ = [

@@ -5,7 +5,7 @@ Each backend is a batched cost ``(m, 12) → (m,)`` for :func:`swarm_mj.tuning.f
 is split in contiguous chunks, each worker runs :func:`~swarm_mj.tuning.evaluator.evaluate_batch` on
 one, and the results are concatenated in order, so the costs — and the whole tune — are the same
 whatever the number of workers. The workers are the experiments' one executor,
-:class:`swarm_mj.parallel.Executor` (spawn processes kept alive across the FPA iterations, CPU
+:class:`swarm_mj.experiments.parallel.Executor` (spawn processes kept alive across the FPA iterations, CPU
 affinity, Ctrl-C, optional extra ``swarm-mj[ray]`` for Ray).
 """
 
@@ -19,7 +19,7 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import UserError
-from ..parallel import RAY_INSTALL_HINT, Executor, default_workers
+from ..experiments.parallel import RAY_INSTALL_HINT, Executor, default_workers
 from .evaluator import StepCostSettings, check_count, evaluate_batch
 
 

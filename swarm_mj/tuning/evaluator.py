@@ -27,7 +27,7 @@ same run as the ISE with the definitions of ``swarm-mj run step``'s summary) by 
 those that do not, by how far they miss. ``bars=None`` is eq. (25) alone, as in the paper.
 
 **The simulator's pipeline over copies, one controller call.** A batch of m candidates flies
-as m copies of one drone in ``Sim(world, T, n_copies=b)`` (:class:`~swarm_mj.sim.Sim`: the
+as m copies of one drone in ``Sim(world, T, n_copies=b)`` (:class:`~swarm_mj.physics.sim.Sim`: the
 same saturation, force stages, ``mj_step`` and health mask as every run), the world built by
 ``build_world(b, collisions=False)`` — contacts off, so the copies all start at the same
 point and fly through each other — in blocks of at most :data:`DEFAULT_BLOCK` copies per
@@ -54,18 +54,18 @@ from typing import Any
 import numpy as np
 
 from .._jit import jit
-from .._mjstep import profiler_paused
 from ..control.backstepping import Backstepping
 from ..control.lag import AttitudePredictor
 from ..errors import UserError
+from ..experiments.parallel import default_workers
 from ..metrics import ise, step_metrics_batch
-from ..mixing import attitude_priority
-from ..observation import attitude_kernel
 from ..paper import TABLE4_GAINS
-from ..parallel import default_workers
-from ..params import DEFAULT_PARAMS, QuadParams
-from ..sim import Sim
-from ..world import INTEGRATORS, build_world
+from ..physics._mjstep import profiler_paused
+from ..physics.mixing import attitude_priority
+from ..physics.observation import attitude_kernel
+from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..physics.sim import Sim
+from ..physics.world import INTEGRATORS, build_world
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
 __all__ = [
@@ -478,7 +478,7 @@ def evaluate_batch(
 
     This is what each worker runs on its chunk; in-process it is the whole population.
     ``threads``: the evaluator's threads (default: the CPUs this process may use,
-    :func:`swarm_mj.parallel.default_workers`); the result is the same whatever their number.
+    :func:`swarm_mj.experiments.parallel.default_workers`); the result is the same whatever their number.
     """
     g = np.atleast_2d(np.asarray(gains, dtype=float))
     if g.ndim != 2 or g.shape[1] != 12:

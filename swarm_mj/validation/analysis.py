@@ -14,16 +14,24 @@ from pathlib import Path
 
 import numpy as np
 
-from ..aero.constants import AIR_DENSITY
-from ..aero.downwash import hover_induced_velocity
-from ..aero.wake import emitted_state, transport_time, wake_offset
 from ..errors import UserError
+from ..physics.aero.constants import AIR_DENSITY
+from ..physics.aero.downwash import hover_induced_velocity
+from ..physics.aero.wake import emitted_state, transport_time, wake_offset
 from ..vehicles import Vehicle, load_vehicle
 from .flight import MAX_GAP, Flight, find_flights, load_flight, rotation_z_axis
 from .params import CALIBRATION, DATASET_MASS_G, DEFAULT_VEHICLE, ValidationParams
 from .passes import Pass, find_passes
 from .predict import gym_force, jet_force
-from .sysid import G, ThrustModel, motor_delay, read_thrust_model, readme_assignments, residual_force_g, thrust_g
+from .sysid import (
+    G,
+    ThrustModel,
+    motor_delay,
+    read_thrust_model,
+    readme_assignments,
+    residual_force_g,
+    thrust_g,
+)
 
 #: The models compared, in table order: ours, gym-pybullet-drones', none.
 MODELS = ("jet", "wake", "gym", "none")
@@ -144,7 +152,7 @@ def _gym(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: 
 def _wake(
     flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: int, p: ValidationParams
 ) -> np.ndarray:
-    """The jet model with a travelling wake (swarm_mj.aero.wake): each upper drone's state taken
+    """The jet model with a travelling wake (swarm_mj.physics.aero.wake): each upper drone's state taken
     at the time the air now at the lower drone left its rotors (two fixed-point passes on τ)."""
     logs = list(flight.drones.values())
     lo, t = logs[d], flight.t

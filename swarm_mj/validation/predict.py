@@ -1,6 +1,6 @@
 """Predicted downwash force on a lower drone from the logged states (docs/validation.md, "Models").
 
-* ``jet``: swarm_mj.aero.downwash's turbulent round jet (Bauersfeld et al. 2024) with its five-plate
+* ``jet``: swarm_mj.physics.aero.downwash's turbulent round jet (Bauersfeld et al. 2024) with its five-plate
   drag force (docs/aero.md), evaluated with the module's pure functions from the upper drone's
   position, thrust axis and produced thrust, on the lower drone's four rotor discs and hub;
 * ``gym``: gym-pybullet-drones' empirical downwash (BaseAviary._downwash):
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
-from ..aero.downwash import hover_induced_velocity, jet_speed, plate_force
+from ..physics.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
+from ..physics.aero.downwash import hover_induced_velocity, jet_speed, plate_force
 from ..vehicles import Vehicle
 from .flight import rotation_z_axis
 

@@ -13,10 +13,13 @@ from .params import CALIBRATION
 #: What each model column is.
 MODEL_NOTES = {
     "jet": (
-        "swarm_mj.aero.downwash: Bauersfeld et al. 2024 turbulent jet, five-plate drag (docs/aero.md), "
+        "swarm_mj.physics.aero.downwash: Bauersfeld et al. 2024 turbulent jet, five-plate drag (docs/aero.md), "
         "x the upper vehicle's downwash_gain"
     ),
-    "wake": "the same jet with a travelling wake (swarm_mj.aero.wake): each upper drone's state when the air left it",
+    "wake": (
+        "the same jet with a travelling wake (swarm_mj.physics.aero.wake): "
+        "each upper drone's state when the air left it"
+    ),
     "gym": "gym-pybullet-drones BaseAviary._downwash, cf2x.urdf coefficients, the upper drone's rotor radius",
     "none": "Fa = 0",
 }

@@ -9,7 +9,7 @@ rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``co
 default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
 realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms) and ``gains`` (the gains
 file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them).
-:meth:`Vehicle.params` gives the :class:`~swarm_mj.params.QuadParams` the simulator and the controller use.
+:meth:`Vehicle.params` gives the :class:`~swarm_mj.physics.params.QuadParams` the simulator and the controller use.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import UserError
-from ..params import QuadParams
+from ..physics.params import QuadParams
 
 _HERE = Path(__file__).resolve().parent
 #: The keys every vehicle file must have, with their units.
@@ -62,7 +62,7 @@ class Vehicle:
         return [float(x) for x in v]
 
     def params(self) -> QuadParams:
-        """The :class:`~swarm_mj.params.QuadParams` of this vehicle (module docstring for the keys).
+        """The :class:`~swarm_mj.physics.params.QuadParams` of this vehicle (module docstring for the keys).
 
         Raises :class:`~swarm_mj.errors.UserError` naming the file and the key when a key needed to
         fly is missing or out of range."""

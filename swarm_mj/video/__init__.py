@@ -1,7 +1,7 @@
 """Headless video and still export by replaying a run's log (docs/design.md, "Video").
 
 Rendering is an *offline replay*: the run is simulated first (``runner.run``), then
-the logged states (:class:`~swarm_mj.runner.RunLog`, one sample per control period)
+the logged states (:class:`~swarm_mj.experiments.runner.RunLog`, one sample per control period)
 are written into the ``qpos`` of a fresh ``MjData`` of the same swarm model, one
 frame at a time, at the video's frame rate (the log sample nearest each frame time),
 and drawn with MuJoCo's own renderer (:class:`mujoco.Renderer`) through EGL. So the

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import UserError
-from ..progress import Progress
+from ..output.progress import Progress
 from .replay import Replay, replay_world
 from .style import DEFAULT_FPS, DEFAULT_SIZE, DEFAULT_SNAPSHOT_TIME, VideoStyle
 

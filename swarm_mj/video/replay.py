@@ -25,17 +25,17 @@ def _rgba(rgb: Sequence[float], a: float) -> np.ndarray:
     return np.array([rgb[0], rgb[1], rgb[2], a], dtype=np.float32)
 
 
-def replay_world(log, *, ground: bool = False):  # noqa: ANN201 - a swarm_mj.world.World
+def replay_world(log, *, ground: bool = False):  # noqa: ANN201 - a swarm_mj.physics.world.World
     """The swarm a log replays into: its drones (names ``log.names``) at their first logged positions,
     with the landing gear and the solid floor when ``ground`` (the physics of docs/aero.md)."""
-    from ..world import build_world
+    from ..physics.world import build_world
 
     p0 = np.nan_to_num(np.asarray(log.pos[0], float))
     return build_world(len(log.names), positions=p0, names=list(log.names), ground=ground)
 
 
 class Replay:
-    """Replays a :class:`~swarm_mj.runner.RunLog` into a MuJoCo model and renders frames.
+    """Replays a :class:`~swarm_mj.experiments.runner.RunLog` into a MuJoCo model and renders frames.
 
     ``Replay(log)`` rebuilds the swarm with :func:`replay_world` (initial positions ``log.pos[0]``,
     names ``log.names``); pass ``world`` to reuse one. Use as a

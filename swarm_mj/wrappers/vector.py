@@ -6,7 +6,7 @@
     obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
 
 **One step pipeline over copies.** The m swarms of n drones are copies in MuJoCo models of
-the simulator's copies axis (:class:`~swarm_mj.sim.Sim` with ``n_copies``: the same
+the simulator's copies axis (:class:`~swarm_mj.physics.sim.Sim` with ``n_copies``: the same
 saturation, drag and wind stages, ``mj_step``, contact bookkeeping and per-copy health mask
 as every run and as the tuner). Copies never interact: drones touch only drones of their own
 copy (``build_world(contact_groups=...)``: explicit contact pairs within a copy), and a free
@@ -75,11 +75,11 @@ from .._jit import jit
 from ..env import CLOSE_PASS_M, SwarmEnv, all_finite, formation_reward
 from ..errors import UserError
 from ..formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
-from ..observation import observe_kernel
+from ..physics.observation import observe_kernel
+from ..physics.sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
+from ..physics.wind import WindField
+from ..physics.world import World, build_world
 from ..scenario import Scenario, load_scenario, random_follower_starts
-from ..sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
-from ..wind import WindField
-from ..world import World, build_world
 from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]

@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from swarm_mj.experiments.runner import run
+from swarm_mj.experiments.stress import StressCase, stress_scenario
 from swarm_mj.formation.barrier import BarrierParams, BarrierRule, keepout_radii
 from swarm_mj.metrics import keepout_min_distance, keepout_time_s
-from swarm_mj.runner import run
-from swarm_mj.stress import StressCase, stress_scenario
 
 pytestmark = pytest.mark.slow
 

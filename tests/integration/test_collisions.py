@@ -20,9 +20,9 @@ import numpy as np
 import pytest
 
 from swarm_mj.commands.stress import StressCase, add_parser, format_table, main, stress, stress_scenario
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
+from swarm_mj.physics.wind import ALWAYS_ON, WindConfig
 from swarm_mj.scenario import load_scenario
-from swarm_mj.wind import ALWAYS_ON, WindConfig
 
 pytestmark = pytest.mark.slow
 

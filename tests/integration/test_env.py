@@ -12,14 +12,14 @@ import dm_env
 import numpy as np
 import pytest
 
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import SwarmEnv
 from swarm_mj.errors import UserError
+from swarm_mj.experiments.runner import run
 from swarm_mj.metrics import min_separation, rmse
-from swarm_mj.mixing import saturate
-from swarm_mj.policy import BacksteppingPolicy
-from swarm_mj.runner import run
+from swarm_mj.physics.mixing import saturate
+from swarm_mj.physics.wind import ALWAYS_ON
 from swarm_mj.scenario import load_scenario
-from swarm_mj.wind import ALWAYS_ON
 
 SHORT = 1.0  # s
 

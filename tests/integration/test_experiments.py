@@ -26,8 +26,8 @@ import pytest
 
 from swarm_mj.cli import main as cli_main
 from swarm_mj.errors import UserError
-from swarm_mj.parallel import Executor, backend_name, map_ordered, resolve_workers
-from swarm_mj.progress import Progress
+from swarm_mj.experiments.parallel import Executor, backend_name, map_ordered, resolve_workers
+from swarm_mj.output.progress import Progress
 
 # --------------------------------------------------------------------------- the executor
 

@@ -1,5 +1,5 @@
 """The two drivers of the control period (docs/design.md, "The control period, written once"): the chunk
-driver (swarm_mj/fast.py, swarm_mj/period.py) gives the same numbers bit for bit as the per-period
+driver (swarm_mj/pipeline/fast.py, swarm_mj/pipeline/period.py) gives the same numbers bit for bit as the per-period
 path over whole runs, through everything it hands back to Python (Fig. 5 acting, contacts, a
 touchdown, a divergence), and it does fly most of a formed run.
 
@@ -15,10 +15,12 @@ import pickle
 import numpy as np
 import pytest
 
-from swarm_mj import _jit, _mjstep, fast
-from swarm_mj.aero.updraft import UpdraftStage
+from swarm_mj import _jit
 from swarm_mj.env import SwarmEnv
-from swarm_mj.runner import _SERIES, preset_signatures, run
+from swarm_mj.experiments.runner import _SERIES, preset_signatures, run
+from swarm_mj.physics import _mjstep
+from swarm_mj.physics.aero.updraft import UpdraftStage
+from swarm_mj.pipeline import fast
 from swarm_mj.scenario import load_scenario
 
 pytestmark = [
@@ -142,8 +144,8 @@ def test_a_new_force_stage_flies_fast_is_logged_and_applied():
 
 def test_the_updraft_accelerates_a_drone_by_lift_over_mass():
     # MuJoCo's own step: a drone at rest over the disc, rotors off, one physics step
-    from swarm_mj.sim import Sim
-    from swarm_mj.world import build_world
+    from swarm_mj.physics.sim import Sim
+    from swarm_mj.physics.world import build_world
 
     world = build_world(1, positions=np.array([[0.3, 0.0, 5.0]]))
     sim = Sim(world, 0.01, force_stages=[UpdraftStage(radius=0.5, lift=1.0)])
@@ -176,9 +178,9 @@ def test_a_stage_without_a_compiled_kernel_flies_step_by_step_and_says_so(capsys
 
 
 def _sig(name="circle", aero=None):
-    from swarm_mj.aero.presets import with_aero
-    from swarm_mj.policy import BacksteppingPolicy
-    from swarm_mj.runner import RunLog
+    from swarm_mj.control.policy import BacksteppingPolicy
+    from swarm_mj.experiments.runner import RunLog
+    from swarm_mj.physics.aero.presets import with_aero
 
     sc = with_aero(load_scenario(name).with_overrides(duration=0.1), aero)
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)

@@ -324,7 +324,7 @@ def _non_finite_paths(o, path="") -> list[str]:
 
 def call_cli(argv: list[str]) -> Outcome:
     """``swarm-mj ARGV`` in this process; the raw summary handed to the JSON writer is kept."""
-    from swarm_mj import atomic
+    from swarm_mj.output import atomic
 
     seen: dict = {}
     real = atomic.write_json_atomic

@@ -2,7 +2,7 @@
 
 The reproducers of the issue, each through the CLI's ``main()`` in this process (a few in a
 subprocess, as a user runs them). "Before any simulation" is checked by replacing
-``swarm_mj.runner.run`` with a function that fails the test if called, and by checking that
+``swarm_mj.experiments.runner.run`` with a function that fails the test if called, and by checking that
 no recording or summary was written; never by a wall clock.
 """
 
@@ -22,7 +22,8 @@ import numpy as np
 import pytest
 
 from swarm_mj import cli
-from swarm_mj.atomic import (
+from swarm_mj.errors import OutputError, UserError
+from swarm_mj.output.atomic import (
     check_output_path,
     dumps_strict,
     json_safe,
@@ -30,7 +31,6 @@ from swarm_mj.atomic import (
     write_json_atomic,
     write_text_atomic,
 )
-from swarm_mj.errors import OutputError, UserError
 from swarm_mj.scenario import MAX_SEED, START_CLEARANCE_M, load_scenario, parse_scenario, run_log_bytes, scenario_toml
 
 #: A citation of a notes file outside the repository (an upper-case name as a file or with a §), not
@@ -81,7 +81,7 @@ def scenario_file(
 @pytest.fixture
 def no_flight(monkeypatch):
     """Fail the test if anything is flown (the runner's entry point or the environment)."""
-    from swarm_mj import runner
+    from swarm_mj.experiments import runner
 
     def boom(*a, **k):
         raise AssertionError("a simulation started before the bad input was refused")
@@ -540,7 +540,7 @@ def test_sweep_prints_a_replay_command_that_flies_the_same_run(tmp_path, monkeyp
 
 
 def _fmt(summary: dict, sc) -> str:
-    from swarm_mj.report_table import format_summary
+    from swarm_mj.experiments.report_table import format_summary
 
     return format_summary(summary, sc)
 
@@ -584,7 +584,7 @@ def test_summary_text_of_a_long_run_cites_the_docs():
 
 
 def test_interrupt_with_no_record_does_not_claim_a_recording(tmp_path, monkeypatch, capsys):
-    from swarm_mj import runner
+    from swarm_mj.experiments import runner
 
     real = runner.run
 

@@ -8,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from swarm_mj.aero.presets import with_aero
 from swarm_mj.control.lag import AttitudePredictor
-from swarm_mj.policy import BacksteppingPolicy
-from swarm_mj.runner import run
+from swarm_mj.control.policy import BacksteppingPolicy
+from swarm_mj.experiments.runner import run
+from swarm_mj.physics.aero.presets import with_aero
 from swarm_mj.scenario import load_scenario
 
 
@@ -71,7 +71,7 @@ def test_lag_compensation_damps_the_swarms_attitude_ringing():
 
 
 def test_the_summary_says_what_the_physics_and_the_controller_were():
-    from swarm_mj.report_table import format_summary
+    from swarm_mj.experiments.report_table import format_summary
 
     sc = with_aero(load_scenario("circle").with_overrides(duration=0.5), "realistic")
     s = run(sc, progress=False).summary

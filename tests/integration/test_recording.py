@@ -16,7 +16,7 @@ rr = pytest.importorskip("rerun")
 pytest.importorskip("datafusion")  # rerun-sdk[catalog]: reading a recording back needs it
 
 from swarm_mj.cli import main as cli_main  # noqa: E402
-from swarm_mj.runner import run  # noqa: E402
+from swarm_mj.experiments.runner import run  # noqa: E402
 
 DURATION = 20.0
 SEED = 0
@@ -155,7 +155,7 @@ def test_slots_reference_and_safety_circles(circle):
 
 
 def test_every_documented_entity_is_present(circle):
-    """The entity list of swarm_mj/recording.py's docstring."""
+    """The entity list of swarm_mj/output/recording.py's docstring."""
     _, df, result = circle
     names = result.log.names
     entities = {c.split(":")[0] for c in df.columns if c.startswith("/")}
@@ -228,7 +228,7 @@ def test_summary_file_agrees_with_the_recording(circle):
 
 def test_failed_write_keeps_the_existing_recording(tmp_path, monkeypatch, circle):
     """A write that fails half-way leaves the previous file untouched (written to .partial, then renamed)."""
-    import swarm_mj.recording as recording
+    import swarm_mj.output.recording as recording
 
     src, _, _ = circle
     target = tmp_path / "keep.rrd"
@@ -247,7 +247,7 @@ def test_failed_write_keeps_the_existing_recording(tmp_path, monkeypatch, circle
 
 
 def test_write_recording_replaces_an_existing_file(tmp_path):
-    from swarm_mj.recording import write_recording
+    from swarm_mj.output.recording import write_recording
 
     target = tmp_path / "r.rrd"
     target.write_bytes(b"old")

@@ -11,9 +11,17 @@ import pytest
 from swarm_mj.cli import main as cli_main
 from swarm_mj.commands.sweep import parse_param
 from swarm_mj.errors import UserError
+from swarm_mj.experiments.sweep import (
+    METRICS,
+    apply_param,
+    compute_stats,
+    metric_stats,
+    run_metrics,
+    seeded,
+    sweep,
+)
+from swarm_mj.physics.wind import ALWAYS_ON
 from swarm_mj.scenario import load_scenario
-from swarm_mj.sweep import METRICS, apply_param, compute_stats, metric_stats, run_metrics, seeded, sweep
-from swarm_mj.wind import ALWAYS_ON
 
 
 def _windy(duration: float = 1.5):
@@ -112,7 +120,7 @@ def test_parse_and_apply_param():
 
 
 def test_run_metrics_single_drone_has_no_swarm_keys():
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     m = run_metrics(run("step", duration=0.5).summary)
     assert "contacts" not in m and np.isnan(m["rmse_steady_x"])

@@ -15,7 +15,7 @@ import pytest
 from swarm_mj.cli import main as cli_main
 from swarm_mj.control.backstepping import TABLE4_GAINS, load_gains
 from swarm_mj.errors import UserError
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
 from swarm_mj.scenario import load_scenario
 from swarm_mj.tuning import BatchEvaluator, StepBars, StepCostSettings, TuneOptions, step_check, step_ise, tune_gains
 from swarm_mj.tuning import cost as cost_mod
@@ -298,9 +298,9 @@ def test_atomic_write_keeps_the_old_file_when_interrupted(tmp_path, monkeypatch)
     def boom(fd):
         raise KeyboardInterrupt
 
-    import swarm_mj.atomic as atomic
+    import swarm_mj.output.atomic as atomic
 
-    monkeypatch.setattr(atomic.os, "fsync", boom)  # tune writes through swarm_mj.atomic
+    monkeypatch.setattr(atomic.os, "fsync", boom)  # tune writes through swarm_mj.output.atomic
     with pytest.raises(KeyboardInterrupt):
         tune_cmd.write_text_atomic(path, "gains = [2.0]\n" * 1000)
     assert path.read_text() == "gains = [1.0]\n"

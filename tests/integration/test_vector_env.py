@@ -21,8 +21,8 @@ from gymnasium.vector.utils import batch_space
 
 from swarm_mj.env import SwarmEnv
 from swarm_mj.errors import UserError
+from swarm_mj.physics.wind import ALWAYS_ON
 from swarm_mj.scenario import RandomStart, load_scenario, random_follower_starts
-from swarm_mj.wind import ALWAYS_ON
 from swarm_mj.wrappers import SwarmGymEnv, SwarmVectorEnv
 
 

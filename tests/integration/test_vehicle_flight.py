@@ -8,12 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_mj.aero.presets import parse_aero
 from swarm_mj.cli import main as cli_main
 from swarm_mj.commands.tune import LAG_SETTLING_FACTOR, lagged_bars
 from swarm_mj.control.backstepping import TABLE4_GAINS, load_gains
 from swarm_mj.errors import UserError
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
+from swarm_mj.physics.aero.presets import parse_aero
 from swarm_mj.scenario import load_scenario
 from swarm_mj.tuning import StepBars, StepCostSettings, step_check, step_ise
 from swarm_mj.vehicles import load_vehicle

@@ -45,7 +45,7 @@ import pytest  # noqa: E402
 
 from swarm_mj import cli, video  # noqa: E402
 from swarm_mj.errors import RenderError, UserError
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
 from swarm_mj.video import gl as video_gl  # noqa: E402
 
 LEADER = np.array(video.LEADER_RGB) * 255
@@ -486,7 +486,7 @@ def test_osmesa_that_cannot_load_is_one_line_exit_1_recording_kept(tmp_path):
 def test_a_run_on_solid_ground_is_replayed_with_its_landing_gear(short_run):
     """Under a preset with a solid ground (docs/aero.md) the video shows the drones the physics flew:
     each with its landing skid (a geom) and strut (a site); under the paper's physics, the plain swarm."""
-    from swarm_mj.aero.presets import with_aero
+    from swarm_mj.physics.aero.presets import with_aero
     from swarm_mj.video.encode import _world_of
 
     assert _world_of(short_run, None) is None  # Replay builds the plain swarm

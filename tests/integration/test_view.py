@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm_mj import viewer
+from swarm_mj.output import viewer
 
 ROOT = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
@@ -464,7 +464,7 @@ def test_slot_markers_follow_the_logged_slots(small_rrd):
             [np.stack(list(v)).astype(np.float64) for v in df[f"/world/slot_markers/{name}:Transform3D:translation"]]
         )[:, 0]
         np.testing.assert_allclose(tr, slots[:, j], atol=1e-6)
-    from swarm_mj.recording import blueprint
+    from swarm_mj.output.recording import blueprint
 
     view3d = blueprint(DRONES).root_container.contents[0]
     assert isinstance(view3d, rr.blueprint.Spatial3DView)

@@ -6,9 +6,9 @@ What is checked, and where each bar comes from:
   paper's F/Ix typo; docs/interpretations.md §5: world frame, at the CoM), it is zero outside the schedule of
   paper §5.3 (F_x from 20 s, F_x and F_y from 50 s), the force applied is
   ½ρC_dA|V|V (eq. 37, docs/interpretations.md §5 constants) of the logged speed (eq. 35), the
-  relative-airspeed option uses V − v_drone as documented in ``swarm_mj/wind.py``, and
+  relative-airspeed option uses V − v_drone as documented in ``swarm_mj/physics/wind.py``, and
   a seed fixes the run. The expected values are written out here from the paper's
-  equations, not taken from ``swarm_mj.wind``.
+  equations, not taken from ``swarm_mj.physics.wind``.
 * Table 5 (paper): lemniscate under wind with feedforward x ≤ 0.0321 m, y ≤ 0.0249 m;
   circle under wind "within 2× of the paper" as docs/interpretations.md §7 defines it: x whole-run
   ≤ 2 × 0.0398 m and y from t = 10 s on ≤ 2 × 0.0689 m. Without feedforward the
@@ -31,10 +31,10 @@ import math
 import numpy as np
 import pytest
 
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import SwarmEnv
 from swarm_mj.errors import SimulationDiverged
-from swarm_mj.policy import BacksteppingPolicy
-from swarm_mj.runner import run
+from swarm_mj.experiments.runner import run
 from swarm_mj.scenario import load_scenario, parse_scenario
 
 # docs/interpretations.md §5 / paper eq. (37) and Table 1, written out independently of the code under test.
@@ -427,7 +427,7 @@ def test_wind_swarm_no_contacts_and_formation_within_10cm_after_wind_on():
 def test_recording_holds_wind_speed_and_force(tmp_path):
     import rerun as rr
 
-    from swarm_mj.recording import write_recording
+    from swarm_mj.output.recording import write_recording
 
     res = run("wind_lemniscate", duration=52.0, progress=False)
     path = write_recording(res, tmp_path / "wind.rrd")

@@ -1,4 +1,4 @@
-"""Aerodynamics beyond the paper (swarm_mj.aero, docs/aero.md), each checked against an independent calculation:
+"""Aerodynamics beyond the paper (swarm_mj.physics.aero, docs/aero.md), each checked against an independent calculation:
 the jet formula of Bauersfeld et al. and momentum theory, Cheeseman–Bennett, the first-order lag
 1 − exp(−t/τ), free fall onto a solid floor; and the paper preset left bit-identical."""
 
@@ -13,8 +13,9 @@ import mujoco
 import numpy as np
 import pytest
 
-from swarm_mj.aero import PAPER, parse_aero, preset, with_aero
-from swarm_mj.aero.downwash import (
+from swarm_mj.errors import UserError
+from swarm_mj.physics.aero import PAPER, parse_aero, preset, with_aero
+from swarm_mj.physics.aero.downwash import (
     BD,
     BODY_AREA,
     S0,
@@ -26,21 +27,20 @@ from swarm_mj.aero.downwash import (
     jet_speed,
     plate_force,
 )
-from swarm_mj.aero.ground import REST_HEIGHT, GroundContacts, rest_positions
-from swarm_mj.aero.ground_effect import GroundEffectStage, ground_effect_factor
-from swarm_mj.aero.presets import (
+from swarm_mj.physics.aero.ground import REST_HEIGHT, GroundContacts, rest_positions
+from swarm_mj.physics.aero.ground_effect import GroundEffectStage, ground_effect_factor
+from swarm_mj.physics.aero.presets import (
     AIR_DENSITY,
     DISC_DRAG_COEFFICIENT,
     ROTOR_PLANE_Z,
     ROTOR_RADIUS,
     install,
 )
-from swarm_mj.errors import UserError
-from swarm_mj.params import DEFAULT_PARAMS as P
-from swarm_mj.records import Kinematics
+from swarm_mj.physics.params import DEFAULT_PARAMS as P
+from swarm_mj.physics.sim import FLOOR_GATE_M, Sim, floor_gate
+from swarm_mj.physics.world import build_world
+from swarm_mj.pipeline.records import Kinematics
 from swarm_mj.scenario import load_scenario, parse_scenario
-from swarm_mj.sim import FLOOR_GATE_M, Sim, floor_gate
-from swarm_mj.world import build_world
 
 ROOT = Path(__file__).resolve().parents[2]
 R = ROTOR_RADIUS
@@ -179,7 +179,9 @@ def test_downwash_copies_do_not_interact():
         pos = np.array([[0, 0, 2.0], [0, 0, 1.6], [0, 0, 1.6], [0, 0, 2.0]])
         quat = np.tile([1.0, 0, 0, 0], (4, 1))
         rotor_thrust = np.full((4, 4), 1.2)
-        kinematics = Kinematics(pos, quat, np.zeros((4, 3)), rotor_thrust)  # what a stage reads (swarm_mj.records)
+        kinematics = Kinematics(
+            pos, quat, np.zeros((4, 3)), rotor_thrust
+        )  # what a stage reads (swarm_mj.pipeline.records)
 
     st = DownwashStage()
     sim = FakeSim()
@@ -198,7 +200,7 @@ def test_crossing_drone_pushes_lower_one_down_by_the_modelled_amount():
     logged states: its vertical velocity and altitude follow that integral, and it dips by centimetres
     (by nothing without downwash)."""
     from swarm_mj.control.backstepping import TABLE4_GAINS, Backstepping
-    from swarm_mj.observation import observe_kernel
+    from swarm_mj.physics.observation import observe_kernel
 
     dt = 0.005
 
@@ -292,7 +294,7 @@ def test_motor_lag_step_response(tau):
     sim = _sim([[0, 0, 5.0]], cfg=cfg, dt=dt)
     assert sim.motor_lag
     F = np.array([1.0, 1.5, 2.0, 0.5])  # per-rotor commands: U = MIX F
-    from swarm_mj.mixing import rotor_to_u
+    from swarm_mj.physics.mixing import rotor_to_u
 
     U = rotor_to_u(F[None])
     t, got = [], []
@@ -399,7 +401,7 @@ def _farthest_floor_point(m, sim_world) -> float:
 
 
 def test_floor_gate_reach_bounds_every_orientation():
-    """The floor gate (``swarm_mj.sim.floor_gate``) tests the floor only when a drone's centre could
+    """The floor gate (``swarm_mj.physics.sim.floor_gate``) tests the floor only when a drone's centre could
     come within its reach + FLOOR_GATE_M of it: the reach bounds every point of the geoms that touch
     the floor, and not loosely; at its reach no orientation touches the floor, just inside the
     farthest point a drone tilted onto its disc's rim does (the check can fail)."""
@@ -446,8 +448,8 @@ def test_floor_gate_switches_the_floor_by_height_and_fall_speed():
 def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch, touchdown_scenario):
     """A take-off from rest, flight, and a touchdown (the floor tested, then not, then again): the
     same log as with the floor tested at every physics step."""
-    import swarm_mj.sim as sim_module
-    from swarm_mj.runner import RunLog, run
+    import swarm_mj.physics.sim as sim_module
+    from swarm_mj.experiments.runner import RunLog, run
 
     sc = touchdown_scenario
     step, floor_on = sim_module.Sim.step, []
@@ -470,7 +472,7 @@ def test_floor_gate_gives_the_same_run_bit_for_bit(monkeypatch, touchdown_scenar
 
 
 def test_realistic_run_takes_off_from_rest():
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     sc = with_aero(load_scenario("step"), "realistic")
     res = run(sc, progress=False, duration=3.0)
@@ -535,7 +537,7 @@ def test_below_ground_is_refused_with_exit_2(tmp_path, doc, field):
 def test_paper_preset_is_bit_identical_to_the_recorded_reproduction():
     """Under ``paper`` (the default of every bundled scenario) the step response is the one the report
     recorded (report/results.json, Table 4 gains), to the last bit."""
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     rec = json.loads((ROOT / "report" / "results.json").read_text())["step"]["table4"]
     res = run(load_scenario("step"), progress=False)
@@ -564,8 +566,8 @@ def test_recording_holds_aero_forces_and_jets(tmp_path):
     its jet drawn under it with a scale that follows its thrust."""
     rr = pytest.importorskip("rerun")
     pytest.importorskip("datafusion")
-    from swarm_mj.recording import write_recording
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.output.recording import write_recording
 
     res = run(with_aero(load_scenario("anti_collision"), "realistic"), progress=False, duration=3.0)
     assert res.error is None
@@ -607,8 +609,8 @@ def test_tilted_touchdown_is_a_crash_even_when_slow():
 
 def test_compiled_kernels_equal_their_numpy_source():
     """The Numba-compiled stages compute what their plain-Python source computes (SWARM_MJ_NO_JIT=1)."""
-    from swarm_mj.aero.downwash import downwash_kernel
-    from swarm_mj.aero.ground_effect import ground_effect_kernel
+    from swarm_mj.physics.aero.downwash import downwash_kernel
+    from swarm_mj.physics.aero.ground_effect import ground_effect_kernel
 
     if not hasattr(downwash_kernel, "py_func"):
         pytest.skip("numba not in use")

@@ -19,7 +19,7 @@ from swarm_mj.formation.barrier import (
     project_polyhedron,
 )
 from swarm_mj.metrics import keepout_distance, keepout_min_distance, keepout_time_s
-from swarm_mj.params import QuadParams
+from swarm_mj.physics.params import QuadParams
 
 
 def _reference_projection(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:

@@ -18,8 +18,8 @@ import pytest
 
 from swarm_mj.control.backstepping import TABLE4_GAINS, Backstepping, check_gains, load_gains
 from swarm_mj.errors import UserError
-from swarm_mj.params import DEFAULT_PARAMS as P
-from swarm_mj.state import body_rates_to_euler_rates
+from swarm_mj.physics.params import DEFAULT_PARAMS as P
+from swarm_mj.physics.state import body_rates_to_euler_rates
 
 Z3 = np.zeros((1, 3))
 RNG_GAINS = np.random.default_rng(7).uniform(0.5, 9.0, 12)  # distinct per axis: catches swapped pairs
@@ -424,7 +424,7 @@ def test_wind_feedforward_cancels_the_wind_on_eq_1():
 
 @pytest.fixture(scope="module")
 def step_run():
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     r = run("step", progress=False)
     assert r.error is None, r.error
@@ -506,7 +506,7 @@ def test_step_rotor_thrusts_within_limits_and_reported(step_run):
 @pytest.mark.slow
 def test_lemniscate_180s_rmse_within_table_5():
     """Issue 3: lemniscate, 180 s, no wind: RMSE x ≤ 0.0075 m, y ≤ 0.0041 m over the whole run."""
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     r = run("lemniscate_single", progress=False)
     assert r.error is None, r.error

@@ -17,7 +17,7 @@ from swarm_mj.formation.anticollision import (
     resolve_rule,
 )
 from swarm_mj.formation.rule_params import RuleParams
-from swarm_mj.mixing import MIX, attitude_priority
+from swarm_mj.physics.mixing import MIX, attitude_priority
 
 HOP = 0.4
 HOLD = RuleParams().crossing_hold  # 7. of JetAwareRule: how far beyond D̄ the early hold starts

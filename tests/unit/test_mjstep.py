@@ -1,4 +1,4 @@
-"""``swarm_mj/_mjstep.py``: MuJoCo's ``mj_step`` called from a compiled kernel is the same function on the
+"""``swarm_mj/physics/_mjstep.py``: MuJoCo's ``mj_step`` called from a compiled kernel is the same function on the
 same memory as ``mujoco.mj_step`` (bit for bit), and the ``ncon`` view reads ``MjData.ncon``."""
 
 from __future__ import annotations
@@ -7,7 +7,8 @@ import mujoco
 import numpy as np
 import pytest
 
-from swarm_mj import _jit, _mjstep
+from swarm_mj import _jit
+from swarm_mj.physics import _mjstep
 
 pytestmark = pytest.mark.skipif(not (_jit.AVAILABLE and _mjstep.available()), reason="no compiled mj_step here")
 

@@ -18,9 +18,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_mj.aero.downwash import BD, S0, downwash_kernel, hover_induced_velocity
-from swarm_mj.aero.wake import emitted_state, transport_time
 from swarm_mj.cli import main as cli_main
+from swarm_mj.physics.aero.downwash import BD, S0, downwash_kernel, hover_induced_velocity
+from swarm_mj.physics.aero.wake import emitted_state, transport_time
 from swarm_mj.validation.decode import decode, decode_bytes
 from swarm_mj.validation.flight import find_flights, load_flight, quat_decompress
 from swarm_mj.validation.passes import find_passes
@@ -222,8 +222,8 @@ def test_jet_force_matches_the_simulators_kernel():
     """jet_force (numpy, the validation's) against downwash_kernel (compiled, the simulator's) on a
     '+' drone with the kernel's hub area: two implementations of docs/aero.md's force."""
     rng = np.random.default_rng(7)
-    from swarm_mj.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
-    from swarm_mj.aero.downwash import BODY_AREA
+    from swarm_mj.physics.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
+    from swarm_mj.physics.aero.downwash import BODY_AREA
 
     veh = Vehicle("t", 0.5, 0.25, 0.09)
     for _ in range(5):

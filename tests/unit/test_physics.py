@@ -1,8 +1,8 @@
 """Physics of the MuJoCo swarm model (docs/interpretations.md §1, paper eq. (1), Table 1, eqs. (26)–(29)).
 
 Every expected value below is computed in this file with numpy from the physics
-(rigid-body equations, rotations, mixing written out here). swarm_mj.state and the
-expected-value side of swarm_mj.mixing are deliberately NOT used: the package is
+(rigid-body equations, rotations, mixing written out here). swarm_mj.physics.state and the
+expected-value side of swarm_mj.physics.mixing are deliberately NOT used: the package is
 the thing under test.
 
 Conventions checked here (and relied on by the rest of the package):
@@ -17,11 +17,11 @@ import mujoco
 import numpy as np
 import pytest
 
-from swarm_mj import mixing
 from swarm_mj.errors import UserError
-from swarm_mj.params import QuadParams
-from swarm_mj.sim import Sim
-from swarm_mj.world import build_world
+from swarm_mj.physics import mixing
+from swarm_mj.physics.params import QuadParams
+from swarm_mj.physics.sim import Sim
+from swarm_mj.physics.world import build_world
 
 # Paper Table 1, typed in again here (not read from QuadParams) so that a wrong default fails.
 M = 0.486
@@ -731,9 +731,9 @@ def test_fifty_drones_build_and_step():
 def test_sim_steps_with_mujocos_profiling_clock_off_and_puts_it_back():
     """The Python bindings set MuJoCo's ``mjcb_time`` whenever an MjData is made, and MuJoCo then reads a
     clock around every stage of every step (``mjData.timer``). ``Sim.step`` switches it off while it steps
-    (swarm_mj/_mjstep.py) and puts it back: the timers measure nothing inside, do outside, and the physics
+    (swarm_mj/physics/_mjstep.py) and puts it back: the timers measure nothing inside, do outside, and the physics
     is the same as raw ``mj_step`` with the clock on, bit for bit."""
-    from swarm_mj import _mjstep
+    from swarm_mj.physics import _mjstep
 
     w = build_world(2, positions=[[0, 0, 2], [2, 0, 2]])
     sim = Sim(w)

@@ -4,7 +4,7 @@ accuracy tool's "same at the printed digits" comparison.
 The flight: one drone, no controller, inputs held (zero-order hold) for 2 s: thrust U1 = 6 N (above
 its weight of 4.77 N) and constant body torques, so it tumbles about all three axes (body rates up
 to ≈ 18 rad/s) while drifting ≈ 18 m; a constant wind force on top, and the linear drag of paper
-eq. (1) that the simulator applies. Flown through :class:`swarm_mj.sim.Sim` with RK4 at 10 ms (the
+eq. (1) that the simulator applies. Flown through :class:`swarm_mj.physics.sim.Sim` with RK4 at 10 ms (the
 step equal to the control period) and at 1 ms.
 
 What the difference is made of, checked separately below:
@@ -13,7 +13,7 @@ What the difference is made of, checked separately below:
   halving the step divides the error by ≈ 16 (position with the drag off, attitude with it on: the
   drag acts at the centre of mass and makes no torque).
 * The drag is evaluated with the velocity at the start of each physics step and held over its RK4
-  stages (``swarm_mj.sim``; ``docs/interpretations.md``, "drag"). Held over a step h it lags the true
+  stages (``swarm_mj.physics.sim``; ``docs/interpretations.md``, "drag"). Held over a step h it lags the true
   −K·v(t) by h/2 on average, i.e. an extra force K·a·h/2, so the position moves by
   (h/2)·(K/m)·(x(t) − x(0) − v(0)·t) per axis (the double integral of a). Between h = 10 ms and 1 ms
   that is (9 ms / 2)·(K/m)·(x − x0 − v0·t): 0.86 mm after 2 s of this flight, which is the whole
@@ -32,9 +32,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_mj.params import DEFAULT_PARAMS, QuadParams
-from swarm_mj.sim import Sim
-from swarm_mj.world import build_world
+from swarm_mj.physics.params import DEFAULT_PARAMS, QuadParams
+from swarm_mj.physics.sim import Sim
+from swarm_mj.physics.world import build_world
 
 ROOT = Path(__file__).resolve().parents[2]
 T = 0.01  # control period (s)

@@ -19,12 +19,21 @@ import numpy as np
 import pytest
 
 from swarm_mj import _jit
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import Command, StepRecord, SwarmEnv
 from swarm_mj.errors import SimulationDiverged
-from swarm_mj.mixing import saturate
-from swarm_mj.policy import BacksteppingPolicy
-from swarm_mj.sim import BELOW_FLOOR, HEALTHY, MUJOCO_WARNING, NON_FINITE, TILTED, DragStage, Sim, WindStage
-from swarm_mj.world import build_world
+from swarm_mj.physics.mixing import saturate
+from swarm_mj.physics.sim import (
+    BELOW_FLOOR,
+    HEALTHY,
+    MUJOCO_WARNING,
+    NON_FINITE,
+    TILTED,
+    DragStage,
+    Sim,
+    WindStage,
+)
+from swarm_mj.physics.world import build_world
 
 REPO = Path(__file__).resolve().parents[2]
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
@@ -95,7 +104,9 @@ def test_an_extra_force_stage_equals_the_same_force_given_as_wind():
 def test_a_stage_torque_turns_the_drone_as_euler_says():
     """A world torque τ_z on a drone at rest, gravity balanced, no drag: ω̇_z = τ_z / Iz (independent check)."""
     tau = 2e-3
-    world = _world(1, params=__import__("swarm_mj.params", fromlist=["QuadParams"]).QuadParams(Kx=0, Ky=0, Kz=0))
+    world = _world(
+        1, params=__import__("swarm_mj.physics.params", fromlist=["QuadParams"]).QuadParams(Kx=0, Ky=0, Kz=0)
+    )
     sim = Sim(world, force_stages=[ConstantStage(np.zeros(3), (0.0, 0.0, tau))])
     U = np.array([[world.params.hover_thrust, 0.0, 0.0, 0.0]])
     steps = 10
@@ -291,7 +302,7 @@ def test_ctrl_c_at_a_random_moment_exits_130_with_a_readable_recording(tmp_path,
 
 
 def test_the_sigint_handler_is_restored_after_a_run():
-    from swarm_mj.runner import run
+    from swarm_mj.experiments.runner import run
 
     before = signal.getsignal(signal.SIGINT)
     run("step", duration=0.05, progress=False)
@@ -383,7 +394,7 @@ def test_public_api_imports_from_the_package():
             "from swarm_mj import SwarmEnv, BacksteppingPolicy, load_scenario, run\n"
             "import swarm_mj\n"
             "assert 'MUJOCO_GL' in os.environ or not sys.platform.startswith('linux')\n"
-            "assert run.__module__ == 'swarm_mj.runner' and SwarmEnv.__module__ == 'swarm_mj.env'\n"
+            "assert run.__module__ == 'swarm_mj.experiments.runner' and SwarmEnv.__module__ == 'swarm_mj.env'\n"
             "print(swarm_mj.__version__)",
         ],
         capture_output=True,

@@ -12,8 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_mj.aero.constants import ROTOR_RADIUS
-from swarm_mj.aero.presets import preset
+from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.errors import UserError
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule, make_rule
 from swarm_mj.formation.rule_params import (
@@ -24,8 +23,9 @@ from swarm_mj.formation.rule_params import (
     check_overrides,
     vehicle_outline,
 )
-from swarm_mj.params import QuadParams
-from swarm_mj.policy import BacksteppingPolicy
+from swarm_mj.physics.aero.constants import ROTOR_RADIUS
+from swarm_mj.physics.aero.presets import preset
+from swarm_mj.physics.params import QuadParams
 from swarm_mj.scenario import parse_scenario
 
 ROOT = Path(__file__).resolve().parents[2]

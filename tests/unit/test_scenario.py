@@ -10,9 +10,9 @@ import tomllib
 import numpy as np
 import pytest
 
-from swarm_mj.aero.presets import preset
 from swarm_mj.control.backstepping import TABLE4_GAINS
 from swarm_mj.errors import UserError
+from swarm_mj.physics.aero.presets import preset
 from swarm_mj.scenario import bundled_scenarios, load_scenario, parse_scenario
 
 BUNDLED = bundled_scenarios()
@@ -220,9 +220,9 @@ def test_load_scenario_file_errors(tmp_path):
 def test_cli_rule_and_aero_names_are_the_registries():
     """The command line's choices (written out so that building the parser stays light) are the
     rules of ANTI_COLLISION_RULES (the default first) and the presets of AERO_MODELS."""
-    from swarm_mj.aero.presets import AERO_MODELS
     from swarm_mj.commands import AERO_NAMES, RULE_NAMES
     from swarm_mj.formation.anticollision import ANTI_COLLISION_RULES, AUTO
+    from swarm_mj.physics.aero.presets import AERO_MODELS
 
     assert (AUTO, *ANTI_COLLISION_RULES) == RULE_NAMES
     assert tuple(AERO_MODELS) == AERO_NAMES

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from swarm_mj.errors import UserError
-from swarm_mj.params import DEFAULT_PARAMS
+from swarm_mj.physics.params import DEFAULT_PARAMS
 from swarm_mj.vehicles import bundled, load_vehicle
 
 
@@ -56,12 +56,12 @@ def test_unknown_vehicle() -> None:
 import mujoco  # noqa: E402
 import numpy as np  # noqa: E402
 
-from swarm_mj.aero.ground import REST_HEIGHT, SKID_HALF  # noqa: E402
-from swarm_mj.mixing import MIX_T, UNMIX_T  # noqa: E402
-from swarm_mj.params import QuadParams  # noqa: E402
+from swarm_mj.physics.aero.ground import REST_HEIGHT, SKID_HALF  # noqa: E402
+from swarm_mj.physics.mixing import MIX_T, UNMIX_T  # noqa: E402
+from swarm_mj.physics.params import QuadParams  # noqa: E402
+from swarm_mj.physics.sim import Sim  # noqa: E402
+from swarm_mj.physics.world import build_world  # noqa: E402
 from swarm_mj.scenario import START_CLEARANCE_M, load_scenario, parse_scenario  # noqa: E402
-from swarm_mj.sim import Sim  # noqa: E402
-from swarm_mj.world import build_world  # noqa: E402
 
 CF = load_vehicle("crazyflie21")
 CFP = CF.params()
@@ -266,7 +266,7 @@ def test_bundled_crazyflie_scenarios_fly_a_crazyflie() -> None:
 
 
 def test_the_vehicles_rotor_lag_is_the_lag_of_a_preset_with_lag() -> None:
-    from swarm_mj.aero.presets import REALISTIC_MOTOR_TAU, with_aero
+    from swarm_mj.physics.aero.presets import REALISTIC_MOTOR_TAU, with_aero
 
     cf = {**BASE, "vehicle": {"model": "crazyflie21"}}
     assert parse_scenario({**cf, "aero": {"model": "realistic"}}).aero.motor_tau == CF.motor_tau
@@ -283,7 +283,7 @@ def test_vehicle_gains_file() -> None:
 
 
 def test_stress_flies_the_vehicle_and_its_gains() -> None:
-    from swarm_mj.stress import StressCase, stress_data, stress_scenario
+    from swarm_mj.experiments.stress import StressCase, stress_data, stress_scenario
 
     case = StressCase("layers", 3, 2, 3.0, 0.6, 1.0, vehicle="crazyflie21", gains=str(CF.gains_file))
     d = stress_data(case)

@@ -1,4 +1,4 @@
-"""Tests of swarm_mj.wind: paper eqs. (35)–(37) as fixed by docs/interpretations.md §5.
+"""Tests of swarm_mj.physics.wind: paper eqs. (35)–(37) as fixed by docs/interpretations.md §5.
 
 Statistical tolerances are derived from the sample size in each test (effective
 sample size of an AR(1) series, variances of the estimators); the reasoning is
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from swarm_mj.errors import UserError
-from swarm_mj.wind import (
+from swarm_mj.physics.wind import (
     ALWAYS_ON,
     PAPER_SCHEDULE,
     WindConfig,

@@ -1,0 +1,389 @@
+"""Run a scenario: ``SwarmEnv`` + a policy, with a log, a summary and observers (docs/design.md, "one loop").
+
+``run(scenario)`` steps the environment with the backstepping policy, keeps every
+control-period sample in preallocated arrays (:class:`RunLog`, time axis first, filled from
+each observation and each :class:`~swarm_mj.env.StepRecord` the environment returns), and
+returns them with the summary of docs/interpretations.md §7. A Ctrl-C or a divergence stops
+the loop; the log of what ran is kept (``RunResult.error`` says why it stopped) so that the
+recording can still be written. Ctrl-C is cooperative: while the loop runs, SIGINT only sets
+a flag, checked once per control period, so that it never lands inside a compiled kernel.
+"""
+
+from __future__ import annotations
+
+import functools
+import sys
+import time as _time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._jit import warm_up
+from ..control.policy import BacksteppingPolicy
+from ..env import Command, StepRecord, SwarmEnv
+from ..errors import SimulationDiverged, UserError
+from ..formation.barrier import keepout_radii
+from ..metrics import (
+    downwash_dip,
+    formation_settling,
+    keepout_summary,
+    leader_distances,
+    min_separation,
+    rmse,
+    step_metrics,
+)
+from ..output.interrupt import CooperativeInterrupt
+from ..output.progress import Progress
+from ..physics.aero.presets import with_aero
+from ..physics.sim import ForceStage
+from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
+from ..pipeline.records import LogRows, Obs
+from ..scenario import Scenario, load_scenario
+
+__all__ = [
+    "Progress",
+    "RunLog",
+    "RunResult",
+    "run",
+    "summarize",
+]
+
+
+_SERIES = ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor", "wind_speed", "wind_force", "D")
+
+
+@dataclass
+class RunLog:
+    """Every control-period sample of a run; k = number of samples (steps + 1)."""
+
+    names: list[str]
+    t: np.ndarray  # (k,)
+    pos: np.ndarray  # (k, n, 3)
+    vel: np.ndarray  # (k, n, 3)
+    quat: np.ndarray  # (k, n, 4)
+    rpy: np.ndarray  # (k, n, 3)
+    pos_d: np.ndarray  # (k, n, 3) commanded position (after anti-collision)
+    slot: np.ndarray  # (k, n, 3) formation setpoint (leader: its reference)
+    att_d: np.ndarray  # (k, n, 3) commanded (φ_d, θ_d, ψ_d)
+    U: np.ndarray  # (k, n, 4) applied U1..U4 over the following period
+    rotor: np.ndarray  # (k, n, 4) rotor thrusts F1..F4 over the following period
+    wind_speed: np.ndarray  # (k, 3)
+    wind_force: np.ndarray  # (k, n, 3) applied wind force over the following period
+    D: np.ndarray  # (k,)
+    #: (S, k, n, 3) the force (N) of each extra force stage of the simulator over the last physics step
+    #: of the following period, in the simulator's stage order; ``forces`` names them
+    stage_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0, 3)))
+    forces: dict[str, np.ndarray] = field(default_factory=dict)  # stage name -> (k, n, 3), views of stage_rows
+
+    @classmethod
+    def allocate(cls, names: list[str], k: int, stages: Sequence[str] = ()) -> RunLog:
+        """NaN-filled series for k samples, and zero-filled force rows for the force stages named ``stages``."""
+        n = len(names)
+        z = lambda *s: np.full(s, np.nan)  # noqa: E731
+        shapes: list[tuple[int, ...]] = [(k,), (k, n, 3), (k, n, 3), (k, n, 4), (k, n, 3), (k, n, 3), (k, n, 3)]
+        shapes += [(k, n, 3), (k, n, 4), (k, n, 4), (k, 3), (k, n, 3), (k,)]
+        if len(set(stages)) != len(stages):
+            raise UserError(f"force stages must have distinct names, got {list(stages)}")
+        rows = np.zeros((len(stages), k, n, 3))
+        series = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
+        return cls(names, **series, stage_rows=rows, forces=_named(rows, stages))
+
+    def force(self, name: str) -> np.ndarray:
+        """The force (k, n, 3) of the stage ``name``; zeros when the run had no such stage."""
+        f = self.forces.get(name)
+        return np.zeros_like(self.pos) if f is None else f
+
+    @property
+    def downwash(self) -> np.ndarray:
+        """(k, n, 3) the downwash force on each drone (docs/aero.md), N; zeros without that stage."""
+        return self.force("downwash")
+
+    @property
+    def ground_effect(self) -> np.ndarray:
+        """(k, n, 3) the ground-effect force on each drone, N; zeros without that stage."""
+        return self.force("ground_effect")
+
+    @functools.cached_property
+    def rows(self) -> LogRows:
+        """The series as one record (what the compiled log rows write: swarm_mj.pipeline.period.log_inputs)."""
+        series = {f: getattr(self, f) for f in _SERIES}
+        return LogRows(**series, forces=self.stage_rows)
+
+    def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
+        """Sample k (time t) from the observation and the command computed from it (before the step);
+        the chunk driver writes the same row with :func:`swarm_mj.pipeline.period.log_inputs` (kept in Python
+        here: a compiled call taking the log's record costs ~1.6 s of compiling on a first run)."""
+        self.t[k] = t
+        self.pos[k] = obs.pos
+        self.vel[k] = obs.vel
+        self.quat[k] = obs.quat
+        self.rpy[k] = obs.rpy
+        self.pos_d[k] = cmd.pos_d
+        self.slot[k] = obs.sp
+        self.att_d[k] = cmd.att_d
+        self.wind_speed[k] = wind_speed
+        self.D[k] = D
+
+    def applied(self, k: int, rec: StepRecord) -> None:
+        """What the environment applied over the period after sample k (each force stage by its name)."""
+        self.U[k] = rec.U
+        self.rotor[k] = rec.rotor_thrust
+        self.wind_force[k] = rec.wind_force
+        for name, f in (rec.aero_forces or {}).items():
+            if name in self.forces:
+                self.forces[name][k] = f
+
+    def hold_last(self, k: int) -> None:
+        """Sample k (the last, with no following period) holds the inputs of k − 1 (zero-order hold)."""
+        self.U[k], self.rotor[k] = self.U[k - 1], self.rotor[k - 1]
+        self.stage_rows[:, k] = self.stage_rows[:, k - 1]
+
+    def truncated(self, k: int) -> RunLog:
+        rows = self.stage_rows[:, :k]
+        series = {f: getattr(self, f)[:k] for f in _SERIES}
+        return RunLog(self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
+
+
+def _named(rows: np.ndarray, names: Sequence[str] | dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The force rows (S, k, n, 3) by stage name: views rows[j]."""
+    return {name: rows[j] for j, name in enumerate(names)}
+
+
+@dataclass
+class RunResult:
+    scenario: Scenario
+    log: RunLog
+    summary: dict
+    events: list[dict]
+    contact_log: list[tuple[float, int, int]]
+    error: BaseException | None = None
+    extra: dict = field(default_factory=dict)
+
+
+def run(
+    scenario: Scenario | str,
+    *,
+    gains: np.ndarray | None = None,
+    anti_collision: str | None = None,
+    seed: int | None = None,
+    progress: bool | None = None,
+    duration: float | None = None,
+    aero: str | None = None,
+    force_stages: Sequence[ForceStage] = (),
+    interrupt: CooperativeInterrupt | None = None,
+    fused: bool | None = None,
+) -> RunResult:
+    """Fly a scenario with the backstepping policy and return the log and summary.
+
+    aero: a physics preset (``"paper"``, ``"realistic"``; docs/aero.md) replacing the scenario's.
+    ``force_stages``: extra :class:`~swarm_mj.physics.sim.ForceStage` s of the simulator (after drag and wind;
+    the preset's aerodynamic stages come after them).
+    Never raises for Ctrl-C or divergence: the result carries the error and the log up to it.
+    ``interrupt``: a :class:`~swarm_mj.output.interrupt.CooperativeInterrupt` the caller entered earlier
+    (``swarm-mj run`` does, before it loads anything), so that a Ctrl-C during its own set-up stops
+    this run at its start, with a recording of it.
+    ``fused``: fly formed flight through the chunk driver where every stage of the run compiles
+    (:mod:`swarm_mj.pipeline.fast`; the same results bit for bit): None when it is compiled (else it is
+    compiled in the background for later runs), True compiling it first if needed, False never.
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    sc = with_aero(sc, aero)
+    if duration is not None:
+        sc = sc.with_overrides(duration=float(duration))
+    if gains is not None:
+        sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
+    if anti_collision is not None:
+        sc = sc.with_overrides(anti_collision=anti_collision)
+    # Ctrl-C from here on (compiling, building the world, flying) stops the run cleanly: the loop
+    # returns what ran (at least the start) and the CLI writes its recording (exit 130).
+    with interrupt or CooperativeInterrupt() as interrupt:
+        announced: list[str] = []  # the first run's notice, printed before compiling
+
+        def announce(msg: str) -> None:
+            announced.append(msg)
+            print(msg, file=sys.stderr, flush=True)
+
+        compile_s = warm_up(announce=None if progress is False else announce)
+        if announced:
+            print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
+        policy = BacksteppingPolicy(sc, env.params)
+        K = env.n_steps
+        log = RunLog.allocate(env.names, K + 1, [st.name for st in env.sim.force_stages])
+        bar = Progress(K, sc.name, progress)
+        error: BaseException | None = None
+        wall0 = _time.perf_counter()
+        ts = env.reset()
+        obs = ts.observation
+        k = 0
+        wind_speed = env.wind.speed
+        # the chunk driver (swarm_mj/pipeline/fast.py) flies chunks of formed flight, when every stage compiles
+        reason = "fused=False" if fused is False else why_not(env, policy)
+        if reason is not None and fused is not False and progress is not False:
+            announce(f"flying step by step: {reason}")
+        fast = (
+            FastLoop.build(env, policy, log, compile=bool(fused), announce=None if progress is False else announce)
+            if reason is None
+            else None
+        )
+        try:
+            while True:
+                if fast is not None and k < K and fast.ready():
+                    k = fast.run(min(K, k + CHUNK))
+                    fast.raise_if_stopped()
+                    obs = env._obs
+                    bar.update(k)
+                    if interrupt.requested:
+                        raise KeyboardInterrupt
+                    if fast.status == 0:  # done: the chunk flew to its end
+                        continue
+                cmd = policy.command(obs)
+                log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
+                if k >= K:
+                    break
+                if interrupt.requested:
+                    raise KeyboardInterrupt
+                ts = env.step(cmd)
+                rec = env.last_applied
+                assert rec is not None
+                log.applied(k, rec)
+                obs = ts.observation
+                k += 1
+                if k % 50 == 0:
+                    bar.update(k)
+        except KeyboardInterrupt as exc:
+            error = exc
+        except SimulationDiverged as exc:
+            error = exc
+        finally:
+            bar.close()
+    wall = _time.perf_counter() - wall0
+    n_samples = k + 1 if error is None else k
+    if error is None and k > 0:
+        # the last sample has no following period: hold the last inputs (zero-order hold)
+        log.hold_last(k)
+        log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
+    log = log.truncated(max(n_samples, 1))
+    summary = summarize(sc, log, env, policy, wall)
+    if error is not None:
+        summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
+    # of the K flown, the periods the chunk driver flew (swarm_mj/pipeline/fast.py); why none could, if so
+    extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
+    return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error, extra)
+
+
+def preset_signatures() -> list[tuple]:
+    """The chunk driver's compile signatures for the physics presets (paper, realistic), from the
+    records of a short circle under each (what ``swarm-mj warm-up`` compiles)."""
+    out = []
+    for aero in ("paper", "realistic"):
+        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05), aero)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
+        policy = BacksteppingPolicy(sc, env.params)
+        log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        out.append(signature(FastLoop(env, policy, log)._args(0, 0)))
+    return out
+
+
+def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, wall: float) -> dict:
+    """The JSON summary (stable keys of the issues; more may be added)."""
+    t = log.t
+    sim_time = float(t[-1]) if len(t) else 0.0
+    out: dict = {
+        "scenario": sc.name,
+        "sim_time_s": sim_time,
+        "wall_time_s": wall,
+        "real_time_factor": sim_time / wall if wall > 0 else float("inf"),
+        "n_drones": sc.n_drones,
+        "seed": env.seed,
+        "gains_source": sc.gains_source,
+        "anti_collision_rule": policy.rule.name,
+        "wind": bool(sc.wind.enabled),
+        "wind_feedforward": bool(sc.wind_feedforward),
+        "drones": {},
+    }
+    steady = t >= sc.steady_after
+    for i, name in enumerate(log.names):
+        ref = log.slot[:, i] if i > 0 else log.pos_d[:, i]
+        e = ref - log.pos[:, i]
+        att_e = np.rad2deg(log.att_d[:, i, :2] - log.rpy[:, i, :2])
+        d: dict = {
+            "rmse": _rmse_dict(e, att_e),
+            "rmse_steady": _rmse_dict(e[steady], att_e[steady]) if steady.any() else None,
+            "max_rotor_thrust_n": float(np.nanmax(log.rotor[:, i])) if len(t) > 1 else 0.0,
+            "min_rotor_thrust_n": float(np.nanmin(log.rotor[:, i])) if len(t) > 1 else 0.0,
+            "max_abs_roll_deg": float(np.rad2deg(np.abs(log.rpy[:, i, 0]).max())),
+            "max_abs_pitch_deg": float(np.rad2deg(np.abs(log.rpy[:, i, 1]).max())),
+        }
+        if i == 0 and sc.trajectory == "step" and len(t) > 1:
+            target = env.reference.pos[0]
+            yaw_t = float(env.reference.yaw[0])
+            d["step"] = {
+                ax: step_metrics(t, log.pos[:, 0, j], float(target[j]), float(log.pos[0, 0, j]))
+                for j, ax in enumerate("xyz")
+            }
+            d["step"]["psi"] = step_metrics(t, log.rpy[:, 0, 2], yaw_t, float(log.rpy[0, 0, 2]))
+        out["drones"][name] = d
+    out["contacts"] = int(env.sim.contact_events)
+    out["contact_steps"] = int(env.sim.contact_steps)
+    # Ground contacts and crashes (docs/aero.md); 0 when the preset has no solid ground.
+    ground = next((m for m in getattr(env.sim, "monitors", []) if getattr(m, "name", "") == "ground"), None)
+    out["aero"] = sc.aero.to_dict()
+    # what the controller adds where the rotors lag (docs/interpretations.md §1, §2)
+    lag = sc.lag_horizons
+    out["controller"] = {
+        "mixer": "attitude_priority" if policy.attitude_priority else "clip",
+        "lag_compensation_s": list(lag) if lag is not None else None,
+    }
+    out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
+    out["crashes"] = int(ground.crashes) if ground is not None else 0
+    out.update(keepout_summary(t, log.pos, keepout_radii(policy.controller.params)))  # docs/barrier.md
+    if len(t):
+        out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
+    if sc.n_drones > 1:
+        sep, kk, pair = min_separation(log.pos)
+        out["min_separation_m"] = sep
+        out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
+        out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
+        airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
+        if airborne.any():
+            out["min_separation_airborne_m"] = min_separation(log.pos[airborne])[0]
+        dist = leader_distances(log.pos)
+        changes = env.scenario.diameter_schedule().change_times
+        changes = changes[changes <= sim_time]
+        settling, max_err = formation_settling(t, dist, log.D, changes)
+        out["formation"] = {
+            "settling_s": settling,
+            "change_times_s": changes.tolist(),
+            "max_distance_error_m": max_err,
+            "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max()),
+        }
+        dip = downwash_dip(t, log.pos, log.pos_d, log.quat)
+        out["downwash_dip_worst_m"] = dip["worst_m"]
+        named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
+        out["downwash_dip"] = {
+            "worst_m": dip["worst_m"],
+            **named,
+            "at_s": dip["t_s"],
+            "time_in_jet_s": dip["time_in_jet_s"],
+            "below_ref_worst_m": dip["below_ref_worst_m"],
+        }
+        ev = policy.events
+        out["anti_collision"] = {
+            "rule": policy.rule.name,
+            "events": len(ev),
+            "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
+        }
+    else:  # the stable keys exist for one drone too
+        out["min_separation_m"] = None
+        out["formation"] = None
+        out["downwash_dip_worst_m"] = 0.0
+        out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0}
+    return out
+
+
+def _rmse_dict(e: np.ndarray, att_e: np.ndarray) -> dict:
+    r = rmse(e)
+    ra = rmse(att_e)
+    return {"x": float(r[0]), "y": float(r[1]), "z": float(r[2]), "roll_deg": float(ra[0]), "pitch_deg": float(ra[1])}

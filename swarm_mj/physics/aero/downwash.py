@@ -1,0 +1,228 @@
+"""Downwash between drones: the induced flow below a quadrotor as a turbulent round jet (docs/aero.md).
+
+Flow model: Bauersfeld, Muller, Ziegler, Coletti, Scaramuzza, "Robotics meets Fluid Dynamics:
+a Characterization of the Induced Airflow below a Quadrotor as a Turbulent Jet", RA-L 2024
+(arXiv:2403.13321). With T the upper drone's thrust, A = 4·π·R² its rotors' total disc area
+and l its motor distance (opposite motors, 2L):
+
+    U_H     = sqrt(T / (2 ρ A))                          hover-induced velocity (their eq. 1)
+    s* = s/l,  r* = r/l                                   normalisation (their eq. 8)
+    U_c(s)  = U_H · B_d / (s* − s0*)                      centreline velocity (their eq. 2)
+    r_½(s)  = l · S · (s* − s0*)                          jet half-width (their eq. 6)
+    U(s, r) = U_c / (1 + (√2 − 1)·(r / r_½)²)²           radial profile (their eq. 3)
+
+with the far-field fit B_d = 10.11, S = 0.07668, s0* = −5.817 (their eq. 9). s is the depth
+below the upper drone's centre of mass along its −z body axis (the jet follows its actual
+thrust direction and magnitude), r the distance from that axis. The jet is switched on over
+the first rotor radius below the source (a smoothstep of s/R on U), so that two drones at
+the same height feel nothing and no force jumps.
+
+Force (ours; the paper gives the flow, not its effect): the lower drone meets the jet with
+five flat plates normal to it, drag coefficient C_D = 1.17 (Hoerner's flat disc): its four
+rotor discs (area π·R² each, at the rotor centres p_k) and its hub (area
+:data:`BODY_AREA`, at the centre of mass p):
+
+    F_k = ½ ρ C_D A_k · U(s_k, r_k)² · d        d = the upper drone's −z axis (jet direction)
+
+added over every upper drone, applied where the plate is (so a drone half in a jet is also
+tilted): force Σ F_k and torque Σ (p_k − p) × F_k at the centre of mass, world frame. The
+lower drone's own motion through the air is the paper's linear drag, left as it is.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from ..._jit import jit
+from ...pipeline.records import Kinematics, force_kernel
+from ._frames import body_axes, rotor_offset
+from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
+
+#: Far-field fit of Bauersfeld et al. (2024), their eq. (9).
+BD = 10.11
+SPREAD = 0.07668
+S0 = -5.817
+PROFILE_A = math.sqrt(2.0) - 1.0
+N_ROTORS = 4
+#: Area (m²) of the hub the jet meets at the centre of a lower drone: the 0.12 m × 0.12 m hub box of
+#: assets/quadrotor.xml.
+BODY_AREA = 0.12 * 0.12
+
+
+def hover_induced_velocity(
+    thrust, rho: float = AIR_DENSITY, rotor_radius: float = ROTOR_RADIUS, n_rotors: int = N_ROTORS
+):
+    """U_H = sqrt(T / (2 ρ n π R²)) (m/s): momentum theory's induced velocity at thrust T (N)."""
+    return np.sqrt(np.maximum(thrust, 0.0) / (2.0 * rho * n_rotors * np.pi * rotor_radius**2))
+
+
+def centreline_velocity(s, u_h, l):
+    """U_c (m/s) at depth s (m) below a drone with hover-induced velocity u_h and motor distance l."""
+    return u_h * BD / (np.asarray(s, float) / l - S0)
+
+
+def half_width(s, l):
+    """r_½ (m): the radius at depth s (m) where the jet speed is half the centreline's."""
+    return l * SPREAD * (np.asarray(s, float) / l - S0)
+
+
+def jet_speed(s, r, u_h, l, ramp: float = ROTOR_RADIUS):
+    """U(s, r) (m/s): jet speed at depth s (m) below the source and distance r (m) from its axis;
+    zero above the source (s <= 0), switched on by a smoothstep over 0 < s < ``ramp``."""
+    s = np.asarray(s, float)
+    r = np.asarray(r, float)
+    a = np.maximum(s / l - S0, 1e-9)
+    u = u_h * BD / a / (1.0 + PROFILE_A * (r / (l * SPREAD * a)) ** 2) ** 2
+    x = np.clip(s / ramp, 0.0, 1.0)
+    return np.where(s > 0.0, u * x * x * (3.0 - 2.0 * x), 0.0)
+
+
+def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSITY, cd: float = DISC_DRAG_COEFFICIENT):
+    """Magnitude (N) of the jet's push on a plate of ``area`` (default: one rotor disc) in a flow of
+    speed u (m/s): ½ ρ C_D A u²."""
+    return 0.5 * rho * cd * area * np.asarray(u, float) ** 2
+
+
+@jit
+def downwash_kernel(
+    pos: np.ndarray,
+    quat: np.ndarray,
+    rotor_thrust: np.ndarray,
+    n_per_copy: int,
+    arm: float,
+    rho: float,
+    rotor_r: float,
+    half_cda: float,
+    half_cda_body: float,
+    ramp: float,
+    force: np.ndarray,
+    torque: np.ndarray,
+    add_force: np.ndarray,
+    add_torque: np.ndarray,
+) -> None:
+    """Set force, torque (N, 3) to the downwash of every drone on every other drone of its copy, and
+    add the same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
+
+    pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) the produced rotor thrusts; drones
+    i and j interact only when i // n_per_copy == j // n_per_copy. The motor distance l = 2·arm;
+    half_cda = ½ ρ C_D π R² of a rotor disc, half_cda_body = ½ ρ C_D A of the hub.
+    """
+    N = pos.shape[0]
+    l = 2.0 * arm
+    area = N_ROTORS * math.pi * rotor_r * rotor_r
+    axes = np.empty((N, 3, 3))
+    for i in range(N):
+        body_axes(quat, i, axes[i])
+        for c in range(3):
+            force[i, c] = 0.0
+            torque[i, c] = 0.0
+    off = np.empty(3)
+    for i in range(N):
+        T = rotor_thrust[i, 0] + rotor_thrust[i, 1] + rotor_thrust[i, 2] + rotor_thrust[i, 3]
+        if T <= 0.0:
+            continue
+        u_h = math.sqrt(T / (2.0 * rho * area))
+        dx, dy, dz = -axes[i, 2, 0], -axes[i, 2, 1], -axes[i, 2, 2]  # jet direction: −z of drone i
+        c0 = (i // n_per_copy) * n_per_copy
+        for j in range(c0, min(c0 + n_per_copy, N)):
+            if j == i:
+                continue
+            for k in range(N_ROTORS + 1):  # the four rotor discs, then the hub
+                if k < N_ROTORS:
+                    rotor_offset(axes[j], k, arm, 0.0, off)
+                else:
+                    off[0] = off[1] = off[2] = 0.0
+                rx = pos[j, 0] + off[0] - pos[i, 0]
+                ry = pos[j, 1] + off[1] - pos[i, 1]
+                rz = pos[j, 2] + off[2] - pos[i, 2]
+                s = rx * dx + ry * dy + rz * dz
+                if s <= 0.0:
+                    continue
+                px, py, pz = rx - s * dx, ry - s * dy, rz - s * dz
+                r2 = px * px + py * py + pz * pz
+                a = s / l - S0
+                hw = l * SPREAD * a
+                q = 1.0 + PROFILE_A * r2 / (hw * hw)
+                u = u_h * BD / a / (q * q)
+                x = s / ramp
+                if x < 1.0:
+                    u *= x * x * (3.0 - 2.0 * x)
+                f = (half_cda if k < N_ROTORS else half_cda_body) * u * u
+                fx, fy, fz = f * dx, f * dy, f * dz
+                force[j, 0] += fx
+                force[j, 1] += fy
+                force[j, 2] += fz
+                torque[j, 0] += off[1] * fz - off[2] * fy
+                torque[j, 1] += off[2] * fx - off[0] * fz
+                torque[j, 2] += off[0] * fy - off[1] * fx
+    for j in range(N):
+        for c in range(3):
+            add_force[j, c] += force[j, c]
+            add_torque[j, c] += torque[j, c]
+
+
+class DownwashRecord(NamedTuple):
+    """:class:`DownwashStage` for a compiled driver (swarm_mj.pipeline.records)."""
+
+    n_per_copy: int  # drones per copy: jets act within a copy only
+    arm: float  # L (m)
+    rho: float  # air density (kg/m³)
+    rotor_radius: float  # m
+    half_cda: float  # ½·ρ·C_d·A of a rotor disc
+    half_cda_body: float  # ½·ρ·C_d·A of the body
+    force: np.ndarray  # (N, 3) this stage's force over the last physics step (N)
+    torque: np.ndarray  # (N, 3)
+
+
+@force_kernel(DownwashRecord)
+@jit
+def downwash_apply(rec: DownwashRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
+    """The downwash stage's step: :func:`downwash_kernel` at the drones' state, added to force, torque (N, 3)."""
+    downwash_kernel(
+        kin.pos, kin.quat, kin.rotor_thrust, rec.n_per_copy, rec.arm, rec.rho, rec.rotor_radius, rec.half_cda,
+        rec.half_cda_body, rec.rotor_radius, rec.force, rec.torque, force, torque,
+    )  # fmt: skip
+
+
+class DownwashStage:
+    """Force stage: the turbulent-jet downwash of every drone on the drones below it (module docstring).
+
+    After each :meth:`apply`, ``force`` and ``torque`` (N, 3) hold what this stage added.
+    """
+
+    name = "downwash"
+
+    def __init__(
+        self,
+        rho: float = AIR_DENSITY,
+        rotor_radius: float = ROTOR_RADIUS,
+        drag_coefficient: float = DISC_DRAG_COEFFICIENT,
+        body_area: float = BODY_AREA,
+    ) -> None:
+        self.rho = float(rho)
+        self.rotor_radius = float(rotor_radius)
+        self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2
+        self.half_cda_body = 0.5 * self.rho * float(drag_coefficient) * float(body_area)
+        self.force = np.zeros((0, 3))
+        self.torque = np.zeros((0, 3))
+
+    def reset(self, sim) -> None:
+        N = sim.pos.shape[0]
+        self.n_per_copy = int(sim.n)
+        self.arm = float(sim.params.L)
+        self.force = np.zeros((N, 3))
+        self.torque = np.zeros((N, 3))
+        self._record = DownwashRecord(
+            self.n_per_copy, self.arm, self.rho, self.rotor_radius, self.half_cda, self.half_cda_body, self.force,
+            self.torque,
+        )  # fmt: skip
+
+    def record(self) -> DownwashRecord:
+        """This stage for a compiled driver (valid until the next :meth:`reset`)."""
+        return self._record
+
+    def apply(self, sim, force: np.ndarray, torque: np.ndarray) -> None:
+        downwash_apply(self._record, sim.kinematics, force, torque)

@@ -1,0 +1,140 @@
+"""Rotor mixing of paper eqs. (26)–(29) with per-rotor saturation (docs/interpretations.md §1).
+
+U1 = F1 + F2 + F3 + F4, U2 = F3 − F1, U3 = F4 − F2, U4 = F1 − F2 + F3 − F4.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+
+# U = F @ MIX.T   (rows: U1..U4, columns: F1..F4)
+MIX = np.array(
+    [
+        [1.0, 1.0, 1.0, 1.0],
+        [-1.0, 0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0, 1.0],
+        [1.0, -1.0, 1.0, -1.0],
+    ]
+)
+UNMIX = np.linalg.inv(MIX)
+#: (4, 4) UNMIX.T, C-contiguous: F = U @ UNMIX_T
+UNMIX_T = np.ascontiguousarray(UNMIX.T)
+#: (4, 4) MIX.T, C-contiguous: U = F @ MIX_T
+MIX_T = np.ascontiguousarray(MIX.T)
+
+
+#: The controller's ``[controller] mixer`` choices (:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
+MIXERS = ("auto", "clip", "attitude_priority")
+
+
+def u_to_rotor(U: np.ndarray) -> np.ndarray:
+    """Rotor thrusts F1..F4 (…, 4) that produce U1..U4 (…, 4): inverse of eqs. (26)–(29)."""
+    return U @ UNMIX_T
+
+
+def rotor_to_u(F: np.ndarray) -> np.ndarray:
+    """U1..U4 (…, 4) from rotor thrusts F1..F4 (…, 4): eqs. (26)–(29)."""
+    return F @ MIX_T
+
+
+def _saturate_samples():
+    z = np.zeros((2, 4))
+    return [(z, UNMIX_T, MIX_T, 0.0, 4.5, z.copy(), z.copy())]
+
+
+@jit(samples=_saturate_samples)
+def saturate_kernel(
+    U: np.ndarray,
+    unmix_t: np.ndarray,
+    mix_t: np.ndarray,
+    f_min: float,
+    f_max: float,
+    U_out: np.ndarray,
+    F_out: np.ndarray,
+) -> None:
+    """Rotor mixing with per-rotor clipping (eqs. 26–29, docs/interpretations.md §1):
+    F_out (n, 4) = clip(U (n, 4)·UNMIXᵀ, f_min, f_max), U_out (n, 4) = F_out·MIXᵀ."""
+    n = U.shape[0]
+    for i in range(n):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = min(max(f, f_min), f_max)
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += F_out[i, c] * mix_t[c, r]
+            U_out[i, r] = u
+
+
+def saturate(
+    U: np.ndarray, f_min: float, f_max: float, unmix_t: np.ndarray = UNMIX_T, mix_t: np.ndarray = MIX_T
+) -> tuple[np.ndarray, np.ndarray]:
+    """Map commanded U (n, 4) to rotors, clip each rotor to [f_min, f_max], map back.
+
+    Returns (U_applied (n, 4), F (n, 4)): the wrench the motors can deliver and the rotor thrusts.
+    The arithmetic is :func:`saturate_kernel`, the one the simulator runs; ``unmix_t``/``mix_t``
+    are a vehicle's (:attr:`swarm_mj.physics.params.QuadParams.unmix_t`), the paper's by default.
+    """
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    U_out, F = np.empty_like(U), np.empty_like(U)
+    saturate_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), U_out, F)
+    return U_out, F
+
+
+def _priority_samples():
+    return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
+
+
+@jit(samples=_priority_samples)
+def attitude_priority_kernel(
+    U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float, out: np.ndarray
+) -> None:
+    """:func:`attitude_priority` for U (n, 4) into out (n, 4): rows that need no shift are copied."""
+    n = U.shape[0]
+    F = np.empty(4)
+    for i in range(n):
+        lo = np.inf
+        hi = -np.inf
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F[r] = f
+            lo = min(lo, f)
+            hi = max(hi, f)
+        shift = 0.0
+        if lo < f_min:
+            shift = min(f_min - lo, max(f_max - hi, 0.0))
+        elif hi > f_max:
+            shift = -min(hi - f_max, max(lo - f_min, 0.0))
+        if shift == 0.0:
+            for c in range(4):
+                out[i, c] = U[i, c]
+            continue
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += (F[c] + shift) * mix_t[c, r]
+            out[i, r] = u
+
+
+def attitude_priority(
+    U: np.ndarray, f_min: float, f_max: float, unmix_t: np.ndarray = UNMIX_T, mix_t: np.ndarray = MIX_T
+) -> np.ndarray:
+    """U1..U4 (n, 4) with the collective thrust U1 moved, as little as needed, so that the torques
+    U2..U4 fit the rotors' range [f_min, f_max] (as far as they can): when a rotor would be
+    clipped at f_min the other three are raised with it, when one would pass f_max all four are
+    lowered. Ours (docs/interpretations.md §1; the "air mode" / desaturation of flight
+    controllers such as PX4 and Betaflight); the paper clips each rotor on its own (eqs. 26–29),
+    which at low thrust also clips the torque the attitude loop asked for. Rotors are still
+    clipped afterwards by the simulator (:func:`saturate`). The arithmetic is
+    :func:`attitude_priority_kernel`; ``unmix_t``/``mix_t`` are a vehicle's
+    (:attr:`swarm_mj.physics.params.QuadParams.unmix_t`), the paper's by default."""
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    out = np.empty_like(U)
+    attitude_priority_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), out)
+    return out

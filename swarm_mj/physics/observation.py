@@ -1,0 +1,59 @@
+"""What a drone senses, from MuJoCo's free-joint state (the observation of :class:`~swarm_mj.env.SwarmEnv`).
+
+Compiled kernels on (n, ...) arrays (see :mod:`swarm_mj._jit`); the angle conversions are
+:mod:`swarm_mj.physics.state`'s.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from .state import euler_rates_kernel, quat_to_euler_kernel
+
+
+def _rest_state(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
+    qpos = np.zeros((n, 7))
+    qpos[:, 3] = 1.0
+    return qpos, np.zeros((n, 6))
+
+
+@jit(samples=lambda: [(*_rest_state(), 2.0)])
+def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
+    """From the free-joint state qpos (n, 7), qvel (n, 6): pos, vel, quat, body rates (copies),
+    Euler angles and rates (n, 3), neighbours (n, n, 3) = p_j − p_i within ``sensing_range``
+    (zero elsewhere), the mask (n, n) and the 3D distances (n, n) (+inf on the diagonal)."""
+    n = qpos.shape[0]
+    pos = qpos[:, 0:3].copy()
+    quat = qpos[:, 3:7].copy()
+    vel = qvel[:, 0:3].copy()
+    omega = qvel[:, 3:6].copy()
+    rpy = quat_to_euler_kernel(quat)
+    rpy_rate = euler_rates_kernel(rpy, omega)
+    rel = np.zeros((n, n, 3))
+    mask = np.zeros((n, n))
+    dist = np.empty((n, n))
+    for i in range(n):
+        for j in range(n):
+            dx = pos[j, 0] - pos[i, 0]
+            dy = pos[j, 1] - pos[i, 1]
+            dz = pos[j, 2] - pos[i, 2]
+            d = np.sqrt(dx * dx + dy * dy + dz * dz)
+            if i == j:
+                dist[i, j] = np.inf
+                continue
+            dist[i, j] = d
+            if d < sensing_range:
+                mask[i, j] = 1.0
+                rel[i, j, 0] = dx
+                rel[i, j, 1] = dy
+                rel[i, j, 2] = dz
+    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist
+
+
+@jit(samples=lambda: [_rest_state()])
+def attitude_kernel(qpos: np.ndarray, qvel: np.ndarray):
+    """Euler angles rpy (m, 3) and their rates (m, 3) of free-joint states qpos (m, 7), qvel (m, 6)
+    (one drone per row, e.g. the tuner's copies)."""
+    rpy = quat_to_euler_kernel(qpos[:, 3:7])
+    return rpy, euler_rates_kernel(rpy, qvel[:, 3:6])

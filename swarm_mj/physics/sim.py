@@ -1,0 +1,848 @@
+"""The simulation core: one control period of the step pipeline (docs/design.md, "the step pipeline").
+
+:meth:`Sim.step` owns each control period T:
+
+1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
+   [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.physics.mixing.saturate_kernel`,
+   docs/interpretations.md §1); the result is held in ``ctrl`` for the whole period (a
+   zero-order hold, docs/interpretations.md §2); with a solid floor, the **floor gate**
+   (:func:`floor_gate_kernel`) leaves the floor out of MuJoCo's collision tests for the period
+   when no drone could reach it (the same run bit for bit, docs/aero.md);
+2. per physics step (``model.opt.timestep``; two per 10-ms period at the 5-ms default):
+
+   a. the **force stages** each ADD a world-frame force and torque at every drone's centre of
+      mass (:class:`ForceStage`): first :class:`DragStage` (paper eq. 1, −(Kx·ẋ, Ky·ẏ, Kz·ż)
+      from the velocity at the start of the physics step, held over its RK4 stages), then
+      :class:`WindStage` (the wind force F^w of eq. 37, held over the control period), then any
+      extra stage in the order given; the sum goes to ``xfrc_applied``;
+   b. ``mujoco.mj_step``, with MuJoCo's profiling clock (``mjcb_time``, which feeds
+      ``mjData.timer`` and nothing else) off while the period is stepped: its clock reads cost
+      about a tenth of a step (:func:`swarm_mj.physics._mjstep.timer_pause`);
+   c. **contacts** between drones (rising edges counted, :attr:`Sim.contact_log`), then the
+      **monitors** (:class:`Monitor`, e.g. the ground contacts and crashes of
+      :class:`swarm_mj.physics.aero.ground.GroundContacts`), each reading the state after the step;
+
+3. the **health mask** (:meth:`Sim.health`): per copy, a non-finite state, a drone below
+   ``floor_z`` or beyond ``max_distance`` (optionally tilted beyond ``max_tilt``), or a new
+   MuJoCo divergence warning (a bad position, velocity, acceleration or control: MuJoCo then
+   resets the whole ``MjData`` and goes on, so the state alone may look sane).
+
+**Copies.** ``Sim(world, T, n_copies=m)`` steps m independent copies of an n-drone swarm held
+in one model of N = m·n drones, copy-major (drone i of copy c is row c·n + i); the tuner flies
+its candidates this way. :meth:`park` holds diverged copies at their start with zero input so
+that a bad state never reaches MuJoCo.
+
+State arrays are views into MjData with the drone axis first (N rows):
+``pos (N, 3)``, ``quat (N, 4)`` (w, x, y, z), ``vel (N, 3)`` world frame,
+``omega (N, 3)`` body frame, ``ctrl (N, 4)`` the U1..U4 applied, ``rotor_thrust (N, 4)``
+the rotor thrusts F1..F4 actually produced.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Sequence
+from typing import Protocol
+
+import mujoco
+import numpy as np
+
+from .. import _jit
+from .._jit import AVAILABLE, jit
+from ..errors import SimulationDiverged, UserError
+from ..pipeline.records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
+from . import _mjstep
+from ._mjstep import timer_pause, timer_resume
+from .mixing import saturate_kernel
+from .params import QuadParams
+from .world import World
+
+#: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
+HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
+HEALTH_NAMES = {
+    HEALTHY: "healthy",
+    NON_FINITE: "non-finite state",
+    BELOW_FLOOR: "below the floor",
+    TOO_FAR: "too far",
+    TILTED: "tilted too far",
+    MUJOCO_WARNING: "MuJoCo divergence warning",
+}
+#: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
+DIVERGENCE_WARNINGS = (
+    mujoco.mjtWarning.mjWARN_BADQACC,
+    mujoco.mjtWarning.mjWARN_BADQPOS,
+    mujoco.mjtWarning.mjWARN_BADQVEL,
+    mujoco.mjtWarning.mjWARN_BADCTRL,
+)
+#: Their indices in ``MjData.warning`` (what a compiled kernel reads).
+DIVERGENCE_WARNING_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
+_W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = DIVERGENCE_WARNING_IDS
+
+
+class Monitor(Protocol):
+    """Reads the state after every physics step (never writes it): counters such as ground contacts."""
+
+    name: str
+
+    def reset(self, sim: Sim) -> None: ...
+
+    def after_step(self, sim: Sim) -> None: ...
+
+
+class ForceStage(Protocol):
+    name: str
+
+    def reset(self, sim: Sim) -> None: ...
+
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
+        """ADD this stage's world-frame force (N, 3) [N] and torque (N, 3) [N·m] at each drone's CoM
+        for the coming physics step. N = all drones of all copies, in sim order (copy-major)."""
+
+
+# --------------------------------------------------------------------------- kernels
+
+
+def _state_samples():
+    qpos = np.zeros((2, 7))
+    qpos[:, 3] = 1.0
+    return qpos, np.zeros((2, 6))
+
+
+@jit
+def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_distance: float) -> int:
+    """Drone i of qpos (N, 7), qvel (N, 6): 0 if sane, 1 if non-finite, 2 if below ``floor_z``,
+    3 if beyond ``max_distance`` on an axis."""
+    for c in range(7):
+        if not np.isfinite(qpos[i, c]):
+            return NON_FINITE
+    for c in range(6):
+        if not np.isfinite(qvel[i, c]):
+            return NON_FINITE
+    if qpos[i, 2] < floor_z:
+        return BELOW_FLOOR
+    for c in range(3):
+        if abs(qpos[i, c]) > max_distance:
+            return TOO_FAR
+    return HEALTHY
+
+
+@jit
+def copy_state(
+    qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: float, max_distance: float, max_tilt: float
+) -> int:
+    """The code of the first unhealthy drone of copy c (rows c·n .. c·n + n − 1 of qpos (N, 7),
+    qvel (N, 6)): :func:`drone_state`'s, or TILTED where |roll| or |pitch| > ``max_tilt``; 0 if none."""
+    for i in range(c * n, c * n + n):
+        code = drone_state(qpos, qvel, i, floor_z, max_distance)
+        if code != HEALTHY:
+            return code
+        if max_tilt < np.inf:
+            # roll and pitch of the quaternion (w, x, y, z): the formulas of swarm_mj.physics.state
+            w, x, y, z = qpos[i, 3], qpos[i, 4], qpos[i, 5], qpos[i, 6]
+            roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
+            pitch = np.arcsin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
+            if not (abs(roll) <= max_tilt and abs(pitch) <= max_tilt):
+                return TILTED
+    return HEALTHY
+
+
+@jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(1, dtype=np.int8))])
+def health_kernel(
+    qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float, max_tilt: float, out: np.ndarray
+) -> None:
+    """The state part of the health mask: out (m,) = :func:`copy_state` of each copy of n drones."""
+    for c in range(out.shape[0]):
+        out[c] = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
+
+
+@jit(samples=lambda: [(*_state_samples(), 2, 1, -0.5, 1e3, np.inf)])
+def first_unhealthy(
+    qpos: np.ndarray, qvel: np.ndarray, n: int, m: int, floor_z: float, max_distance: float, max_tilt: float
+) -> int:
+    """The first nonzero :func:`copy_state` code of the m copies (0: all healthy)."""
+    for c in range(m):
+        code = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
+        if code != HEALTHY:
+            return code
+    return HEALTHY
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)), np.zeros((5, 6))[1::2, 0:3])])
+def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.ndarray) -> None:
+    """out (N, 3) = −K·v (N, 3) + F_ext (N, 3): linear drag of eq. (1) plus the wind force
+    (the drag and wind stages fused, when they are the only ones)."""
+    n = vel.shape[0]
+    for i in range(n):
+        for c in range(3):
+            out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
+
+
+@jit(samples=lambda: [(np.zeros((5, 6))[1::2, 0:3], np.zeros((5, 6))[1::2, 3:6], np.zeros((2, 3)), np.zeros((2, 3)))])
+def flush_stage_forces(xf: np.ndarray, xtorque: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
+    """xf (N, 3) += force, xtorque (N, 3) = torque (the extra stages' sum of one physics step), then
+    force and torque back to zero for the next step."""
+    for i in range(force.shape[0]):
+        for c in range(3):
+            xf[i, c] += force[i, c]
+            xtorque[i, c] = torque[i, c]
+            force[i, c] = 0.0
+            torque[i, c] = 0.0
+
+
+@jit(samples=lambda: [(np.zeros((2, 4)), np.eye(4), np.zeros((2, 4)))])
+def unmix_kernel(U: np.ndarray, unmix_t: np.ndarray, F_out: np.ndarray) -> None:
+    """F_out (N, 4) = U (N, 4) · UNMIXᵀ: rotor thrusts F1..F4 of the wrench U1..U4 (eqs. 26–29)."""
+    for i in range(U.shape[0]):
+        for r in range(4):
+            f = 0.0
+            for c in range(4):
+                f += U[i, c] * unmix_t[c, r]
+            F_out[i, r] = f
+
+
+@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)))])
+def add_drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, force: np.ndarray) -> None:
+    """force (N, 3) += −K·v (N, 3): the linear drag of paper eq. (1)."""
+    n = vel.shape[0]
+    for i in range(n):
+        for c in range(3):
+            force[i, c] += neg_drag[c] * vel[i, c]
+
+
+#: The floor gate's clearance (m): the floor is tested for contacts in a control period only when a
+#: drone's bounding sphere could come within this of it, falling at its present speed (docs/aero.md,
+#: "Cost"). 0.1 m covers an acceleration of 2000 m/s² over a 10-ms period, far beyond any drone's.
+FLOOR_GATE_M = 0.1
+
+
+@jit(samples=lambda: [(*_state_samples(), 0.3, 0.01, np.zeros(3, dtype=np.int32), 0, 4)])
+def floor_gate_kernel(
+    qpos: np.ndarray, qvel: np.ndarray, z_near: float, horizon: float, contype: np.ndarray, floor_id: int, solid: int
+) -> None:
+    """The floor gate: ``contype[floor_id]`` (the model's ``geom_contype``) = ``solid`` when a drone of
+    qpos (N, 7), qvel (N, 6) could reach the floor within ``horizon`` s, else 0 (no floor pair is
+    tested). A drone can reach it when z − |v_z,down|·horizon < ``z_near`` (the floor's top + the
+    drones' floor reach + :data:`FLOOR_GATE_M`). With the floor off, MuJoCo finds no floor contact,
+    as it would have found none with it on: the contacts, hence the run, are the same bit for bit."""
+    near = False
+    for i in range(qpos.shape[0]):
+        fall = -qvel[i, 2] if qvel[i, 2] < 0.0 else 0.0
+        if not qpos[i, 2] - fall * horizon >= z_near:  # NaN: near (the health check reports it)
+            near = True
+            break
+    contype[floor_id] = solid if near else 0
+
+
+def floor_gate(world: World) -> tuple[int, int, float] | None:
+    """(floor geom id, its contype, z_near of :func:`floor_gate_kernel`) for a world whose floor is
+    solid, else None. The reach is the largest |geom position| + bounding radius + margin over the
+    drones' geoms that can touch the floor (MuJoCo's contype/conaffinity test)."""
+    m = world.model
+    fid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    if fid < 0:
+        return None
+    ct = int(m.geom_contype[fid])
+    if ct == 0 or m.geom_conaffinity[fid] != 0:  # not solid, or solid through what the gate leaves alone
+        return None
+    level = np.allclose(np.abs(m.geom_quat[fid]), (1.0, 0.0, 0.0, 0.0))
+    if m.geom_type[fid] != mujoco.mjtGeom.mjGEOM_PLANE or m.geom_bodyid[fid] != 0 or not level:
+        return None
+    touch = (world.geom_drone >= 0) & ((m.geom_conaffinity & ct) != 0)
+    if not np.isin(m.geom_bodyid[touch], world.body_ids).all():
+        return None  # floor-touching geoms on a body other than the drones' free ones
+    reach = np.linalg.norm(m.geom_pos[touch], axis=1) + m.geom_rbound[touch] + m.geom_margin[touch]
+    if reach.size == 0:
+        return None
+    return fid, ct, float(m.geom_pos[fid, 2] + reach.max() + FLOOR_GATE_M)
+
+
+# --------------------------------------------------------------------------- compiled force stages
+
+
+def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by the overload when compiled
+    """Each compiled stage of the tuple ``stages`` (records) adds its force and torque (N, 3)."""
+    for rec in stages:
+        FORCE_KERNELS[type(rec)](rec, kin, force, torque)
+
+
+def _apply_stages_compiled(stages, kin, force, torque):
+    """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
+    kernels = [FORCE_KERNELS[t.instance_class] for t in stages.types]
+    body = "".join(f"    k{i}(stages[{i}], kin, force, torque)\n" for i in range(len(kernels)))
+    src = "def impl(stages, kin, force, torque):\n" + body + "    return None\n"
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec(src, scope)  # noqa: S102 - source built from the registry above, no outside text
+    return scope["impl"]
+
+
+def _log_stages(stages, rows, k):  # pragma: no cover - replaced by the overload when compiled
+    for j, rec in enumerate(stages):
+        rows[j, k] = rec.force
+
+
+def _log_stages_compiled(stages, rows, k):
+    """rows[j, k] (S, K+1, N, 3) = the j-th stage's force of the last physics step."""
+    body = "".join(f"    rows[{j}, k] = stages[{j}].force\n" for j in range(len(stages.types)))
+    src = "def impl(stages, rows, k):\n" + body + "    return None\n"
+    scope: dict = {}
+    exec(src, scope)  # noqa: S102
+    return scope["impl"]
+
+
+def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overload when compiled
+    for rec in monitors:
+        MONITOR_KERNELS[type(rec)](rec, kin)
+
+
+def _track_monitors_compiled(monitors, kin):
+    """The monitor tuple unrolled at compile time: each record's registered step in turn."""
+    kernels = [MONITOR_KERNELS[t.instance_class] for t in monitors.types]
+    body = "".join(f"    k{i}(monitors[{i}], kin)\n" for i in range(len(kernels)))
+    scope = {f"k{i}": k for i, k in enumerate(kernels)}
+    exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
+    return scope["impl"]
+
+
+if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above run as they are otherwise
+    from numba.extending import overload
+
+    overload(_apply_stages)(_apply_stages_compiled)
+    overload(_log_stages)(_log_stages_compiled)
+    overload(_track_monitors)(_track_monitors_compiled)
+
+
+@jit(inline=True)
+def track_monitors(monitors, kin) -> None:
+    """Each compiled monitor's step after a physics step without any contact (records.MONITOR_KERNELS)."""
+    _track_monitors(monitors, kin)
+
+
+@jit(inline=True)
+def apply_forces(phys, stages, kin, xf, xtorque) -> None:
+    """One physics step's forces into xfrc_applied (xf, xtorque (N, 3) views): drag −K·v + the wind
+    held over the period (eq. 1, eq. 37), the produced rotor thrusts of lagged rotors, then each
+    compiled force stage's force and torque (their sum added, the torque set; the sums zeroed)."""
+    drag_kernel(kin.vel, phys.neg_drag, phys.wind, xf)
+    if phys.lag:
+        unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
+    if len(stages) > 0:
+        _apply_stages(stages, kin, phys.force, phys.torque)
+        flush_stage_forces(xf, xtorque, phys.force, phys.torque)
+
+
+@jit(inline=True)
+def log_stage_forces(stages, rows, k) -> None:
+    """The force (N, 3) of each stage of ``stages`` into rows[j, k] (S, K+1, N, 3)."""
+    _log_stages(stages, rows, k)
+
+
+@jit(inline=True)
+def hold_inputs(phys, U) -> None:
+    """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
+    ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
+    saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
+    if phys.lag:
+        phys.rotor_command[:] = phys.rotor_thrust
+    if phys.gate_on:
+        floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
+
+
+@jit(inline=True)
+def unhealthy(phys) -> bool:
+    """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
+    for w in DIVERGENCE_WARNING_IDS:
+        if phys.warn[w]:
+            return True
+    n = phys.qpos.shape[0]
+    return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
+
+
+# --------------------------------------------------------------------------- force stages
+
+
+class DragStage:
+    """Paper eq. (1)'s linear drag −(Kx·ẋ, Ky·ẏ, Kz·ż) (world frame), from the velocity at the start
+    of each physics step."""
+
+    name = "drag"
+
+    def reset(self, sim: Sim) -> None:
+        self.neg_drag = -sim.params.drag  # (3,)
+
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
+        add_drag_kernel(sim.vel, self.neg_drag, force)
+
+
+class WindStage:
+    """The wind force F^w (paper eq. 37) of the current control period, (N, 3) world frame, held
+    (zero-order) over the period: :meth:`Sim.step` sets it (:attr:`force`)."""
+
+    name = "wind"
+
+    def __init__(self) -> None:
+        self.force = np.zeros((0, 3))
+
+    def reset(self, sim: Sim) -> None:
+        self.force = np.zeros((sim.n_total, 3))  # (N, 3)
+
+    def set(self, force: np.ndarray | None) -> None:
+        """The force (N, 3) or (3,) for the coming period (None: zero)."""
+        if force is None:
+            self.force[:] = 0.0
+        else:
+            self.force[:] = force
+
+    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
+        force += self.force
+
+
+# --------------------------------------------------------------------------- the pipeline
+
+
+def _why_not_registered(part, registry: dict, kind: str, what: str) -> str | None:  # noqa: ANN001
+    """Why a force stage or monitor cannot fly in a compiled driver (None: it can): it has no
+    ``record()`` whose type has a registered compiled kernel, or that kernel's module is not in
+    :data:`swarm_mj._jit.KERNEL_MODULES` (then a change to it would not invalidate the driver's cache)."""
+    name = getattr(part, "name", type(part).__name__)
+    make = getattr(part, "record", None)
+    kernel = registry.get(type(make())) if make is not None else None
+    if kernel is None:
+        return f"the {kind} {name!r} has no compiled {what}"
+    module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
+    if module not in _jit.KERNEL_MODULES:
+        return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
+    return None
+
+
+def _index(ids: np.ndarray) -> slice | np.ndarray:
+    """A slice when ids form an arithmetic progression (numpy then returns views), else the ids."""
+    ids = np.asarray(ids)
+    if len(ids) == 1:
+        return slice(int(ids[0]), int(ids[0]) + 1)
+    step = int(ids[1] - ids[0])
+    if step > 0 and np.all(np.diff(ids) == step):
+        return slice(int(ids[0]), int(ids[-1]) + 1, step)
+    return ids
+
+
+class Sim:
+    """Steps a :class:`~swarm_mj.physics.world.World` one control period at a time (see the module docstring).
+
+    world: N drones = ``n_copies`` copies of n = N / n_copies drones, copy-major.
+    force_stages: extra :class:`ForceStage` s, applied after drag and wind (also :meth:`add_stage`).
+    monitors: :class:`Monitor` s run after every physics step (also :meth:`add_monitor`).
+    floor_z, max_distance, max_tilt: the health limits (m, m, rad; ``max_tilt`` None: not checked).
+    """
+
+    def __init__(
+        self,
+        world: World,
+        control_period: float = 0.01,
+        *,
+        n_copies: int = 1,
+        force_stages: Sequence[ForceStage] = (),
+        monitors: Sequence[Monitor] = (),
+        floor_z: float = -0.5,
+        max_distance: float = 1e3,
+        max_tilt: float | None = None,
+    ) -> None:
+        m = world.model
+        dt = m.opt.timestep
+        nsub = int(round(control_period / dt))
+        if nsub < 1 or abs(nsub * dt - control_period) > 1e-9 * max(1.0, control_period):
+            raise UserError(f"physics timestep {dt} s must divide the control period {control_period} s")
+        if m.nq != 7 * world.n_drones or m.nu != 4 * world.n_drones:
+            raise UserError("the model must hold only the drones' free joints and four motors per drone")
+        if not isinstance(n_copies, (int, np.integer)) or n_copies < 1 or world.n_drones % n_copies:
+            raise UserError(f"n_copies must divide the {world.n_drones} drones of the model, got {n_copies!r}")
+        self.world = world
+        self.model = m
+        self.data = mujoco.MjData(m)
+        self.n_total = N = world.n_drones
+        self.n_copies = int(n_copies)
+        self.n = N // self.n_copies  # drones per copy
+        self.control_period = float(control_period)
+        self.n_substeps = nsub
+        self.floor_z = float(floor_z)
+        self.max_distance = float(max_distance)
+        self.max_tilt = np.inf if max_tilt is None else float(max_tilt)
+        p = world.params
+        self.params: QuadParams = p
+        self._f_min, self._f_max = p.f_min, p.f_max
+        self._unmix_t, self._mix_t = p.unmix_t, p.mix_t  # the vehicle's rotor mixing (docs/vehicles.md)
+        d = self.data
+        self.qpos = d.qpos.reshape(N, 7)  # views into MjData
+        self.qvel = d.qvel.reshape(N, 6)
+        self.pos = self.qpos[:, 0:3]  # (N, 3)
+        self.quat = self.qpos[:, 3:7]  # (N, 4) w, x, y, z
+        self.vel = self.qvel[:, 0:3]  # (N, 3) world frame
+        self.omega = self.qvel[:, 3:6]  # (N, 3) body frame
+        self.ctrl = d.ctrl.reshape(N, 4)  # (N, 4) = U1..U4 applied
+        idx = _index(world.body_ids)
+        self._xfrc_force = d.xfrc_applied[idx, 0:3]  # (N, 3) views
+        self._xfrc_torque = d.xfrc_applied[idx, 3:6]
+        if not np.shares_memory(self._xfrc_force, d.xfrc_applied):
+            raise RuntimeError("internal: drone bodies are not evenly spaced in the model")
+        self._warnings = d.warning.number  # (7,) live view of MuJoCo's warning counters
+        self._geom_drone = world.geom_drone
+        self.rotor_thrust = np.zeros((N, 4))  # (N, 4) F1..F4 produced (the last step's)
+        # First-order rotor lag (actuators with dyntype="filter", docs/aero.md): MuJoCo integrates the
+        # actuator states; rotor_thrust reports the produced thrust (from the states), rotor_command
+        # what was commanded (after saturation). Without lag the two are the same.
+        self.motor_lag = m.na == 4 * N and m.na > 0
+        self._act = d.act.reshape(N, 4) if self.motor_lag else None
+        self.rotor_command = np.zeros((N, 4))  # (N, 4)
+        self._force = np.zeros((N, 3))  # (N, 3) stage sums (general path)
+        self._torque = np.zeros((N, 3))
+        self.kinematics = Kinematics(self.pos, self.quat, self.vel, self.rotor_thrust)  # what force stages read
+        self._ncon = _mjstep.ncon_view(d)
+        self.drag = DragStage()
+        self.wind = WindStage()
+        self.stages: list[ForceStage] = [self.drag, self.wind, *force_stages]
+        self.monitors: list[Monitor] = list(monitors)
+        self._gate = floor_gate(world)  # (floor geom id, its contype, z_near) or None: no solid floor
+        self._gate_on = self._gate is not None
+        self.reset()
+
+    @property
+    def floor_gate(self) -> bool:
+        """Whether the solid floor is tested for contacts only in control periods where a drone could
+        reach it (:func:`floor_gate_kernel`; True by default, the same run bit for bit at less cost).
+        False tests it at every physics step."""
+        return self._gate_on
+
+    @floor_gate.setter
+    def floor_gate(self, on: bool) -> None:
+        self._gate_on = bool(on) and self._gate is not None
+        self._floor_solid()
+        self._record = self._physics()
+
+    def _floor_solid(self) -> None:
+        if self._gate is not None:
+            self.model.geom_contype[self._gate[0]] = self._gate[1]
+
+    @property
+    def ext_force(self) -> np.ndarray:
+        """(N, 3) the wind force of the current period (the wind stage's)."""
+        return self.wind.force
+
+    def add_stage(self, stage: ForceStage) -> None:
+        """Append a force stage (applied after the others); it is reset now."""
+        self.stages.append(stage)
+        stage.reset(self)
+        self._set_path()
+
+    @property
+    def force_stages(self) -> list[ForceStage]:
+        """The extra force stages (after drag and wind), in the order they are applied."""
+        return self.stages[2:] if self._fused else [s for s in self.stages if s is not self.drag and s is not self.wind]
+
+    def stage_forces(self) -> dict[str, np.ndarray] | None:
+        """Copies of the force (N, 3) of each extra stage that keeps one (``stage.force``, e.g.
+        downwash, ground effect) over the last physics step; None when there is no extra stage."""
+        if len(self.stages) <= 2:
+            return None
+        return {s.name: s.force.copy() for s in self.stages[2:] if hasattr(s, "force")}
+
+    def add_monitor(self, monitor: Monitor) -> None:
+        """Append a monitor (run after every physics step); it is reset now."""
+        self.monitors.append(monitor)
+        monitor.reset(self)
+
+    def _set_path(self) -> None:
+        """Drag and wind first (the default): they run fused in one compiled call and the extra
+        stages add into zeroed buffers; else every stage in turn (the general path)."""
+        head = [type(s) for s in self.stages[:2]]
+        self._fused = head == [DragStage, WindStage]
+        self._extra = self.stages[2:] if self._fused else []
+        self._record = self._physics()
+        why = self.not_compiled()
+        self._compiled = None if why else tuple(st.record() for st in self._extra)  # type: ignore[attr-defined]
+
+    def not_compiled(self) -> str | None:
+        """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
+        not drag, wind or a stage with a registered compiled kernel (``record()`` returning a record of
+        :data:`swarm_mj.pipeline.records.FORCE_KERNELS`), named."""
+        if not self._fused:
+            return "force stages other than drag and wind first"
+        for st in self._extra:
+            why = _why_not_registered(st, FORCE_KERNELS, "force stage", "kernel")
+            if why is not None:
+                return why
+        return None
+
+    def monitors_not_compiled(self) -> str | None:
+        """Why the monitors cannot fly in a compiled driver (None: they can), naming the first one
+        without a registered compiled step (:data:`swarm_mj.pipeline.records.MONITOR_KERNELS`)."""
+        for mon in self.monitors:
+            why = _why_not_registered(mon, MONITOR_KERNELS, "monitor", "step")
+            if why is not None:
+                return why
+        return None
+
+    def compiled_stages(self) -> tuple:
+        """The records of the extra force stages, in order, for a compiled driver (see :meth:`not_compiled`)."""
+        if self._compiled is None:
+            raise RuntimeError(f"internal: {self.not_compiled()}")
+        return self._compiled
+
+    def _physics(self) -> Physics:
+        d = self.data
+        ids = np.asarray(self.world.body_ids)
+        fid, solid, z_near = self._gate or (0, 0, 0.0)
+        addr = _mjstep.mj_step_address() or 0
+        return Physics(
+            np.uint64(addr), np.uint64(self.model._address), np.uint64(d._address),
+            self._ncon if self._ncon is not None else np.zeros(1, dtype=np.int32), self._warnings, self.qpos,
+            self.qvel, self.ctrl, d.xfrc_applied, int(ids[0]), int(ids[1] - ids[0]) if len(ids) > 1 else 1,
+            self.rotor_thrust, self.rotor_command, self._act if self._act is not None else np.zeros((self.n_total, 4)),
+            bool(self.motor_lag), self.wind.force, np.ascontiguousarray(self.drag.neg_drag, dtype=float), self._force,
+            self._torque, self._unmix_t, self._mix_t, float(self._f_min), float(self._f_max), int(self.n_substeps),
+            float(self.control_period), float(self.floor_z), float(self.max_distance), float(self.max_tilt),
+            bool(self._gate_on), float(z_near), self.model.geom_contype, int(fid), int(solid),
+        )  # fmt: skip
+
+    def record(self) -> Physics:
+        """The simulator for a compiled driver (:class:`swarm_mj.pipeline.records.Physics`), valid until the next
+        :meth:`reset` or change of the stages or the floor gate."""
+        return self._record
+
+    # ------------------------------------------------------------------ state
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def reset(
+        self, positions: np.ndarray | None = None, yaws: np.ndarray | None = None, velocities: np.ndarray | None = None
+    ) -> None:
+        """Back to rest at ``positions`` (N, 3) with ``yaws`` (N,) (defaults: the world's)."""
+        mujoco.mj_resetData(self.model, self.data)
+        pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
+        yaw = self.world.initial_yaws if yaws is None else np.asarray(yaws, float)
+        self.pos[:] = pos
+        self.quat[:] = 0.0
+        self.quat[:, 0] = np.cos(yaw / 2)
+        self.quat[:, 3] = np.sin(yaw / 2)
+        if velocities is not None:
+            self.vel[:] = velocities
+        self.rotor_thrust[:] = 0.0
+        self.rotor_command[:] = 0.0
+        self._force[:] = 0.0
+        self._torque[:] = 0.0
+        self.contact_events = 0  # pairs of drones coming into contact (rising edges)
+        self.contact_steps = 0  # physics steps with any drone–drone contact
+        self.contact_log: list[tuple[float, int, int]] = []  # (t, i, j) at each rising edge
+        self._pairs_in_contact: set[tuple[int, int]] = set()
+        self.parked = np.zeros(self.n_copies, dtype=bool)  # (m,) copies held at their start
+        self._parked_rows = np.zeros((self.n_total, 1), dtype=bool)
+        self._any_parked = False
+        self._park_qpos = self.qpos.copy()  # (N, 7) where parked drones are held
+        for stage in self.stages:
+            stage.reset(self)
+        self._set_path()
+        self._floor_solid()
+        mujoco.mj_forward(self.model, self.data)
+        for mon in self.monitors:
+            mon.reset(self)
+
+    def reset_copies(
+        self, copies: np.ndarray, positions: np.ndarray | None = None, yaws: np.ndarray | None = None
+    ) -> None:
+        """Put only the copies of the bool mask ``copies`` (m,) back at rest at the rows of ``positions``
+        (N, 3) and ``yaws`` (N,) (defaults: the world's), as :meth:`reset` would, leaving the other
+        copies alone (a vector environment's per-copy auto-reset): their state, inputs and applied
+        forces, the solver's warm start and the contact bookkeeping of their drones are cleared.
+        MuJoCo's warning counters and ``time`` are shared by all copies and are left as they are."""
+        mask = np.asarray(copies, dtype=bool).reshape(self.n_copies)
+        rows = np.repeat(mask, self.n)  # (N,)
+        pos = self.world.initial_positions if positions is None else np.asarray(positions, float)
+        yaw = self.world.initial_yaws if yaws is None else np.asarray(yaws, float)
+        self.qpos[rows, 0:3] = pos[rows]
+        self.qpos[rows, 3:7] = 0.0
+        self.qpos[rows, 3] = np.cos(yaw[rows] / 2)
+        self.qpos[rows, 6] = np.sin(yaw[rows] / 2)
+        self.qvel[rows] = 0.0
+        self.ctrl[rows] = 0.0
+        self.rotor_thrust[rows] = 0.0
+        self._xfrc_force[rows] = 0.0
+        self._xfrc_torque[rows] = 0.0
+        self.data.qacc_warmstart.reshape(self.n_total, 6)[rows] = 0.0
+        self.wind.force[rows] = 0.0
+        self.parked[mask] = False
+        self._park_qpos[rows] = self.qpos[rows]
+        self._pairs_in_contact = {p for p in self._pairs_in_contact if not rows[p[0]]}
+
+    # ------------------------------------------------------------------ step
+    def step(self, U: np.ndarray, wind_force: np.ndarray | None = None) -> None:
+        """Advance one control period with commanded U (N, 4) and the wind force (N, 3) or (3,).
+
+        U is mapped to rotor thrusts, clipped to [f_min, f_max] per rotor and mapped back
+        (docs/interpretations.md §1); the result is held in ``ctrl`` for the whole period.
+        Parked copies get zero input and are put back at their start first.
+        """
+        U = np.asarray(U, dtype=np.float64)
+        parked = self._any_parked
+        if parked:
+            U = self._hold_parked(U)
+        saturate_kernel(U, self._unmix_t, self._mix_t, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
+        self.wind.set(wind_force)
+        if self.motor_lag:
+            self.rotor_command[:] = self.rotor_thrust
+        if self._gate_on:
+            fid, solid, z_near = self._gate  # type: ignore[misc]
+            floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
+        saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/physics/_mjstep.py)
+        try:
+            if self._fused:
+                self._substeps_fused()
+            else:
+                self._substeps()
+        finally:
+            timer_resume(saved)
+        if self.motor_lag:
+            unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
+        if parked:
+            self._put_back()
+
+    def _substeps_fused(self) -> None:
+        """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
+        then the extra stages' sum added (and their torque set): :func:`apply_forces`, the function
+        the compiled driver calls (swarm_mj/pipeline/period.py), where every extra stage has a compiled kernel."""
+        m, d = self.model, self.data
+        xf, xt = self._xfrc_force, self._xfrc_torque
+        if self._compiled is not None:
+            phys, stages, kin = self._record, self._compiled, self.kinematics
+            for _ in range(self.n_substeps):
+                apply_forces(phys, stages, kin, xf, xt)
+                mujoco.mj_step(m, d)
+                self.after_physics_step()
+            return
+        vel, ext, k = self.vel, self.wind.force, self.drag.neg_drag
+        extra, lag = self._extra, self.motor_lag
+        force, torque = self._force, self._torque
+        for _ in range(self.n_substeps):
+            drag_kernel(vel, k, ext, xf)
+            if lag:
+                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)  # produced rotor thrusts
+            for stage in extra:
+                stage.apply(self, force, torque)
+            flush_stage_forces(xf, xt, force, torque)  # xf += f, torque = tq; f, tq = 0
+            mujoco.mj_step(m, d)
+            self.after_physics_step()
+
+    def after_physics_step(self) -> None:
+        """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
+        monitors (the chunk driver, swarm_mj/pipeline/period.py, hands each step with a contact back to this)."""
+        if self.data.ncon or self._pairs_in_contact:
+            self._count_contacts()
+        for mon in self.monitors:
+            mon.after_step(self)
+
+    def _substeps(self) -> None:
+        """Every stage adds its force and torque, the sums go to xfrc_applied, then mj_step and contacts."""
+        m, d = self.model, self.data
+        force, torque = self._force, self._torque
+        for _ in range(self.n_substeps):
+            force[:] = 0.0
+            torque[:] = 0.0
+            if self.motor_lag:
+                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
+            for stage in self.stages:
+                stage.apply(self, force, torque)
+            self._xfrc_force[:] = force
+            self._xfrc_torque[:] = torque
+            mujoco.mj_step(m, d)
+            self.after_physics_step()
+
+    # ------------------------------------------------------------------ health
+    def health(self, out: np.ndarray | None = None) -> np.ndarray:
+        """The health mask (m,) int8, one code per copy (``HEALTHY`` = 0, see :data:`HEALTH_NAMES`):
+        non-finite state, a drone below the floor, too far, tilted beyond ``max_tilt``, or a
+        MuJoCo divergence warning since the last reset (every copy then: MuJoCo resets them all).
+        Written into ``out`` (m,) int8 if given, else a fresh array."""
+        if out is None:
+            out = np.empty(self.n_copies, dtype=np.int8)
+        health_kernel(self.qpos, self.qvel, self.n, self.floor_z, self.max_distance, self.max_tilt, out)
+        if self.mujoco_warned():
+            out[:] = MUJOCO_WARNING
+        return out
+
+    def mujoco_warned(self) -> bool:
+        """MuJoCo counted a divergence warning (:data:`DIVERGENCE_WARNINGS`) since the last reset."""
+        w = self._warnings
+        return bool(w[_W_QACC] or w[_W_QPOS] or w[_W_QVEL] or w[_W_CTRL])
+
+    def check(self) -> None:
+        """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
+        if not unhealthy(self._record):  # the chunk driver's test
+            return
+        if self.mujoco_warned():
+            code = MUJOCO_WARNING
+        else:
+            code = first_unhealthy(
+                self.qpos, self.qvel, self.n, self.n_copies, self.floor_z, self.max_distance, self.max_tilt
+            )
+            if code == HEALTHY:
+                return
+        pos = self.pos
+        when = f"simulation diverged at t = {self.time:.2f} s"
+        if code == MUJOCO_WARNING:
+            names = [mujoco.mjtWarning(int(w)).name for w in DIVERGENCE_WARNINGS if self._warnings[int(w)]]
+            raise SimulationDiverged(
+                f"simulation diverged: MuJoCo reported {', '.join(names)} (a state it cannot "
+                f"integrate) and reset the simulation"
+            )
+        if code == NON_FINITE:
+            raise SimulationDiverged(f"{when}: non-finite state")
+        if code == BELOW_FLOOR:
+            k = int(np.argmin(pos[:, 2]))
+            raise SimulationDiverged(f"{when}: {self.world.names[k]} fell through the floor (z = {pos[k, 2]:.2f} m)")
+        if code == TILTED:
+            raise SimulationDiverged(f"{when}: a drone tilted beyond {np.rad2deg(self.max_tilt):g}°")
+        raise SimulationDiverged(f"{when}: a drone flew beyond {self.max_distance:g} m")
+
+    def park(self, copies: np.ndarray | Iterable[int]) -> None:
+        """Hold the given copies (a bool mask (m,) or indices) at rest at their start with zero input
+        (put back before and after every step) from now on (e.g. diverged tuner candidates), so that
+        a bad state never reaches MuJoCo, which would reset every copy."""
+        mask = np.zeros(self.n_copies, dtype=bool)
+        mask[np.asarray(copies)] = True
+        self.parked |= mask
+        self._any_parked = bool(self.parked.any())
+        self._parked_rows = np.repeat(self.parked, self.n)[:, None]  # (N, 1)
+        self._put_back()
+
+    def _put_back(self) -> None:
+        rows = self._parked_rows
+        np.copyto(self.qpos, self._park_qpos, where=rows)
+        np.copyto(self.qvel, 0.0, where=rows)
+
+    def _hold_parked(self, U: np.ndarray) -> np.ndarray:
+        self._put_back()
+        return np.where(self._parked_rows, 0.0, U)
+
+    # ------------------------------------------------------------------ contacts
+    def _count_contacts(self) -> None:
+        d = self.data
+        pairs: set[tuple[int, int]] = set()
+        if d.ncon:
+            g1 = self._geom_drone[d.contact.geom1[: d.ncon]]
+            g2 = self._geom_drone[d.contact.geom2[: d.ncon]]
+            for a, b in zip(g1.tolist(), g2.tolist()):
+                if a >= 0 and b >= 0 and a != b:
+                    pairs.add((min(a, b), max(a, b)))
+        if pairs:
+            self.contact_steps += 1
+            for pair in pairs - self._pairs_in_contact:
+                self.contact_events += 1
+                self.contact_log.append((float(d.time), pair[0], pair[1]))
+        self._pairs_in_contact = pairs
+
+    def drone_contacts(self) -> list[tuple[int, int]]:
+        """Pairs of drones (i < j) whose geoms are in contact right now."""
+        d = self.data
+        out = set()
+        for c in range(d.ncon):
+            a, b = self._geom_drone[d.contact.geom1[c]], self._geom_drone[d.contact.geom2[c]]
+            if a >= 0 and b >= 0 and a != b:
+                out.add((int(min(a, b)), int(max(a, b))))
+        return sorted(out)

@@ -1,0 +1,398 @@
+"""The chunk driver of a run: many control periods in one compiled call (docs/design.md, "The control
+period, written once").
+
+:func:`swarm_mj.pipeline.period.fly_chunk` flies the stages of :mod:`swarm_mj.pipeline.period` over the records of
+:mod:`swarm_mj.pipeline.records`, the same functions the per-period path calls, so a run gives the same
+numbers bit for bit either way (``tests/integration/test_fast_path.py``). This module decides
+whether a run can use it and gathers the records from the run's objects:
+
+* **Whether a run flies fast is one question** (:func:`why_not`): is every stage, monitor and the
+  rule of this run compilable? A force stage or monitor is when its ``record()`` returns a record
+  with a registered compiled kernel (:data:`swarm_mj.pipeline.records.FORCE_KERNELS`, ``MONITOR_KERNELS``);
+  the rule when it is the layered family or none. Otherwise the run flies step by step and
+  ``RunResult.extra["fast_path"]`` names what refused it (the run also says so on stderr).
+* **Compiling.** The driver's signature comes from the records themselves (Numba types them), one
+  per set of force stages and monitors. Compiling it takes Numba 10–20 s, more than a run saves,
+  so ``runner.run(fused=None)`` uses it only when Numba's on-disk cache holds that signature for
+  the current sources (:func:`compiled`), and otherwise flies step by step and starts one detached,
+  low-priority process that compiles exactly that signature (:func:`compile_in_background`, the
+  types pickled) for the runs after. ``fused=True`` compiles it first (:func:`compile_now`). The
+  cache is checked against the sources of every module in :data:`swarm_mj._jit.KERNEL_MODULES`
+  (Numba itself checks only the driver's own file).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import os
+import pickle
+import subprocess
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import _jit
+from ..errors import UserError
+from ..formation.anticollision import OVERLAP_M, G, JetAwareRule, LayeredRule, NoRule
+from ..physics import _mjstep
+from .records import Obs, Rule
+
+#: Control periods per call: Ctrl-C and the progress bar are served between calls.
+CHUNK = 100
+#: Periods flown the ordinary way after Fig. 5 acted, before a chunk is tried again.
+COOL_DOWN = 10
+
+
+def _driver() -> Any:
+    from .period import fly_chunk
+
+    return fly_chunk
+
+
+# --------------------------------------------------------------------------- the one question
+
+
+def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, BacksteppingPolicy
+    """Why this run cannot fly the chunk driver (None: it can): every stage, monitor and the rule
+    compilable, one swarm of the built-in policy, a compiled ``mj_step`` here."""
+    sim = env.sim
+    if not _mjstep.available():
+        return "no compiled mj_step here (Numba, libmujoco or its ncon layout missing)"
+    if env.action_mode != "thrust" or sim.n_copies != 1:
+        return "not the built-in policy on one swarm"
+    why = sim.not_compiled() or sim.monitors_not_compiled()
+    if why is not None:
+        return why
+    if env.wind.relative_airspeed:
+        return "the wind on the relative airspeed is computed in Python"
+    ids = np.asarray(sim.world.body_ids)
+    if len(ids) > 1 and not (np.diff(ids) == ids[1] - ids[0]).all():
+        return "drone bodies not evenly spaced in the model"
+    rule = policy.rule
+    if env.n > 1 and type(rule) not in (LayeredRule, JetAwareRule, NoRule):
+        return f"the {rule.name!r} rule has no compiled step"
+    if getattr(rule, "separation_filter", None) is not None:
+        return "a separation filter other than the rule's own has no compiled step"
+    return None
+
+
+# --------------------------------------------------------------------------- records of a run
+
+
+def _rule_record(rule, n: int, on: bool, jet_aware: bool, prev_t: np.ndarray, alt: np.ndarray) -> Rule:  # noqa: ANN001
+    """The layered rule's formed step as a record (its own arrays; ``on`` False: stand-ins)."""
+    if not on:
+        z, e, b = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n, dtype=bool)
+        return Rule(
+            False, False, 0.8, OVERLAP_M, np.zeros(n), z, z.copy(), prev_t, alt, np.zeros((n, n)), e, e.copy(),
+            e.copy(), b, np.zeros(n), np.zeros(n), np.zeros(n), np.ones(10), z.copy(), z.copy(), b.copy(),
+        )  # fmt: skip
+    (vu, au), (vd, ad) = rule.z_up, rule.z_down_formed
+    limits = np.array([rule.a_max, rule.jerk, rule.k_v, rule.v_max, rule.tan_tilt, G, vu, au, vd, ad], dtype=float)
+    slot_h = rule._slot_h if jet_aware else np.zeros((n, n))
+    return Rule(
+        True, jet_aware, float(rule.safety), float(rule.overlap), rule.offset, rule._prev_pos, rule.vel, prev_t, alt,
+        slot_h, rule.path_p, rule.path_v, rule.path_a, rule.blocked, rule.zp, rule.zv, rule.za, limits, rule.vel_d,
+        rule.acc_d, rule._followers,
+    )  # fmt: skip
+
+
+class FastLoop:
+    """The chunk driver for one run of the built-in policy: :meth:`build`, then :meth:`run` per chunk.
+
+    It shares every array with the environment, the simulator's stages and monitors, the policy
+    and the log (nothing is copied per period), and leaves them as the per-period path would
+    after the same periods. Build it after ``env.reset()``, for that episode."""
+
+    def __init__(self, env, policy, log) -> None:  # noqa: ANN001 - SwarmEnv, BacksteppingPolicy, RunLog
+        self.env, self.policy, self.log = env, policy, log
+        n = env.n
+        self.status = 0
+        self.periods = 0  # control periods flown by the chunk driver so far
+        self._cool = 0
+        self._prev_t = np.zeros(1)
+        self._alt = np.zeros(1)
+        self._obs = Obs.empty(n)
+        self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
+        self._jet_aware = self._layered and isinstance(policy.rule, JetAwareRule)
+        self._refs = env._refs
+        self._log = log.rows
+
+    @classmethod
+    def build(cls, env, policy, log, *, compile: bool = False, announce=None) -> FastLoop | None:  # noqa: ANN001, A002
+        """The chunk driver of this run, or None when it does not qualify (:func:`why_not`) or is not
+        compiled yet: then ``compile`` True compiles it now, False starts :func:`compile_in_background`
+        (``announce`` gets one line saying so) and the run flies step by step."""
+        if why_not(env, policy) is not None:
+            return None
+        loop = cls(env, policy, log)
+        sig = signature(loop._args(0, env.k))
+        if not compiled(sig):
+            if not compile:
+                if compile_in_background(sig) and announce is not None:
+                    announce("compiling the fast path in the background (later runs use it)")
+                return None
+            compile_now([sig])
+        return loop
+
+    # ------------------------------------------------------------------ the records
+    def _args(self, k: int, k_end: int) -> tuple:
+        """The driver's arguments for periods k .. k_end − 1 (the owners' arrays, read at each call:
+        ``reset`` replaces some)."""
+        env, policy = self.env, self.policy
+        sim = env.sim
+        rule = _rule_record(policy.rule, env.n, self._layered, self._jet_aware, self._prev_t, self._alt)
+        ff, pred = policy.feedforward_record(), policy.predictor_record()
+        monitors = tuple(mon.record() for mon in sim.monitors)
+        python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
+        return (
+            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, policy.control_record(), ff, pred,
+            self._log, sim.compiled_stages(), monitors,
+        )  # fmt: skip
+
+    def ready(self) -> bool:
+        """The run is where a chunk can start: past its first period, every follower formed and every
+        drone in the air, no contact pending, the controller's memories started, every monitor's
+        compiled step all it would do, and Fig. 5 idle for a while."""
+        if self._cool > 0:
+            self._cool -= 1
+            return False
+        env, policy = self.env, self.policy
+        if env.k < 1 or not policy.started() or env.sim._pairs_in_contact:
+            return False
+        if not all(mon.compiled_ready() for mon in env.sim.monitors):
+            return False
+        rule = policy.rule
+        return not self._layered or (
+            rule._all_formed and rule._prev_t is not None and not (self._jet_aware and rule._slot_yield)
+        )
+
+    # ------------------------------------------------------------------ one chunk
+    def run(self, k_end: int) -> int:
+        """Fly from the environment's period to ``k_end`` (or to where the driver hands back); returns the
+        period reached, with the environment, policy and log as the per-period path leaves them (where
+        it stopped on an error, the period that failed: then :meth:`raise_if_stopped` raises it)."""
+        from .period import BAD_ACTION, CONTACT, REACT, UNHEALTHY
+
+        env, policy, sim = self.env, self.policy, self.env.sim
+        fly = _driver()
+        obs = env._obs
+        for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
+            buf[...] = obs[key] if key != "dist" else env._dist
+        rule = policy.rule
+        if self._layered:
+            self._prev_t[0] = rule._prev_t
+        ctl = policy.controller
+        policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
+        args = list(self._args(env.k, k_end))
+        k0 = env.k
+        with _mjstep.profiler_paused():  # MuJoCo's profiling clock off, as in Sim.step
+            while True:
+                status, k, s = fly(*args)
+                if status == CONTACT:
+                    sim.after_physics_step()  # contacts and monitors, as Sim.step after that physics step
+                    args[0], args[1] = k, s
+                    args[3] = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
+                    continue
+                break
+        self.status = status
+        self.periods += k - k0
+        ctl.U = policy.U_last.copy()
+        if self._layered:
+            rule._prev_t = float(self._prev_t[0])
+            if self._jet_aware and k > k0:
+                rule._formation_alt = float(self._alt[0])
+        if status == REACT:
+            self._cool = COOL_DOWN
+        env.k = k
+        env._contacts_seen = sim.contact_events
+        if status == UNHEALTHY:
+            return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
+        if status == BAD_ACTION:
+            return k
+        env._obs = env._observation(*(b.copy() for b in self._obs))
+        self._record(k)
+        if k >= env.n_steps:
+            env._done = True
+        return k
+
+    def _record(self, k: int) -> None:
+        """The environment's record of the last period flown (as :meth:`SwarmEnv.step` leaves it)."""
+        from ..env import StepRecord
+
+        log, j, env = self.log, k - 1, self.env
+        if j >= 0:
+            env.last_applied = StepRecord(
+                j * env.T, log.U[j].copy(), log.rotor[j].copy(), log.wind_force[j].copy(), None, None, None, None,
+                env.sim.stage_forces(),
+            )  # fmt: skip
+
+    def raise_if_stopped(self) -> None:
+        """Raise what the per-period path raises where the last :meth:`run` stopped: the simulator's
+        :class:`~swarm_mj.errors.SimulationDiverged` (naming why), or the environment's error for a
+        non-finite command."""
+        from .period import BAD_ACTION, UNHEALTHY
+
+        if self.status == UNHEALTHY:
+            self.env.sim.check()  # raises SimulationDiverged, naming why
+            raise AssertionError("internal: the fast path found a state the simulator calls healthy")
+        if self.status == BAD_ACTION:
+            raise UserError("action contains NaN or inf")
+
+
+_OBS_KEYS = (
+    "pos", "vel", "quat", "body_rates", "rpy", "rpy_rate", "neighbours", "neighbour_mask", "dist",
+    "setpoint", "setpoint_vel", "setpoint_acc", "setpoint_yaw", "wind_force",
+)  # fmt: skip
+
+
+# --------------------------------------------------------------------------- compiling
+
+
+def signature(args: tuple) -> tuple:
+    """The driver's compile signature for these arguments: the Numba types of the records themselves."""
+    from numba import typeof
+
+    return tuple(typeof(a) for a in args)
+
+
+def _sources_hash() -> str:
+    """A hash of the sources the driver is compiled from: every module of ``_jit.KERNEL_MODULES``, the
+    records and the compiler switch itself."""
+    h = hashlib.sha1(usedforsecurity=False)
+    for name in sorted(
+        {*_jit.KERNEL_MODULES, "swarm_mj._jit", "swarm_mj.physics._mjstep", "swarm_mj.pipeline.records"}
+    ):
+        spec = importlib.util.find_spec(name)
+        if spec is not None and spec.origin:
+            h.update(Path(spec.origin).read_bytes())
+    return h.hexdigest()
+
+
+def _stamp() -> Path | None:
+    """Where the hash of the sources the cached driver came from is kept (beside Numba's index)."""
+    try:
+        return Path(_driver()._cache.cache_path) / "period.fly_chunk.sources"
+    except (AttributeError, ImportError):  # no numba
+        return None
+
+
+def _cached_signatures() -> list[tuple]:
+    """The signatures Numba's on-disk cache index holds for the driver (an internal API: [] on surprise)."""
+    try:
+        index = _driver()._cache._cache_file._load_index()
+        return [key[0] for key in index]
+    except Exception:  # noqa: BLE001 - numba internals changed
+        return []
+
+
+def compiled(sig: tuple) -> bool:
+    """The driver is in Numba's on-disk cache for ``sig``, compiled from the current sources."""
+    stamp = _stamp()
+    if stamp is None or not _mjstep.available():
+        return False
+    try:
+        fresh = stamp.read_text() == _sources_hash()
+    except OSError:
+        return False
+    return fresh and (sig in _driver().overloads or sig in _cached_signatures())
+
+
+def compile_now(signatures: list[tuple]) -> float:
+    """Compile the driver for ``signatures`` into the cache
+    (e.g. :func:`swarm_mj.experiments.runner.preset_signatures`),
+    dropping a stale cache first; returns the seconds spent."""
+    t0 = time.perf_counter()
+    stamp = _stamp()
+    if stamp is None or not _mjstep.available():
+        return 0.0
+    fly = _driver()
+    try:
+        fresh = stamp.read_text() == _sources_hash()
+    except OSError:
+        fresh = False
+    if not fresh:
+        fly._cache.flush()  # Numba would load a stale one
+    for sig in signatures:
+        fly.compile(sig)
+    try:
+        tmp = stamp.with_suffix(f".{os.getpid()}.tmp")
+        tmp.write_text(_sources_hash())
+        tmp.replace(stamp)
+    except OSError:
+        pass
+    return time.perf_counter() - t0
+
+
+def _lock_path() -> Path:
+    key = hashlib.sha1(str(_stamp()).encode(), usedforsecurity=False).hexdigest()[:12]
+    return Path(tempfile.gettempdir()) / f"swarm_mj-fast-{key}.lock"
+
+
+def compile_in_background(sig: tuple, spawn: Callable[..., Any] = subprocess.Popen) -> bool:
+    """Start one detached, low-priority process compiling the driver for ``sig`` (pickled) into the
+    cache (unless one is already at it, or started less than 10 minutes ago); True if one was started."""
+    if _stamp() is None or not _mjstep.available():
+        return False
+    lock = _lock_path()
+    for _ in range(2):
+        try:
+            fd = os.open(lock, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o644)
+            break
+        except FileExistsError:
+            try:
+                if time.time() - lock.stat().st_mtime < 600:
+                    return False
+                lock.unlink()
+            except OSError:
+                return False
+        except OSError:
+            return False
+    else:
+        return False
+    try:
+        os.write(fd, pickle.dumps(sig))
+    except Exception:  # noqa: BLE001 - a type that does not pickle (a stage defined in __main__)
+        os.close(fd)
+        lock.unlink(missing_ok=True)
+        return False
+    os.close(fd)
+    try:
+        spawn(
+            [sys.executable, "-m", "swarm_mj.pipeline.fast", str(lock)],
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+            start_new_session=True,
+            close_fds=True,
+        )
+    except OSError:
+        lock.unlink(missing_ok=True)
+        return False
+    return True
+
+
+def _background_main(argv: list[str]) -> None:
+    """The process :func:`compile_in_background` starts: compile the pickled signature in the lock
+    file ``argv[0]``, then drop the lock file."""
+    lock = Path(argv[0]) if argv else None
+    try:
+        if hasattr(os, "nice"):
+            os.nice(10)
+        if lock is not None:
+            compile_now([pickle.loads(lock.read_bytes())])  # noqa: S301 - our own file
+    finally:
+        if lock is not None:
+            lock.unlink(missing_ok=True)
+
+
+if __name__ == "__main__":  # python -m swarm_mj.pipeline.fast LOCK: through the imported module, the one runs use
+    import importlib
+
+    importlib.import_module("swarm_mj.pipeline.fast")._background_main(sys.argv[1:])

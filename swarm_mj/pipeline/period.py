@@ -1,0 +1,280 @@
+"""The stages of one control period as compiled functions over the records of :mod:`swarm_mj.pipeline.records`,
+and the chunk driver that flies many periods in one compiled call (docs/design.md, "The control
+period, written once").
+
+:func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
+(:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.physics.sim.Sim.step`,
+:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones for the observation
+(:func:`observe`), the forces of a physics step (:func:`~swarm_mj.physics.sim.apply_forces`, the force
+stages' and the monitors' kernels), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
+feedforward (:func:`feedforward_force`); for saturation, the command and the log's input row it
+calls the same kernels from Python (a compiled function taking a large record costs 2-5 s of
+compiling on a first run), and the layered rule's formed step is the rule's own Python
+(swarm_mj/formation), which :func:`rule_formed_step` mirrors; the parity tests keep them equal:
+
+=========================  =====================================================================
+stage                      function
+=========================  =====================================================================
+the rule's formed step     :func:`rule_formed_step` (Fig. 5's check, the velocity estimate, the
+                           compiled paths of :func:`~swarm_mj.formation.layered.formed_step_kernel`)
+downwash feedforward       :func:`feedforward_force`
+lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
+backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
+                           :func:`~swarm_mj.physics.mixing.attitude_priority_kernel`
+log rows                   :func:`log_inputs`, :func:`log_outputs`
+saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
+force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
+                           :data:`swarm_mj.pipeline.records.FORCE_KERNELS`, in the simulator's order)
+``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
+monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
+health check               :func:`~swarm_mj.physics.sim.unhealthy`
+observation                :func:`observe` (:func:`observe_into` its buffers)
+=========================  =====================================================================
+
+A compiled driver hands control back to Python for what the per-period path does in Python
+(Fig. 5 acting, a contact, an unhealthy state, a non-finite command): :data:`REACT`,
+:data:`CONTACT`, :data:`UNHEALTHY`, :data:`BAD_ACTION`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .._jit import jit
+from ..control.backstepping import backstepping_kernel
+from ..control.lag import predict_kernel
+from ..formation.anticollision import any_below, horizontal_distances, merge_rows, react_needed
+from ..formation.layered import formed_step_kernel
+from ..formation.slots import setpoints_kernel
+from ..physics import _mjstep
+from ..physics.aero import downwash as _downwash
+from ..physics.mixing import attitude_priority_kernel
+from ..physics.observation import observe_kernel
+from ..physics.sim import apply_forces, hold_inputs, log_stage_forces, track_monitors, unhealthy, unmix_kernel
+from .records import Kinematics, Obs
+
+#: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
+#: a contact to count (then resume); unhealthy (Python raises); a non-finite command.
+DONE, REACT, CONTACT, UNHEALTHY, BAD_ACTION = 0, 1, 2, 3, 4
+
+
+# --------------------------------------------------------------------------- the stages
+
+
+@jit(inline=True)
+def rule_formed_step(rule, obs, t):
+    """The layered rule's update once every follower is formed (LayeredRule.update, JetAwareRule's
+    checks): returns (react, pos_d, vel_d, acc_d); react True when Fig. 5 has work to do (the
+    Python rule then flies the period: drones within D̄ horizontally, an offset held; for
+    ``jet-aware`` slots within D̄ or outlines overlapping), else the references (n, 3)."""
+    n = obs.pos.shape[0]
+    h = horizontal_distances(obs.pos)
+    sh = h
+    if rule.jet_aware:
+        sh = horizontal_distances(obs.sp)
+        if any_below(sh, rule.safety):
+            return True, obs.sp, obs.spv, obs.spa
+        for i in range(1, n):
+            for j in range(n):
+                if h[i, j] < rule.overlap:
+                    return True, obs.sp, obs.spv, obs.spa
+    if react_needed(rule.offset, h, rule.safety):
+        return True, obs.sp, obs.spv, obs.spa
+    if rule.jet_aware:
+        rule.slot_h[:] = sh
+        rule.formation_alt[0] = obs.pos[0, 2]
+    dt = t - rule.prev_t[0]
+    if dt > 0.0:
+        for i in range(n):
+            for j in range(3):
+                rule.vel[i, j] = obs.pos[i, j] - rule.prev_pos[i, j]
+        for i in range(n):
+            for j in range(3):
+                rule.vel[i, j] /= dt
+    rule.prev_t[0] = t
+    rule.prev_pos[:] = obs.pos
+    out = np.empty((n, 3))
+    lim = rule.limits
+    formed_step_kernel(
+        dt, obs.sp, obs.pos[0, 2], rule.offset, rule.vel[0], rule.path_p, rule.path_v, rule.path_a, rule.blocked,
+        rule.zp, rule.zv, rule.za, lim, out, rule.vel_d, rule.acc_d,
+    )  # fmt: skip
+    vel_d, acc_d = merge_rows(rule.steer, rule.vel_d, rule.acc_d, obs.spv, obs.spa)
+    return False, out, vel_d, acc_d
+
+
+@jit(inline=True)
+def feedforward_force(ff, pos, quat, thrust) -> None:
+    """The downwash feedforward (swarm_mj.control.policy.DownwashFeedforward): ff.force (n, 3) = the jets'
+    force on each drone at pos (n, 3), quat (n, 4), each drone's thrust (n,) shared over its rotors."""
+    n = pos.shape[0]
+    ff.pos[:] = pos
+    ff.quat[:] = quat
+    for i in range(n):
+        for r in range(4):
+            ff.rotor[i, r] = thrust[i] / 4.0
+    ff.sum_force[:] = 0.0
+    ff.sum_torque[:] = 0.0
+    _downwash.downwash_kernel(
+        ff.pos, ff.quat, ff.rotor, ff.n, ff.L, ff.rho, ff.r, ff.half_cda, ff.half_cda_body, ff.r, ff.force,
+        ff.torque, ff.sum_force, ff.sum_torque,
+    )  # fmt: skip
+
+
+@jit(inline=True)
+def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
+    """U1..U4 (n, 4) of the built-in policy from the references (n, 3): the known external force
+    (the wind given to the controller, plus the downwash feedforward from the last command),
+    the attitude predicted over the rotors' lag, backstepping (eqs. 17–24), the attitude-priority
+    mixer. Reads of ``obs`` the drones' state, yaw references and wind force only. Writes ctl.att_d,
+    ctl.U_last (the thrust the next feedforward uses)."""
+    n = obs.pos.shape[0]
+    zeros1 = np.zeros(n)
+    zeros3 = np.zeros((n, 3))
+    ext = obs.wf
+    if ff.on:
+        feedforward_force(ff, obs.pos, obs.quat, ctl.U_last[:, 0])
+        ext = obs.wf + ff.force
+    wind = ext if ctl.use_wind else zeros3
+    rpy_in, rate_in, body_in = obs.rpy, obs.rpy_rate, obs.omega
+    if pred.on:
+        rpy_in = np.empty((n, 3))
+        rate_in = np.empty((n, 3))
+        body_in = np.empty((n, 3))
+        predict_kernel(
+            obs.rpy, obs.rpy_rate, obs.omega, pred.prev_rate, pred.prev_body, pred.d_att, pred.k_rate, rpy_in,
+            rate_in, body_in,
+        )  # fmt: skip
+    omega = body_in if ctl.exact else zeros3
+    U = backstepping_kernel(
+        ctl.gains, rpy_in, rate_in, omega, obs.pos, obs.vel, pos_d, vel_d, acc_d, obs.yaw, zeros1, zeros1, wind,
+        ctl.use_wind, ctl.prev_att_d, False, ctl.exact, ctl.att_d,
+    )  # fmt: skip
+    if ctl.priority:
+        Up = np.empty_like(U)
+        attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, Up)
+        U = Up
+    ctl.U_last[:] = U
+    return U
+
+
+@jit(inline=True)
+def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
+    """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
+    wind speed (3,) and D of that instant (RunLog.observe writes the same row in Python)."""
+    log.t[k] = t
+    log.pos[k] = obs.pos
+    log.vel[k] = obs.vel
+    log.quat[k] = obs.quat
+    log.rpy[k] = obs.rpy
+    log.pos_d[k] = pos_d
+    log.slot[k] = obs.sp
+    log.att_d[k] = att_d
+    log.wind_speed[k] = wind_speed
+    log.D[k] = D
+
+
+@jit(inline=True)
+def observe(phys, refs, k):
+    """The observation of period k (:class:`~swarm_mj.pipeline.records.Obs`, fresh arrays; SwarmEnv's keys):
+    the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
+    estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
+    (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
+    n = phys.qpos.shape[0]
+    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(phys.qpos, phys.qvel, refs.sensing_range)
+    sp, spv, spa, yaw = setpoints_kernel(
+        k, phys.T, pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
+        refs.D[k], refs.unit_offsets,
+    )  # fmt: skip
+    wf = np.zeros((n, 3))
+    if refs.wind_known:
+        for i in range(n):
+            for j in range(3):
+                wf[i, j] = refs.wind_force[k, j]
+    return Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf)
+
+
+@jit(inline=True)
+def observe_into(phys, refs, obs, k) -> None:
+    """:func:`observe` into the buffers of ``obs`` (the chunk driver's observation)."""
+    o = observe(phys, refs, k)
+    obs.pos[:] = o.pos
+    obs.vel[:] = o.vel
+    obs.quat[:] = o.quat
+    obs.omega[:] = o.omega
+    obs.rpy[:] = o.rpy
+    obs.rpy_rate[:] = o.rpy_rate
+    obs.rel[:] = o.rel
+    obs.mask[:] = o.mask
+    obs.dist[:] = o.dist
+    obs.sp[:] = o.sp
+    obs.spv[:] = o.spv
+    obs.spa[:] = o.spa
+    obs.yaw[:] = o.yaw
+    obs.wf[:] = o.wf
+
+
+# --------------------------------------------------------------------------- the chunk driver
+
+
+@jit
+def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, log, stages, monitors):
+    """Fly control periods k .. k_end − 1 with the stages above, in the per-period path's order;
+    returns (status, k, s): the period and physics step (0 = its start) where it stopped.
+
+    ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
+    resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
+    still holds drones in contact, so every physics step goes back to it. ``stages``, ``monitors``:
+    the records of the simulator's compiled force stages and monitors, in its order."""
+    n = phys.qpos.shape[0]
+    xf = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 0:3]
+    xtorque = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 3:6]
+    kin = _kinematics(phys)
+    while k < k_end:
+        if s0 == 0:
+            t = k * phys.T
+            pos_d, vel_d, acc_d = obs.sp, obs.spv, obs.spa
+            if rule.on:
+                react, pos_d, vel_d, acc_d = rule_formed_step(rule, obs, t)
+                if react:
+                    return REACT, k, 0
+            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d)
+            for x in U.flat:
+                if not np.isfinite(x):
+                    return BAD_ACTION, k, 0
+            log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
+            for i in range(n):  # the wind force of period k, held over it
+                for j in range(3):
+                    phys.wind[i, j] = refs.wind_force[k, j]
+            hold_inputs(phys, U)
+            log.U[k] = phys.ctrl
+            log.wind_force[k] = phys.wind
+        for s in range(s0, phys.nsub):
+            apply_forces(phys, stages, kin, xf, xtorque)
+            _mjstep.step_call(phys.fn, phys.m_addr, phys.d_addr)
+            if phys.ncon[0] > 0 or python_each:
+                return CONTACT, k, s + 1
+            track_monitors(monitors, kin)
+        s0 = 0
+        log_outputs(log, k, phys, stages)
+        k += 1
+        if unhealthy(phys):
+            return UNHEALTHY, k, 0
+        observe_into(phys, refs, obs, k)
+    return DONE, k, 0
+
+
+@jit(inline=True)
+def _kinematics(phys):
+    """The drones' state views a force stage reads (:class:`~swarm_mj.pipeline.records.Kinematics`)."""
+    return Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
+
+
+@jit(inline=True)
+def log_outputs(log, k, phys, stages) -> None:
+    """Row k of the log from what the period applied (RunLog.applied): the produced rotor thrusts
+    (read from the lagged rotors' states) and each force stage's force."""
+    if phys.lag:
+        unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
+    log.rotor[k] = phys.rotor_thrust
+    log_stage_forces(stages, log.forces, k)

@@ -1,0 +1,268 @@
+"""The typed state records of one control period (docs/design.md, "The control period, written once").
+
+Every stage of a control period (the rule's formed step, the feedforwards, backstepping, the
+mixer, saturation, each force stage, ``mj_step``, the monitors, the health check, the
+observation, the log row) is one compiled function over these records. A record is a
+``typing.NamedTuple`` of arrays and scalars: Numba takes it as one argument, and its type (hence a
+kernel's compile signature) comes from the record itself, so no list of argument types is kept
+by hand. The arrays are live views or the owners' own buffers (nothing is copied per period); a
+scalar a stage updates is a 1-element array.
+
+Shapes: n drones (N = all drones of all copies where a record serves the simulator), K + 1
+control instants of a run, S force stages. The records are built by their owners:
+:meth:`swarm_mj.physics.sim.Sim.record` (:class:`Physics`), the force stages' ``record()``,
+:meth:`swarm_mj.control.backstepping.Backstepping` (:class:`Gains`), the policy's parts, the
+environment (:class:`Refs`, :class:`Obs`) and the runner's log (:class:`LogRows`).
+
+This module imports no other module of the package (the records are plain data).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, NamedTuple
+
+import numpy as np
+
+
+class Kinematics(NamedTuple):
+    """What a force stage reads of the drones at the start of a physics step."""
+
+    pos: np.ndarray  # (N, 3) world position of the centre of mass (m), a view of qpos
+    quat: np.ndarray  # (N, 4) attitude (w, x, y, z), a view of qpos
+    vel: np.ndarray  # (N, 3) world velocity (m/s), a view of qvel
+    rotor_thrust: np.ndarray  # (N, 4) F1..F4 produced (N)
+
+
+class Physics(NamedTuple):
+    """The simulator (:class:`swarm_mj.physics.sim.Sim`) for a compiled driver: MuJoCo's addresses and views."""
+
+    fn: np.uint64  # address of MuJoCo's C mj_step (0: none)
+    m_addr: np.uint64  # address of the mjModel
+    d_addr: np.uint64  # address of the mjData
+    ncon: np.ndarray  # (1,) int32, a live view of mjData.ncon
+    warn: np.ndarray  # (mjNWARNING,) int32, live view of mjData.warning.number
+    qpos: np.ndarray  # (N, 7) view
+    qvel: np.ndarray  # (N, 6) view
+    ctrl: np.ndarray  # (N, 4) U1..U4 applied, view
+    xfrc: np.ndarray  # (nbody, 6) mjData.xfrc_applied; the drones' rows are body0 + i·body_step
+    body0: int
+    body_step: int
+    rotor_thrust: np.ndarray  # (N, 4) F1..F4 produced
+    rotor_command: np.ndarray  # (N, 4) F1..F4 commanded (after saturation)
+    act: np.ndarray  # (N, 4) the rotors' actuator states (rotor lag; zeros without)
+    lag: bool  # first-order rotor lag in the model
+    wind: np.ndarray  # (N, 3) the wind force held over the period (the wind stage's)
+    neg_drag: np.ndarray  # (3,) −(Kx, Ky, Kz), paper eq. (1)
+    force: np.ndarray  # (N, 3) the extra stages' sum over one physics step
+    torque: np.ndarray  # (N, 3)
+    unmix_t: np.ndarray  # (4, 4) U → rotor thrusts (eqs. 26–29), transposed
+    mix_t: np.ndarray  # (4, 4) rotor thrusts → U, transposed
+    f_min: float  # rotor thrust limits (N)
+    f_max: float
+    nsub: int  # physics steps per control period
+    T: float  # control period (s)
+    floor_z: float  # health limits (m, m, rad)
+    max_distance: float
+    max_tilt: float
+    gate_on: bool  # the floor gate (swarm_mj.physics.sim.floor_gate_kernel)
+    gate_z: float
+    contype: np.ndarray  # (ngeom,) int32 mjModel.geom_contype
+    gate_id: int
+    gate_solid: int
+
+
+class Refs(NamedTuple):
+    """The run's references, precomputed per control instant, and the leader-velocity estimate."""
+
+    pos: np.ndarray  # (K+1, 3) leader trajectory
+    vel: np.ndarray  # (K+1, 3)
+    acc: np.ndarray  # (K+1, 3)
+    yaw: np.ndarray  # (K+1,)
+    D: np.ndarray  # (K+1,) formation diameter D(t)
+    unit_offsets: np.ndarray  # (n−1, 3) slot offsets for D = 1
+    prev_leader: np.ndarray  # (3,) leader position at the last observation (updated)
+    leader_vel: np.ndarray  # (3,) its finite-difference velocity (updated)
+    sensing_range: float  # m
+    wind_force: np.ndarray  # (K+1, 3) wind force per instant (uniform over drones)
+    wind_speed: np.ndarray  # (K+1, 3)
+    wind_known: bool  # the controller is given the wind force
+
+
+class Obs(NamedTuple):
+    """The observation of one control period (SwarmEnv's keys; leader = row 0)."""
+
+    pos: np.ndarray  # (n, 3)
+    vel: np.ndarray  # (n, 3)
+    quat: np.ndarray  # (n, 4)
+    omega: np.ndarray  # (n, 3) body rates
+    rpy: np.ndarray  # (n, 3)
+    rpy_rate: np.ndarray  # (n, 3)
+    rel: np.ndarray  # (n, n, 3) neighbours
+    mask: np.ndarray  # (n, n)
+    dist: np.ndarray  # (n, n) 3D distances (+inf on the diagonal)
+    sp: np.ndarray  # (n, 3) formation setpoint
+    spv: np.ndarray  # (n, 3)
+    spa: np.ndarray  # (n, 3)
+    yaw: np.ndarray  # (n,)
+    wf: np.ndarray  # (n, 3) the wind force given to the controller
+
+    @classmethod
+    def empty(cls, n: int) -> Obs:
+        z = np.zeros
+        return cls(
+            z((n, 3)), z((n, 3)), z((n, 4)), z((n, 3)), z((n, 3)), z((n, 3)), z((n, n, 3)), z((n, n)), z((n, n)),
+            z((n, 3)), z((n, 3)), z((n, 3)), z(n), z((n, 3)),
+        )  # fmt: skip
+
+
+class Rule(NamedTuple):
+    """The layered rule's formed step (swarm_mj.formation: LayeredRule, JetAwareRule); ``on`` False: no rule."""
+
+    on: bool
+    jet_aware: bool
+    safety: float  # D̄ (m)
+    overlap: float  # outlines overlapping (m), jet-aware
+    offset: np.ndarray  # (n,) altitude offsets held
+    prev_pos: np.ndarray  # (n, 3) positions at the last update
+    vel: np.ndarray  # (n, 3) their finite-difference velocities
+    prev_t: np.ndarray  # (1,) time of the last update
+    formation_alt: np.ndarray  # (1,) the formation's altitude (jet-aware)
+    slot_h: np.ndarray  # (n, n) horizontal slot distances (jet-aware)
+    path_p: np.ndarray  # (n, 2) horizontal paths
+    path_v: np.ndarray  # (n, 2)
+    path_a: np.ndarray  # (n, 2)
+    blocked: np.ndarray  # (n,) bool
+    zp: np.ndarray  # (n,) altitude paths
+    zv: np.ndarray  # (n,)
+    za: np.ndarray  # (n,)
+    limits: np.ndarray  # (10,) a_max, jerk, k_v, v_max, tan_tilt, g, v_up, a_up, v_down, a_down
+    vel_d: np.ndarray  # (n, 3) references of the steered drones
+    acc_d: np.ndarray  # (n, 3)
+    steer: np.ndarray  # (n,) bool: the drones the rule steers
+
+
+class Gains(NamedTuple):
+    """Backstepping's constants (eqs. 17–24), from the gains (n, 12) and the airframe."""
+
+    a_pos: np.ndarray  # (n, 3)
+    c1_pos: np.ndarray  # (n, 3) 1 − a²
+    c2_pos: np.ndarray  # (n, 3) a + b
+    a_att: np.ndarray  # (n, 3)
+    c1_att: np.ndarray  # (n, 3)
+    c2_att: np.ndarray  # (n, 3)
+    drag_over_m: np.ndarray  # (3,)
+    m: float  # kg
+    g: float  # m/s²
+    inertia: np.ndarray  # (3,) Ix, Iy, Iz
+    torque_scale: np.ndarray  # (3,) I / L
+    cor: np.ndarray  # (3,) Coriolis coefficients
+    L: float  # arm (m)
+    T: float  # control period (s)
+
+
+class Control(NamedTuple):
+    """The controller of the built-in policy: backstepping, its memories, the mixer."""
+
+    gains: Gains
+    prev_att_d: np.ndarray  # (n, 2) previous (φ_d, θ_d)
+    att_d: np.ndarray  # (n, 3) last commanded attitude (written)
+    U_last: np.ndarray  # (n, 4) last command (written)
+    exact: bool  # attitude_map == "exact"
+    use_wind: bool  # wind feedforward
+    priority: bool  # attitude-priority mixer
+    unmix_t: np.ndarray  # (4, 4) U → rotor thrusts, transposed (the mixer's)
+    mix_t: np.ndarray  # (4, 4) rotor thrusts → U, transposed
+    f_min: float  # rotor thrust limits (N)
+    f_max: float
+
+
+class Feedforward(NamedTuple):
+    """The downwash feedforward (swarm_mj.control.policy.DownwashFeedforward); ``on`` False: none."""
+
+    on: bool
+    n: int
+    L: float
+    rho: float
+    r: float
+    half_cda: float
+    half_cda_body: float
+    pos: np.ndarray  # (n, 3) buffers
+    quat: np.ndarray  # (n, 4)
+    rotor: np.ndarray  # (n, 4)
+    force: np.ndarray  # (n, 3) the prediction (N)
+    torque: np.ndarray  # (n, 3)
+    sum_force: np.ndarray  # (n, 3)
+    sum_torque: np.ndarray  # (n, 3)
+
+
+class Predictor(NamedTuple):
+    """The attitude predicted over the rotors' lag (swarm_mj.control.lag); ``on`` False: none."""
+
+    on: bool
+    d_att: float
+    k_rate: float
+    prev_rate: np.ndarray  # (n, 3)
+    prev_body: np.ndarray  # (n, 3)
+
+
+class GroundTrack(NamedTuple):
+    """The ground monitor's per-step bookkeeping without a contact (swarm_mj.physics.aero.ground)."""
+
+    vel_before: np.ndarray  # (N, 3) velocity at the start of the last physics step
+    vel_now: np.ndarray  # (N, 3)
+
+
+class LogRows(NamedTuple):
+    """The run log's arrays (swarm_mj.experiments.runner.RunLog), time axis first."""
+
+    t: np.ndarray  # (K+1,)
+    pos: np.ndarray  # (K+1, n, 3)
+    vel: np.ndarray
+    quat: np.ndarray  # (K+1, n, 4)
+    rpy: np.ndarray
+    pos_d: np.ndarray
+    slot: np.ndarray
+    att_d: np.ndarray
+    U: np.ndarray  # (K+1, n, 4)
+    rotor: np.ndarray  # (K+1, n, 4)
+    wind_speed: np.ndarray  # (K+1, 3)
+    wind_force: np.ndarray  # (K+1, n, 3)
+    D: np.ndarray  # (K+1,)
+    forces: np.ndarray  # (S, K+1, n, 3) each force stage's force, in the simulator's stage order
+
+
+# --------------------------------------------------------------------------- compiled force stages
+
+#: record class → the compiled ``apply(record, kinematics, force, torque)`` of the force stages
+#: whose ``record()`` returns that class (:func:`force_kernel`).
+FORCE_KERNELS: dict[type, Callable[..., Any]] = {}
+
+
+def force_kernel(record: type) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Register a compiled force stage: ``@force_kernel(MyRecord)`` above ``@jit def apply(rec, kin,
+    force, torque)``, which ADDS the stage's world-frame force and torque (N, 3) for the coming
+    physics step and writes its own into ``rec.force`` (N, 3). A stage whose ``record()`` returns a
+    ``MyRecord`` then flies in compiled drivers (docs/design.md, "A new force stage")."""
+
+    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
+        FORCE_KERNELS[record] = kernel
+        return kernel
+
+    return register
+
+
+#: record class → the compiled ``after_step(record, kinematics)`` of the monitors whose ``record()``
+#: returns that class: what the monitor does after a physics step WITHOUT any contact, when its
+#: ``compiled_ready()`` is True (a contact always goes back to the monitor's Python ``after_step``).
+MONITOR_KERNELS: dict[type, Callable[..., Any]] = {}
+
+
+def monitor_kernel(record: type) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
+    """Register a compiled monitor step: ``@monitor_kernel(MyRecord)`` above ``@jit def after_step(rec, kin)``."""
+
+    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
+        MONITOR_KERNELS[record] = kernel
+        return kernel
+
+    return register
