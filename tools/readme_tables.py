@@ -1,9 +1,12 @@
-"""Fill the README's tables from what `swarm-mj report` and `tools/bench.py` printed.
+"""Fill the README's short tables and report/tables.md's full ones from what `swarm-mj report`,
+`swarm-mj stress` and `tools/bench.py` wrote.
 
-    python tools/readme_tables.py [--results report/results.json] [--bench report/bench.json] [--readme README.md]
+    python tools/readme_tables.py [--results report/results.json] [--bench report/bench.json]
+                                  [--readme README.md] [--tables report/tables.md]
 
 Rewrites the text between ``<!-- tables:NAME -->`` and ``<!-- /tables:NAME -->`` markers, so
-that every number in the README's tables comes from a run, none is typed by hand.
+that every number in the tables comes from a run, none is typed by hand. The README keeps one
+short table each for the paper, the realistic physics and the speed; report/tables.md has them all.
 """
 
 from __future__ import annotations
@@ -205,6 +208,57 @@ def aero(compare: Path, stress_paths: list[Path]) -> str:
     return "\n".join(rows)
 
 
+#: The README's short realistic-physics table: (stress file, rule) rows, then aero_compare's 20-start rows.
+_REALISTIC_SHORT = ("stress5_realistic.json", "stress8_realistic.json")
+
+
+def realistic_short(compare: Path, report: Path) -> str:
+    """The README's short table: the default rule under ``--aero realistic`` over the seeded stress
+    starts, beside the paper's rule and the layered one over 20 starts (report/tables.md has all rows)."""
+    rows = [
+        "| random starts | rule | starts with a contact | ground crashes | worst downwash dip | settling median |",
+        "|---|---|---|---|---|---|",
+    ]
+    for st, rule, r in _stress_tables([report / name for name in _REALISTIC_SHORT]):
+        rows.append(
+            f"| {r['starts']} × {st['followers']} followers | `{rule}` | {r['starts_with_contact']} | "
+            f"{r.get('crashes', 0)} | {f(r.get('downwash_dip_worst_m'), '{:.3f}')} m | "
+            f"{f(r['settling_median_s'], '{:.2f}')} s |"
+        )
+    if compare.exists():
+        for r in json.loads(compare.read_text())["rows"]:
+            if r["part"] == "stress" and r["aero"] == "realistic" and r["rule"] in ("layers", "paper"):
+                rows.append(
+                    f"| {r['starts']} × 5 followers | `{r['rule']}` | {r['starts_with_contact']} | {r['crashes']} | "
+                    f"{f(r['downwash_dip_worst_m'], '{:.3f}')} m | {f(r['settling_median_s'], '{:.2f}')} s |"
+                )
+    return "\n".join(rows)
+
+
+#: The README's short speed table: bench rows whose name starts with one of these.
+_SPEED_SHORT = (
+    "runner.run + recording circle",
+    "runner.run + recording lemniscate_single",
+    "SwarmVectorEnv",
+    "first run circle",
+    "later run circle",
+)
+
+
+def speed_short(b: dict) -> str:
+    """The README's short speed table (report/tables.md has every row of ``tools/bench.py``)."""
+    rows = ["| what | value | time ÷ raw `mj_step` time |", "|---|---|---|"]
+    for prefix in _SPEED_SHORT:
+        for row in b["rows"]:
+            if row["name"].startswith(prefix):
+                ratio = "–" if row["ratio"] is None else f"{row['ratio']:.2f}"
+                val = row["value"]
+                vs = f"{val:,.0f}" if val >= 100 else f"{val:.1f}"
+                rows.append(f"| {row['name']} | {vs} {row['unit']} | {ratio} |")
+                break
+    return "\n".join(rows)
+
+
 def performance(b: dict) -> str:
     m = b["machine"]
     rows = [
@@ -227,10 +281,10 @@ def main() -> None:
     ap.add_argument("--results", default="report/results.json")
     ap.add_argument("--bench", default="report/bench.json")
     ap.add_argument("--readme", default="README.md")
+    ap.add_argument("--tables", default="report/tables.md")
     a = ap.parse_args()
     r = json.loads(Path(a.results).read_text())
     b = json.loads(Path(a.bench).read_text())
-    text = Path(a.readme).read_text()
     stress_files = [Path(a.results).parent / "stress5.json", Path(a.results).parent / "stress8.json"]
     aero_files = [
         Path(a.results).parent / name
@@ -241,19 +295,31 @@ def main() -> None:
             "stress8_realistic.json",
         )
     ]
-    for name, body in (
-        ("reproduction", reproduction(r)),
-        ("anticollision", anticollision(r)),
-        ("stress", stress(stress_files)),
-        ("aero", aero(Path(a.results).parent / "aero_compare.json", aero_files)),
-        ("performance", performance(b)),
-    ):
-        pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
-        if not pat.search(text):
-            raise SystemExit(f"README has no <!-- tables:{name} --> markers")
-        text = pat.sub(lambda mm, body=body: mm.group(1) + body + "\n" + mm.group(2), text)
-    Path(a.readme).write_text(text)
-    print(f"updated {a.readme}")
+    report = Path(a.results).parent
+    compare = report / "aero_compare.json"
+    targets = {
+        a.readme: (
+            ("reproduction", reproduction(r)),
+            ("realistic", realistic_short(compare, report)),
+            ("speed", speed_short(b)),
+        ),
+        a.tables: (
+            ("reproduction", reproduction(r)),
+            ("anticollision", anticollision(r)),
+            ("stress", stress(stress_files)),
+            ("aero", aero(compare, aero_files)),
+            ("performance", performance(b)),
+        ),
+    }
+    for path, tables in targets.items():
+        text = Path(path).read_text()
+        for name, body in tables:
+            pat = re.compile(rf"(<!-- tables:{name} -->\n).*?(<!-- /tables:{name} -->)", re.S)
+            if not pat.search(text):
+                raise SystemExit(f"{path} has no <!-- tables:{name} --> markers")
+            text = pat.sub(lambda mm, body=body: mm.group(1) + body + "\n" + mm.group(2), text)
+        Path(path).write_text(text)
+        print(f"updated {path}")
 
 
 if __name__ == "__main__":
