@@ -259,6 +259,30 @@ def speed_short(b: dict) -> str:
     return "\n".join(rows)
 
 
+def validation(path: Path) -> str:
+    """The README's downwash table: ``swarm-mj validate downwash`` on the Neural-Swarm logs
+    (report/downwash_validation.json), one drone above, calibration and held-out flights apart."""
+    rows = [
+        "| flights | passes | model | RMSE of Fa_z | ÷ no model | mean peak error | correlation |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    if not path.exists():
+        return "\n".join(rows)
+    d = json.loads(path.read_text())
+    for r in d["rows"]:
+        split = r["split"].replace("_", "-")
+        peak = -r["mean_peak_measured_g"]  # the measured peak push (gf, > 0)
+        none = r["rmse_no_model_g"]
+        for label, sfx in (("ours (jet)", ""), ("ours, travelling wake", "_wake"), ("gym-pybullet-drones", "_gym")):
+            rmse, err, corr = r[f"rmse{sfx}_g"], r[f"mean_peak_error{sfx}_g"], r[f"corr{sfx}"]
+            rows.append(
+                f"| {split} | {r['n_passes']} | {label} | {rmse:.2f} gf | {rmse / none:.2f} | "
+                f"{100 * err / peak:+.0f} % | {corr:.3f} |"
+            )
+        rows.append(f"| {split} | {r['n_passes']} | no model | {none:.2f} gf | 1 | – | – |")
+    return "\n".join(rows)
+
+
 def performance(b: dict) -> str:
     m = b["machine"]
     rows = [
@@ -302,6 +326,7 @@ def main() -> None:
             ("reproduction", reproduction(r)),
             ("realistic", realistic_short(compare, report)),
             ("speed", speed_short(b)),
+            ("validation", validation(report / "downwash_validation.json")),
         ),
         a.tables: (
             ("reproduction", reproduction(r)),
