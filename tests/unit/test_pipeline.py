@@ -403,3 +403,27 @@ def test_public_api_imports_from_the_package():
     )
     assert p.returncode == 0, p.stderr
     assert p.stdout.strip() == importlib.import_module("swarm_mj").__version__
+
+
+def test_no_function_of_the_package_takes_more_than_20_parameters():
+    """State lives in typed records, not in argument lists of dozens (docs/design.md, "The control
+    period, written once"): tools/max_params.py over swarm_mj/ finds nothing (the next test shows
+    that it finds one where there is one)."""
+    import importlib.util as _util
+
+    spec = _util.spec_from_file_location("max_params", REPO / "tools" / "max_params.py")
+    assert spec is not None and spec.loader is not None
+    mod = _util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    assert mod.too_many(REPO / "swarm_mj", 20) == []
+
+
+def test_the_parameter_check_counts_a_long_signature(tmp_path):
+    import importlib.util as _util
+
+    spec = _util.spec_from_file_location("max_params", REPO / "tools" / "max_params.py")
+    assert spec is not None and spec.loader is not None
+    mod = _util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    (tmp_path / "m.py").write_text("def f(" + ", ".join(f"a{i}" for i in range(21)) + ", *, b=1): pass\n")
+    assert [(name, n) for _, _, name, n in mod.too_many(tmp_path, 20)] == [("f", 22)]
