@@ -1,16 +1,12 @@
 """The benchmark tools of issue 30: tools/accuracy.py keeps docs/physics_step.md's hand-written tail,
-tools/bench_peers.py's crazyflow flight writes its log (when crazyflow is installed), and
-tools/bench_step_contacts.py's summary counts what each run reports."""
+and tools/bench_step_contacts.py's summary counts what each run reports. tools/bench_peers.py's crazyflow
+flight: tests/integration/test_bench_tools_runs.py."""
 
 from __future__ import annotations
 
 import importlib.util
-import subprocess
 import sys
 from pathlib import Path
-
-import numpy as np
-import pytest
 
 TOOLS = Path(__file__).resolve().parents[2] / "tools"
 
@@ -61,15 +57,3 @@ def test_step_contacts_summary_sums_each_step():
         "stopped": 1,
     }
     assert s["10 ms"]["seeds_with_contact"] == [0, 1] and s["10 ms"]["contact_steps"] == 5
-
-
-@pytest.mark.skipif(importlib.util.find_spec("crazyflow") is None, reason="crazyflow not installed (.[bench])")
-def test_crazyflow_flight_writes_its_log(tmp_path):
-    out = tmp_path / "cf.npz"
-    cmd = [sys.executable, str(TOOLS / "bench_peers.py"), "--crazyflow-flight", str(out), "--duration", "0.5"]
-    subprocess.run(cmd, check=True, cwd=tmp_path, capture_output=True, timeout=600)
-    log = np.load(out)
-    assert log["pos"].shape == (50, 6, 3) and log["t"].shape == (50,)
-    assert np.isfinite(log["pos"]).all()
-    # the drones climb toward the circle's height of 1 m from the ground
-    assert (log["pos"][-1, :, 2] > log["pos"][0, :, 2]).all()

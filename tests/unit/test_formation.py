@@ -4,14 +4,13 @@ Slots and the D schedule are checked against their closed forms; the anti-collis
 are driven without physics: a "kinematic" swarm whose drones sit exactly where the rule
 last told them to be (their setpoints), so that each test isolates the rule's decisions.
 Random follower starts are checked for spacing, reproducibility and for refusing an
-impossible request before anything is simulated (also through the CLI: one line, exit 2).
+impossible request before anything is simulated (through the CLI, one line and exit 2:
+tests/integration/test_formation_cli.py).
 """
 
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -424,24 +423,3 @@ def test_random_start_request_is_refused_when_the_scenario_is_read():
         parse_scenario(_random_scenario(6, 1.0, 2.0), "bad.toml")
     msg = str(ei.value)
     assert "\n" not in msg and "bad.toml" in msg and "followers.random_start" in msg and "room" in msg
-
-
-def test_impossible_random_start_reaches_the_cli_as_one_line_and_exit_2(tmp_path):
-    f = tmp_path / "bad.toml"
-    f.write_text(
-        'duration = 5.0\n[leader]\ntrajectory = "circle"\n[followers]\ncount = 6\n'
-        "[followers.random_start]\nradius = 1.0\nmin_spacing = 2.0\nseed = 1\n"
-    )
-    p = subprocess.run(
-        [sys.executable, "-m", "swarm_mj.cli", "run", "bad.toml", "--no-record"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert p.returncode == 2, (p.returncode, p.stderr)
-    lines = [ln for ln in p.stderr.splitlines() if ln.strip()]
-    assert len(lines) == 1, p.stderr
-    assert "bad.toml" in lines[0] and "followers.random_start" in lines[0]
-    assert p.stdout == ""
-    assert sorted(x.name for x in tmp_path.iterdir()) == ["bad.toml"]  # nothing flown, nothing written

@@ -1,22 +1,21 @@
 """The downwash validation against the Neural-Swarm logs (docs/validation.md): the decoder, the
 dataset's units, the residual force, pass detection, gym-pybullet-drones' formula, the travelling
-wake and the command's bad input.
+wake and the command's bad input. The command over the logs: tests/integration/test_neural_swarm_runs.py.
 
 The tests that read the dataset look for it at ``../shared/neural-swarm`` from the repository root
-(or at ``$NEURAL_SWARM_DATA``) and are skipped, saying so, where it is absent.
+(or at ``$NEURAL_SWARM_DATA``; tests/helpers.py) and are skipped, saying so, where it is absent.
 """
 
 from __future__ import annotations
 
-import json
 import math
-import os
 import struct
 import zlib
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import DATA, SMALL, needs_data
 
 from swarm_mj.cli import main as cli_main
 from swarm_mj.physics.aero.downwash import BD, S0, downwash_kernel, hover_induced_velocity
@@ -27,12 +26,6 @@ from swarm_mj.validation.passes import find_passes
 from swarm_mj.validation.predict import gym_force, jet_force
 from swarm_mj.validation.sysid import G, read_thrust_model, readme_assignments, residual_force_g
 from swarm_mj.vehicles import Vehicle
-
-REPO = Path(__file__).resolve().parents[2]
-DATA = Path(os.environ.get("NEURAL_SWARM_DATA", REPO.parent / "shared" / "neural-swarm"))
-needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the Neural-Swarm logs are not at {DATA}")
-#: The smallest flight of the dataset: three drones, 18 s (~190 kB a log).
-SMALL = "datacollection20_12_20_2019/swap_sss"
 
 
 def small_flight():
@@ -314,21 +307,6 @@ def test_unknown_drone_in_a_mapping_is_refused(capsys):
 
 
 @needs_data
-def test_the_command_writes_the_tables(tmp_path, capsys):
-    out = tmp_path / "v.json"
-    assert cli_main(["validate", "downwash", "--data", str(DATA / SMALL), "--json", str(out), "--quiet"]) == 0
-    doc = json.loads(out.read_text())
-    (row,) = doc["rows"]
-    assert row["split"] == "held_out" and row["pairing"] == "crazyflie21 over crazyflie21"
-    for key in ("n_passes", "rmse_g", "rmse_no_model_g", "mean_peak_measured_g", "mean_peak_error_g", "corr", "bins"):
-        assert key in row
-    assert row["n_passes"] == len(row["peaks"]) == sum(b["n_passes"] for b in row["bins"])
-    assert doc["stacks"] and doc["stacks"][0]["pairing"] == "crazyflie21 + crazyflie21 over crazyflie21"
-    assert not list(tmp_path.glob(".*partial"))
-    assert "one drone above" in capsys.readouterr().out
-
-
-@needs_data
 def test_the_stored_downwash_gain_is_the_fit_on_the_calibration_flights_alone():
     """crazyflie21.toml's downwash_gain is the least-squares gain over the calibration flights' single
     passes: refit here from those flights only (the held-out flights are not read), the factor on top
@@ -369,29 +347,3 @@ def test_resampling_marks_a_gap_in_a_log_invalid():
     valid = log.resample(grid).valid
     assert valid is not None
     assert np.array_equal(np.flatnonzero(~valid), np.arange(10, 20))  # 0.10 … 0.19 s lie in the gap
-
-
-@needs_data
-def test_a_vehicle_file_sets_the_lower_drones_plates(tmp_path, capsys):
-    """--vehicle maps a drone to a vehicle file; its optional hub_area / rotor_layout keys are used,
-    and a bad one is one line, exit 2."""
-    good = tmp_path / "cf_nohub.toml"
-    good.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nhub_area = 0.0\nrotor_layout = "x"\n')
-    base = ["validate", "downwash", "--data", str(DATA / SMALL), "--quiet"]
-    out = tmp_path / "a.json"
-    assert cli_main([*base, "--json", str(out)]) == 0
-    assert (
-        cli_main(
-            [*base, "--json", str(tmp_path / "b.json"), *sum((["--vehicle", f"cf5{i}={good}"] for i in range(3)), [])]
-        )
-        == 0
-    )
-    a, b = (json.loads((tmp_path / n).read_text())["rows"][0] for n in ("a.json", "b.json"))
-    assert b["mean_peak_error_g"] > a["mean_peak_error_g"]  # no hub plate: a weaker push predicted
-    assert json.loads((tmp_path / "b.json").read_text())["drones"]["cf50"]["vehicle"] == "cf_nohub"
-    bad = tmp_path / "bad.toml"
-    bad.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nrotor_layout = "h"\n')
-    capsys.readouterr()
-    assert cli_main([*base, "--vehicle", f"cf50={bad}"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "rotor_layout" in err[0]

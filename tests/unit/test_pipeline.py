@@ -1,17 +1,11 @@
 """The one step pipeline (issue 17): force stages, copies, the health mask with MuJoCo's warnings,
-the step record, cooperative Ctrl-C (issue 16 items 3, 4), kernels in their domains, the public API."""
+the step record, kernels in their domains, the import graph. Whole runs and other processes (a
+divergence's exit 1, cooperative Ctrl-C of issue 16 items 3, 4, the public API in a fresh interpreter):
+tests/integration/test_pipeline_runs.py."""
 
 from __future__ import annotations
 
 import ast
-import importlib
-import os
-import random
-import select
-import signal
-import subprocess
-import sys
-import time
 from pathlib import Path
 
 import mujoco
@@ -36,8 +30,6 @@ from swarm_mj.physics.sim import (
 from swarm_mj.physics.world import build_world
 
 REPO = Path(__file__).resolve().parents[2]
-CLI = [sys.executable, "-m", "swarm_mj.cli"]
-RERUN = Path(sys.executable).with_name("rerun")
 
 
 class ConstantStage:
@@ -180,34 +172,6 @@ def test_a_mujoco_divergence_warning_is_a_divergence_even_when_the_state_looks_s
     assert (sim.health() == HEALTHY).all()
 
 
-HURRICANE = (
-    'description = "hover in a wind of 1e6 m/s from t = 0"\nduration = 3.0\n\n[leader]\n'
-    'trajectory = "hover"\n\n[wind]\nmean = [1e6, 0.0]\nschedule = [[0.0, inf, "xy"]]\n'
-)
-
-
-def test_hover_in_an_absurd_wind_ends_diverged_with_exit_1_and_the_recording_kept(tmp_path):
-    """Issue 16 item 3: MuJoCo's automatic reset kept the drone at its start and the run exited 0."""
-    (tmp_path / "hurricane.toml").write_text(HURRICANE)
-    p = subprocess.run(
-        [*CLI, "run", "hurricane.toml", "-o", "h.rrd", "--summary", "h.json", "--quiet"],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=300,
-        stdin=subprocess.DEVNULL,
-    )
-    assert p.returncode == 1, (p.returncode, p.stderr)
-    assert "Traceback" not in p.stderr
-    assert "diverged" in p.stderr and "mjWARN_BADQACC" in p.stderr
-    assert (tmp_path / "h.rrd").stat().st_size > 0
-    if RERUN.exists():
-        v = subprocess.run(
-            [str(RERUN), "rrd", "verify", str(tmp_path / "h.rrd")], capture_output=True, text=True, timeout=120
-        )
-        assert v.returncode == 0, v.stderr
-
-
 # --------------------------------------------------------------------------- the step record
 
 
@@ -242,71 +206,6 @@ def test_setpoint_actions_record_their_references_and_attitude():
     np.testing.assert_array_equal(rec.pos_d, target)
     assert (rec.vel_d == 0).all() and (rec.acc_d == 0).all()
     np.testing.assert_array_equal(rec.att_d, env._setpoint_ctl.att_d)
-
-
-# --------------------------------------------------------------------------- Ctrl-C
-
-
-def _interrupt_once(tmp_path: Path, delay: float) -> tuple[int, str]:
-    pty = pytest.importorskip("pty")
-    master, slave = pty.openpty()  # a terminal on stderr, so that the progress bar shows
-    proc = subprocess.Popen(
-        [*CLI, "run", "circle", "--duration", "3000", "-o", "X.rrd"],
-        cwd=tmp_path,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=slave,  # SIGINT at its default in the child (a shell's background job starts with it ignored)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
-    )
-    os.close(slave)
-    err = b""
-    try:
-        deadline = time.monotonic() + 120
-        while b"%" not in err:  # the progress bar: the simulation loop is running
-            assert time.monotonic() < deadline, err
-            assert proc.poll() is None, err
-            r, _, _ = select.select([master], [], [], 0.05)
-            if r:
-                err += os.read(master, 4096)
-        time.sleep(delay)
-        proc.send_signal(signal.SIGINT)
-        t_end = time.monotonic() + 180
-        while proc.poll() is None and time.monotonic() < t_end:
-            r, _, _ = select.select([master], [], [], 0.2)
-            if r:
-                try:
-                    err += os.read(master, 4096)
-                except OSError:
-                    break
-        proc.wait(timeout=5)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        os.close(master)
-    return proc.returncode, err.decode(errors="replace")
-
-
-@pytest.mark.parametrize("seed", [1, 2, 3])
-def test_ctrl_c_at_a_random_moment_exits_130_with_a_readable_recording(tmp_path, seed):
-    """Issue 16 item 4: SIGINT inside a compiled kernel gave SystemError and lost the recording."""
-    delay = random.Random(seed).uniform(0.0, 2.0)
-    rc, text = _interrupt_once(tmp_path, delay)
-    assert rc == 130, (rc, text)
-    assert "Traceback" not in text and "SystemError" not in text, text
-    out = tmp_path / "X.rrd"
-    assert out.exists() and out.stat().st_size > 0
-    if RERUN.exists():
-        v = subprocess.run([str(RERUN), "rrd", "verify", str(out)], capture_output=True, text=True, timeout=120)
-        assert v.returncode == 0, v.stderr
-
-
-def test_the_sigint_handler_is_restored_after_a_run():
-    from swarm_mj.experiments.runner import run
-
-    before = signal.getsignal(signal.SIGINT)
-    run("step", duration=0.05, progress=False)
-    assert signal.getsignal(signal.SIGINT) is before
 
 
 # --------------------------------------------------------------------------- kernels, imports, API
@@ -383,26 +282,6 @@ def test_no_import_cycles_and_no_private_names_across_modules():
         if state.get(m) is None and visit(m, [m]):
             break
     assert not cycle, " -> ".join(cycle)
-
-
-def test_public_api_imports_from_the_package():
-    p = subprocess.run(
-        [
-            sys.executable,
-            "-c",
-            "import os, sys\n"
-            "from swarm_mj import SwarmEnv, BacksteppingPolicy, load_scenario, run\n"
-            "import swarm_mj\n"
-            "assert 'MUJOCO_GL' in os.environ or not sys.platform.startswith('linux')\n"
-            "assert run.__module__ == 'swarm_mj.experiments.runner' and SwarmEnv.__module__ == 'swarm_mj.env'\n"
-            "print(swarm_mj.__version__)",
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert p.returncode == 0, p.stderr
-    assert p.stdout.strip() == importlib.import_module("swarm_mj").__version__
 
 
 def test_no_function_of_the_package_takes_more_than_20_parameters():

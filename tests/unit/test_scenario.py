@@ -1,11 +1,7 @@
-"""Scenario files: every bundled scenario loads, ``swarm-mj list`` lists them all, and every
-mistake is one UserError naming the file, the field and the problem (issue 4)."""
+"""Scenario files: every bundled scenario loads, and every mistake is one UserError naming the file, the
+field and the problem (issue 4). ``swarm-mj list`` listing them all: tests/integration/test_scenario_cli.py."""
 
 from __future__ import annotations
-
-import subprocess
-import sys
-import tomllib
 
 import numpy as np
 import pytest
@@ -71,19 +67,6 @@ def test_bundled_scenarios_match_spec_basics():
     vd = load_scenario("variable_diameter")
     np.testing.assert_allclose(vd.diameter_schedule()(np.array([0.0, 6.0, 11.0, 16.0, 29.0])), [1, 1.7, 1.2, 2, 2])
     assert vd.duration == 30.0
-
-
-def test_swarm_mj_list_lists_every_bundled_scenario_with_its_description():
-    p = subprocess.run([sys.executable, "-m", "swarm_mj.cli", "list"], capture_output=True, text=True, timeout=120)
-    assert p.returncode == 0, p.stderr
-    lines = [ln for ln in p.stdout.splitlines() if ln.strip()]
-    listed = {}
-    for ln in lines:
-        name, _, desc = ln.partition(" ")
-        listed[name] = desc.strip()
-    assert set(listed) == set(BUNDLED)
-    for name, path in BUNDLED.items():
-        assert listed[name] == tomllib.loads(path.read_text())["description"]
 
 
 # --------------------------------------------------------------------------- defaults and validation

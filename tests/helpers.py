@@ -1,0 +1,26 @@
+"""What tests/unit and tests/integration share (importable from both: pytest puts tests/ on sys.path
+for tests/conftest.py).
+
+The Neural-Swarm logs (docs/validation.md): looked for at ``../shared/neural-swarm`` from the
+repository root (or at ``$NEURAL_SWARM_DATA``); the tests that read them are skipped, saying so,
+where they are absent.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+DATA = Path(os.environ.get("NEURAL_SWARM_DATA", REPO.parent / "shared" / "neural-swarm"))
+needs_data = pytest.mark.skipif(not DATA.is_dir(), reason=f"the Neural-Swarm logs are not at {DATA}")
+#: The smallest flight of the dataset: three drones, 18 s (~190 kB a log).
+SMALL = "datacollection20_12_20_2019/swap_sss"
+
+
+class UnitRuleError(RuntimeError):
+    """Raised inside tests/unit by what the folder does not do (tests/unit/conftest.py): start a process,
+    fly a whole scenario, run a flying command or validate a whole data set. Not a
+    :class:`swarm_mj.errors.SwarmError`, so that the command line does not turn it into an exit code."""
