@@ -36,13 +36,16 @@ def _log_of(result_or_log):
 
 
 def _world_of(result_or_log, world):
-    """The model to replay into: ``world`` when given, else for a ``RunResult`` whose physics has a
-    solid ground (docs/aero.md) the swarm with its landing gear, else None (``Replay`` builds the plain
-    swarm)."""
+    """The model to replay into: ``world`` when given, else for a ``RunResult`` the swarm of its
+    vehicle (``scenario.params``), with its landing gear where the physics has a solid ground
+    (docs/aero.md), else None (a bare ``RunLog``: ``Replay`` builds the paper drone's swarm)."""
     if world is not None:
         return world
-    aero = getattr(getattr(result_or_log, "scenario", None), "aero", None)
-    return replay_world(_log_of(result_or_log), ground=True) if getattr(aero, "ground", False) else None
+    sc = getattr(result_or_log, "scenario", None)
+    if sc is None:
+        return None
+    ground = bool(getattr(sc.aero, "ground", False))
+    return replay_world(_log_of(result_or_log), ground=ground, params=sc.params)
 
 
 def _title(result_or_log) -> str | None:
