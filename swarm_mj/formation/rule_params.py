@@ -12,7 +12,7 @@ presets (:data:`PRESETS`): the record with a few fields changed.
 The vehicle's geometry is not a parameter: the keep-out radius of a drone is its arm plus its
 rotor radius (:func:`vehicle_outline`), from the vehicle's parameters, plus ``outline_margin``.
 The fields that are vehicle sizes (:data:`SIZE_KEYS`: ``outline_margin``, ``overlap_spare``,
-``aside_margin``, ``hover_pass_margin``) hold the paper drone's value and scale with the vehicle's
+``hover_pass_margin``) hold the paper drone's value and scale with the vehicle's
 rotor span (:meth:`RuleParams.for_vehicle`); the others (D̄, the layers, altitudes, tolerances,
 braking margins) are not sizes of the vehicle (docs/anticollision.md, "The vehicle's sizes").
 
@@ -87,9 +87,7 @@ class RuleParams:
     hover_min: float = _p(0.3, "m", "a follower waiting under a drone lifts off the ground to this height")
     airborne_min: float = _p(0.2, "m", "a follower higher than this is airborne (it may step aside)")
     at_start: float = _p(0.1, "m", "a follower within this of its climbing point is there (it may step aside)")
-    aside_margin: float = _p(
-        0.2, "m", "a follower steps aside to this beyond its radius from a hovering drone (a size)", size=True
-    )
+    aside_margin: float = _p(0.2, "m", "a follower steps aside to this beyond its radius from a hovering drone")
     hover_pass_margin: float = _p(
         0.1, "m", "a climbing drone passes a hovering one 2·outline + this apart (a size)", size=True
     )
@@ -150,7 +148,7 @@ _FIELDS = {f.name: f for f in fields(RuleParams)}
 SIZE_KEYS: tuple[str, ...] = tuple(f.name for f in fields(RuleParams) if f.metadata["size"])
 
 
-def vehicle_outline(vehicle: QuadParams) -> float:
+def vehicle_outline(vehicle: QuadParams = DEFAULT_PARAMS) -> float:
     """Centre to rotor tip (m) in plan view: the arm L plus the rotor radius
     (:attr:`~swarm_mj.physics.params.QuadParams.rotor_span`, the drawn rotor discs of ``assets/quadrotor.xml``)."""
     return float(vehicle.rotor_span)
