@@ -136,3 +136,38 @@ def test_a_crazyflie_beside_anothers_jet_is_not_in_it() -> None:
     edge = jet_geometry(CFP)
     r_edge = edge["r0"] + edge["spread"] * 0.5 + edge["radius"]
     assert math.isclose(r_edge, 2 * 2 * CF.arm_length * SPREAD * -S0 + 2 * SPREAD * 0.5 + CF.rotor_span)
+
+
+# --------------------------------------------------------------------------- the recording and the video
+def test_the_video_replays_a_crazyflie_run_into_crazyflies() -> None:
+    """A Crazyflie run is replayed into drones with its rotor radius (the rotor sites' radius)."""
+    import types
+
+    import mujoco
+
+    from swarm_mj.video.encode import _world_of
+
+    log = types.SimpleNamespace(pos=np.array([[[0.0, 0.0, 0.5], [1.0, 0.0, 0.5]]]), names=["leader", "f1"])
+    w = _world_of(types.SimpleNamespace(scenario=load_scenario("crazyflie_circle"), log=log), None)
+    m = w.model
+    radii = [
+        m.site_size[i][0]
+        for i in range(m.nsite)
+        if (mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_SITE, i) or "").split("/")[-1].startswith("rotor")
+    ]
+    assert len(radii) == 8 and all(r == pytest.approx(CF.rotor_radius, rel=1e-12) for r in radii)
+
+
+def test_the_recording_draws_the_runs_vehicle() -> None:
+    """The drawn rotors sit at the vehicle's arm with its rotor radius; the drawn jet at the rotor
+    plane is the jet model's half-width for its motor distance, l·S·(−s0*)."""
+    from swarm_mj.output.recording import _drone_shape, _jet_frustum
+
+    _, rotors = _drone_shape(CFP, [0, 0, 0])
+    centres = np.asarray(rotors.centers.as_arrow_array().to_pylist())
+    halves = np.asarray(rotors.half_sizes.as_arrow_array().to_pylist())
+    np.testing.assert_allclose(np.linalg.norm(centres[:, :2], axis=1), CF.arm_length, rtol=1e-6)
+    np.testing.assert_allclose(halves[:, :2], CF.rotor_radius, rtol=1e-6)
+    top = _jet_frustum(CFP)[0]
+    r0 = float(np.linalg.norm(top[0, :2]))
+    assert r0 == pytest.approx(2 * CF.arm_length * SPREAD * -S0, rel=1e-9)
