@@ -68,6 +68,7 @@ def test_the_policy_builds_the_rule_for_the_scenarios_vehicle() -> None:
     sc = load_scenario("crazyflie_circle")
     pol = BacksteppingPolicy(sc, sc.params)
     assert pol.rule.vehicle == CFP
+    assert pol.rule.params == sc.rule_params  # the record the scenario says its rule flies
     assert pol.rule.footprint == pytest.approx(make_rule("layers", 6, vehicle=CFP).footprint, rel=1e-15)
 
 
