@@ -6,6 +6,9 @@ from typing import cast
 
 import numpy as np
 
+from .physics.aero.downwash import S0, SPREAD
+from .physics.params import DEFAULT_PARAMS, QuadParams
+
 #: Weights of eq. (25) on e_x, e_y, e_z, e_φ, e_θ, e_ψ.
 ISE_WEIGHTS = np.array([3.0, 3.0, 1.0, 2.0, 2.0, 1.0])
 
@@ -133,16 +136,36 @@ def formation_settling(
 #: Jet geometry of the downwash dip (docs/interpretations.md, "downwash dip"). The jet below a
 #: drone is the turbulent round jet of Bauersfeld et al. (RA-L 2024, arXiv:2403.13321, their
 #: eqs. 6 and 9, the model swarm_mj.physics.aero.downwash applies): half-width r_½(s) = l·S·(s/l − s0*)
-#: at a depth s along the drone's thrust axis, l = 2L = 0.5 m the motor distance, S = 0.07668,
-#: s0* = −5.817. Its edge is taken at 2·r_½ (there the jet speed is 1/(1 + 4(√2 − 1))² = 14 % of
-#: the centreline's and its push on a rotor disc 2 %): ``JET_R0_M + JET_SPREAD·s``. A drone whose
-#: rotor span (``DRONE_RADIUS_M`` from its centre) reaches inside that edge, at a depth between 0
-#: and ``JET_REACH_M``, is in the jet.
-_JET_L, _JET_S, _JET_S0 = 0.5, 0.07668, -5.817
-JET_R0_M = 2.0 * _JET_L * _JET_S * (-_JET_S0)  # 0.446 m: 2·r_½ at the rotor plane
-JET_SPREAD = 2.0 * _JET_S  # 0.153 m per m of depth
-JET_REACH_M = 6.0  # the centreline push on a hovering drone is still a tenth of its weight there
-DRONE_RADIUS_M = 0.34  # rotor span of the drone below: L + rotor radius (0.25 + 0.09 m)
+#: at a depth s along the drone's thrust axis, l = 2L the upper drone's motor distance,
+#: S = 0.07668, s0* = −5.817. Its edge is taken at 2·r_½ (there the jet speed is
+#: 1/(1 + 4(√2 − 1))² = 14 % of the centreline's and its push on a rotor disc 2 %):
+#: ``r0 + spread·s`` with r0 = 2·l·S·(−s0*). A drone whose rotor span (``radius`` from its centre)
+#: reaches inside that edge, at a depth between 0 and ``reach`` = ``JET_REACH_MOTOR_DISTANCES``·l,
+#: is in the jet. All but ``spread`` are the vehicle's sizes (:func:`jet_geometry`); the module
+#: constants are the paper drone's.
+JET_SPREAD = 2.0 * SPREAD  # 0.153 m per m of depth, whatever the vehicle
+#: The centreline push on a hovering drone, relative to its weight, is C_D·B_d²/4/(s/l − s0*)²
+#: (the same for any vehicle at the same s/l): still a tenth of its weight 12 motor distances down.
+JET_REACH_MOTOR_DISTANCES = 12.0
+
+
+def jet_geometry(vehicle: QuadParams) -> dict[str, float]:
+    """The keyword arguments of :func:`in_jet` (and ``downwash_dip``'s ``jet``) for drones of
+    parameters ``vehicle`` (module comment above): r0 = 2·l·S·(−s0*), spread = 2·S,
+    reach = 12·l with l = 2L, and the rotor span L + r of the drone below as ``radius``."""
+    l = 2.0 * vehicle.L
+    return {
+        "r0": 2.0 * l * SPREAD * (-S0),
+        "spread": JET_SPREAD,
+        "reach": JET_REACH_MOTOR_DISTANCES * l,
+        "radius": float(vehicle.rotor_span),
+    }
+
+
+_PAPER_JET = jet_geometry(DEFAULT_PARAMS)
+JET_R0_M = _PAPER_JET["r0"]  # 0.446 m: 2·r_½ at the rotor plane of the paper's drone
+JET_REACH_M = _PAPER_JET["reach"]  # 6 m for the paper's drone
+DRONE_RADIUS_M = _PAPER_JET["radius"]  # rotor span of the paper's drone: L + rotor radius (0.25 + 0.09 m)
 
 
 def _body_z(quat: np.ndarray) -> np.ndarray:

@@ -122,9 +122,12 @@ class Scenario:
 
     @property
     def rule_params(self) -> RuleParams:
-        """The parameter record the rule flies with: :attr:`rule`'s preset with the scenario's
-        ``[formation]`` fields (and its ``sensing_range``)."""
-        return PRESETS[self.rule].with_overrides({**self.anti_collision_params, "sensing_range": self.sensing_range})
+        """The parameter record the rule flies with: :attr:`rule`'s preset with its sizes scaled to the
+        vehicle (:meth:`~swarm_mj.formation.rule_params.RuleParams.for_vehicle`), then the scenario's
+        ``[formation]`` fields (and its ``sensing_range``), as
+        :func:`~swarm_mj.formation.anticollision.make_rule` builds it."""
+        preset = PRESETS[self.rule].for_vehicle(self.params)
+        return preset.with_overrides({**self.anti_collision_params, "sensing_range": self.sensing_range})
 
     @property
     def attitude_priority_on(self) -> bool:

@@ -34,12 +34,12 @@ class DownwashFeedforward:
     the prediction lags the drones' attitude by a control period and the rotors' by their lag)."""
 
     def __init__(self, n: int, params: QuadParams = DEFAULT_PARAMS) -> None:
-        from ..physics.aero.downwash import BODY_AREA, DownwashStage
+        from ..physics.aero.downwash import DownwashStage
 
         self.n = n
-        s = params.size_scale  # the vehicle's rotors and body (docs/vehicles.md); 1 for the paper's
-        # its coefficients; the kernel is called directly (one call per step)
-        st = DownwashStage(rotor_radius=params.rotor_radius, body_area=BODY_AREA * s * s)
+        # the simulator's stage for this vehicle (its rotors, body and downwash_gain: the prediction
+        # uses the jet the physics flies); its coefficients; the kernel is called directly (one call per step)
+        st = DownwashStage.for_vehicle(params)
         self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
         z3 = np.zeros((n, 3))
         self._record = Feedforward(
@@ -81,7 +81,7 @@ class BacksteppingPolicy:
         )
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         name = resolve_rule(anti_collision, sc.aero.downwash) if anti_collision else sc.rule
-        self.rule = make_rule(name, self.n, **rule_params)
+        self.rule = make_rule(name, self.n, vehicle=params, **rule_params)  # the run's vehicle's keep-out
         # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1)
         self.attitude_priority = sc.attitude_priority_on
         # the attitude fed back predicted over the rotors' lag (ours, docs/interpretations.md §2)

@@ -27,6 +27,7 @@ from ..formation.barrier import keepout_radii
 from ..metrics import (
     downwash_dip,
     formation_settling,
+    jet_geometry,
     keepout_summary,
     leader_distances,
     min_separation,
@@ -338,7 +339,10 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     }
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
-    out.update(keepout_summary(t, log.pos, keepout_radii(policy.controller.params)))  # docs/barrier.md
+    vehicle = policy.controller.params  # the run's vehicle: the keep-out and the jets are its sizes
+    out.update(
+        keepout_summary(t, log.pos, keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius))
+    )  # docs/barrier.md
     if len(t):
         out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
     if sc.n_drones > 1:
@@ -359,7 +363,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
             "max_distance_error_m": max_err,
             "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max()),
         }
-        dip = downwash_dip(t, log.pos, log.pos_d, log.quat)
+        dip = downwash_dip(t, log.pos, log.pos_d, log.quat, **jet_geometry(vehicle))
         out["downwash_dip_worst_m"] = dip["worst_m"]
         named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
         out["downwash_dip"] = {

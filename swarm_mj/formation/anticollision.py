@@ -14,15 +14,16 @@ from __future__ import annotations
 from typing import Any
 
 from ..errors import UserError
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .jet_aware import JetAwareRule
 from .layered import any_below, horizontal_distances, merge_rows, react_needed
 from .planner import CLIMB, CROSS, FORMED, CompensatedRule, G, LayeredRule
 from .rule_params import PRESETS, RuleParams
 from .rules import NoRule, PaperRule, Rule
 
-#: Centre distance (m) under which two drones' keep-out discs overlap in plan view (the default
-#: vehicle and record: :meth:`RuleParams.overlap`); a rule's own is ``rule.overlap``.
-OVERLAP_M = RuleParams().overlap()
+#: Centre distance (m) under which two paper drones' keep-out discs overlap in plan view (the
+#: default record: :meth:`RuleParams.overlap`): a stand-in only; a rule's own is ``rule.overlap``.
+OVERLAP_M = RuleParams().overlap(DEFAULT_PARAMS)
 
 ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "layers": LayeredRule,
@@ -72,11 +73,21 @@ def resolve_rule(name: str, downwash: bool) -> str:
     return name
 
 
-def make_rule(name: str, n: int, where: str = "formation.anti_collision", **params: Any) -> Rule:
+def make_rule(
+    name: str,
+    n: int,
+    where: str = "formation.anti_collision",
+    *,
+    vehicle: QuadParams = DEFAULT_PARAMS,
+    **params: Any,
+) -> Rule:
     """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``jet-aware``; resolve
-    ``"auto"`` first with :func:`resolve_rule`): its preset (:data:`PRESETS`) with ``params``, any
-    fields of :class:`RuleParams` (a scenario's ``[formation]`` keys and ``[controller]
-    downwash_feedforward``; :class:`UserError` naming ``where`` for an unknown one)."""
+    ``"auto"`` first with :func:`resolve_rule`) for drones of parameters ``vehicle`` (the run's,
+    ``Scenario.params``): its preset (:data:`PRESETS`) with its sizes scaled to the vehicle
+    (:meth:`RuleParams.for_vehicle`), then ``params``, any fields of :class:`RuleParams` in metres
+    as written (a scenario's ``[formation]`` keys and ``[controller] downwash_feedforward``;
+    :class:`UserError` naming ``where`` for an unknown one)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
-    return ANTI_COLLISION_RULES[name](n, PRESETS[name].with_overrides(params, where=where.rsplit(".", 1)[0]))
+    record = PRESETS[name].for_vehicle(vehicle).with_overrides(params, where=where.rsplit(".", 1)[0])
+    return ANTI_COLLISION_RULES[name](n, record, vehicle=vehicle)

@@ -113,8 +113,8 @@ class LayeredRule(PaperRule):
         self.k_v = p.velocity_gain
         self.tan_tilt = float(np.tan(np.radians(p.max_tilt_deg)))
         self.sensing_range = p.sensing_range
-        self.footprint = p.keep_out()  # (m) keep-out radius: arm + rotor radius + outline_margin
-        self.overlap = p.overlap()  # (m) keep-out discs overlap in plan view under this centre distance
+        self.footprint = p.keep_out(self.vehicle)  # (m) keep-out radius: rotor span + outline_margin
+        self.overlap = p.overlap(self.vehicle)  # (m) keep-out discs overlap in plan view under this centre distance
         # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop +
         # approach_margin under a drone first seen straight above; crossing, D̄ + approach_margin
         # short of a drone first seen ahead. Braking at a, with the acceleration turning round in

@@ -11,6 +11,10 @@ presets (:data:`PRESETS`): the record with a few fields changed.
 
 The vehicle's geometry is not a parameter: the keep-out radius of a drone is its arm plus its
 rotor radius (:func:`vehicle_outline`), from the vehicle's parameters, plus ``outline_margin``.
+The fields that are vehicle sizes (:data:`SIZE_KEYS`: ``outline_margin``, ``overlap_spare``,
+``hover_pass_margin``) hold the paper drone's value and scale with the vehicle's
+rotor span (:meth:`RuleParams.for_vehicle`); the others (D̄, the layers, altitudes, tolerances,
+braking margins) are not sizes of the vehicle (docs/anticollision.md, "The vehicle's sizes").
 
 Numbers that shape the compiled paths (the braking share, the approach gains, the thrust floor)
 are :mod:`swarm_mj.formation.layered`'s constants, not fields: the kernels' signatures do not
@@ -25,7 +29,6 @@ from typing import Any
 import numpy as np
 
 from ..errors import UserError
-from ..physics.aero.constants import ROTOR_RADIUS
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 
 
@@ -38,10 +41,12 @@ def _p(
     *,
     open_lo: bool = True,
     table: str = "formation",
+    size: bool = False,
 ):
     """A record field: its default, unit, one-line reason, range (``lo`` < v (or ≤ when not
-    ``open_lo``) ≤ ``hi``; None: unbounded) and the scenario table that sets it."""
-    meta = {"unit": unit, "why": why, "lo": lo, "hi": hi, "open_lo": open_lo, "table": table}
+    ``open_lo``) ≤ ``hi``; None: unbounded), the scenario table that sets it, and whether it is a
+    vehicle size (``size``: its default is the paper drone's, scaled by :meth:`RuleParams.for_vehicle`)."""
+    meta = {"unit": unit, "why": why, "lo": lo, "hi": hi, "open_lo": open_lo, "table": table, "size": size}
     return field(default=default, metadata=meta)
 
 
@@ -83,14 +88,18 @@ class RuleParams:
     airborne_min: float = _p(0.2, "m", "a follower higher than this is airborne (it may step aside)")
     at_start: float = _p(0.1, "m", "a follower within this of its climbing point is there (it may step aside)")
     aside_margin: float = _p(0.2, "m", "a follower steps aside to this beyond its radius from a hovering drone")
-    hover_pass_margin: float = _p(0.1, "m", "a climbing drone passes a hovering one 2·outline + this apart")
+    hover_pass_margin: float = _p(
+        0.1, "m", "a climbing drone passes a hovering one 2·outline + this apart (a size)", size=True
+    )
     reaction_time: float = _p(0.3, "s", "a crossing drone's conflict horizon: its time to stop plus this")
     conflict_horizon_max: float = _p(2.0, "s", "longest conflict horizon of a crossing drone")
     # --- the vehicle's outline
     outline_margin: float = _p(
-        0.01, "m", "keep-out radius = arm + rotor radius + this (the 0.35 m flown before)", 0.0, open_lo=False
+        0.01, "m", "keep-out radius = arm + rotor radius + this (a size)", 0.0, open_lo=False, size=True
     )
-    overlap_spare: float = _p(0.02, "m", "outlines overlap in plan view under 2·keep-out + this", 0.0, open_lo=False)
+    overlap_spare: float = _p(
+        0.02, "m", "outlines overlap in plan view under 2·keep-out + this (a size)", 0.0, open_lo=False, size=True
+    )
     # --- the jet-aware separation (docs/interpretations.md §4)
     floor_clearance: float = _p(0.5, "m", "lowest altitude a stacked offset sends a yielding follower to")
     closing_min: float = _p(0.5, "m/s", "never-through predicts only for pairs closing faster than this")
@@ -110,11 +119,22 @@ class RuleParams:
         """A copy with ``overrides`` (validated by :func:`check_overrides`)."""
         return replace(self, **check_overrides(overrides, where)) if overrides else self
 
-    def keep_out(self, vehicle: QuadParams = DEFAULT_PARAMS) -> float:
+    def for_vehicle(self, vehicle: QuadParams) -> RuleParams:
+        """A copy whose vehicle sizes (the fields in :data:`SIZE_KEYS`) are scaled by the vehicle's
+        rotor span over the paper drone's, ``(L + r) / (L₀ + r₀)`` (docs/anticollision.md, "The
+        vehicle's sizes"); the record itself for the paper's drone (a ratio of exactly 1), so that
+        its runs are unchanged bit for bit. Apply a scenario's overrides after this: what a
+        scenario writes is in metres, as written."""
+        scale = vehicle.rotor_span / DEFAULT_PARAMS.rotor_span
+        if scale == 1.0:
+            return self
+        return replace(self, **{k: getattr(self, k) * scale for k in SIZE_KEYS})
+
+    def keep_out(self, vehicle: QuadParams) -> float:
         """Keep-out radius (m) of a drone in plan view: :func:`vehicle_outline` + ``outline_margin``."""
         return vehicle_outline(vehicle) + self.outline_margin
 
-    def overlap(self, vehicle: QuadParams = DEFAULT_PARAMS) -> float:
+    def overlap(self, vehicle: QuadParams) -> float:
         """Centre distance (m) under which two drones' keep-out discs overlap in plan view, with
         ``overlap_spare`` to spare: a formed drone never changes altitude through one that close."""
         return 2.0 * self.keep_out(vehicle) + self.overlap_spare
@@ -124,12 +144,14 @@ class RuleParams:
 PARAM_KEYS: tuple[str, ...] = tuple(f.name for f in fields(RuleParams))
 PARAM_TABLE: dict[str, str] = {f.name: f.metadata["table"] for f in fields(RuleParams)}
 _FIELDS = {f.name: f for f in fields(RuleParams)}
+#: The fields that are vehicle sizes (metres on the paper's drone, scaled by :meth:`RuleParams.for_vehicle`).
+SIZE_KEYS: tuple[str, ...] = tuple(f.name for f in fields(RuleParams) if f.metadata["size"])
 
 
 def vehicle_outline(vehicle: QuadParams = DEFAULT_PARAMS) -> float:
-    """Centre to rotor tip (m) in plan view: the arm L plus the rotor radius (the drawn rotor discs of
-    ``assets/quadrotor.xml``, :data:`swarm_mj.physics.aero.constants.ROTOR_RADIUS`)."""
-    return float(vehicle.L) + float(getattr(vehicle, "rotor_radius", ROTOR_RADIUS))
+    """Centre to rotor tip (m) in plan view: the arm L plus the rotor radius
+    (:attr:`~swarm_mj.physics.params.QuadParams.rotor_span`, the drawn rotor discs of ``assets/quadrotor.xml``)."""
+    return float(vehicle.rotor_span)
 
 
 def check_overrides(overrides: dict[str, Any], where: str = "formation") -> dict[str, Any]:

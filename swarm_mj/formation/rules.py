@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .layered import horizontal_distances, merge_rows
 from .rule_params import PRESETS, RuleParams
 from .separation import fig5_react
@@ -52,11 +53,16 @@ class Rule:
     vel_d: np.ndarray  # (n, 3) velocity reference of the steered drones
     acc_d: np.ndarray  # (n, 3) acceleration reference of the steered drones
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
-        """``params``: the record (default: the preset named ``name``, :data:`PRESETS`), with
-        ``overrides`` (any of its fields; :class:`UserError` for an unknown key or a bad value)."""
+    def __init__(
+        self, n: int, params: RuleParams | None = None, *, vehicle: QuadParams = DEFAULT_PARAMS, **overrides: Any
+    ) -> None:
+        """``params``: the record (default: the preset named ``name``, :data:`PRESETS`, its sizes
+        scaled to ``vehicle`` by :meth:`RuleParams.for_vehicle`), with ``overrides`` (any of its
+        fields; :class:`UserError` for an unknown key or a bad value). ``vehicle``: the drones'
+        parameters, whose rotor span the keep-out is built from (``rule.vehicle``)."""
         self.n = n
-        base = PRESETS[self.name] if params is None else params
+        self.vehicle = vehicle
+        base = PRESETS[self.name].for_vehicle(vehicle) if params is None else params
         self.params = base.with_overrides(overrides, where="")
 
     def reset(self, positions: np.ndarray) -> None:

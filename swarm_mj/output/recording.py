@@ -36,6 +36,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from ..metrics import follower_distances, leader_distances
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 
 LEADER_COLOR = [220, 40, 40]
 FOLLOWER_COLOR = [40, 110, 220]
@@ -73,16 +74,20 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
     )
 
 
-def _drone_shape(L: float, color: list[int]) -> tuple[rr.LineStrips3D, rr.Ellipsoids3D]:
-    strips: list[list[list[float]]] = [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.15, 0, 0]]]
+def _drone_shape(vehicle: QuadParams, color: list[int]) -> tuple[rr.LineStrips3D, rr.Ellipsoids3D]:
+    """The drawn drone: arms of length L, rotor discs of the vehicle's rotor radius, a heading line;
+    heights, thicknesses and the heading line are the paper drone's scaled by ``size_scale``."""
+    L, r, k = vehicle.L, vehicle.rotor_radius, vehicle.size_scale
+    strips: list[list[list[float]]] = [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.6 * L, 0, 0]]]
     arms = rr.LineStrips3D(
         strips,
         colors=[color, color, [255, 140, 0]],
-        radii=[0.012, 0.012, 0.015],
+        radii=[0.012 * k, 0.012 * k, 0.015 * k],
     )
+    h = 0.02 * k  # rotor plane above the centre
     rotors = rr.Ellipsoids3D(
-        centers=[[0, -L, 0.02], [L, 0, 0.02], [0, L, 0.02], [-L, 0, 0.02]],
-        half_sizes=[[0.09, 0.09, 0.006]] * 4,
+        centers=[[0, -L, h], [L, 0, h], [0, L, h], [-L, 0, h]],
+        half_sizes=[[r, r, 0.006 * k]] * 4,
         colors=[color] * 4,
         fill_mode=rr.components.FillMode.Solid,
     )
@@ -100,11 +105,10 @@ def _scalars(path: str, times, values: np.ndarray, names: list[str]) -> None:
     rr.send_columns(path, indexes=[times], columns=rr.Scalars.columns(scalars=values))
 
 
-def write_recording(
-    result, path: str | Path, *, spawn: bool = False, L: float = 0.25, safety_distance: float = 0.8
-) -> Path:
+def write_recording(result, path: str | Path, *, spawn: bool = False, safety_distance: float = 0.8) -> Path:
     """Write the run's recording to ``path`` (atomically) and return the path; ``spawn`` then opens
-    it in the desktop viewer where a display exists (else a one-line note, see ``viewer.spawn_note``)."""
+    it in the desktop viewer where a display exists (else a one-line note, see ``viewer.spawn_note``).
+    The drones are drawn as the run's vehicle (``result.scenario.params``: arm, rotor radius, jet)."""
     path = Path(path)
     tmp = path.with_name(path.name + ".partial")
     log = result.log
@@ -113,7 +117,7 @@ def write_recording(
     try:
         with rec:
             rr.save(tmp, default_blueprint=blueprint(names, aero=_has_aero(result)))
-            _log_run(result, names, L, safety_distance)
+            _log_run(result, names, _vehicle_of(result), safety_distance)
             rec.flush()
             rr.disconnect()
     except BaseException:
@@ -133,7 +137,12 @@ def write_recording(
     return path
 
 
-def _log_run(result, names: list[str], L: float, safety_distance: float) -> None:
+def _vehicle_of(result) -> QuadParams:
+    """The run's vehicle: its scenario's parameters (the paper's drone for a result without one)."""
+    return getattr(getattr(result, "scenario", None), "params", DEFAULT_PARAMS)
+
+
+def _log_run(result, names: list[str], vehicle: QuadParams, safety_distance: float) -> None:
     log = result.log
     t = log.t
     if len(t) == 0:
@@ -145,7 +154,7 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
     circle = _circle(safety_distance / 2)
     for i, name in enumerate(names):
         color = LEADER_COLOR if i == 0 else FOLLOWER_COLOR
-        arms, rotors = _drone_shape(L, color)
+        arms, rotors = _drone_shape(vehicle, color)
         base = f"/world/drones/{name}"
         rr.log(f"{base}/frame", arms, static=True)
         rr.log(f"{base}/rotors", rotors, static=True)
@@ -190,7 +199,7 @@ def _log_run(result, names: list[str], L: float, safety_distance: float) -> None
     _scalars("/plots/wind/speed", times, log.wind_speed[:, :2], ["Vx (m/s)", "Vy (m/s)"])
     _scalars("/plots/wind/force", times, log.wind_force[:, 0, :2], ["Fx (N)", "Fy (N)"])
     if _has_aero(result):
-        _log_aero(result, names, times)
+        _log_aero(result, names, times, vehicle)
     for ev in result.events:
         rr.set_time("sim_time", duration=ev["t"])
         other = names[ev["other"]] if ev["other"] >= 0 else ""
@@ -205,13 +214,12 @@ def _has_aero(result) -> bool:
     return bool(getattr(result.log, "forces", None))
 
 
-def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
+def _jet_frustum(vehicle: QuadParams, depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
     """The drawn jet in the body frame (hover thrust): rings at depth 0 and ``depth`` (m) of the jet's
-    half-width (swarm_mj.physics.aero.downwash), joined by four lines."""
+    half-width (swarm_mj.physics.aero.downwash) for the vehicle's motor distance 2L, joined by four lines."""
     from ..physics.aero.downwash import half_width
-    from ..physics.params import DEFAULT_PARAMS
 
-    l = 2 * DEFAULT_PARAMS.L  # motor distance of Table 1's drone (m)
+    l = 2 * vehicle.L  # the vehicle's motor distance (m)
     r0, r1 = float(half_width(0.0, l)), float(half_width(depth, l))
     top, bot = _circle(r0, m), _circle(r1, m)
     bot[:, 2] = -depth
@@ -222,12 +230,10 @@ def _jet_frustum(depth: float = 1.0, m: int = 24) -> list[np.ndarray]:
     return [top, bot, *lines]
 
 
-def _log_aero(result, names: list[str], times) -> None:
+def _log_aero(result, names: list[str], times, vehicle: QuadParams) -> None:
     log = result.log
-    from ..physics.params import DEFAULT_PARAMS
-
-    m_g = DEFAULT_PARAMS.hover_thrust
-    jet = _jet_frustum()
+    m_g = vehicle.hover_thrust
+    jet = _jet_frustum(vehicle)
     for i, name in enumerate(names):
         for stage, force in log.forces.items():
             _scalars(f"/plots/aero/{stage}/{name}", times, force[:, i], ["Fx", "Fy", "Fz"])

@@ -30,7 +30,9 @@ class QuadParams:
     a vehicle with κ maps U to rotor thrusts with :attr:`mix_t` / :attr:`unmix_t`. ``motor_tau``
     (s) is the vehicle's rotor time constant: the lag of a physics preset with lag (``--aero
     realistic``) unless the scenario's ``[aero]`` sets its own (:func:`swarm_mj.physics.aero.presets.vehicle_lag`);
-    None (the paper's drone): the preset's.
+    None (the paper's drone): the preset's. ``downwash_gain`` (dimensionless) multiplies the
+    force of this vehicle's jet on the drones below it (the vehicle file's ``downwash_gain``, the
+    one ``swarm-mj validate downwash`` checks; 1 for the paper's drone: docs/validation.md).
     """
 
     m: float = T1["m"]
@@ -48,6 +50,7 @@ class QuadParams:
     collision_radius: float | None = None
     yaw_coefficient: float | None = None
     motor_tau: float | None = None  # s, the vehicle's rotor time constant (None: the aero preset's)
+    downwash_gain: float = 1.0  # on the jet model's force on the drones below (docs/validation.md, "Calibration")
 
     def __post_init__(self) -> None:
         for name in ("m", "Ix", "Iy", "Iz", "L", "g"):
@@ -58,7 +61,7 @@ class QuadParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"drag coefficient {name} must be >= 0, got {v!r}")
-        for name in ("rotor_radius", "collision_radius", "yaw_coefficient", "motor_tau"):
+        for name in ("rotor_radius", "collision_radius", "yaw_coefficient", "motor_tau", "downwash_gain"):
             v = getattr(self, name)
             if v is not None and (not np.isfinite(v) or v <= 0):
                 raise UserError(f"vehicle parameter {name} must be a positive number, got {v!r}")

@@ -7,7 +7,8 @@ vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N�
 (N per rotor); it may give ``min_thrust`` (N, default 0), ``yaw_torque_coefficient`` (m: the
 rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
 default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
-realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms) and ``gains`` (the gains
+realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms), ``downwash_gain`` (the
+gain on its jet's force, fitted by ``swarm-mj validate downwash``; absent: 1) and ``gains`` (the gains
 file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them).
 :meth:`Vehicle.params` gives the :class:`~swarm_mj.physics.params.QuadParams` the simulator and the controller use.
 """
@@ -90,6 +91,7 @@ class Vehicle:
                 collision_radius=self._number("collision_radius", "m"),
                 yaw_coefficient=self._number("yaw_torque_coefficient", "m"),
                 motor_tau=self.motor_tau,
+                downwash_gain=self.downwash_gain,
             )
         except UserError as e:
             raise UserError(f"{self.path}: {e}") from None

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import UserError
 from ..output.progress import Progress
+from ..physics.params import DEFAULT_PARAMS
 from .replay import Replay, replay_world
 from .style import DEFAULT_FPS, DEFAULT_SIZE, DEFAULT_SNAPSHOT_TIME, VideoStyle
 
@@ -36,13 +37,19 @@ def _log_of(result_or_log):
 
 
 def _world_of(result_or_log, world):
-    """The model to replay into: ``world`` when given, else for a ``RunResult`` whose physics has a
-    solid ground (docs/aero.md) the swarm with its landing gear, else None (``Replay`` builds the plain
-    swarm)."""
+    """The model to replay into: ``world`` when given, else for a ``RunResult`` the swarm of its
+    vehicle (``scenario.params``), with its landing gear where the physics has a solid ground
+    (docs/aero.md); None where that is the paper drone's plain swarm, which ``Replay`` builds (a
+    bare ``RunLog`` too)."""
     if world is not None:
         return world
-    aero = getattr(getattr(result_or_log, "scenario", None), "aero", None)
-    return replay_world(_log_of(result_or_log), ground=True) if getattr(aero, "ground", False) else None
+    sc = getattr(result_or_log, "scenario", None)
+    if sc is None:
+        return None
+    ground = bool(getattr(sc.aero, "ground", False))
+    if not ground and sc.params == DEFAULT_PARAMS:
+        return None
+    return replay_world(_log_of(result_or_log), ground=ground, params=sc.params)
 
 
 def _title(result_or_log) -> str | None:

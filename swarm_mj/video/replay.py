@@ -16,6 +16,7 @@ import mujoco
 import numpy as np
 
 from ..errors import UserError
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .camera import CameraPath, nearest_index
 from .gl import open_renderer
 from .style import DEFAULT_SIZE, FOLLOWER_RGB, LEADER_RGB, REFERENCE_RGBA, VideoStyle
@@ -25,13 +26,14 @@ def _rgba(rgb: Sequence[float], a: float) -> np.ndarray:
     return np.array([rgb[0], rgb[1], rgb[2], a], dtype=np.float32)
 
 
-def replay_world(log, *, ground: bool = False):  # noqa: ANN201 - a swarm_mj.physics.world.World
+def replay_world(log, *, ground: bool = False, params: QuadParams = DEFAULT_PARAMS):  # noqa: ANN201 - a World
     """The swarm a log replays into: its drones (names ``log.names``) at their first logged positions,
-    with the landing gear and the solid floor when ``ground`` (the physics of docs/aero.md)."""
+    drawn as the vehicle ``params`` (the run's, ``Scenario.params``: the model scaled to it,
+    docs/vehicles.md), with the landing gear and the solid floor when ``ground`` (docs/aero.md)."""
     from ..physics.world import build_world
 
     p0 = np.nan_to_num(np.asarray(log.pos[0], float))
-    return build_world(len(log.names), positions=p0, names=list(log.names), ground=ground)
+    return build_world(len(log.names), positions=p0, names=list(log.names), ground=ground, params=params)
 
 
 class Replay:

@@ -32,7 +32,7 @@ lower drone's own motion through the air is the paper's linear drag, left as it 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 
@@ -40,6 +40,9 @@ from ..._jit import jit
 from ...pipeline.records import Kinematics, force_kernel
 from ._frames import body_axes, rotor_offset
 from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
+
+if TYPE_CHECKING:
+    from ..params import QuadParams
 
 #: Far-field fit of Bauersfeld et al. (2024), their eq. (9).
 BD = 10.11
@@ -201,13 +204,26 @@ class DownwashStage:
         rotor_radius: float = ROTOR_RADIUS,
         drag_coefficient: float = DISC_DRAG_COEFFICIENT,
         body_area: float = BODY_AREA,
+        gain: float = 1.0,
     ) -> None:
+        """``gain``: the upper drone's ``downwash_gain`` (every drone of a run is one vehicle), which
+        multiplies the jet's force (and so its torque) on each drone below: it is folded into the
+        drag coefficients ½·ρ·C_D·A, ``gain``·F (x·1.0 == x: the paper's drone unchanged)."""
         self.rho = float(rho)
         self.rotor_radius = float(rotor_radius)
-        self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2
-        self.half_cda_body = 0.5 * self.rho * float(drag_coefficient) * float(body_area)
+        self.gain = float(gain)
+        self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2 * self.gain
+        self.half_cda_body = 0.5 * self.rho * float(drag_coefficient) * float(body_area) * self.gain
         self.force = np.zeros((0, 3))
         self.torque = np.zeros((0, 3))
+
+    @classmethod
+    def for_vehicle(cls, params: QuadParams) -> DownwashStage:
+        """The stage for drones of parameters ``params``: their rotor radius, their body area (the
+        paper drone's ``BODY_AREA`` × ``size_scale``², docs/vehicles.md) and their
+        ``downwash_gain`` (docs/validation.md); the arm L is read from the simulator at :meth:`reset`."""
+        s = params.size_scale
+        return cls(rotor_radius=params.rotor_radius, body_area=BODY_AREA * s * s, gain=params.downwash_gain)
 
     def reset(self, sim) -> None:
         N = sim.pos.shape[0]

@@ -125,7 +125,7 @@ def with_aero(sc, model: str | None):
 
 def install(sim, cfg: AeroConfig) -> None:
     """Attach the force stages and the ground monitor that ``cfg`` asks for to ``sim``."""
-    from .downwash import BODY_AREA, DownwashStage
+    from .downwash import DownwashStage
     from .ground import GroundContacts
     from .ground_effect import GroundEffectStage
 
@@ -135,7 +135,7 @@ def install(sim, cfg: AeroConfig) -> None:
     s = p.size_scale
     stages: list = []
     if cfg.downwash:
-        stages.append(DownwashStage(rotor_radius=p.rotor_radius, body_area=BODY_AREA * s * s))
+        stages.append(DownwashStage.for_vehicle(p))
     if cfg.ground_effect:
         stages.append(GroundEffectStage(rotor_radius=p.rotor_radius, rotor_z=ROTOR_PLANE_Z * s))
     for st in stages:
