@@ -209,7 +209,13 @@ def aero(compare: Path, stress_paths: list[Path]) -> str:
 
 
 #: The README's short realistic-physics table: (stress file, rule) rows, then aero_compare's 20-start rows.
-_REALISTIC_SHORT = ("stress5_realistic.json", "stress8_realistic.json")
+_REALISTIC_SHORT = ("stress5_realistic.json", "stress8_realistic.json", "stress5_crazyflie_realistic.json")
+
+
+def _vehicle(settings: dict) -> str:
+    """The vehicle of a stress run of another drone than the paper's, for the row's label."""
+    v = settings.get("vehicle")
+    return "" if v in (None, "paper") else f", `{v}`"
 
 
 def realistic_short(report: Path) -> str:
@@ -222,7 +228,7 @@ def realistic_short(report: Path) -> str:
     ]
     for st, rule, r in _stress_tables([report / name for name in _REALISTIC_SHORT]):
         rows.append(
-            f"| {r['starts']} × {st['followers']} followers | `{rule}` | {r['starts_with_contact']} | "
+            f"| {r['starts']} × {st['followers']} followers{_vehicle(st)} | `{rule}` | {r['starts_with_contact']} | "
             f"{r.get('crashes', 0)} | {r.get('starts_in_keepout', '–')} | "
             f"{f(r.get('keepout_time_total_s'), '{:.1f}')} s | {f(r.get('keepout_min_distance'), '{:.2f}')} | "
             f"{f(r.get('downwash_dip_worst_m'), '{:.3f}')} m | {f(r['settling_median_s'], '{:.2f}')} s |"
