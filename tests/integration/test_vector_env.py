@@ -302,9 +302,9 @@ def test_sb3_ppo_trains_briefly():
 def test_kernel_samples_fit_the_kernel():
     """warm_up calls the kernel with its samples, compiled (no bounds checks): run them as plain
     Python, where an index out of bounds raises instead of corrupting memory."""
-    from swarm_mj.wrappers.vector import _observe_samples, observe_copies_kernel
+    from swarm_mj.task import _observe_samples, observe_copies
 
-    fn = getattr(observe_copies_kernel, "py_func", observe_copies_kernel)
+    fn = getattr(observe_copies, "py_func", observe_copies)
     for args in _observe_samples():
         fn(*args)
         out = args[-4]
