@@ -73,6 +73,7 @@ from .pipeline.records import Obs, Refs
 from .scenario import Scenario, load_scenario
 from .task import copy_reward, outcome
 
+
 @dataclass(slots=True)
 class Command:
     """An action with its provenance: the U1..U4 (n, 4) a controller computed from the references
