@@ -71,7 +71,7 @@ from .physics.world import build_world
 from .pipeline.period import observe
 from .pipeline.records import Obs, Refs
 from .scenario import Scenario, load_scenario
-from .task import copy_reward, outcome
+from .task import copy_outcome, copy_reward
 
 
 @dataclass(slots=True)
@@ -272,8 +272,8 @@ class SwarmEnv(dm_env.Environment):
         new_contacts = sim.contact_events - self._contacts_seen
         self._contacts_seen = sim.contact_events
         # the task's reward and termination (swarm_mj/task.py), as for every copy of the vector env
-        reward, terminated, truncated = outcome(
-            self._reward(obs, new_contacts), np.bool_(diverged is not None), new_contacts, self.k, self.n_steps,
+        reward, terminated, truncated = copy_outcome(
+            self._reward(obs, new_contacts), diverged is not None, new_contacts, self.k, self.n_steps,
             self.terminate_on_contact,
         )  # fmt: skip
         if terminated:

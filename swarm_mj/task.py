@@ -12,7 +12,8 @@ part             function
 observation      :func:`swarm_mj.pipeline.period.observe` per copy (the chunk driver's stage);
                  :func:`observe_copies` runs it over copies into a flat (m, dim) buffer
 reward           :func:`copy_reward` (formation keeping: :func:`formation_reward`)
-termination      :func:`outcome` (contact, divergence, the scenario's duration)
+termination      :func:`copy_outcome` (contact, divergence, the scenario's duration);
+                 :func:`outcomes` over copies
 ===============  ============================================================================
 
 Reward, per step and copy: ``−mean_i ‖p_i − slot_i‖ − PAIR_PENALTY·(pairs closer than CLOSE_PASS_M)
@@ -108,20 +109,43 @@ def min_separation(dist: np.ndarray) -> float:
     return best
 
 
-def outcome(
-    reward: np.ndarray | float,
-    diverged: np.ndarray | np.bool_,
-    new_contacts: np.ndarray | int,
-    k: np.ndarray | int,
+@jit(samples=lambda: [(0.0, False, 0, 0, 1, True)])
+def copy_outcome(
+    reward: float, diverged: bool, new_contacts: int, k: int, n_steps: int, terminate_on_contact: bool
+) -> tuple[float, bool, bool]:
+    """(reward, terminated, truncated) of one copy after its period k: terminated on divergence (the
+    reward then ``DIVERGED_REWARD``) or, with ``terminate_on_contact``, on a new drone–drone contact;
+    else truncated at the scenario's duration (k ≥ n_steps)."""
+    terminated = diverged or (terminate_on_contact and new_contacts > 0)
+    truncated = not terminated and k >= n_steps
+    return (DIVERGED_REWARD if diverged else reward), terminated, truncated
+
+
+def _outcomes_samples():
+    m = 2
+    return [(np.zeros(m), np.zeros(m, np.bool_), np.zeros(m, np.int64), np.zeros(m, np.int64), 1, True)]
+
+
+@jit(samples=_outcomes_samples)
+def outcomes(
+    reward: np.ndarray,
+    diverged: np.ndarray,
+    new_contacts: np.ndarray,
+    k: np.ndarray,
     n_steps: int,
     terminate_on_contact: bool,
-) -> tuple[np.ndarray, np.ndarray | np.bool_, np.ndarray | np.bool_]:
-    """(reward, terminated, truncated) of copies after their period k (arrays (m,), or scalars for one
-    copy: ``diverged`` then a ``np.bool_``): terminated on divergence (the reward then
-    ``DIVERGED_REWARD``) or, with ``terminate_on_contact``, on a new drone–drone contact; else truncated
-    at the scenario's duration (k ≥ n_steps)."""
-    terminated = diverged | ((new_contacts > 0) if terminate_on_contact else False)
-    return np.where(diverged, DIVERGED_REWARD, reward), terminated, ~terminated & (k >= n_steps)
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`copy_outcome` of every copy: fresh (reward, terminated, truncated) arrays (m,) from
+    reward (m,), diverged (m,) bool, new_contacts (m,) and k (m,)."""
+    m = reward.shape[0]
+    r = np.empty(m)
+    terminated = np.empty(m, np.bool_)
+    truncated = np.empty(m, np.bool_)
+    for c in range(m):
+        r[c], terminated[c], truncated[c] = copy_outcome(
+            reward[c], diverged[c], new_contacts[c], k[c], n_steps, terminate_on_contact
+        )
+    return r, terminated, truncated
 
 
 def _observe_samples():

@@ -79,7 +79,7 @@ from ..physics.sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
 from ..physics.wind import WindField
 from ..physics.world import World, build_world
 from ..scenario import Scenario, load_scenario, random_follower_starts
-from ..task import CopyRefs, observe_copies, outcome
+from ..task import CopyRefs, observe_copies, outcomes
 from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
@@ -418,7 +418,7 @@ class SwarmVectorEnv(VectorEnv):
         self._observe(self._all)
         diverged = health != HEALTHY
         # the task's reward and termination (swarm_mj/task.py), as SwarmEnv's
-        rewards, terminated, truncated = outcome(
+        rewards, terminated, truncated = outcomes(
             self._reward, diverged, self._new_contacts, self.k, self.n_steps, self.terminate_on_contact
         )
         rewards[resetting] = 0.0
