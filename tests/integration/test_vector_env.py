@@ -273,6 +273,33 @@ def test_copy_alone_equals_copy_among_63_others():
     np.testing.assert_array_equal(obs, want)
 
 
+def test_one_drone_copies_equal_swarm_env_bit_for_bit():
+    """One drone (lemniscate_single): every copy's observation, reward and flags equal SwarmEnv's with the
+    same seed and actions, bit for bit, the step that truncates included (the task of swarm_mj/task.py is
+    the one both call; before it, SwarmEnv's one-drone reward was a BLAS dot product and the vector
+    env's a sum, which differ in the last bit for about a fifth of positions)."""
+    sc = load_scenario("lemniscate_single").with_overrides(duration=0.2)
+    m = 3
+    vec = SwarmVectorEnv(sc, num_envs=m)
+    singles = [SwarmEnv(sc) for _ in range(m)]
+    actions = hover_actions(vec, vec.n_steps, np.random.default_rng(11))
+    obs, _ = vec.reset(seed=40)
+    for c, env in enumerate(singles):
+        first = env.reset(seed=40 + c).observation
+        for key in obs:
+            np.testing.assert_array_equal(obs[key][c], first[key], err_msg=key)
+    for k in range(vec.n_steps):
+        obs, reward, terminated, truncated, _ = vec.step(actions[k])
+        for c, env in enumerate(singles):
+            ts = env.step(actions[k][c].reshape(1, 4))
+            for key in obs:
+                np.testing.assert_array_equal(obs[key][c], ts.observation[key], err_msg=key)
+            assert reward[c] == ts.reward
+            assert bool(terminated[c]) == (ts.last() and ts.discount == 0.0)
+            assert bool(truncated[c]) == (ts.last() and ts.discount != 0.0)
+    assert truncated.all() and not terminated.any()
+
+
 # --------------------------------------------------------------------------- a standard RL library's loop
 
 
