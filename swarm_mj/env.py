@@ -71,7 +71,7 @@ from .physics.world import build_world
 from .pipeline.period import observe
 from .pipeline.records import Obs, Refs
 from .scenario import Scenario, load_scenario
-from .task import copy_outcome, copy_reward
+from .task import copy_outcome, copy_reward, observation_shapes
 
 
 @dataclass(slots=True)
@@ -287,25 +287,8 @@ class SwarmEnv(dm_env.Environment):
         return dm_env.transition(reward=float(reward), observation=obs)
 
     def observation_spec(self):
-        n = self.n
-        a = lambda shape, name: specs.Array(shape, np.float64, name)  # noqa: E731
-        return {
-            "time": a((), "time"),
-            "pos": a((n, 3), "pos"),
-            "vel": a((n, 3), "vel"),
-            "quat": a((n, 4), "quat"),
-            "rpy": a((n, 3), "rpy"),
-            "rpy_rate": a((n, 3), "rpy_rate"),
-            "body_rates": a((n, 3), "body_rates"),
-            "setpoint": a((n, 3), "setpoint"),
-            "setpoint_vel": a((n, 3), "setpoint_vel"),
-            "setpoint_acc": a((n, 3), "setpoint_acc"),
-            "setpoint_yaw": a((n,), "setpoint_yaw"),
-            "leader_pos": a((3,), "leader_pos"),
-            "neighbours": a((n, n, 3), "neighbours"),
-            "neighbour_mask": a((n, n), "neighbour_mask"),
-            "wind_force": a((n, 3), "wind_force"),
-        }
+        """The task's observation (:func:`swarm_mj.task.observation_shapes`) as dm_env specs, float64."""
+        return {key: specs.Array(shape, np.float64, key) for key, shape in observation_shapes(self.n).items()}
 
     def action_spec(self):
         if self.action_mode == "setpoint":

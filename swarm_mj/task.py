@@ -62,6 +62,32 @@ class CopyState(NamedTuple):
     T: float  # control period (s)
 
 
+def observation_shapes(n: int) -> dict[str, tuple[int, ...]]:
+    """The observation of n drones: key -> shape (SwarmEnv's table, swarm_mj/env.py), in the order
+    :func:`observe_copies` knows the keys (:data:`OBS_KEYS`)."""
+    return {
+        "time": (),
+        "pos": (n, 3),
+        "vel": (n, 3),
+        "quat": (n, 4),
+        "rpy": (n, 3),
+        "rpy_rate": (n, 3),
+        "body_rates": (n, 3),
+        "setpoint": (n, 3),
+        "setpoint_vel": (n, 3),
+        "setpoint_acc": (n, 3),
+        "setpoint_yaw": (n,),
+        "leader_pos": (3,),
+        "neighbours": (n, n, 3),
+        "neighbour_mask": (n, n),
+        "wind_force": (n, 3),
+    }
+
+
+#: The observation keys in the order :func:`observe_copies` knows them (its offs[i] is key i's offset).
+OBS_KEYS = tuple(observation_shapes(1))
+
+
 def _reward_samples():
     d = np.full((2, 2), np.inf)
     return [(np.zeros((2, 3)), np.zeros((2, 3)), d, 0.5)]
@@ -152,7 +178,7 @@ def _observe_samples():
     n, m, K = 2, 2, 3
     qpos = np.zeros((m * n, 7))
     qpos[:, 3] = 1.0
-    sizes = [1, 3 * n, 3 * n, 4 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, n, 3, 3 * n * n, n * n, 3 * n]
+    sizes = [int(np.prod(shape, dtype=np.int64)) for shape in observation_shapes(n).values()]
     offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)  # OBS_KEYS order
     z = np.zeros((K, 3))
     return [
@@ -197,7 +223,7 @@ def observe_copies(
     """The task over the given copies (global indices; copy c's drones are rows (c − c0)·n .. of this
     block's qpos (b·n, 7), qvel (b·n, 6)), each at its own sample ks[c] of ``refs``: its observation
     (:func:`~swarm_mj.pipeline.period.observe`, SwarmEnv's; prev_leader and leader_vel (m, 3) updated in
-    place) into out[c] (m, dim), key i of :data:`swarm_mj.wrappers.vector.OBS_KEYS` at offs[i], with
+    place) into out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i], with
     wind_obs (m, n, 3) its wind feedforward; its :func:`copy_reward` (new_contacts[c]) into reward[c];
     its :func:`min_separation` into min_sep[c]. A copy with a non-finite state is skipped (its last
     observation stays)."""

@@ -79,32 +79,13 @@ from ..physics.sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
 from ..physics.wind import WindField
 from ..physics.world import World, build_world
 from ..scenario import Scenario, load_scenario, random_follower_starts
-from ..task import CopyRefs, observe_copies, outcomes
+from ..task import OBS_KEYS, CopyRefs, observe_copies, outcomes
 from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
 
 #: Drones per MuJoCo model at most (the default block is this many drones' worth of copies).
 BLOCK_DRONES = 48
-
-#: The observation keys in the order :func:`swarm_mj.task.observe_copies` knows them (offs[i] is key i's offset).
-OBS_KEYS = (
-    "time",
-    "pos",
-    "vel",
-    "quat",
-    "rpy",
-    "rpy_rate",
-    "body_rates",
-    "setpoint",
-    "setpoint_vel",
-    "setpoint_acc",
-    "setpoint_yaw",
-    "leader_pos",
-    "neighbours",
-    "neighbour_mask",
-    "wind_force",
-)
 
 
 class _Block:
