@@ -89,9 +89,7 @@ def compare_with_sync(
         same_info(r1[4], r2[4], ("time", "contacts", "new_contacts", "termination", "wind_seed"))
         if "min_separation" in r2[4]:
             mask = r2[4]["_min_separation"]
-            np.testing.assert_allclose(
-                r1[4]["min_separation"][mask], r2[4]["min_separation"][mask], rtol=1e-14, atol=atol
-            )
+            np.testing.assert_allclose(r1[4]["min_separation"][mask], r2[4]["min_separation"][mask], rtol=0, atol=atol)
         if mode == AutoresetMode.SAME_STEP and "final_obs" in r2[4]:
             np.testing.assert_array_equal(r1[4]["_final_obs"], r2[4]["_final_obs"])
             for c in np.flatnonzero(r2[4]["_final_obs"]):
