@@ -9,8 +9,9 @@ call it: :class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
 ===============  ============================================================================
 part             function
 ===============  ============================================================================
-observation      :func:`swarm_mj.pipeline.period.observe` per copy (the chunk driver's stage);
-                 :func:`observe_copies` runs it over copies into a flat (m, dim) buffer
+observation      :func:`swarm_mj.pipeline.period.observe` (the chunk driver's stage; its drones' part
+                 :func:`~swarm_mj.pipeline.period.observe_state`); :func:`observe_copies` runs
+                 that per copy into a flat (m, dim) buffer; the keys: :func:`observation_shapes`
 reward           :func:`copy_reward` (formation keeping: :func:`formation_reward`)
 termination      :func:`copy_outcome` (contact, divergence, the scenario's duration);
                  :func:`outcomes` over copies
@@ -28,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._jit import jit
-from .pipeline.period import observe
+from .pipeline.period import observe_state
 from .pipeline.records import Refs
 
 #: Pairs closer than this (m, 3D) count against the reward.
@@ -54,7 +55,7 @@ class CopyRefs(NamedTuple):
 
 
 class CopyState(NamedTuple):
-    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe` reads them (the fields of
+    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe_state` reads them (the fields of
     :class:`~swarm_mj.pipeline.records.Physics` it uses)."""
 
     qpos: np.ndarray  # (n, 7)
@@ -222,7 +223,7 @@ def observe_copies(
 ) -> None:
     """The task over the given copies (global indices; copy c's drones are rows (c − c0)·n .. of this
     block's qpos (b·n, 7), qvel (b·n, 6)), each at its own sample ks[c] of ``refs``: its observation
-    (:func:`~swarm_mj.pipeline.period.observe`, SwarmEnv's; prev_leader and leader_vel (m, 3) updated in
+    (:func:`~swarm_mj.pipeline.period.observe_state`, SwarmEnv's; prev_leader and leader_vel (m, 3) updated in
     place) into out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i], with
     wind_obs (m, n, 3) its wind feedforward; its :func:`copy_reward` (new_contacts[c]) into reward[c];
     its :func:`min_separation` into min_sep[c]. A copy with a non-finite state is skipped (its last
@@ -243,33 +244,35 @@ def observe_copies(
         if not finite:
             continue
         k = ks[c]
-        # the copy's references; wind_known False: its wind force is wind_obs[c] (the wind arrays unread)
+        # the copy's references (the wind arrays unread: its wind force is wind_obs[c])
         r = Refs(
             refs.pos, refs.vel, refs.acc, refs.yaw, refs.D, refs.unit_offsets, prev_leader[c], leader_vel[c],
             refs.sensing_range, refs.pos, refs.pos, False,
         )  # fmt: skip
-        ob = observe(CopyState(q, v, refs.T), r, k)
+        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw = observe_state(
+            CopyState(q, v, refs.T), r, k
+        )
         o = out[c]
         o[offs[0]] = k * refs.T
         for i in range(n):
             for j in range(3):
-                o[offs[1] + 3 * i + j] = ob.pos[i, j]
-                o[offs[2] + 3 * i + j] = ob.vel[i, j]
-                o[offs[4] + 3 * i + j] = ob.rpy[i, j]
-                o[offs[5] + 3 * i + j] = ob.rpy_rate[i, j]
-                o[offs[6] + 3 * i + j] = ob.omega[i, j]
-                o[offs[7] + 3 * i + j] = ob.sp[i, j]
-                o[offs[8] + 3 * i + j] = ob.spv[i, j]
-                o[offs[9] + 3 * i + j] = ob.spa[i, j]
+                o[offs[1] + 3 * i + j] = pos[i, j]
+                o[offs[2] + 3 * i + j] = vel[i, j]
+                o[offs[4] + 3 * i + j] = rpy[i, j]
+                o[offs[5] + 3 * i + j] = rpy_rate[i, j]
+                o[offs[6] + 3 * i + j] = omega[i, j]
+                o[offs[7] + 3 * i + j] = sp[i, j]
+                o[offs[8] + 3 * i + j] = spv[i, j]
+                o[offs[9] + 3 * i + j] = spa[i, j]
                 o[offs[14] + 3 * i + j] = wind_obs[c, i, j]
             for j in range(4):
-                o[offs[3] + 4 * i + j] = ob.quat[i, j]
-            o[offs[10] + i] = ob.yaw[i]
+                o[offs[3] + 4 * i + j] = quat[i, j]
+            o[offs[10] + i] = yaw[i]
             for i2 in range(n):
-                o[offs[13] + n * i + i2] = ob.mask[i, i2]
+                o[offs[13] + n * i + i2] = mask[i, i2]
                 for j in range(3):
-                    o[offs[12] + 3 * (n * i + i2) + j] = ob.rel[i, i2, j]
+                    o[offs[12] + 3 * (n * i + i2) + j] = rel[i, i2, j]
         for j in range(3):
-            o[offs[11] + j] = ob.pos[0, j]
-        reward[c] = copy_reward(ob.pos, ob.sp, ob.dist, new_contacts[c])
-        min_sep[c] = min_separation(ob.dist)
+            o[offs[11] + j] = pos[0, j]
+        reward[c] = copy_reward(pos, sp, dist, new_contacts[c])
+        min_sep[c] = min_separation(dist)
