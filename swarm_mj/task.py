@@ -112,7 +112,7 @@ def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, cl
     return err / max(n - 1, 1), pairs
 
 
-@jit(samples=lambda: [(np.zeros((2, 3)), np.zeros((2, 3)), np.full((2, 2), np.inf), 0)])
+@jit(inline=True, samples=lambda: [(np.zeros((2, 3)), np.zeros((2, 3)), np.full((2, 2), np.inf), 0)])
 def copy_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, new_contacts: int) -> float:
     """One copy's reward (module docstring) from its positions and setpoints (n, 3), its 3D distances
     (n, n) and the contacts new this step."""
