@@ -42,6 +42,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.control.backstepping",
     "swarm_mj.control.lag",
     "swarm_mj.env",
+    "swarm_mj.task",
     "swarm_mj.physics.aero.downwash",
     "swarm_mj.physics.aero.ground_effect",
     "swarm_mj.physics.aero.ground",

@@ -38,9 +38,11 @@ saturation (documented, never NaN physics); a non-finite action raises ``UserErr
 With ``action="setpoint"`` the action is a position setpoint (n, 3) handed to the
 backstepping controller (velocity and acceleration references zero).
 
-Reward (formation keeping), per step, summed over followers:
-``−mean ‖p_i − slot_i‖ − 10·(number of pairs closer than 0.5 m) − 100·(new contacts)``.
-Termination on a drone–drone contact (``terminate_on_contact``) or divergence
+Observation, reward and termination are the task's (:mod:`swarm_mj.task`, written once over a
+copies axis: this class is its one-copy case, :class:`swarm_mj.wrappers.vector.SwarmVectorEnv` its
+m-copy case). Reward (formation keeping), per step:
+``−mean_i ‖p_i − slot_i‖ − 10·(number of pairs closer than 0.5 m) − 100·(new contacts)``
+(−1000 on divergence). Termination on a drone–drone contact (``terminate_on_contact``) or divergence
 (``last_termination`` says which; after a non-finite divergence the observation is the
 last finite one); truncation at the scenario's duration. ``reset(seed)`` seeds the wind
 turbulence; random follower starts keep the scenario's own seed. ``reset()`` without a
@@ -69,8 +71,7 @@ from .physics.world import build_world
 from .pipeline.period import observe
 from .pipeline.records import Obs, Refs
 from .scenario import Scenario, load_scenario
-
-CLOSE_PASS_M = 0.5
+from .task import copy_outcome, copy_reward, observation_shapes
 
 
 @dataclass(slots=True)
@@ -111,29 +112,6 @@ def all_finite(a: np.ndarray) -> bool:
         if not np.isfinite(x):
             return False
     return True
-
-
-def _reward_samples():
-    d = np.full((2, 2), np.inf)
-    return [(np.zeros((2, 3)), np.zeros((2, 3)), d, 0.5)]
-
-
-@jit(samples=_reward_samples)
-def formation_reward(pos: np.ndarray, setpoint: np.ndarray, dist: np.ndarray, close: float) -> tuple[float, int]:
-    """Mean follower distance to its slot and the number of pairs closer than ``close`` (3D)."""
-    n = pos.shape[0]
-    err = 0.0
-    for i in range(1, n):
-        dx = pos[i, 0] - setpoint[i, 0]
-        dy = pos[i, 1] - setpoint[i, 1]
-        dz = pos[i, 2] - setpoint[i, 2]
-        err += np.sqrt(dx * dx + dy * dy + dz * dz)
-    pairs = 0
-    for i in range(n):
-        for j in range(i + 1, n):
-            if dist[i, j] < close:
-                pairs += 1
-    return err / max(n - 1, 1), pairs
 
 
 class SwarmEnv(dm_env.Environment):
@@ -293,37 +271,24 @@ class SwarmEnv(dm_env.Environment):
         obs = self._obs  # after a non-finite divergence: the last finite observation
         new_contacts = sim.contact_events - self._contacts_seen
         self._contacts_seen = sim.contact_events
-        reward = self._reward(obs, new_contacts)
-        if diverged is not None or (self.terminate_on_contact and new_contacts > 0):
+        # the task's reward and termination (swarm_mj/task.py), as for every copy of the vector env
+        reward, terminated, truncated = copy_outcome(
+            self._reward(obs, new_contacts), diverged is not None, new_contacts, self.k, self.n_steps,
+            self.terminate_on_contact,
+        )  # fmt: skip
+        if terminated:
             self._done = True
             self.last_termination = "diverged" if diverged is not None else "contact"
             self.last_error = diverged
-            return dm_env.termination(reward=-1000.0 if diverged is not None else reward, observation=obs)
-        if self.k >= self.n_steps:
+            return dm_env.termination(reward=float(reward), observation=obs)
+        if truncated:
             self._done = True
-            return dm_env.truncation(reward=reward, observation=obs)
-        return dm_env.transition(reward=reward, observation=obs)
+            return dm_env.truncation(reward=float(reward), observation=obs)
+        return dm_env.transition(reward=float(reward), observation=obs)
 
     def observation_spec(self):
-        n = self.n
-        a = lambda shape, name: specs.Array(shape, np.float64, name)  # noqa: E731
-        return {
-            "time": a((), "time"),
-            "pos": a((n, 3), "pos"),
-            "vel": a((n, 3), "vel"),
-            "quat": a((n, 4), "quat"),
-            "rpy": a((n, 3), "rpy"),
-            "rpy_rate": a((n, 3), "rpy_rate"),
-            "body_rates": a((n, 3), "body_rates"),
-            "setpoint": a((n, 3), "setpoint"),
-            "setpoint_vel": a((n, 3), "setpoint_vel"),
-            "setpoint_acc": a((n, 3), "setpoint_acc"),
-            "setpoint_yaw": a((n,), "setpoint_yaw"),
-            "leader_pos": a((3,), "leader_pos"),
-            "neighbours": a((n, n, 3), "neighbours"),
-            "neighbour_mask": a((n, n), "neighbour_mask"),
-            "wind_force": a((n, 3), "wind_force"),
-        }
+        """The task's observation (:func:`swarm_mj.task.observation_shapes`) as dm_env specs, float64."""
+        return {key: specs.Array(shape, np.float64, key) for key, shape in observation_shapes(self.n).items()}
 
     def action_spec(self):
         if self.action_mode == "setpoint":
@@ -408,8 +373,5 @@ class SwarmEnv(dm_env.Environment):
         }
 
     def _reward(self, obs: dict, new_contacts: int) -> float:
-        if self.n == 1:
-            d = obs["pos"][0] - obs["setpoint"][0]
-            return -float(np.sqrt(d @ d))
-        err, close = formation_reward(obs["pos"], obs["setpoint"], self._dist, CLOSE_PASS_M)
-        return float(-err - 10.0 * close - 100.0 * new_contacts)
+        """The task's reward of this step (:func:`swarm_mj.task.copy_reward`)."""
+        return copy_reward(obs["pos"], obs["setpoint"], self._dist, new_contacts)

@@ -175,17 +175,25 @@ def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
 
 
 @jit(inline=True)
+def observe_state(phys, refs, k):
+    """:func:`observe` without the wind force: (pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp,
+    spv, spa, yaw) of period k (what the vector env's copies read, swarm_mj/task.py)."""
+    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(phys.qpos, phys.qvel, refs.sensing_range)
+    sp, spv, spa, yaw = setpoints_kernel(
+        k, phys.T, pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
+        refs.D[k], refs.unit_offsets,
+    )  # fmt: skip
+    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw
+
+
+@jit(inline=True)
 def observe(phys, refs, k):
     """The observation of period k (:class:`~swarm_mj.pipeline.records.Obs`, fresh arrays; SwarmEnv's keys):
     the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
     estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
     (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
     n = phys.qpos.shape[0]
-    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(phys.qpos, phys.qvel, refs.sensing_range)
-    sp, spv, spa, yaw = setpoints_kernel(
-        k, phys.T, pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
-        refs.D[k], refs.unit_offsets,
-    )  # fmt: skip
+    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw = observe_state(phys, refs, k)
     wf = np.zeros((n, 3))
     if refs.wind_known:
         for i in range(n):

@@ -42,6 +42,7 @@ from gymnasium import spaces
 from ..env import SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..scenario import Scenario
+from ..task import min_separation
 
 ENV_ID = "swarm_mj/Swarm-v0"
 
@@ -80,20 +81,11 @@ def fresh_observation(obs: dict) -> dict[str, np.ndarray]:
     return {key: np.array(value, dtype=np.float64) for key, value in obs.items()}
 
 
-def step_info(
-    env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool, pairs: tuple[np.ndarray, np.ndarray]
-) -> dict[str, Any]:
-    """The info dict of a step: time, contacts, separation and why an episode terminated.
-
-    ``pairs`` is ``np.triu_indices(n, 1)`` (precomputed: this runs every step).
-    """
+def step_info(env: SwarmEnv, contacts_before: int, obs: dict, terminated: bool) -> dict[str, Any]:
+    """The info dict of a step: time, contacts, separation (the task's :func:`swarm_mj.task.min_separation`
+    of the observation's distances, as the vector env's) and why an episode terminated."""
     contacts = int(env.sim.contact_events)
-    pos = obs["pos"]
-    if env.n > 1:
-        d = pos[pairs[0]] - pos[pairs[1]]
-        min_sep = float(np.sqrt(np.einsum("ij,ij->i", d, d).min()))
-    else:
-        min_sep = float("inf")
+    min_sep = float(min_separation(env.obs_record.dist))
     info: dict[str, Any] = {
         "time": float(obs["time"]),
         "contacts": contacts,
@@ -144,7 +136,6 @@ class SwarmGymEnv(gymnasium.Env):
         self.action_space = action_space(self.env)
         self.wind_seed: int | None = None
         self._done = True
-        self._pairs = np.triu_indices(self.env.n, 1)
 
     @property
     def scenario(self) -> Scenario:
@@ -176,7 +167,7 @@ class SwarmGymEnv(gymnasium.Env):
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
         self._done = terminated or truncated
-        info = step_info(self.env, self._contacts, ts.observation, terminated, self._pairs)
+        info = step_info(self.env, self._contacts, ts.observation, terminated)
         self._contacts = info["contacts"]
         return self._obs(ts.observation), float(ts.reward), terminated, truncated, info
 

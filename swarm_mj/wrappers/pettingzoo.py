@@ -119,7 +119,6 @@ class SwarmParallelEnv(ParallelEnv):
             for name, i in self._index.items()
         }
         self._width = spec.shape[1]
-        self._pairs = np.triu_indices(env.n, 1)
         self._rng: np.random.Generator | None = None
         self.wind_seed: int | None = None
         self._last: dict | None = None
@@ -169,7 +168,7 @@ class SwarmParallelEnv(ParallelEnv):
         ts = self.env.step(U)
         terminated = bool(ts.last() and ts.discount == 0.0)
         truncated = bool(ts.last() and not terminated)
-        info = step_info(self.env, self._contacts, ts.observation, terminated, self._pairs)
+        info = step_info(self.env, self._contacts, ts.observation, terminated)
         self._contacts = info["contacts"]
         self._last = ts.observation
         agents = self.agents

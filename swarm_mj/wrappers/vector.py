@@ -30,7 +30,8 @@ clipped per rotor by the saturation, a non-finite action raises ``UserError``.
 ``gymnasium.spaces.flatten`` (one float64 Box, keys in sorted order). The batched spaces are
 ``gymnasium.vector.utils.batch_space`` of these (leading axis m).
 
-**Episodes** are SwarmEnv's, per copy: the same observation, reward (formation keeping),
+**Episodes** are SwarmEnv's, per copy: the task of :mod:`swarm_mj.task` (written once over the
+copies axis; SwarmEnv is its one-copy case): the same observation, reward (formation keeping),
 termination on a drone–drone contact within the copy (``terminate_on_contact``) or on
 divergence (the copy's health code, reward −1000; after a non-finite state the observation
 is the last finite one), truncation at the scenario's duration. A MuJoCo divergence warning
@@ -62,7 +63,7 @@ from __future__ import annotations
 import types
 from collections.abc import Sequence
 from dataclasses import replace
-from typing import Any, NamedTuple
+from typing import Any
 
 import gymnasium
 import numpy as np
@@ -71,174 +72,20 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from .._jit import jit
-from ..env import CLOSE_PASS_M, SwarmEnv, all_finite, formation_reward
+from ..env import SwarmEnv, all_finite
 from ..errors import UserError
-from ..formation.slots import DiameterSchedule, polygon_offsets, setpoints_kernel
-from ..physics.observation import observe_kernel
+from ..formation.slots import DiameterSchedule, polygon_offsets
 from ..physics.sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
 from ..physics.wind import WindField
 from ..physics.world import World, build_world
 from ..scenario import Scenario, load_scenario, random_follower_starts
+from ..task import OBS_KEYS, CopyRefs, observe_copies, outcomes
 from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
 
 #: Drones per MuJoCo model at most (the default block is this many drones' worth of copies).
 BLOCK_DRONES = 48
-
-#: The observation keys in the order :func:`observe_copies_kernel` knows them (offs[i] is key i's offset).
-OBS_KEYS = (
-    "time",
-    "pos",
-    "vel",
-    "quat",
-    "rpy",
-    "rpy_rate",
-    "body_rates",
-    "setpoint",
-    "setpoint_vel",
-    "setpoint_acc",
-    "setpoint_yaw",
-    "leader_pos",
-    "neighbours",
-    "neighbour_mask",
-    "wind_force",
-)
-
-
-class CopyRefs(NamedTuple):
-    """The references every copy of the vector environment shares (its leader trajectory and D(t))."""
-
-    T: float  # control period (s)
-    sensing_range: float  # m
-    pos: np.ndarray  # (K+1, 3) leader trajectory
-    vel: np.ndarray  # (K+1, 3)
-    acc: np.ndarray  # (K+1, 3)
-    yaw: np.ndarray  # (K+1,)
-    D: np.ndarray  # (K+1,) formation diameter
-    unit_offsets: np.ndarray  # (n−1, 3) slot offsets for D = 1
-
-
-def _observe_samples():
-    n, m, K = 2, 2, 3
-    qpos = np.zeros((m * n, 7))
-    qpos[:, 3] = 1.0
-    sizes = [1, 3 * n, 3 * n, 4 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, 3 * n, n, 3, 3 * n * n, n * n, 3 * n]
-    offs = np.cumsum([0, *sizes[:-1]]).astype(np.int64)  # OBS_KEYS order
-    z = np.zeros((K, 3))
-    return [
-        (
-            qpos,
-            np.zeros((m * n, 6)),
-            n,
-            CopyRefs(0.01, 2.0, z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3))),
-            np.arange(m, dtype=np.int64),
-            0,
-            np.zeros(m, np.int64),
-            np.zeros((m, 3)),
-            np.zeros((m, 3)),
-            np.zeros((m, n, 3)),
-            offs,
-            np.zeros((m, sum(sizes))),
-            np.zeros(m, np.int64),
-            np.zeros(m),
-            np.zeros(m),
-        )
-    ]
-
-
-@jit(samples=_observe_samples)
-def observe_copies_kernel(
-    qpos: np.ndarray,
-    qvel: np.ndarray,
-    n: int,
-    refs: CopyRefs,
-    copies: np.ndarray,
-    c0: int,
-    ks: np.ndarray,
-    prev_leader: np.ndarray,
-    leader_vel: np.ndarray,
-    wind_obs: np.ndarray,
-    offs: np.ndarray,
-    out: np.ndarray,
-    new_contacts: np.ndarray,
-    reward: np.ndarray,
-    min_sep: np.ndarray,
-) -> None:
-    """SwarmEnv's observation, reward and minimum separation for the given copies (global indices;
-    copy c's drones are rows (c − c0)·n .. of this block's qpos (b·n, 7), qvel (b·n, 6)), each
-    at its own sample ks[c] of the references ``refs``: the same
-    kernels as :meth:`SwarmEnv._observe` (observe_kernel, setpoints_kernel; prev_leader and
-    leader_vel (m, 3) updated in place) and :func:`formation_reward`. The observation of copy c
-    goes to out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i]; wind_obs (m, n, 3) is its
-    wind feedforward. A copy with a non-finite state is skipped (its last observation stays)."""
-    for idx in range(copies.shape[0]):
-        c = copies[idx]
-        r0 = (c - c0) * n
-        q = qpos[r0 : r0 + n]
-        v = qvel[r0 : r0 + n]
-        finite = True
-        for i in range(n):
-            for j in range(7):
-                if not np.isfinite(q[i, j]):
-                    finite = False
-            for j in range(6):
-                if not np.isfinite(v[i, j]):
-                    finite = False
-        if not finite:
-            continue
-        k = ks[c]
-        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(q, v, refs.sensing_range)
-        sp, sp_vel, sp_acc, yaw = setpoints_kernel(
-            k,
-            refs.T,
-            pos[0],
-            prev_leader[c],
-            leader_vel[c],
-            refs.pos[k],
-            refs.vel[k],
-            refs.acc[k],
-            refs.yaw[k],
-            refs.D[k],
-            refs.unit_offsets,
-        )
-        o = out[c]
-        o[offs[0]] = k * refs.T
-        for i in range(n):
-            for j in range(3):
-                o[offs[1] + 3 * i + j] = pos[i, j]
-                o[offs[2] + 3 * i + j] = vel[i, j]
-                o[offs[4] + 3 * i + j] = rpy[i, j]
-                o[offs[5] + 3 * i + j] = rpy_rate[i, j]
-                o[offs[6] + 3 * i + j] = omega[i, j]
-                o[offs[7] + 3 * i + j] = sp[i, j]
-                o[offs[8] + 3 * i + j] = sp_vel[i, j]
-                o[offs[9] + 3 * i + j] = sp_acc[i, j]
-                o[offs[14] + 3 * i + j] = wind_obs[c, i, j]
-            for j in range(4):
-                o[offs[3] + 4 * i + j] = quat[i, j]
-            o[offs[10] + i] = yaw[i]
-            for i2 in range(n):
-                o[offs[13] + n * i + i2] = mask[i, i2]
-                for j in range(3):
-                    o[offs[12] + 3 * (n * i + i2) + j] = rel[i, i2, j]
-        for j in range(3):
-            o[offs[11] + j] = pos[0, j]
-        if n == 1:
-            dx = pos[0, 0] - sp[0, 0]
-            dy = pos[0, 1] - sp[0, 1]
-            dz = pos[0, 2] - sp[0, 2]
-            reward[c] = -np.sqrt(dx * dx + dy * dy + dz * dz)
-            min_sep[c] = np.inf
-        else:
-            err, close = formation_reward(pos, sp, dist, CLOSE_PASS_M)
-            reward[c] = -err - 10.0 * close - 100.0 * new_contacts[c]
-            best = np.inf
-            for i in range(n):
-                for i2 in range(i + 1, n):
-                    best = min(best, dist[i, i2])
-            min_sep[c] = best
 
 
 class _Block:
@@ -451,12 +298,13 @@ class SwarmVectorEnv(VectorEnv):
                     self._wind_obs[c] = force
 
     def _observe(self, copies: np.ndarray) -> None:
-        """Observation, reward (before divergence) and minimum separation of the given copies."""
+        """The task's observation, reward (before divergence) and minimum separation of the given copies
+        (:func:`swarm_mj.task.observe_copies`)."""
         self._wind_forces("obs")
         for blk in self._blocks:
             cs = copies[(copies >= blk.c0) & (copies < blk.c0 + blk.b)]
             if len(cs):
-                observe_copies_kernel(
+                observe_copies(
                     blk.sim.qpos,
                     blk.sim.qvel,
                     self.n,
@@ -549,12 +397,11 @@ class SwarmVectorEnv(VectorEnv):
             health[resetting] = HEALTHY
         self._contacts += self._new_contacts
         self._observe(self._all)
-        rewards = self._reward.copy()
         diverged = health != HEALTHY
-        contact = self._new_contacts > 0
-        terminated = diverged | (contact if self.terminate_on_contact else False)
-        truncated = ~terminated & (self.k >= self.n_steps)
-        rewards[diverged] = -1000.0
+        # the task's reward and termination (swarm_mj/task.py), as SwarmEnv's
+        rewards, terminated, truncated = outcomes(
+            self._reward, diverged, self._new_contacts, self.k, self.n_steps, self.terminate_on_contact
+        )
         rewards[resetting] = 0.0
         terminated[resetting] = False
         truncated[resetting] = False
