@@ -131,6 +131,9 @@ class BarrierParams:
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     ``release_m`` (m), ``release_mps`` (m/s): the separation filter (:class:`BarrierFilter`) hands a
     drone back to its planner once its filtered reference is within these of the planner's.
+    ``ground_band_m`` (m), ``ground_tilt_deg`` (°): the separation filter's limits for a drone below
+    ``ground_band_m``: no downward acceleration, the horizontal one that of ``ground_tilt_deg``
+    (a drone just lifted off is not pushed into the ground, nor tilted over beside it).
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -159,6 +162,8 @@ class BarrierParams:
     both_states: bool = True
     release_m: float = 0.02
     release_mps: float = 0.05
+    ground_band_m: float = 0.5
+    ground_tilt_deg: float = 15.0
 
     def __post_init__(self) -> None:
         positive = (
@@ -180,7 +185,7 @@ class BarrierParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
-        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps"):
+        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
@@ -194,6 +199,10 @@ class BarrierParams:
             raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
         if not (np.isfinite(self.leash_m) and self.leash_m > 0):
             raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
+        if not (0.0 < self.ground_tilt_deg < 90.0):
+            raise UserError(
+                f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}"
+            )
         if not (0.0 < self.max_tilt_deg < 90.0):
             raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
         if self.accel_down >= 9.81:
@@ -411,9 +420,9 @@ def _filter_samples():
             np.ones(2, dtype=np.bool_),
             np.ones(3),
             3.0,
-            3.9,
-            5.0,
-            3.0,
+            np.full(2, 3.9),
+            np.full(2, 5.0),
+            np.full(2, 3.0),
             1.0,
             100.0,
             4.0,
@@ -435,9 +444,9 @@ def filter_accelerations(
     filters: np.ndarray,
     radii: np.ndarray,
     gain: float,
-    a_h: float,
-    a_up: float,
-    a_down: float,
+    a_h: np.ndarray,
+    a_up: np.ndarray,
+    a_down: np.ndarray,
     tiebreak: float,
     relax_weight: float,
     sensing_range: float,
@@ -450,7 +459,8 @@ def filter_accelerations(
     pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
-    accelerations; filters (n,) bool: which drones filter
+    accelerations; a_h, a_up, a_down (n,): each drone's input limits (m/s²); filters (n,) bool:
+    which drones filter
     (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
     priority_share: the share of a burden (b > 0) the lower index of a pair of filtering drones takes
     (½: equal; room, b ≤ 0, is split in halves).
@@ -510,7 +520,7 @@ def filter_accelerations(
                 if not filters[j]:
                     bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
                 lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
-                if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
+                if lhs >= bs and _min_over_limits(a, a_h[i], a_up[i], a_down[i]) >= bs:
                     continue  # no input within the limits can violate it, nor does the nominal: redundant
                 if lhs < bs:
                     violated = True
@@ -528,7 +538,7 @@ def filter_accelerations(
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
-        ml = _limit_rows(A[m:], b[m:], a_h, a_up, a_down)
+        ml = _limit_rows(A[m:], b[m:], a_h[i], a_up[i], a_down[i])
         w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
         if not ok:
             # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
@@ -539,7 +549,7 @@ def filter_accelerations(
                     A4[k, c] = A[k, c]
                 A4[k, 3] = nrm / sw
                 b4[k] = b[k]
-            _limit_rows(A4[m:], b4[m:], a_h, a_up, a_down)
+            _limit_rows(A4[m:], b4[m:], a_h[i], a_up[i], a_down[i])
             A4[m + ml, :] = 0.0
             A4[m + ml, 3] = 1.0
             b4[m + ml] = 0.0
@@ -563,13 +573,18 @@ def apply_filter(
     filters: np.ndarray,
     sensed: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     vehicle: QuadParams = DEFAULT_PARAMS,
+    limits: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
-    the others sense (default: pos, vel and zero). Returns (u, active, relaxed, n_constraints)."""
+    the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
+    (default: ``bp``'s for every drone). Returns (u, active, relaxed, n_constraints)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
+    if limits is None:
+        limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (pos.shape[0], 1))
+    lim = c(limits, dtype=np.float64)
     return filter_accelerations(
         c(pos, dtype=np.float64),
         c(vel, dtype=np.float64),
@@ -580,9 +595,9 @@ def apply_filter(
         c(filters, dtype=np.bool_),
         bp.radii(vehicle),
         bp.gain,
-        bp.horizontal_limit(vehicle.g),
-        bp.accel_up,
-        bp.accel_down,
+        c(lim[:, 0]),
+        c(lim[:, 1]),
+        c(lim[:, 2]),
         bp.tiebreak,
         bp.relax_weight,
         bp.sensing_range,
@@ -836,7 +851,12 @@ class BarrierFilter:
             u_nom[g] = u_g
         wait = takeoff_wait(bp, positions, self.radii, steer)
         filters = steer & ~wait
-        u, active, relaxed, _ = apply_filter(bp, ref, ref_vel, u_nom, filters, (positions, vel, self.sensed_acc))
+        low = np.minimum(ref[:, 2], positions[:, 2]) < bp.ground_band_m  # near the ground: gentler limits
+        limits = np.tile([self.a_h, bp.accel_up, bp.accel_down], (n, 1))
+        limits[low, 0] = (self.vehicle.g - bp.accel_down) * np.tan(np.radians(bp.ground_tilt_deg))
+        limits[low, 2] = 0.0
+        sensed_state = (positions, vel, self.sensed_acc)
+        u, active, relaxed, _ = apply_filter(bp, ref, ref_vel, u_nom, filters, sensed_state, self.vehicle, limits)
         self.active_periods += int(active.sum())
         self.relaxed_periods += int(relaxed.sum())
         for i in np.flatnonzero(relaxed & ~self._was_relaxed):
