@@ -131,9 +131,11 @@ class BarrierParams:
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
     ``release_m`` (m), ``release_mps`` (m/s): the separation filter (:class:`BarrierFilter`) hands a
     drone back to its planner once its filtered reference is within these of the planner's.
-    ``ground_band_m`` (m), ``ground_tilt_deg`` (°): the separation filter's limits for a drone below
-    ``ground_band_m``: no downward acceleration, the horizontal one that of ``ground_tilt_deg``
-    (a drone just lifted off is not pushed into the ground, nor tilted over beside it).
+    ``ground_band_m`` (m): the separation filter allows no downward acceleration to a drone below it
+    (one just lifted off is not pushed into the ground).
+    ``gate_horizon_s`` (s): the separation filter's take-off gate also holds a follower on the ground
+    while a drone is predicted (straight on at its sensed velocity) within ``gate_rho`` of it over
+    this horizon.
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -163,7 +165,7 @@ class BarrierParams:
     release_m: float = 0.02
     release_mps: float = 0.05
     ground_band_m: float = 0.5
-    ground_tilt_deg: float = 15.0
+    gate_horizon_s: float = 1.5
 
     def __post_init__(self) -> None:
         positive = (
@@ -185,7 +187,7 @@ class BarrierParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
-        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m"):
+        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m", "gate_horizon_s"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
@@ -199,10 +201,7 @@ class BarrierParams:
             raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
         if not (np.isfinite(self.leash_m) and self.leash_m > 0):
             raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
-        if not (0.0 < self.ground_tilt_deg < 90.0):
-            raise UserError(
-                f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}"
-            )
+            raise UserError(f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}")
         if not (0.0 < self.max_tilt_deg < 90.0):
             raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
         if self.accel_down >= 9.81:
@@ -649,13 +648,27 @@ def lane_nominal(
     return u
 
 
-def takeoff_wait(bp: BarrierParams, positions: np.ndarray, radii: np.ndarray, filters: np.ndarray) -> np.ndarray:
+def takeoff_wait(
+    bp: BarrierParams,
+    positions: np.ndarray,
+    radii: np.ndarray,
+    filters: np.ndarray,
+    velocities: np.ndarray | None = None,
+    accelerations: np.ndarray | None = None,
+) -> np.ndarray:
     """The take-off gate (module docstring), (n,) bool: a filtering drone on the ground (below
     ``floor_m``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is below
-    ``gate_rho`` holds where it is (and does not filter this period)."""
+    ``gate_rho`` holds where it is (and does not filter this period). With ``velocities`` (n, 3)
+    (and ``accelerations`` (n, 3)): also when that drone is predicted within ``gate_rho`` (at its
+    velocity and acceleration, sampled every 0.25 s over ``gate_horizon_s``)."""
     n = positions.shape[0]
     ground = positions[:, 2] < bp.floor_m
     rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / radii, axis=2)
+    if velocities is not None:
+        for tau in np.arange(0.25, bp.gate_horizon_s + 1e-9, 0.25):
+            acc = np.zeros_like(positions) if accelerations is None else accelerations
+            ahead = positions + (tau * velocities + 0.5 * tau * tau * acc) * ~ground[:, None]  # grounded: put
+            rho = np.minimum(rho, np.linalg.norm((positions[:, None, :] - ahead[None, :, :]) / radii, axis=2))
     idx = np.arange(n)
     blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
     np.fill_diagonal(blocking, False)
@@ -849,11 +862,10 @@ class BarrierFilter:
             u_g[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / nh)[:, None]
             u_g[:, 2] = np.clip(u_g[:, 2], -bp.accel_down, bp.accel_up)
             u_nom[g] = u_g
-        wait = takeoff_wait(bp, positions, self.radii, steer)
+        wait = takeoff_wait(bp, positions, self.radii, steer, vel, self.sensed_acc)
         filters = steer & ~wait
-        low = np.minimum(ref[:, 2], positions[:, 2]) < bp.ground_band_m  # near the ground: gentler limits
+        low = np.minimum(ref[:, 2], positions[:, 2]) < bp.ground_band_m  # near the ground: not pushed down
         limits = np.tile([self.a_h, bp.accel_up, bp.accel_down], (n, 1))
-        limits[low, 0] = (self.vehicle.g - bp.accel_down) * np.tan(np.radians(bp.ground_tilt_deg))
         limits[low, 2] = 0.0
         sensed_state = (positions, vel, self.sensed_acc)
         u, active, relaxed, _ = apply_filter(bp, ref, ref_vel, u_nom, filters, sensed_state, self.vehicle, limits)
