@@ -61,9 +61,11 @@ only brings h back exponentially.
 filter's keep-out is the vehicle's inflated by twice ``tracking_margin_m`` (docs/barrier.md gives
 the measured error and why the margin is smaller).
 
-**The rule** (:class:`BarrierRule`, ``anti_collision = "barrier"``): the filter on a nominal that
-goes round the leader on two lanes (:func:`lane_nominal`), so that followers do not meet the leader
-or each other head-on.
+**The separation filter** (:class:`BarrierFilter`, a :class:`~.separation.SeparationFilter`): the
+filter guarding any planner's references; ``anti_collision = "barrier"`` (:class:`BarrierPlannerRule`)
+is the jet-aware planner with it. **The lane rule** (:class:`BarrierRule`, ``"barrier-lanes"``, the
+first version): the filter on its own nominal that goes round the leader on two lanes
+(:func:`lane_nominal`), so that followers do not meet the leader or each other head-on.
 """
 
 from __future__ import annotations
@@ -676,7 +678,7 @@ def takeoff_wait(
 
 
 class BarrierRule(Rule):
-    """``anti_collision = "barrier"`` (docs/barrier.md): the formation's references made safe by the
+    """``anti_collision = "barrier-lanes"`` (docs/barrier.md): the formation's references made safe by the
     barrier filter, with no other separation logic.
 
     Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
@@ -926,8 +928,11 @@ PRESETS["barrier-lanes"] = RuleParams()
 
 __all__ = [
     "DOWNWASH_MULTIPLE",
+    "BarrierFilter",
     "BarrierParams",
+    "BarrierPlannerRule",
     "BarrierRule",
+    "takeoff_wait",
     "apply_filter",
     "lane_nominal",
     "filter_accelerations",
