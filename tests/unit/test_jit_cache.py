@@ -14,14 +14,14 @@ from swarm_mj import _jit
 
 pytestmark = pytest.mark.skipif(not _jit.AVAILABLE, reason="Numba is off (SWARM_MJ_NO_JIT) or not installed")
 
-KERNEL = """
+KERNEL = '''
 from swarm_mj._jit import jit
 
 
 @jit
 def twice(x):
     return 2.0 * x
-"""
+'''
 
 
 class Moved:
