@@ -9,7 +9,7 @@ from .anticollision import (
     Rule,
     make_rule,
 )
-from .barrier import BarrierRule  # registers "barrier" in ANTI_COLLISION_RULES
+from .barrier import BarrierFilter, BarrierRule  # registers "barrier" and "barrier-lanes" in ANTI_COLLISION_RULES
 from .rule_params import PRESETS, RuleParams
 from .separation import Sensed, SeparationFilter
 from .slots import DiameterSchedule, polygon_offsets, slot_positions
@@ -17,6 +17,7 @@ from .slots import DiameterSchedule, polygon_offsets, slot_positions
 __all__ = [
     "ANTI_COLLISION_RULES",
     "AntiCollision",
+    "BarrierFilter",
     "BarrierRule",
     "LayeredRule",
     "NoRule",

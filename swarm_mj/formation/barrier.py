@@ -61,9 +61,11 @@ only brings h back exponentially.
 filter's keep-out is the vehicle's inflated by twice ``tracking_margin_m`` (docs/barrier.md gives
 the measured error and why the margin is smaller).
 
-**The rule** (:class:`BarrierRule`, ``anti_collision = "barrier"``): the filter on a nominal that
-goes round the leader on two lanes (:func:`lane_nominal`), so that followers do not meet the leader
-or each other head-on.
+**The separation filter** (:class:`BarrierFilter`, a :class:`~.separation.SeparationFilter`): the
+filter guarding any planner's references; ``anti_collision = "barrier"`` (:class:`BarrierPlannerRule`)
+is the jet-aware planner with it. **The lane rule** (:class:`BarrierRule`, ``"barrier-lanes"``, the
+first version): the filter on its own nominal that goes round the leader on two lanes
+(:func:`lane_nominal`), so that followers do not meet the leader or each other head-on.
 """
 
 from __future__ import annotations
@@ -78,7 +80,9 @@ from ..errors import UserError
 from ..physics.aero.constants import ROTOR_RADIUS
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
+from .jet_aware import JetAwareRule
 from .rule_params import PRESETS, RuleParams
+from .separation import Sensed
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
 #: 0.3/0.12 = 2.5, the Crazyflie firmware 0.9/0.3 = 3 (docs/barrier.md, "keep-out").
@@ -127,6 +131,13 @@ class BarrierParams:
     ``both_states`` (bool): each constraint also on the drone's sensed state, not only its reference.
     ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
     > 0: its acceleration is estimated from its positions, low-passed with this time constant.
+    ``release_m`` (m), ``release_mps`` (m/s): the separation filter (:class:`BarrierFilter`) hands a
+    drone back to its planner once its filtered reference is within these of the planner's.
+    ``ground_band_m`` (m): the separation filter allows no downward acceleration to a drone below it
+    (one just lifted off is not pushed into the ground).
+    ``gate_horizon_s`` (s): the separation filter's take-off gate also holds a follower on the ground
+    while a drone is predicted (straight on at its sensed velocity) within ``gate_rho`` of it over
+    this horizon.
     """
 
     downwash_multiple: float = DOWNWASH_MULTIPLE
@@ -153,6 +164,10 @@ class BarrierParams:
     lane_inner: float = 1.2
     lane_outer: float = 2.4
     both_states: bool = True
+    release_m: float = 0.02
+    release_mps: float = 0.05
+    ground_band_m: float = 0.5
+    gate_horizon_s: float = 1.5
 
     def __post_init__(self) -> None:
         positive = (
@@ -174,7 +189,7 @@ class BarrierParams:
             v = getattr(self, name)
             if not np.isfinite(v) or v <= 0:
                 raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
-        for name in ("tracking_margin_m", "tiebreak"):
+        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m", "gate_horizon_s"):
             v = getattr(self, name)
             if not np.isfinite(v) or v < 0:
                 raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
@@ -188,6 +203,7 @@ class BarrierParams:
             raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
         if not (np.isfinite(self.leash_m) and self.leash_m > 0):
             raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
+            raise UserError(f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}")
         if not (0.0 < self.max_tilt_deg < 90.0):
             raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
         if self.accel_down >= 9.81:
@@ -405,9 +421,9 @@ def _filter_samples():
             np.ones(2, dtype=np.bool_),
             np.ones(3),
             3.0,
-            3.9,
-            5.0,
-            3.0,
+            np.full(2, 3.9),
+            np.full(2, 5.0),
+            np.full(2, 3.0),
             1.0,
             100.0,
             4.0,
@@ -429,9 +445,9 @@ def filter_accelerations(
     filters: np.ndarray,
     radii: np.ndarray,
     gain: float,
-    a_h: float,
-    a_up: float,
-    a_down: float,
+    a_h: np.ndarray,
+    a_up: np.ndarray,
+    a_down: np.ndarray,
     tiebreak: float,
     relax_weight: float,
     sensing_range: float,
@@ -444,7 +460,8 @@ def filter_accelerations(
     pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
-    accelerations; filters (n,) bool: which drones filter
+    accelerations; a_h, a_up, a_down (n,): each drone's input limits (m/s²); filters (n,) bool:
+    which drones filter
     (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
     priority_share: the share of a burden (b > 0) the lower index of a pair of filtering drones takes
     (½: equal; room, b ≤ 0, is split in halves).
@@ -504,7 +521,7 @@ def filter_accelerations(
                 if not filters[j]:
                     bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
                 lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
-                if lhs >= bs and _min_over_limits(a, a_h, a_up, a_down) >= bs:
+                if lhs >= bs and _min_over_limits(a, a_h[i], a_up[i], a_down[i]) >= bs:
                     continue  # no input within the limits can violate it, nor does the nominal: redundant
                 if lhs < bs:
                     violated = True
@@ -522,7 +539,7 @@ def filter_accelerations(
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
-        ml = _limit_rows(A[m:], b[m:], a_h, a_up, a_down)
+        ml = _limit_rows(A[m:], b[m:], a_h[i], a_up[i], a_down[i])
         w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
         if not ok:
             # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
@@ -533,7 +550,7 @@ def filter_accelerations(
                     A4[k, c] = A[k, c]
                 A4[k, 3] = nrm / sw
                 b4[k] = b[k]
-            _limit_rows(A4[m:], b4[m:], a_h, a_up, a_down)
+            _limit_rows(A4[m:], b4[m:], a_h[i], a_up[i], a_down[i])
             A4[m + ml, :] = 0.0
             A4[m + ml, 3] = 1.0
             b4[m + ml] = 0.0
@@ -557,13 +574,18 @@ def apply_filter(
     filters: np.ndarray,
     sensed: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     vehicle: QuadParams = DEFAULT_PARAMS,
+    limits: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
-    the others sense (default: pos, vel and zero). Returns (u, active, relaxed, n_constraints)."""
+    the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
+    (default: ``bp``'s for every drone). Returns (u, active, relaxed, n_constraints)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
+    if limits is None:
+        limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (pos.shape[0], 1))
+    lim = c(limits, dtype=np.float64)
     return filter_accelerations(
         c(pos, dtype=np.float64),
         c(vel, dtype=np.float64),
@@ -574,9 +596,9 @@ def apply_filter(
         c(filters, dtype=np.bool_),
         bp.radii(vehicle),
         bp.gain,
-        bp.horizontal_limit(vehicle.g),
-        bp.accel_up,
-        bp.accel_down,
+        c(lim[:, 0]),
+        c(lim[:, 1]),
+        c(lim[:, 2]),
         bp.tiebreak,
         bp.relax_weight,
         bp.sensing_range,
@@ -628,8 +650,35 @@ def lane_nominal(
     return u
 
 
+def takeoff_wait(
+    bp: BarrierParams,
+    positions: np.ndarray,
+    radii: np.ndarray,
+    filters: np.ndarray,
+    velocities: np.ndarray | None = None,
+    accelerations: np.ndarray | None = None,
+) -> np.ndarray:
+    """The take-off gate (module docstring), (n,) bool: a filtering drone on the ground (below
+    ``floor_m``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is below
+    ``gate_rho`` holds where it is (and does not filter this period). With ``velocities`` (n, 3)
+    (and ``accelerations`` (n, 3)): also when that drone is predicted within ``gate_rho`` (at its
+    velocity and acceleration, sampled every 0.25 s over ``gate_horizon_s``)."""
+    n = positions.shape[0]
+    ground = positions[:, 2] < bp.floor_m
+    rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / radii, axis=2)
+    if velocities is not None:
+        for tau in np.arange(0.25, bp.gate_horizon_s + 1e-9, 0.25):
+            acc = np.zeros_like(positions) if accelerations is None else accelerations
+            ahead = positions + (tau * velocities + 0.5 * tau * tau * acc) * ~ground[:, None]  # grounded: put
+            rho = np.minimum(rho, np.linalg.norm((positions[:, None, :] - ahead[None, :, :]) / radii, axis=2))
+    idx = np.arange(n)
+    blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
+    np.fill_diagonal(blocking, False)
+    return ground & blocking.any(axis=1) & filters
+
+
 class BarrierRule(Rule):
-    """``anti_collision = "barrier"`` (docs/barrier.md): the formation's references made safe by the
+    """``anti_collision = "barrier-lanes"`` (docs/barrier.md): the formation's references made safe by the
     barrier filter, with no other separation logic.
 
     Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
@@ -645,7 +694,7 @@ class BarrierRule(Rule):
     each stretch); ``active_periods`` and ``relaxed_periods`` count drone-periods.
     """
 
-    name = "barrier"
+    name = "barrier-lanes"
 
     def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
         """``params``/``overrides``: the anti-collision record's fields (its ``downwash_feedforward``,
@@ -711,14 +760,7 @@ class BarrierRule(Rule):
         nh = np.sqrt(u_nom[:, 0] ** 2 + u_nom[:, 1] ** 2)
         u_nom[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / np.maximum(nh, 1e-12))[:, None]
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        # take-off gate (module docstring): a follower on the ground inside the keep-out of a lower index
-        # or an airborne drone holds where it is and does not filter this period
-        ground = positions[:, 2] < bp.floor_m
-        rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / self.radii, axis=2)
-        idx = np.arange(self.n)
-        blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
-        np.fill_diagonal(blocking, False)
-        wait = ground & blocking.any(axis=1) & self.filters
+        wait = takeoff_wait(bp, positions, self.radii, self.filters)
         filters = self.filters & ~wait
         self.ref[wait] = positions[wait]
         self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])  # stays down
@@ -748,13 +790,149 @@ class BarrierRule(Rule):
         return out_p, out_v, out_a
 
 
-ANTI_COLLISION_RULES["barrier"] = BarrierRule  # the registration (docs/barrier.md)
-PRESETS["barrier"] = RuleParams()  # its anti-collision record: the defaults (the filter's own are BarrierParams)
+class BarrierFilter:
+    """The barrier as a separation step (:class:`~.separation.SeparationFilter`, docs/barrier.md,
+    "the separation filter"): it guards any planner's references (pos_d, vel_d, acc_d).
+
+    Each steered drone is either *free* (its references are the planner's, bit for bit) or
+    *guarded* (the filter flies its own reference state (r, ṙ)). Every period the nominal
+    acceleration is the planner's acc_d for a free drone, and acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ)
+    for a guarded one (the PD of :class:`BarrierParams` back onto the planner's path, within the
+    input limits); :func:`filter_accelerations` changes it as little as possible so that (B) holds
+    against every sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on
+    the drone's sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ)
+    of a guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``,
+    never below the ground, within ``leash_m`` of the drone); it becomes free again when the filter
+    leaves its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the
+    planner's (pos_d, vel_d). A follower on the ground waits under the take-off gate
+    (:func:`takeoff_wait`). The drones not steered (the leader) do not filter; their acceleration
+    is estimated from the sensed velocities, low-passed (``accel_filter_s``).
+
+    Invariant: row i of the output depends only on drone i's references and the sensed state of
+    the drones within ``sensing_range``; with no drone guarded and no constraint violated, the
+    output is the input."""
+
+    def __init__(self, params: BarrierParams | None = None, vehicle: QuadParams = DEFAULT_PARAMS) -> None:
+        self.barrier = BarrierParams() if params is None else params
+        self.vehicle = vehicle
+        self.radii = self.barrier.radii(vehicle)
+        self.a_h = self.barrier.horizontal_limit(vehicle.g)
+        self.reset(0)
+
+    def reset(self, n: int) -> None:
+        """Start of a run of n drones: every drone free."""
+        self.guarded = np.zeros(n, dtype=bool)
+        self.ref = np.zeros((n, 3))
+        self.ref_vel = np.zeros((n, 3))
+        self.sensed_acc = np.zeros((n, 3))
+        self._prev_vel: np.ndarray | None = None
+        self._start_z: np.ndarray | None = None
+        self._was_relaxed = np.zeros(n, dtype=bool)
+        self.events: list[dict] = []
+        self.active_periods = 0
+        self.relaxed_periods = 0
+        self.guarded_periods = 0
+
+    def __call__(
+        self, sensed: Sensed, pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray, steer: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pos_d, vel_d, acc_d) (n, 3) to fly (:class:`~.separation.SeparationFilter`)."""
+        bp = self.barrier
+        positions = np.asarray(sensed.positions, dtype=float)
+        n, dt = positions.shape[0], float(sensed.dt)
+        if self.guarded.shape[0] != n:
+            self.reset(n)
+        if self._start_z is None:
+            self._start_z = positions[:, 2].copy()  # where each drone stands on the ground
+        vel = np.array(sensed.velocities, dtype=float)
+        if dt > 0.0 and self._prev_vel is not None and bp.accel_filter_s > 0.0:
+            raw = (vel - self._prev_vel) / dt
+            self.sensed_acc += (raw - self.sensed_acc) * (dt / (bp.accel_filter_s + dt))
+        self._prev_vel = vel
+        steer = np.asarray(steer, dtype=bool)
+        g = self.guarded & steer
+        ref = np.where(g[:, None], self.ref, pos_d)
+        ref_vel = np.where(g[:, None], self.ref_vel, vel_d)
+        u_nom = np.array(acc_d, dtype=float)
+        if g.any():
+            if bp.lanes:  # round the leader on a lane towards the planner's reference
+                lanes = lane_nominal(bp, ref, ref_vel, positions[0], pos_d, vel_d, acc_d, float(self.radii[0]))
+                u_g = lanes[g]
+            else:
+                u_g = acc_d[g] + bp.nominal_kp * (pos_d[g] - ref[g]) + bp.nominal_kd * (vel_d[g] - ref_vel[g])
+            nh = np.maximum(np.hypot(u_g[:, 0], u_g[:, 1]), 1e-12)
+            u_g[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / nh)[:, None]
+            u_g[:, 2] = np.clip(u_g[:, 2], -bp.accel_down, bp.accel_up)
+            u_nom[g] = u_g
+        wait = takeoff_wait(bp, positions, self.radii, steer, vel, self.sensed_acc)
+        filters = steer & ~wait
+        low = np.minimum(ref[:, 2], positions[:, 2]) < bp.ground_band_m  # near the ground: not pushed down
+        limits = np.tile([self.a_h, bp.accel_up, bp.accel_down], (n, 1))
+        limits[low, 2] = 0.0
+        sensed_state = (positions, vel, self.sensed_acc)
+        u, active, relaxed, _ = apply_filter(bp, ref, ref_vel, u_nom, filters, sensed_state, self.vehicle, limits)
+        self.active_periods += int(active.sum())
+        self.relaxed_periods += int(relaxed.sum())
+        for i in np.flatnonzero(relaxed & ~self._was_relaxed):
+            self.events.append({"t": float(sensed.t), "drone": int(i), "other": -1, "action": "relax"})
+        self._was_relaxed = relaxed
+        g = (g | active) & filters
+        # the take-off gate: held where it stands, at most its start altitude
+        if wait.any():
+            self.ref[wait] = positions[wait]
+            self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])
+            self.ref_vel[wait] = 0.0
+        if g.any():
+            rv = ref_vel[g] + u[g] * dt
+            r = ref[g] + rv * dt
+            r[:, 2] = np.maximum(r[:, 2], 0.0)  # never below the ground
+            gap = r - positions[g]
+            far = np.linalg.norm(gap, axis=1)
+            pull = far > bp.leash_m
+            r[pull] = positions[g][pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
+            self.ref[g], self.ref_vel[g] = r, rv
+        self.guarded_periods += int(g.sum())
+        out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
+        out_p[g], out_v[g], out_a[g] = self.ref[g], self.ref_vel[g], u[g]
+        out_p[wait], out_v[wait], out_a[wait] = self.ref[wait], 0.0, 0.0
+        # handed back to the planner: unchanged this period and back on its path
+        back = g & ~active
+        back &= np.linalg.norm(self.ref - pos_d, axis=1) <= bp.release_m
+        back &= np.linalg.norm(self.ref_vel - vel_d, axis=1) <= bp.release_mps
+        self.guarded = (g & ~back) | wait
+        return out_p, out_v, out_a
+
+
+class BarrierPlannerRule(JetAwareRule):
+    """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset, its
+    altitude separation) with :class:`BarrierFilter` as its separation step. The filter's own
+    parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
+
+    name = "barrier"
+
+    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+        self.barrier_filter = BarrierFilter(BarrierParams(**barrier))
+        super().__init__(n, params, **overrides)
+        self.separation_filter = self.barrier_filter
+
+    def reset(self, positions: np.ndarray) -> None:
+        super().reset(positions)
+        self.barrier_filter.reset(self.n)
+
+
+ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule  # the registration (docs/barrier.md)
+PRESETS["barrier"] = PRESETS["jet-aware"]  # the planner's record (the filter's own are BarrierParams)
+ANTI_COLLISION_RULES["barrier-lanes"] = BarrierRule
+PRESETS["barrier-lanes"] = RuleParams()
 
 __all__ = [
     "DOWNWASH_MULTIPLE",
+    "BarrierFilter",
     "BarrierParams",
+    "BarrierPlannerRule",
     "BarrierRule",
+    "takeoff_wait",
     "apply_filter",
     "lane_nominal",
     "filter_accelerations",

@@ -174,8 +174,7 @@ class LayeredRule(PaperRule):
             return pos_d, vel_d, acc_d
         seen = _seen(positions, self.sensing_range)
         sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, self._dt_last)
-        vel_d, acc_d = f(sensed, pos_d, vel_d, acc_d, self._followers)
-        return pos_d, vel_d, acc_d
+        return f(sensed, pos_d, vel_d, acc_d, self._followers)
 
     # ------------------------------------------------------------------ helpers
     def _approach(self, positions: np.ndarray, horizon: float) -> np.ndarray:

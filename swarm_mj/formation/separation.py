@@ -208,7 +208,9 @@ class Sensed:
 class SeparationFilter(Protocol):
     """A separation step acting on the planner's references rather than its targets (e.g. a
     barrier certificate): each call gets the references the planner (and the altitude
-    separation above) produced and returns the velocity and acceleration references to fly.
+    separation above) produced and returns the position, velocity and acceleration references to
+    fly (all three: a filter that changed only the acceleration would be pulled back onto the
+    nominal path by the controller's position and velocity feedback).
 
     Contract: vectorised over drones; it may change only the rows flagged ``steer`` (n,) (the
     leader's row 0 is its trajectory); row i may depend only on drone i's own references and on
@@ -222,6 +224,6 @@ class SeparationFilter(Protocol):
 
     def __call__(
         self, sensed: Sensed, pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray, steer: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """(vel_d, acc_d) (n, 3) to fly, from the nominal references pos_d, vel_d, acc_d (n, 3)."""
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pos_d, vel_d, acc_d) (n, 3) to fly, from the nominal references pos_d, vel_d, acc_d (n, 3)."""
         ...

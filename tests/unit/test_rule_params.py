@@ -191,7 +191,7 @@ class _ZeroAcc:
         assert sensed.keep_out == pytest.approx(vehicle_outline() + RuleParams().outline_margin)
         acc = acc_d.copy()
         acc[steer] = 0.0
-        return vel_d.copy(), acc
+        return pos_d.copy(), vel_d.copy(), acc
 
 
 def test_a_separation_filter_sees_the_planners_references_and_changes_only_steered_rows():
