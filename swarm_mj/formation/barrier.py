@@ -77,7 +77,6 @@ import numpy as np
 
 from .._jit import jit
 from ..errors import UserError
-from ..physics.aero.constants import ROTOR_RADIUS
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
 from .jet_aware import JetAwareRule
@@ -91,14 +90,15 @@ DOWNWASH_MULTIPLE = 3.0
 
 def keepout_radii(
     vehicle: QuadParams = DEFAULT_PARAMS,
-    rotor_radius: float = ROTOR_RADIUS,
+    rotor_radius: float | None = None,
     downwash_multiple: float = DOWNWASH_MULTIPLE,
     margin: float = 0.0,
 ) -> np.ndarray:
     """Radii (a, a, c) (3,) of the pairwise keep-out of a vehicle (m): a = 2·(L + r_rotor) + 2·margin,
     the centre distance at which two level drones' rotor tips touch (plus each drone's margin);
-    c = downwash_multiple·2·(L + r_rotor) + 2·margin (docs/barrier.md, "keep-out")."""
-    span = float(vehicle.L) + float(rotor_radius)
+    c = downwash_multiple·2·(L + r_rotor) + 2·margin (docs/barrier.md, "keep-out"). ``rotor_radius``:
+    the vehicle's own by default."""
+    span = float(vehicle.L) + float(vehicle.rotor_radius if rotor_radius is None else rotor_radius)
     a = 2.0 * span + 2.0 * margin
     c = float(downwash_multiple) * 2.0 * span + 2.0 * margin
     return np.array([a, a, c])
@@ -705,8 +705,8 @@ class BarrierRule(Rule):
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
-        self.radii = self.barrier.radii()
-        self.a_h = self.barrier.horizontal_limit()
+        self.radii = self.barrier.radii(self.vehicle)
+        self.a_h = self.barrier.horizontal_limit(self.vehicle.g)
         self.filters = np.ones(n, dtype=np.bool_)
         self.filters[0] = bool(self.barrier.leader_filters)
         self.relaxed_periods = 0
@@ -912,7 +912,8 @@ class BarrierPlannerRule(JetAwareRule):
 
     def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
         barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
-        self.barrier_filter = BarrierFilter(BarrierParams(**barrier))
+        vehicle = overrides.get("vehicle", DEFAULT_PARAMS)  # the run's vehicle: its keep-out (Rule keeps it too)
+        self.barrier_filter = BarrierFilter(BarrierParams(**barrier), vehicle)
         super().__init__(n, params, **overrides)
         self.separation_filter = self.barrier_filter
 
