@@ -296,8 +296,8 @@ def performance(b: dict) -> str:
     for row in b["rows"]:
         ratio = "–" if row["ratio"] is None else f"{row['ratio']:.2f}"
         val = row["value"]
-        vs = f"{val:,.0f}" if val >= 100 else f"{val:.1f}"
-        rows.append(f"| {row['name']} | {vs} {row['unit']} | {ratio} | {row['note']} |")
+        vs = "–" if val is None else (f"{val:,.0f} {row['unit']}" if val >= 100 else f"{val:.1f} {row['unit']}")
+        rows.append(f"| {row['name']} | {vs} | {ratio} | {row['note']} |")
     return "\n".join(rows)
 
 
