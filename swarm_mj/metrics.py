@@ -295,16 +295,22 @@ def keepout_min_distance(pos: np.ndarray, radii: np.ndarray, airborne: float = A
 def keepout_time_s(t: np.ndarray, pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> float:
     """``keepout_time_s``: the time (s) during which some pair of airborne drones is inside the
     keep-out (ρ < 1): the samples of t (k,) where that holds × the median sample period."""
+    return _time_inside(t, keepout_per_sample(pos, radii, airborne))
+
+
+def _time_inside(t: np.ndarray, rho: np.ndarray) -> float:
+    """The samples of t (k,) where rho (k,) < 1, × the median sample period (s)."""
     t = np.asarray(t, dtype=float)
     if len(t) < 2:
         return 0.0
-    inside = keepout_per_sample(pos, radii, airborne) < 1.0
-    return float(inside.sum() * np.median(np.diff(t)))
+    return float((rho < 1.0).sum() * np.median(np.diff(t)))
 
 
 def keepout_summary(t: np.ndarray, pos: np.ndarray, radii: np.ndarray) -> dict:
     """The run summary's keep-out keys: ``keepout_min_distance`` (None for one drone, +inf when
-    never two are airborne) and ``keepout_time_s`` (docs/barrier.md, "the invariant measured")."""
+    never two are airborne) and ``keepout_time_s`` (docs/barrier.md, "the invariant measured"),
+    from one pass over the log (:func:`keepout_per_sample`)."""
     if np.asarray(pos).shape[1] < 2:
         return {"keepout_min_distance": None, "keepout_time_s": 0.0}
-    return {"keepout_min_distance": keepout_min_distance(pos, radii), "keepout_time_s": keepout_time_s(t, pos, radii)}
+    rho = keepout_per_sample(pos, radii)
+    return {"keepout_min_distance": float(np.min(rho, initial=np.inf)), "keepout_time_s": _time_inside(t, rho)}
