@@ -107,6 +107,7 @@ class Scenario:
     lag_compensation: str = "auto"  # "auto" | "on" | "off" (see lag_horizons)
     vehicle: str = "paper"  # [vehicle] model: a bundled vehicle's name or a vehicle file (docs/vehicles.md)
     params: QuadParams = DEFAULT_PARAMS  # the vehicle's parameters; the paper's (Table 1) by default
+    vehicle_mixer: str | None = None  # the vehicle file's ``mixer``: what mixer = "auto" becomes on it
 
     @property
     def start_clearance(self) -> float:
@@ -132,9 +133,15 @@ class Scenario:
     @property
     def attitude_priority_on(self) -> bool:
         """Whether the controller desaturates its rotor commands with attitude priority
-        (:func:`~swarm_mj.physics.mixing.attitude_priority`): ``mixer = "auto"`` does wherever the rotors
-        have lag (``--aero realistic``), and clips each rotor as the paper does otherwise."""
-        return self.mixer == "attitude_priority" or (self.mixer == "auto" and self.aero.motor_tau > 0)
+        (:func:`~swarm_mj.physics.mixing.attitude_priority`): ``mixer = "auto"`` is the vehicle file's
+        ``mixer`` where it gives one (the Crazyflie's: its firmware's power distribution, docs/vehicles.md),
+        else attitude priority wherever the rotors have lag (``--aero realistic``) and the paper's
+        per-rotor clipping otherwise."""
+        if self.mixer != "auto":
+            return self.mixer == "attitude_priority"
+        if self.vehicle_mixer is not None:
+            return self.vehicle_mixer == "attitude_priority"
+        return self.aero.motor_tau > 0
 
     @property
     def lag_horizons(self) -> tuple[float, float] | None:
@@ -521,7 +528,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast", where=f"{w}integrator")
     seed = check_seed(data.get("seed", 0), f"{w}seed")
-    vehicle, params = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
+    vehicle, params, vehicle_mixer = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
     clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
@@ -687,18 +694,20 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         aero=aero,
         vehicle=vehicle,
         params=params,
+        vehicle_mixer=vehicle_mixer,
     )
 
 
-def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams]:
+def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams, str | None]:
     """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
-    a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the
-    scenario's folder). Returns (the model as given, its :class:`~swarm_mj.physics.params.QuadParams`);
-    :class:`UserError` naming the field or the vehicle file and key otherwise (docs/vehicles.md)."""
+        a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the
+        scenario's folder). Returns (the model as given, its :class:`~swarm_mj.physics.params.QuadParams`, the
+    vehicle file's ``mixer`` or None);
+        :class:`UserError` naming the field or the vehicle file and key otherwise (docs/vehicles.md)."""
     from .vehicles import bundled, load_vehicle
 
     if table is None:
-        return "paper", DEFAULT_PARAMS
+        return "paper", DEFAULT_PARAMS, None
     t = _check_keys(table, _VEHICLE_KEYS, where)
     model = t.get("model", "paper")
     if not isinstance(model, str) or not model:
@@ -714,7 +723,8 @@ def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, 
                 f"unknown vehicle {model!r}: neither a bundled vehicle ({', '.join(bundled())}) nor a file",
                 where=f"{where}.model",
             )
-    return model, load_vehicle(arg).params()
+    vehicle = load_vehicle(arg)
+    return model, vehicle.params(), vehicle.mixer
 
 
 def _missing(where: str):

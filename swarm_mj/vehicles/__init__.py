@@ -8,8 +8,11 @@ vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N�
 rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
 default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
 realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms), ``downwash_gain`` (the
-gain on its jet's force, fitted by ``swarm-mj validate downwash``; absent: 1) and ``gains`` (the gains
-file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them).
+gain on its jet's force, fitted by ``swarm-mj validate downwash``; absent: 1), ``gains`` (the gains
+file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them) and ``mixer``
+(what a scenario's ``mixer = "auto"`` resolves to on this vehicle: ``"clip"`` or ``"attitude_priority"``,
+e.g. where its own flight stack desaturates with attitude priority; absent: the rule of
+:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
 :meth:`Vehicle.params` gives the :class:`~swarm_mj.physics.params.QuadParams` the simulator and the controller use.
 """
 
@@ -27,6 +30,8 @@ from ..physics.params import QuadParams
 _HERE = Path(__file__).resolve().parent
 #: The keys every vehicle file must have, with their units.
 REQUIRED = {"mass": "kg", "arm_length": "m", "rotor_radius": "m"}
+#: The mixers a vehicle file's ``mixer`` may name (what ``mixer = "auto"`` becomes on it).
+MIXERS = ("clip", "attitude_priority")
 
 
 @dataclass(frozen=True)
@@ -107,6 +112,14 @@ class Vehicle:
         if p is None or not p.is_file():
             raise UserError(f"{self.path}: vehicle key 'gains' must name a gains file, got {g!r}")
         return p.resolve()
+
+    @property
+    def mixer(self) -> str | None:
+        """The mixer ``mixer = "auto"`` resolves to on this vehicle (the file's ``mixer``), or None."""
+        v = self.extra.get("mixer")
+        if v is not None and v not in MIXERS:
+            raise UserError(f"{self.path}: vehicle key 'mixer' must be one of {', '.join(MIXERS)}, got {v!r}")
+        return v
 
     @property
     def motor_tau(self) -> float | None:
