@@ -100,7 +100,9 @@ def format_summary(summary: dict, scenario) -> str:
             f"min 3D separation: {s['min_separation_m']:.3f} m ({' & '.join(s['min_separation_pair'])} "
             f"at t = {s['min_separation_at_s']:.2f} s)"
         )
-        lines.append(f"drone-drone contacts (MuJoCo): {s['contacts']}")
+        lines.append(
+            f"drone-drone contact episodes (MuJoCo, a pair touching over consecutive steps once): {s['contacts']}"
+        )
         dw = s.get("downwash_dip")
         if dw is not None:
             where = f" ({dw['drone']} under {dw['above']} at t = {dw['at_s']:.2f} s)" if dw["drone"] else ""

@@ -95,7 +95,17 @@ def fly_case(case: StressCase) -> dict:
         "time_in_jet_s": float((s.get("downwash_dip") or {}).get("time_in_jet_s", 0.0)),
         "keepout_min_distance": float(s.get("keepout_min_distance") or float("inf")),
         "keepout_time_s": float(s.get("keepout_time_s", 0.0)),
+        "path_per_follower_m": path_per_follower(res.log.pos),
     }
+
+
+def path_per_follower(pos: np.ndarray) -> float:
+    """The mean over the followers (rows 1.. of pos (k, n, 3)) of the length of the path each flew (m):
+    the sum of the distances between its successive logged positions (one per control period)."""
+    if pos.shape[0] < 2 or pos.shape[1] < 2:
+        return 0.0
+    steps = np.linalg.norm(np.diff(pos[:, 1:], axis=0), axis=2)  # (k − 1, n − 1)
+    return float(np.nansum(steps, axis=0).mean())
 
 
 def summarize_rule(rows: list[dict]) -> dict:
@@ -121,6 +131,9 @@ def summarize_rule(rows: list[dict]) -> dict:
         "keepout_time_worst_s": max((r["keepout_time_s"] for r in rows), default=0.0),
         "keepout_time_total_s": sum(r["keepout_time_s"] for r in rows),
         "starts_in_keepout": sum(r["keepout_time_s"] > 0 for r in rows),
+        "path_per_follower_median_m": float(np.median([r.get("path_per_follower_m", np.nan) for r in rows]))
+        if rows
+        else float("nan"),
     }
 
 
@@ -181,12 +194,14 @@ def stress(
 
 
 def format_table(table: dict, followers: int) -> str:
-    """The per-rule table as text (crashed: runs stopped as diverged; crashes: ground crashes,
-    docs/aero.md; dip: the worst downwash dip, docs/interpretations.md §4)."""
+    """The per-rule table as text (episodes: drone–drone contact episodes, a pair of drones in contact
+    over consecutive physics steps counted once, docs/physics_step.md; crashed: runs stopped as
+    diverged; crashes: ground crashes, docs/aero.md; dip: the worst downwash dip,
+    docs/interpretations.md §4; path: the median over starts of the mean path flown per follower)."""
     head = (
-        f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'contacts':>8} {'crashed':>7} {'crashes':>7} "
+        f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'episodes':>8} {'crashed':>7} {'crashes':>7} "
         f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8} "
-        f"{'keep-out ρ':>10} {'in keep-out (s)':>15}"
+        f"{'keep-out ρ':>10} {'in keep-out (s)':>15} {'path (m)':>8}"
         f"   ({followers} followers)"
     )
     lines = [head]
@@ -195,7 +210,8 @@ def format_table(table: dict, followers: int) -> str:
             f"{rule:<11} {r['starts']:>6} {r['starts_with_contact']:>9} {r['contacts']:>8} "
             f"{len(r['stopped']):>7} {r.get('crashes', 0):>7} {r['min_separation_airborne_m']:>11.3f} "
             f"{r['settling_median_s']:>14.2f} {r['settling_worst_s']:>16.2f} "
-            f"{r['downwash_dip_worst_m']:>8.3f} {r['keepout_min_distance']:>10.3f} {r['keepout_time_total_s']:>15.2f}"
+            f"{r['downwash_dip_worst_m']:>8.3f} {r['keepout_min_distance']:>10.3f} {r['keepout_time_total_s']:>15.2f} "
+            f"{r.get('path_per_follower_median_m', float('nan')):>8.2f}"
         )
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]

@@ -235,3 +235,17 @@ def test_min_separation_and_distances_on_synthetic_data():
     assert pairs == [(1, 2)]
     np.testing.assert_allclose(fd[:, 0], np.hypot(5 - t, 4.7))
     assert min_separation(pos[:, :1])[0] == float("inf")
+
+
+def test_path_per_follower_is_the_arc_length_of_each_followers_log() -> None:
+    """swarm_mj.experiments.stress.path_per_follower: a follower on a unit circle sampled finely flies
+    ≈ 2π, one standing still 0, the leader (row 0) is left out; the mean of the followers."""
+    from swarm_mj.experiments.stress import path_per_follower
+
+    th = np.linspace(0.0, 2.0 * np.pi, 20001)
+    pos = np.zeros((th.size, 3, 3))
+    pos[:, 0, 0] = 50.0 * th  # the leader: far, not counted
+    pos[:, 1, 0], pos[:, 1, 1] = np.cos(th), np.sin(th)
+    pos[:, 2] = (3.0, 0.0, 1.0)
+    assert path_per_follower(pos) == pytest.approx(np.pi, rel=1e-6)  # (2π + 0) / 2
+    assert path_per_follower(pos[:1]) == 0.0
