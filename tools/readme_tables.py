@@ -236,6 +236,52 @@ def realistic_short(report: Path) -> str:
     return "\n".join(rows)
 
 
+#: The side-by-side stress files (issue 29): report/side_by_side/VEHICLE_PHYSICS*.json, one or more
+#: ``swarm-mj stress --json`` files per vehicle and physics over the same fresh starts.
+_SIDE_ORDER = ("paper", "layers", "jet-aware", "barrier")
+
+
+def _seconds_or_never(v: float | None) -> str:
+    """A settling time (s) as text; None or inf (a start that never settled): never."""
+    return "never" if v is None or not math.isfinite(v) else f"{v:.2f}"
+
+
+def side_by_side(folder: Path) -> str:
+    """The README's side-by-side table: every rule under both physics for both vehicles, on the same
+    fresh starts (``swarm-mj stress --seed0 100000``): contact episodes (starts with one), ground
+    crashes plus runs lost, time in the keep-out (starts in it), settling median and worst, the median
+    path flown per follower. Files of one vehicle and physics must share their starts (checked)."""
+    rows = [
+        "| vehicle | physics | rule | contact episodes (starts) | crashes + runs lost | time in keep-out (starts) "
+        "| settling median / worst (s) | path per follower |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    groups: dict[tuple[str, str], dict[str, tuple[dict, dict]]] = {}
+    for path in sorted(folder.glob("*.json")):
+        d = json.loads(path.read_text())
+        st = d["settings"]
+        key = (st.get("vehicle") or "paper", st["aero"])
+        for rule, r in d["table"].items():
+            groups.setdefault(key, {})[rule] = (st, r)
+    for (vehicle, aero), rules in sorted(groups.items(), key=lambda kv: (kv[0][0] != "paper", kv[0][1] != "paper")):
+        starts = {(st["seed0"], st["starts"], st["followers"], st["duration"]) for st, _ in rules.values()}
+        if len(starts) != 1:
+            raise SystemExit(f"side-by-side {vehicle}/{aero}: the rules flew different starts {sorted(starts)}")
+        seed0, n, followers, _ = starts.pop()
+        for rule in sorted(rules, key=lambda x: _SIDE_ORDER.index(x) if x in _SIDE_ORDER else len(_SIDE_ORDER)):
+            _, r = rules[rule]
+            med, worst = (_seconds_or_never(r[k]) for k in ("settling_median_s", "settling_worst_s"))
+            rows.append(
+                f"| `{vehicle}` | {aero} | `{rule}` | {r['contacts']} ({r['starts_with_contact']}) | "
+                f"{r.get('crashes', 0)} + {len(r['stopped'])} | {f(r.get('keepout_time_total_s'), '{:.1f}')} s "
+                f"({r.get('starts_in_keepout', '–')}) | {med} / {worst} | "
+                f"{f(r.get('path_per_follower_median_m'), '{:.1f}')} m |"
+            )
+    rows.append("")
+    rows.append(f"{n} starts of {followers} followers each, seeds {seed0}–{seed0 + n - 1} (report/side_by_side/).")
+    return "\n".join(rows)
+
+
 #: The README's short speed table: bench rows whose name starts with one of these.
 _SPEED_SHORT = (
     "runner.run + recording circle",
@@ -326,6 +372,7 @@ def main() -> None:
         a.readme: (
             ("reproduction", reproduction(r)),
             ("realistic", realistic_short(report)),
+            ("side", side_by_side(report / "side_by_side")),
             ("speed", speed_short(b)),
             ("validation", validation(report / "downwash_validation.json")),
         ),
