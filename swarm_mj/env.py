@@ -6,6 +6,17 @@ Gymnasium/PettingZoo wrappers and user code step this class; they differ only in
 they plug in and in what they observe. The tuner flies the same :class:`~swarm_mj.physics.sim.Sim`
 pipeline over many copies of one drone (:mod:`swarm_mj.tuning.evaluator`).
 
+As dm_control's environment is a ``Physics`` and a ``Task``, this class is the one-copy case (m = 1)
+of both halves written over a copies axis: the physics side
+(:class:`~swarm_mj.pipeline.swarm.SwarmPhysics`, :attr:`SwarmEnv.physics`: the simulator with the
+scenario's aero, the episode's wind and starts, the references and the leader-velocity estimate,
+the wind held over each period, contact counting, health, the observation) and the task
+(:mod:`swarm_mj.task`: observation keys, reward, termination).
+:class:`swarm_mj.wrappers.vector.SwarmVectorEnv` drives the same two for m copies. What is this
+class's own: the dm_env API, the action modes (U, a :class:`Command`, a setpoint), the
+:class:`StepRecord`, ``raise_on_divergence`` and the exception naming why, and the attributes the
+runner and the chunk driver read (``sim``, ``k``, ``wind``, ``_refs``, ``_obs``, ``obs_record``).
+
 What a step applied is in :attr:`SwarmEnv.last_applied`, a :class:`StepRecord`: the U1..U4
 after saturation and the rotor thrusts, the wind force, and, when the action was a
 :class:`Command` (what :class:`~swarm_mj.control.policy.BacksteppingPolicy.command` returns) or a

@@ -2,16 +2,17 @@
 "The environment: one task over copies").
 
 As dm_control's ``Task`` stands apart from its ``Physics``, this module holds what an episode
-*means*, apart from the simulator (:class:`~swarm_mj.physics.sim.Sim`) that flies it. Both environments
-call it: :class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
+*means*, apart from the physics side that flies it (:class:`swarm_mj.pipeline.swarm.SwarmPhysics`: the
+simulator's copies, their wind, starts and contacts). Both environments call it: :class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
 :class:`swarm_mj.wrappers.vector.SwarmVectorEnv` its m-copy case (m swarms of n drones):
 
 ===============  ============================================================================
 part             function
 ===============  ============================================================================
-observation      :func:`swarm_mj.pipeline.period.observe` (the chunk driver's stage; its drones' part
-                 :func:`~swarm_mj.pipeline.period.observe_state`); :func:`observe_copies` runs
-                 that per copy into a flat (m, dim) buffer; the keys: :func:`observation_shapes`
+observation      :func:`swarm_mj.pipeline.period.observe` (the chunk driver's stage);
+                 :func:`observe_copies` runs it per copy (each copy's own references, wind
+                 and leader estimate) into a flat (m, dim) buffer; the keys:
+                 :func:`observation_shapes`
 reward           :func:`copy_reward` (formation keeping: :func:`formation_reward`)
 termination      :func:`copy_outcome` (contact, divergence, the scenario's duration);
                  :func:`outcomes` over copies
@@ -57,7 +58,7 @@ class CopyRefs(NamedTuple):
 
 
 class CopyState(NamedTuple):
-    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe_state` reads them (the fields of
+    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe` reads them (the fields of
     :class:`~swarm_mj.pipeline.records.Physics` it uses)."""
 
     qpos: np.ndarray  # (n, 7)

@@ -5,10 +5,15 @@
     obs, info = envs.reset(seed=0)              # copy i seeded with 0 + i
     obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
 
-**One step pipeline over copies.** The m swarms of n drones are copies in MuJoCo models of
-the simulator's copies axis (:class:`~swarm_mj.physics.sim.Sim` with ``n_copies``: the same
-saturation, drag and wind stages, ``mj_step``, contact bookkeeping and per-copy health mask
-as every run and as the tuner). Copies never interact: drones touch only drones of their own
+**One physics and one task over copies, SwarmEnv's.** The m swarms of n drones are the copies of
+:class:`~swarm_mj.pipeline.swarm.SwarmPhysics` (``self.physics``; SwarmEnv is its one-copy case):
+blocks of MuJoCo models of the simulator's copies axis (:class:`~swarm_mj.physics.sim.Sim` with
+``n_copies``: the same saturation, drag and wind stages, ``mj_step``, contact bookkeeping and
+per-copy health mask as every run and as the tuner), each copy's seed, starts, wind and leader
+estimate, and the task's observation over copies (:func:`swarm_mj.task.observe_copies`). This
+class adds Gymnasium's ``VectorEnv`` API: spaces, auto-reset, the info layout. It flies the
+paper's physics only: a scenario with another ``[aero]`` is refused (``UserError``), as a copy's
+auto-reset restores neither the rotors' lag states nor the ground monitor's memory. Copies never interact: drones touch only drones of their own
 copy (``build_world(contact_groups=...)``: explicit contact pairs within a copy), and a free
 body's dynamics depend only on its own state and inputs, so a copy flies the same whether it
 is alone or among others (tested: copy 5 of 64 == the same copy alone, bit for bit, when no
@@ -45,9 +50,10 @@ resets the copy at once; ``info["final_obs"]`` and ``info["final_info"]`` hold w
 and is put back at its start afterwards.)
 
 **Seeds.** ``reset(seed=s)`` seeds copy i with s + i (or ``seed=[s0, s1, ...]``): its wind
-turbulence and its random follower starts (scenarios with ``random_start``; SwarmGymEnv keeps
-the scenario's own starts). Each copy also gets a generator seeded with s + i
-(``gymnasium.utils.seeding.np_random``) from which an auto-reset or unseeded reset draws the
+turbulence and its random follower starts (scenarios with ``random_start``, drawn as
+``Scenario.initial_positions(seed)`` draws them; SwarmGymEnv keeps the scenario's own starts).
+Each copy also gets a generator seeded with s + i (``gymnasium.utils.seeding.np_random``)
+from which an auto-reset or unseeded reset draws the
 copy's next seed, as ``SwarmGymEnv.reset()`` does; so for a scenario with fixed starts the
 vector env gives, bit for bit, what ``gymnasium.vector.SyncVectorEnv`` over m
 ``SwarmGymEnv`` gives (tested).
