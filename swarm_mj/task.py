@@ -3,7 +3,8 @@
 
 As dm_control's ``Task`` stands apart from its ``Physics``, this module holds what an episode
 *means*, apart from the physics side that flies it (:class:`swarm_mj.pipeline.swarm.SwarmPhysics`: the
-simulator's copies, their wind, starts and contacts). Both environments call it: :class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
+simulator's copies, their wind, starts and contacts). Both environments call it:
+:class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
 :class:`swarm_mj.wrappers.vector.SwarmVectorEnv` its m-copy case (m swarms of n drones):
 
 ===============  ============================================================================

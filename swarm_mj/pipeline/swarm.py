@@ -168,7 +168,8 @@ class SwarmPhysics:
         self.contacts = np.zeros(m, dtype=np.int64)  # drone–drone contacts this episode
         self.new_contacts = np.zeros(m, dtype=np.int64)  # ... over the last step
         self.health = np.zeros(m, dtype=np.int8)  # the last step's health codes (physics.sim.HEALTH_NAMES)
-        self.series: list[WindSeries] = [WindField(WindConfig.none(), dt=T).sample(self.times)] * m  # begin: each copy's
+        # each copy's wind (begin); calm until then
+        self.series: list[WindSeries] = [WindField(WindConfig.none(), dt=T).sample(self.times)] * m
         self.wind = np.zeros((m, K + 1, 3))  # (m, K+1, 3) each copy's uniform wind force series
         self.wind_now = np.zeros((N, 3))  # the wind force held over the current period (the physics)
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)

@@ -13,7 +13,9 @@ per-copy health mask as every run and as the tuner), each copy's seed, starts, w
 estimate, and the task's observation over copies (:func:`swarm_mj.task.observe_copies`). This
 class adds Gymnasium's ``VectorEnv`` API: spaces, auto-reset, the info layout. It flies the
 paper's physics only: a scenario with another ``[aero]`` is refused (``UserError``), as a copy's
-auto-reset restores neither the rotors' lag states nor the ground monitor's memory. Copies never interact: drones touch only drones of their own
+auto-reset restores neither the rotors' lag states nor the ground monitor's memory.
+
+Copies never interact: drones touch only drones of their own
 copy (``build_world(contact_groups=...)``: explicit contact pairs within a copy), and a free
 body's dynamics depend only on its own state and inputs, so a copy flies the same whether it
 is alone or among others (tested: copy 5 of 64 == the same copy alone, bit for bit, when no
