@@ -160,6 +160,7 @@ class SwarmPhysics:
         # per-copy state
         N = m * n
         self.k = np.zeros(m, dtype=np.int64)  # control periods flown this episode
+        self._ones = np.ones(m, dtype=np.int64)
         self.seeds = np.zeros(m, dtype=np.int64)  # each copy's episode seed (its wind, its starts)
         self.starts = np.tile(start, (m, 1))  # (N, 3)
         self.yaws = np.tile(self._yaws, m)  # (N,)
@@ -267,14 +268,15 @@ class SwarmPhysics:
             if len(log) > blk.n_log:
                 for _, i, _ in log[blk.n_log :]:
                     new[blk.c0 + i // n] += 1
+                    self.contacts[blk.c0 + i // n] += 1
                 blk.n_log = len(log)
-        self.k += 1
+        self.k += self._ones
         if restart is not None:
             self.put_back(restart)
             self.k[restart] = 0
             new[restart] = 0
+            self.contacts[restart] = 0  # begun: none before this step, and this step's are not theirs
             health[restart] = 0
-        self.contacts += new
         return health
 
     def forget_warnings(self) -> None:
