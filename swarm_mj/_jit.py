@@ -48,6 +48,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.physics.aero.ground",
     "swarm_mj.physics.aero.updraft",
     "swarm_mj.pipeline.period",
+    "swarm_mj.pipeline.swarm",
 )
 
 Samples = Callable[[], Iterable[tuple[Any, ...]]]

@@ -6,6 +6,17 @@ Gymnasium/PettingZoo wrappers and user code step this class; they differ only in
 they plug in and in what they observe. The tuner flies the same :class:`~swarm_mj.physics.sim.Sim`
 pipeline over many copies of one drone (:mod:`swarm_mj.tuning.evaluator`).
 
+As dm_control's environment is a ``Physics`` and a ``Task``, this class is the one-copy case (m = 1)
+of both halves written over a copies axis: the physics side
+(:class:`~swarm_mj.pipeline.swarm.SwarmPhysics`, :attr:`SwarmEnv.physics`: the simulator with the
+scenario's aero, the episode's wind and starts, the references and the leader-velocity estimate,
+the wind held over each period, contact counting, health, the observation) and the task
+(:mod:`swarm_mj.task`: observation keys, reward, termination).
+:class:`swarm_mj.wrappers.vector.SwarmVectorEnv` drives the same two for m copies. What is this
+class's own: the dm_env API, the action modes (U, a :class:`Command`, a setpoint), the
+:class:`StepRecord`, ``raise_on_divergence`` and the exception naming why, and the attributes the
+runner and the chunk driver read (``sim``, ``k``, ``wind``, ``_refs``, ``_obs``, ``obs_record``).
+
 What a step applied is in :attr:`SwarmEnv.last_applied`, a :class:`StepRecord`: the U1..U4
 after saturation and the rotor thrusts, the wind force, and, when the action was a
 :class:`Command` (what :class:`~swarm_mj.control.policy.BacksteppingPolicy.command` returns) or a
@@ -62,14 +73,10 @@ from dm_env import specs
 from ._jit import jit
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
-from .formation.slots import DiameterSchedule, polygon_offsets
-from .physics.aero.ground import REST_HEIGHT, rest_positions
-from .physics.aero.presets import install as install_aero
-from .physics.sim import ForceStage, Sim
-from .physics.wind import WindField
-from .physics.world import build_world
-from .pipeline.period import observe
-from .pipeline.records import Obs, Refs
+from .physics.sim import HEALTHY, ForceStage
+from .physics.wind import WindSeries
+from .pipeline.records import Obs
+from .pipeline.swarm import SwarmPhysics
 from .scenario import Scenario, load_scenario
 from .task import copy_outcome, copy_reward, observation_shapes
 
@@ -103,6 +110,10 @@ class StepRecord:
     att_d: np.ndarray | None  # (n, 3) commanded (φ_d, θ_d, ψ_d)
     aero_forces: dict[str, np.ndarray] | None = None  # name -> (n, 3) force of each extra stage (N),
     #                                                    over the period's last physics step (docs/aero.md)
+
+
+#: The one copy of SwarmEnv's physics (SwarmPhysics.begin's mask).
+_ONE = np.ones(1, dtype=bool)
 
 
 @jit(samples=lambda: [(np.zeros((2, 4)),)])
@@ -139,36 +150,18 @@ class SwarmEnv(dm_env.Environment):
         self.seed = sc.seed if seed is None else int(seed)
         self.n = n = sc.n_drones
         self.names = sc.names
-        self.T = sc.control_period
-        self.n_steps = int(round(sc.duration / self.T))
-        aero = sc.aero
-        p = sc.params  # the scenario's vehicle (docs/vehicles.md); its landing gear scales with the arm
-        starts = (
-            sc.initial_positions()
-            if not aero.ground
-            else rest_positions(sc.initial_positions(), REST_HEIGHT * p.size_scale)
-        )
-        self.world = build_world(
-            n,
-            positions=starts,
-            names=sc.names,
-            yaws=np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)],
-            timestep=sc.timestep,
-            integrator=sc.integrator,
-            ground=aero.ground,
-            motor_tau=aero.motor_tau,
-            params=p,
-        )
-        self.sim = Sim(self.world, self.T, force_stages=force_stages)
-        if not aero.is_paper:
-            install_aero(self.sim, aero)  # downwash, ground effect, ground contacts (docs/aero.md)
+        #: the physics side: one copy of the swarm (its Sim, aero, wind, references, contacts, health)
+        self.physics = ph = SwarmPhysics(sc, force_stages=force_stages)
+        self.T = ph.T
+        self.n_steps = ph.n_steps
+        self.sim = ph.blocks[0].sim
+        self.world = self.sim.world
         self.params = self.world.params
         # Leader reference, precomputed at every control instant (analytic, docs/interpretations.md §3).
-        self.times = np.arange(self.n_steps + 1) * self.T  # (K+1,)
-        self.reference = sc.make_trajectory()(self.times)
-        self.D = DiameterSchedule(sc.diameter)(self.times)  # (K+1,)
-        self.unit_offsets = polygon_offsets(n - 1, 1.0)  # (n-1, 3)
-        self._unit_offsets = np.ascontiguousarray(self.unit_offsets, dtype=np.float64).reshape(n - 1, 3)
+        self.times = ph.times  # (K+1,)
+        self.reference = ph.reference
+        self.D = ph.D  # (K+1,)
+        self.unit_offsets = ph.unit_offsets  # (n-1, 3)
         self._setpoint_ctl: Backstepping | None = None
         if action == "setpoint":
             self._setpoint_ctl = Backstepping(
@@ -188,14 +181,10 @@ class SwarmEnv(dm_env.Environment):
     def reset(self, seed: int | None = None) -> dm_env.TimeStep:
         if seed is not None:
             self.seed = int(seed)
-        self.k = 0
-        self.sim.reset()
-        self.wind = WindField(self.scenario.wind, dt=self.T, seed=self.seed).sample(self.times)
-        self._wind_known = self.scenario.wind.enabled and self.scenario.wind_feedforward
-        self._prev_leader = self.sim.pos[0].copy()
-        self._leader_vel = np.zeros(3)
-        self._contacts_seen = 0
-        self._refs = self._references()
+        ph = self.physics
+        ph.begin(_ONE, (self.seed,))  # k = 0, the wind of this seed, the leader estimate zeroed
+        ph.reset()
+        self._refs = ph.refs()  # the references as a record, shared with the chunk driver
         self.last_applied: StepRecord | None = None
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
@@ -241,11 +230,11 @@ class SwarmEnv(dm_env.Environment):
             if not all_finite(a):
                 raise UserError("action contains NaN or inf")
             U = a
-        # the wind force of the coming period, held over it (zero-order hold)
-        force = self.wind.drone_forces(self.k, self.sim.vel)  # (n, 3)
+        # the wind force of the coming period, held over it (zero-order hold), and the period itself
+        ph, sim = self.physics, self.sim
         t = self.k * self.T
-        self.sim.step(U, force)
-        sim = self.sim
+        healthy = ph.step(U)[0] == HEALTHY
+        force = ph.wind_now.copy()  # (n, 3)
         pos_d, vel_d, acc_d, att_d = refs if refs is not None else (None, None, None, None)
         self.last_applied = StepRecord(
             time=t,
@@ -258,19 +247,18 @@ class SwarmEnv(dm_env.Environment):
             att_d=att_d,
             aero_forces=sim.stage_forces(),
         )
-        self.k += 1
         diverged = None
-        try:
-            sim.check()
-        except SimulationDiverged as exc:
-            if self.raise_on_divergence:
-                raise
-            diverged = exc
+        if not healthy:
+            try:
+                sim.check()  # raises SimulationDiverged, naming why
+            except SimulationDiverged as exc:
+                if self.raise_on_divergence:
+                    raise
+                diverged = exc
         if diverged is None or np.isfinite(sim.qpos).all():
             self._obs = self._observe()
         obs = self._obs  # after a non-finite divergence: the last finite observation
-        new_contacts = sim.contact_events - self._contacts_seen
-        self._contacts_seen = sim.contact_events
+        new_contacts = int(ph.new_contacts[0])
         # the task's reward and termination (swarm_mj/task.py), as for every copy of the vector env
         reward, terminated, truncated = copy_outcome(
             self._reward(obs, new_contacts), diverged is not None, new_contacts, self.k, self.n_steps,
@@ -309,27 +297,34 @@ class SwarmEnv(dm_env.Environment):
         rec = self.last_applied
         return rec.wind_force if rec is not None else np.zeros((self.n, 3))
 
-    def _observe(self) -> dict:
-        """The observation of period ``self.k``: :func:`swarm_mj.pipeline.period.observe`, the function the chunk
-        driver calls (with the wind on the relative airspeed, the known wind force from the field)."""
-        o = observe(self.sim.record(), self._refs, self.k)
-        wf = o.wf
-        if self._wind_known and self.wind.relative_airspeed:
-            wf = self.wind.drone_forces(self.k, o.vel)
-        return self._observation(
-            o.pos, o.vel, o.quat, o.omega, o.rpy, o.rpy_rate, o.rel, o.mask, o.dist, o.sp, o.spv, o.spa, o.yaw, wf
-        )
+    @property
+    def k(self) -> int:
+        """The control periods flown this episode (the physics' copy 0)."""
+        return int(self.physics.k[0])
 
-    def _references(self) -> Refs:
-        """The run's references as a record (:class:`swarm_mj.pipeline.records.Refs`; the wind of this episode)."""
-        c = np.ascontiguousarray
-        ref, wind = self.reference, self.wind
-        return Refs(
-            c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float),
-            c(self.D, dtype=float), self._unit_offsets, self._prev_leader, self._leader_vel,
-            float(self.scenario.sensing_range), c(wind.force, dtype=float), c(wind.speed, dtype=float),
-            bool(self._wind_known),
-        )  # fmt: skip
+    @k.setter
+    def k(self, k: int) -> None:  # the chunk driver hands back (swarm_mj/pipeline/fast.py)
+        self.physics.k[0] = k
+
+    @property
+    def _contacts_seen(self) -> int:
+        """The simulator's drone–drone contacts counted into the steps' rewards so far."""
+        return self.physics.counted()
+
+    @_contacts_seen.setter
+    def _contacts_seen(self, seen: int) -> None:  # the chunk driver hands back after stepping the Sim itself
+        self.physics.count_until(seen)
+
+    @property
+    def wind(self) -> WindSeries:
+        """This episode's wind (:class:`~swarm_mj.physics.wind.WindSeries`, seeded with ``seed``)."""
+        return self.physics.series[0]
+
+    def _observe(self) -> dict:
+        """The observation of period ``self.k``: :meth:`swarm_mj.pipeline.swarm.SwarmPhysics.observe`, the chunk
+        driver's stage :func:`swarm_mj.pipeline.period.observe` (the known wind on the relative airspeed
+        from the field)."""
+        return self._observation(*self.physics.observe(self._refs))
 
     def _observation(
         self,

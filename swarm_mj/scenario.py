@@ -168,8 +168,9 @@ class Scenario:
     def make_trajectory(self):
         return make_trajectory(self.trajectory, self.trajectory_params, where=f"{self.path}: leader.trajectory")
 
-    def initial_positions(self) -> np.ndarray:
-        """(n, 3) start positions: leader first, then followers (random ones drawn with their seed)."""
+    def initial_positions(self, seed: int | None = None) -> np.ndarray:
+        """(n, 3) start positions: leader first, then followers (random ones drawn with their seed, or with
+        ``seed`` when given: a vector environment's copy, swarm_mj/pipeline/swarm.py)."""
         if self.n_followers == 0:
             return self.leader_start[None, :].copy()
         if self.follower_starts is not None:
@@ -181,7 +182,7 @@ class Scenario:
                 random_follower_starts(
                     self.leader_start,
                     self.n_followers,
-                    self.random_start,
+                    self.random_start if seed is None else replace(self.random_start, seed=int(seed)),
                     where=self.path,
                     clearance=self.start_clearance,
                 ),

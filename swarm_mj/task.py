@@ -2,16 +2,18 @@
 "The environment: one task over copies").
 
 As dm_control's ``Task`` stands apart from its ``Physics``, this module holds what an episode
-*means*, apart from the simulator (:class:`~swarm_mj.physics.sim.Sim`) that flies it. Both environments
-call it: :class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
+*means*, apart from the physics side that flies it (:class:`swarm_mj.pipeline.swarm.SwarmPhysics`: the
+simulator's copies, their wind, starts and contacts). Both environments call it:
+:class:`swarm_mj.env.SwarmEnv` is its one-copy case (m = 1) and
 :class:`swarm_mj.wrappers.vector.SwarmVectorEnv` its m-copy case (m swarms of n drones):
 
 ===============  ============================================================================
 part             function
 ===============  ============================================================================
-observation      :func:`swarm_mj.pipeline.period.observe` (the chunk driver's stage; its drones' part
-                 :func:`~swarm_mj.pipeline.period.observe_state`); :func:`observe_copies` runs
-                 that per copy into a flat (m, dim) buffer; the keys: :func:`observation_shapes`
+observation      :func:`swarm_mj.pipeline.period.observe` (the chunk driver's stage);
+                 :func:`observe_copies` runs it per copy (each copy's own references, wind
+                 and leader estimate) into a flat (m, dim) buffer; the keys:
+                 :func:`observation_shapes`
 reward           :func:`copy_reward` (formation keeping: :func:`formation_reward`)
 termination      :func:`copy_outcome` (contact, divergence, the scenario's duration);
                  :func:`outcomes` over copies
@@ -29,7 +31,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ._jit import jit
-from .pipeline.period import observe_state
+from .pipeline.period import observe
 from .pipeline.records import Refs
 
 #: Pairs closer than this (m, 3D) count against the reward.
@@ -52,10 +54,12 @@ class CopyRefs(NamedTuple):
     yaw: np.ndarray  # (K+1,)
     D: np.ndarray  # (K+1,) formation diameter
     unit_offsets: np.ndarray  # (n−1, 3) slot offsets for D = 1
+    wind_known: bool  # the controller is given the wind force (the observation's ``wind_force``)
+    relative: bool  # the wind acts on the relative airspeed (each drone's own force, computed in Python)
 
 
 class CopyState(NamedTuple):
-    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe_state` reads them (the fields of
+    """One copy's drones as :func:`~swarm_mj.pipeline.period.observe` reads them (the fields of
     :class:`~swarm_mj.pipeline.records.Physics` it uses)."""
 
     qpos: np.ndarray  # (n, 7)
@@ -187,12 +191,13 @@ def _observe_samples():
             qpos,
             np.zeros((m * n, 6)),
             n,
-            CopyRefs(0.01, 2.0, z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3))),
+            CopyRefs(0.01, 2.0, z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3)), True, False),
             np.arange(m, dtype=np.int64),
             0,
             np.zeros(m, np.int64),
             np.zeros((m, 3)),
             np.zeros((m, 3)),
+            np.zeros((m, K, 3)),
             np.zeros((m, n, 3)),
             offs,
             np.zeros((m, sum(sizes))),
@@ -214,6 +219,7 @@ def observe_copies(
     ks: np.ndarray,
     prev_leader: np.ndarray,
     leader_vel: np.ndarray,
+    wind: np.ndarray,
     wind_obs: np.ndarray,
     offs: np.ndarray,
     out: np.ndarray,
@@ -223,9 +229,10 @@ def observe_copies(
 ) -> None:
     """The task over the given copies (global indices; copy c's drones are rows (c − c0)·n .. of this
     block's qpos (b·n, 7), qvel (b·n, 6)), each at its own sample ks[c] of ``refs``: its observation
-    (:func:`~swarm_mj.pipeline.period.observe_state`, SwarmEnv's; prev_leader and leader_vel (m, 3) updated in
-    place) into out[c] (m, dim), key i of :data:`OBS_KEYS` at offs[i], with
-    wind_obs (m, n, 3) its wind feedforward; its :func:`copy_reward` (new_contacts[c]) into reward[c];
+    (:func:`~swarm_mj.pipeline.period.observe`, SwarmEnv's, on the copy's references: its wind force series
+    wind[c] (m, K+1, 3), its leader estimate prev_leader[c], leader_vel[c] (m, 3) updated in place; with
+    ``refs.relative`` its known wind force is wind_obs[c] (m, n, 3)) into out[c] (m, dim), key i of
+    :data:`OBS_KEYS` at offs[i]; its :func:`copy_reward` (new_contacts[c]) into reward[c];
     its :func:`min_separation` into min_sep[c]. A copy with a non-finite state is skipped (its last
     observation stays)."""
     for idx in range(copies.shape[0]):
@@ -244,14 +251,16 @@ def observe_copies(
         if not finite:
             continue
         k = ks[c]
-        # the copy's references (the wind arrays unread: its wind force is wind_obs[c])
+        # the copy's references (its wind speed unread)
         r = Refs(
             refs.pos, refs.vel, refs.acc, refs.yaw, refs.D, refs.unit_offsets, prev_leader[c], leader_vel[c],
-            refs.sensing_range, refs.pos, refs.pos, False,
+            refs.sensing_range, wind[c], wind[c], refs.wind_known,
         )  # fmt: skip
-        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw = observe_state(
+        pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf = observe(
             CopyState(q, v, refs.T), r, k
         )
+        if refs.relative and refs.wind_known:
+            wf = wind_obs[c]
         o = out[c]
         o[offs[0]] = k * refs.T
         for i in range(n):
@@ -264,7 +273,7 @@ def observe_copies(
                 o[offs[7] + 3 * i + j] = sp[i, j]
                 o[offs[8] + 3 * i + j] = spv[i, j]
                 o[offs[9] + 3 * i + j] = spa[i, j]
-                o[offs[14] + 3 * i + j] = wind_obs[c, i, j]
+                o[offs[14] + 3 * i + j] = wf[i, j]
             for j in range(4):
                 o[offs[3] + 4 * i + j] = quat[i, j]
             o[offs[10] + i] = yaw[i]

@@ -5,10 +5,17 @@
     obs, info = envs.reset(seed=0)              # copy i seeded with 0 + i
     obs, reward, terminated, truncated, info = envs.step(envs.action_space.sample())
 
-**One step pipeline over copies.** The m swarms of n drones are copies in MuJoCo models of
-the simulator's copies axis (:class:`~swarm_mj.physics.sim.Sim` with ``n_copies``: the same
-saturation, drag and wind stages, ``mj_step``, contact bookkeeping and per-copy health mask
-as every run and as the tuner). Copies never interact: drones touch only drones of their own
+**One physics and one task over copies, SwarmEnv's.** The m swarms of n drones are the copies of
+:class:`~swarm_mj.pipeline.swarm.SwarmPhysics` (``self.physics``; SwarmEnv is its one-copy case):
+blocks of MuJoCo models of the simulator's copies axis (:class:`~swarm_mj.physics.sim.Sim` with
+``n_copies``: the same saturation, drag and wind stages, ``mj_step``, contact bookkeeping and
+per-copy health mask as every run and as the tuner), each copy's seed, starts, wind and leader
+estimate, and the task's observation over copies (:func:`swarm_mj.task.observe_copies`). This
+class adds Gymnasium's ``VectorEnv`` API: spaces, auto-reset, the info layout. It flies the
+paper's physics only: a scenario with another ``[aero]`` is refused (``UserError``), as a copy's
+auto-reset restores neither the rotors' lag states nor the ground monitor's memory.
+
+Copies never interact: drones touch only drones of their own
 copy (``build_world(contact_groups=...)``: explicit contact pairs within a copy), and a free
 body's dynamics depend only on its own state and inputs, so a copy flies the same whether it
 is alone or among others (tested: copy 5 of 64 == the same copy alone, bit for bit, when no
@@ -45,9 +52,10 @@ resets the copy at once; ``info["final_obs"]`` and ``info["final_info"]`` hold w
 and is put back at its start afterwards.)
 
 **Seeds.** ``reset(seed=s)`` seeds copy i with s + i (or ``seed=[s0, s1, ...]``): its wind
-turbulence and its random follower starts (scenarios with ``random_start``; SwarmGymEnv keeps
-the scenario's own starts). Each copy also gets a generator seeded with s + i
-(``gymnasium.utils.seeding.np_random``) from which an auto-reset or unseeded reset draws the
+turbulence and its random follower starts (scenarios with ``random_start``, drawn as
+``Scenario.initial_positions(seed)`` draws them; SwarmGymEnv keeps the scenario's own starts).
+Each copy also gets a generator seeded with s + i (``gymnasium.utils.seeding.np_random``)
+from which an auto-reset or unseeded reset draws the
 copy's next seed, as ``SwarmGymEnv.reset()`` does; so for a scenario with fixed starts the
 vector env gives, bit for bit, what ``gymnasium.vector.SyncVectorEnv`` over m
 ``SwarmGymEnv`` gives (tested).
@@ -62,7 +70,6 @@ from __future__ import annotations
 
 import types
 from collections.abc import Sequence
-from dataclasses import replace
 from typing import Any
 
 import gymnasium
@@ -74,28 +81,13 @@ from gymnasium.vector.utils import batch_space
 
 from ..env import SwarmEnv, all_finite
 from ..errors import UserError
-from ..formation.slots import DiameterSchedule, polygon_offsets
-from ..physics.sim import HEALTH_NAMES, HEALTHY, MUJOCO_WARNING, Sim
-from ..physics.wind import WindField
-from ..physics.world import World, build_world
-from ..scenario import Scenario, load_scenario, random_follower_starts
-from ..task import OBS_KEYS, CopyRefs, observe_copies, outcomes
+from ..physics.sim import HEALTH_NAMES, HEALTHY
+from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
+from ..scenario import Scenario, load_scenario
+from ..task import OBS_KEYS, outcomes
 from .gymnasium import observation_space, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
-
-#: Drones per MuJoCo model at most (the default block is this many drones' worth of copies).
-BLOCK_DRONES = 48
-
-
-class _Block:
-    """Copies c0 .. c0 + b − 1 in one model: their Sim and rows."""
-
-    def __init__(self, sim: Sim, c0: int, b: int, n: int) -> None:
-        self.sim, self.c0, self.b = sim, c0, b
-        self.copies = slice(c0, c0 + b)  # in (m, ...) arrays
-        self.rows = slice(c0 * n, (c0 + b) * n)  # in (m·n, ...) arrays
-        self.n_log = 0  # contact_log entries already counted
 
 
 def _info_add(info: dict[str, Any], key: str, values: np.ndarray, mask: np.ndarray) -> None:
@@ -150,22 +142,18 @@ class SwarmVectorEnv(VectorEnv):
         self.n = n = sc.n_drones
         self.flatten = bool(flatten)
         self.terminate_on_contact = bool(terminate_on_contact)
-        self.T = T = sc.control_period
-        self.n_steps = round(sc.duration / T)
-        # the leader's reference and D at every control instant (SwarmEnv's)
-        self.times = np.arange(self.n_steps + 1) * T  # (K+1,)
-        ref = sc.make_trajectory()(self.times)
-        c = np.ascontiguousarray
-        self._refs = CopyRefs(
-            float(T), float(sc.sensing_range), c(ref.pos, dtype=np.float64), c(ref.vel, dtype=np.float64),
-            c(ref.acc, dtype=np.float64), c(ref.yaw, dtype=np.float64),
-            c(DiameterSchedule(sc.diameter)(self.times), dtype=np.float64),
-            c(polygon_offsets(n - 1, 1.0), dtype=np.float64).reshape(n - 1, 3),
-        )  # fmt: skip
-        self._random_starts = sc.n_followers > 0 and sc.follower_starts is None
-        self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
-        self._relative_wind = bool(sc.wind.enabled and getattr(sc.wind, "relative_airspeed", False))
-        self._wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
+        if not sc.aero.is_paper:
+            raise UserError(
+                f"SwarmVectorEnv flies the paper's physics only, got [aero] model {sc.aero.model!r} (a copy's "
+                "auto-reset restores neither the rotors' lag nor the ground contacts' memory); use SwarmEnv"
+            )
+        # the physics side: the copies in blocks of MuJoCo models, their seeds, starts, wind, contacts, health
+        self.physics = ph = SwarmPhysics(sc, m, block=block, contact_pairs=True, seeded_starts=True)
+        self._blocks: list[Block] = ph.blocks
+        self.params = ph.params
+        self.T = ph.T
+        self.n_steps = ph.n_steps
+        self.times = ph.times  # (K+1,)
 
         # spaces: SwarmGymEnv's, per copy
         shape_only = types.SimpleNamespace(n=n)  # SwarmEnv's spec needs only n
@@ -189,49 +177,13 @@ class SwarmVectorEnv(VectorEnv):
         self._dim = off
         self._offs = np.array([self._slots[key][0] for key in OBS_KEYS], dtype=np.int64)
 
-        # the models: blocks of copies
-        per = block if block is not None else max(1, BLOCK_DRONES // n)
-        if not isinstance(per, (int, np.integer)) or per < 1:
-            raise UserError(f"block must be an integer >= 1, got {block!r}")
-        per = int(min(per, m))
-        worlds: dict[int, World] = {}
-        self._blocks: list[_Block] = []
-        start = np.tile(sc.initial_positions(), (per, 1))
-        for c0 in range(0, m, per):
-            b = min(per, m - c0)
-            if b not in worlds:
-                worlds[b] = build_world(
-                    b * n,
-                    positions=start[: b * n],
-                    names=[f"c{c}_{name}" for c in range(b) for name in sc.names],
-                    yaws=np.tile(self._yaws, b),
-                    timestep=sc.timestep,
-                    integrator=sc.integrator,
-                    contact_groups=b,
-                    params=sc.params,
-                )
-            self._blocks.append(_Block(Sim(worlds[b], T, n_copies=b), c0, b, n))
-        self.params = self._blocks[0].sim.params
         f = self.params.f_max
         low = np.tile([0.0, -f, -f, -2 * f], n)
         high = np.tile([4 * f, f, f, 2 * f], n)
         self.single_action_space = spaces.Box(low=low, high=high, shape=(4 * n,), dtype=np.float64)
         self.action_space = batch_space(self.single_action_space, m)
 
-        # per-copy state
-        N = m * n
-        self.k = np.zeros(m, dtype=np.int64)  # control periods flown this episode
-        self._starts = np.tile(sc.initial_positions(), (m, 1))  # (N, 3)
-        self._yaw_all = np.tile(self._yaws, m)  # (N,)
-        self._prev_leader = np.zeros((m, 3))
-        self._leader_vel = np.zeros((m, 3))
-        self._contacts = np.zeros(m, dtype=np.int64)
-        self._new_contacts = np.zeros(m, dtype=np.int64)
-        self._wind = np.zeros((m, self.n_steps + 1, 3))  # (m, K+1, 3) wind force series (uniform wind)
-        self._wind_series: list[Any] = [None] * m  # per copy (relative airspeed only)
-        self._wind_obs = np.zeros((m, n, 3))
-        self._wind_now = np.zeros((N, 3))
-        self.wind_seed = np.zeros(m, dtype=np.int64)
+        # per-copy state (the rest is the physics')
         self._rngs: list[np.random.Generator | None] = [None] * m
         self._obs = np.zeros((m, self._dim))
         self._reward = np.zeros(m)
@@ -248,79 +200,27 @@ class SwarmVectorEnv(VectorEnv):
         return seed_from(rng)
 
     def _begin(self, mask: np.ndarray, seeds: Sequence[int] | None) -> None:
-        """New episodes for the copies of mask (m,): seeds (per copy, or drawn), starts, wind."""
-        n, sc = self.n, self.scenario
+        """New episodes for the copies of mask (m,) (:meth:`SwarmPhysics.begin`): seeds per copy, or drawn
+        from each copy's generator."""
+        chosen = np.zeros(self.num_envs, dtype=np.int64)
         for c in np.flatnonzero(mask):
-            seed = int(seeds[int(c)]) if seeds is not None else self._copy_seed(int(c))
-            self.wind_seed[c] = seed
-            if self._random_starts:
-                assert sc.random_start is not None  # followers without explicit starts have random_start
-                rs = replace(sc.random_start, seed=seed)
-                self._starts[c * n : (c + 1) * n] = np.vstack(
-                    [sc.leader_start, random_follower_starts(sc.leader_start, sc.n_followers, rs, where=sc.path)]
-                )
-            series = WindField(sc.wind, dt=self.T, seed=seed).sample(self.times)
-            self._wind_series[c] = series
-            if not self._relative_wind:
-                self._wind[c] = series.force
-        self.k[mask] = 0
-        self._contacts[mask] = 0
-        self._prev_leader[mask] = self._starts[::n][mask]
-        self._leader_vel[mask] = 0.0
-
-    def _put_back(self, mask: np.ndarray) -> None:
-        """The copies of mask back at their starts in their models (other copies untouched)."""
-        for blk in self._blocks:
-            sub = mask[blk.copies]
-            if sub.any():
-                blk.sim.reset_copies(sub, self._starts[blk.rows], self._yaw_all[blk.rows])
-
-    def _wind_forces(self, which: str) -> None:
-        """The wind force of each copy at its sample k: into _wind_now (N, 3) (the physics) or
-        _wind_obs (m, n, 3) (the observation's feedforward)."""
-        n, m = self.n, self.num_envs
-        if not self._relative_wind:
-            f = self._wind[self._all, np.minimum(self.k, self.n_steps)]  # (m, 3)
-            if which == "now":
-                self._wind_now.reshape(m, n, 3)[:] = f[:, None, :]
-            elif self._wind_known:
-                self._wind_obs[:] = f[:, None, :]
-            return
-        for blk in self._blocks:
-            vel = blk.sim.vel
-            for c in range(blk.c0, blk.c0 + blk.b):
-                k = min(int(self.k[c]), self.n_steps)
-                r = (c - blk.c0) * n
-                force = self._wind_series[c].drone_forces(k, vel[r : r + n])
-                if which == "now":
-                    self._wind_now[c * n : (c + 1) * n] = force
-                elif self._wind_known:
-                    self._wind_obs[c] = force
+            chosen[c] = int(seeds[int(c)]) if seeds is not None else self._copy_seed(int(c))
+        self.physics.begin(mask, chosen)
 
     def _observe(self, copies: np.ndarray) -> None:
         """The task's observation, reward (before divergence) and minimum separation of the given copies
-        (:func:`swarm_mj.task.observe_copies`)."""
-        self._wind_forces("obs")
-        for blk in self._blocks:
-            cs = copies[(copies >= blk.c0) & (copies < blk.c0 + blk.b)]
-            if len(cs):
-                observe_copies(
-                    blk.sim.qpos,
-                    blk.sim.qvel,
-                    self.n,
-                    self._refs,
-                    cs,
-                    blk.c0,
-                    self.k,
-                    self._prev_leader,
-                    self._leader_vel,
-                    self._wind_obs,
-                    self._offs,
-                    self._obs,
-                    self._new_contacts,
-                    self._reward,
-                    self._min_sep,
-                )
+        (:meth:`SwarmPhysics.observe_copies`, :func:`swarm_mj.task.observe_copies`)."""
+        self.physics.observe_copies(copies, self._offs, self._obs, self._reward, self._min_sep)
+
+    @property
+    def k(self) -> np.ndarray:
+        """(m,) the control periods each copy has flown this episode."""
+        return self.physics.k
+
+    @property
+    def wind_seed(self) -> np.ndarray:
+        """(m,) each copy's episode seed (its wind turbulence and random starts)."""
+        return self.physics.seeds
 
     def _observation(self, flat: np.ndarray):
         """The batched observation of a fresh copy of the flat buffer (m, dim)."""
@@ -346,10 +246,7 @@ class SwarmVectorEnv(VectorEnv):
                 self._rngs[c] = seeding.np_random(seeds[c])[0]
         everyone = np.ones(m, dtype=bool)
         self._begin(everyone, seeds)
-        for blk in self._blocks:
-            blk.sim.reset(self._starts[blk.rows], self._yaw_all[blk.rows])
-            blk.n_log = 0
-        self._new_contacts[:] = 0
+        self.physics.reset()
         self._observe(self._all)
         self._autoreset[:] = False
         self._started = True
@@ -369,38 +266,19 @@ class SwarmVectorEnv(VectorEnv):
             raise UserError("action contains NaN or inf")
         U = a.reshape(m * n, 4)
         resetting = self._autoreset.copy() if self.autoreset_mode == AutoresetMode.NEXT_STEP else np.zeros(m, bool)
+        restart = None
         if resetting.any():
             self._begin(resetting, None)
-            self._put_back(resetting)
-            U = U.copy()
-            U[np.repeat(resetting, n)] = 0.0
-        # the wind force of the coming period, held over it; then the step pipeline of every block
-        self._wind_forces("now")
-        health = np.zeros(m, dtype=np.int8)
-        self._new_contacts[:] = 0
-        for blk in self._blocks:
-            sim = blk.sim
-            sim.step(U[blk.rows], self._wind_now[blk.rows])
-            health[blk.copies] = sim.health()
-            log = sim.contact_log
-            if len(log) > blk.n_log:
-                for _, i, _ in log[blk.n_log :]:
-                    self._new_contacts[blk.c0 + i // n] += 1
-                blk.n_log = len(log)
-            if (health[blk.copies] == MUJOCO_WARNING).any():
-                sim.data.warning.number[:] = 0  # reported now; the block's copies all terminate
-        self.k += 1
-        if resetting.any():
-            self._put_back(resetting)
-            self.k[resetting] = 0
-            self._new_contacts[resetting] = 0
-            health[resetting] = HEALTHY
-        self._contacts += self._new_contacts
+            restart = resetting
+        # the physics of every copy (the copies being reset fly from their starts with zero input)
+        ph = self.physics
+        health = ph.step(U, restart).copy()
+        ph.forget_warnings()  # a block MuJoCo reset: its copies all terminate now, then fly on
         self._observe(self._all)
         diverged = health != HEALTHY
         # the task's reward and termination (swarm_mj/task.py), as SwarmEnv's
         rewards, terminated, truncated = outcomes(
-            self._reward, diverged, self._new_contacts, self.k, self.n_steps, self.terminate_on_contact
+            self._reward, diverged, ph.new_contacts, ph.k, self.n_steps, self.terminate_on_contact
         )
         rewards[resetting] = 0.0
         terminated[resetting] = False
@@ -420,8 +298,8 @@ class SwarmVectorEnv(VectorEnv):
                 final_obs[c] = final[c] if self.flatten else {key: v[c] for key, v in final.items()}
             final_info = _prune({key: (v & done if key.startswith("_") else v) for key, v in info.items()})
             self._begin(done, None)
-            self._put_back(done)
-            self._new_contacts[done] = 0
+            ph.put_back(done)
+            ph.new_contacts[done] = 0
             self._observe(np.flatnonzero(done).astype(np.int64))
             obs_flat = self._obs.copy()
             # the ended copies' info is their reset info (time 0, their seed); what ended is in final_info
@@ -440,8 +318,8 @@ class SwarmVectorEnv(VectorEnv):
     ) -> dict[str, Any]:
         info: dict[str, Any] = {}
         _info_add(info, "time", self.k * self.T, stepped.copy())
-        _info_add(info, "contacts", self._contacts.copy(), stepped.copy())
-        _info_add(info, "new_contacts", self._new_contacts.copy(), stepped.copy())
+        _info_add(info, "contacts", self.physics.contacts.copy(), stepped.copy())
+        _info_add(info, "new_contacts", self.physics.new_contacts.copy(), stepped.copy())
         _info_add(info, "min_separation", self._min_sep.copy(), stepped.copy())
         if terminated.any():
             why = np.full(self.num_envs, None, dtype=object)

@@ -145,6 +145,17 @@ def test_bad_input():
         SwarmVectorEnv("circle", num_envs=2, autoreset_mode=AutoresetMode.DISABLED)
 
 
+def test_non_paper_aero_refused_in_one_line():
+    """The vector env flies the paper's physics only: a scenario with another [aero] is refused before
+    any model is built (docs/design.md, "The environment: one task over copies"), not flown as the paper's."""
+    from swarm_mj.physics.aero.presets import with_aero
+
+    sc = with_aero(load_scenario("circle"), "realistic")
+    with pytest.raises(UserError, match="paper's physics only") as err:
+        SwarmVectorEnv(sc, num_envs=2)
+    assert "\n" not in str(err.value) and "realistic" in str(err.value)
+
+
 def test_returned_data_not_reused_and_deterministic():
     env = SwarmVectorEnv(windy(0.1), num_envs=2)
     a = hover_actions(env, 3, np.random.default_rng(0))
