@@ -318,7 +318,10 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     n = pos.shape[0]
     h = horizontal_distances(pos)
     if rule.jet_aware:
-        rule.slot_h[:] = horizontal_distances(pos_d)
+        sh = horizontal_distances(pos_d)
+        for i in range(n):  # (element-wise: a slice assignment compiles numba's shape-mismatch error, ~5 s)
+            for j in range(n):
+                rule.slot_h[i, j] = sh[i, j]
         rule.formation_alt[0] = formation_alt
         if any_below(rule.slot_h, rule.safety):
             return True, pos_d
