@@ -538,7 +538,7 @@ def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
     return seen
 
 
-#: The layered rule; the name stays for the fused loop's rule check. What the ``compensated`` rule
+#: The layered rule; the name stays for the chunk driver's rule check. What the ``compensated`` rule
 #: was (the layered rule with the downwash feedforward) is ``layers`` with ``[controller]
 #: downwash_feedforward = true``.
 CompensatedRule = LayeredRule
