@@ -6,7 +6,7 @@ named rules are), the rules' interface and the paper's rule (:mod:`.rules`), the
 machine, layers and limited paths (:mod:`.planner`, :class:`LayeredRule`), the separation step
 (:mod:`.separation`: Fig. 5, the jet-aware offsets, never-through, early hold, and the
 :class:`~.separation.SeparationFilter` interface), the jet-aware rule (:mod:`.jet_aware`) and the
-compiled kernels (:mod:`.layered`). This module re-exports what the simulator's fused loop reads.
+compiled kernels (:mod:`.layered`). This module re-exports what the chunk driver reads.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from typing import Any
 from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .jet_aware import JetAwareRule
-from .layered import any_below, horizontal_distances, merge_rows, react_needed
+from .layered import any_below, horizontal_distances, idle_record, merge_rows, react_needed
 from .planner import CLIMB, CROSS, FORMED, CompensatedRule, G, LayeredRule
 from .rule_params import PRESETS, RuleParams
 from .rules import NoRule, PaperRule, Rule
@@ -53,6 +53,7 @@ __all__ = [
     "RuleParams",
     "any_below",
     "horizontal_distances",
+    "idle_record",
     "make_rule",
     "merge_rows",
     "react_needed",

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from .layered import any_below, react_needed
-from .planner import CROSS, FORMED, LayeredRule, PlanStep, formed_step
+from .planner import CROSS, FORMED, LayeredRule, PlanStep
 from .rules import pair_distances
 from .separation import (
     closing_only,
@@ -46,32 +46,33 @@ class JetAwareRule(LayeredRule):
     """
 
     name = "jet-aware"
-
-    def reset(self, positions: np.ndarray) -> None:
-        super().reset(positions)
-        self._slot_h = np.full((self.n, self.n), np.inf)  # (n, n) horizontal distances of the setpoints
-        self._slot_yield = False
-        self._formation_alt = np.inf  # (set by update) offsets are kept floor_clearance above the floor
+    jet_aware_checks = True  # the formed step hands slots within D̄ and overlapping keep-outs to Python
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        self.set_slots(pos_d)
-        self._formation_alt = float(formation_alt)
+        if not self._all_formed:  # (formed, the compiled formed step sets both: layered.formed_update)
+            self.set_slots(pos_d)
+            self._formation_alt[0] = formation_alt
         return super().update(t, positions, pos_d, formation_alt)
 
     def set_slots(self, pos_d: np.ndarray) -> None:
         """The setpoints (n, 3) whose horizontal distances 2. of the class docstring reads (row 0:
         the leader's reference); :meth:`update` sets them every step."""
-        self._slot_h = pair_distances(pos_d)
-        self._slot_yield = any_below(self._slot_h, self.safety)  # some slots within D̄ of each other
+        self._slot_h[:] = pair_distances(pos_d)
+
+    @property
+    def slot_yield(self) -> bool:
+        """Some slots (the last set, :meth:`set_slots`) are within D̄ of each other."""
+        return bool(any_below(self._slot_h, self.safety))
 
     def _react(self, t: float, positions: np.ndarray, h: np.ndarray, active: np.ndarray) -> None:
         """2.–3. of the class docstring (:func:`~.separation.stacked_react`)."""
-        if not self._slot_yield and not react_needed(self.offset, h, self.safety):
+        if not self.slot_yield and not react_needed(self.offset, h, self.safety):
             return
         p = self.params
-        cands = offset_candidates(self.hop, p.floor_clearance - self._formation_alt, p.max_hops_down, p.max_hops_up)
+        lowest = p.floor_clearance - float(self._formation_alt[0])
+        cands = offset_candidates(self.hop, lowest, p.max_hops_down, p.max_hops_up)
         args = (self._slot_h, self.safety, self.hop, self.hysteresis, cands)
         stacked_react(t, positions, h, active, self.offset, self.events, *args)
 
@@ -103,7 +104,8 @@ class JetAwareRule(LayeredRule):
     def _update_formed(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """The layered rule's formed step (one compiled kernel) with 4. of the class docstring."""
+        """The layered rule's formed step while its separation has work to do, with 2.–4. of the
+        class docstring."""
         h = pair_distances(positions)
         self._react(t, positions, h, self._all)
         offset = self.offset
@@ -111,4 +113,4 @@ class JetAwareRule(LayeredRule):
             soon = self._closing(positions, h, self._approach(positions, self.horizon))
             z_t = self._through(positions, formation_alt + offset, self._followers, soon)
             offset = z_t - formation_alt
-        return formed_step(self, dt, positions, pos_d, formation_alt, offset)
+        return self._formed_paths(dt, pos_d, formation_alt, offset)

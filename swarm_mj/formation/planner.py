@@ -11,16 +11,24 @@ from typing import Any
 import numpy as np
 
 from ..physics.params import DEFAULT_PARAMS
-from .layered import BRAKING_SHARE, advance_altitude_kernel, advance_paths_kernel, formed_step_kernel
+from ..pipeline.records import Rule as FormedRecord
+from .layered import (
+    advance_altitude_kernel,
+    advance_paths_kernel,
+    estimate_velocities,
+    formed_paths,
+    formed_update,
+    path_limits,
+)
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm
 from .separation import Sensed, SeparationFilter, closest_approach, descending_onto, hold_above
 
 
-def _stoppable_speed(room: float, accel: float, lag: float, room_min: float) -> float:
-    """Largest v with v²/(2·BRAKING_SHARE·accel) + v·lag ≤ room (room floored at ``room_min``): the
-    speed from which a path braking at BRAKING_SHARE·accel, after ``lag`` s, stops within ``room``."""
-    k = 1.0 / (2.0 * BRAKING_SHARE * accel)
+def _stoppable_speed(room: float, accel: float, lag: float, room_min: float, share: float) -> float:
+    """Largest v with v²/(2·share·accel) + v·lag ≤ room (room floored at ``room_min``): the speed
+    from which a path braking at share·accel (``braking_share``), after ``lag`` s, stops within ``room``."""
+    k = 1.0 / (2.0 * share * accel)
     room = max(room, room_min)
     return float((-lag + np.sqrt(lag * lag + 4.0 * k * room)) / (2.0 * k))
 
@@ -118,21 +126,30 @@ class LayeredRule(PaperRule):
         # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop +
         # approach_margin under a drone first seen straight above; crossing, D̄ + approach_margin
         # short of a drone first seen ahead. Braking at a, with the acceleration turning round in
-        # ``lag`` s: v²/(2·BRAKING_SHARE·a) + v·lag ≤ room.
+        # ``lag`` s: v²/(2·braking_share·a) + v·lag ≤ room.
         ad = p.descent_accel
         room_up = p.sensing_range - p.hop - p.approach_margin
         lag_up = (p.climb_accel + ad) / self.jerk + 1.0 / self.k_v
-        self.z_up = (min(p.climb_speed, _stoppable_speed(room_up, ad, lag_up, p.stop_room_min)), p.climb_accel)
+        v_up = _stoppable_speed(room_up, ad, lag_up, p.stop_room_min, p.braking_share)
+        self.z_up = (min(p.climb_speed, v_up), p.climb_accel)
         self.z_down = (p.descent_speed, ad)
         # (speed, accel) of the descents of the followers that have joined the formation
         self.z_down_formed = (p.descent_speed, min(p.formed_descent_accel, ad))
         a_h = min(self.a_max, G * self.tan_tilt)
         room = p.sensing_range - p.safety_distance - p.approach_margin
         lag = 2.0 * self.a_max / self.jerk + 1.0 / self.k_v
-        self.v_max = min(self.v_max, _stoppable_speed(room, a_h, lag, p.stop_room_min))
+        self.v_max = min(self.v_max, _stoppable_speed(room, a_h, lag, p.stop_room_min, p.braking_share))
+        # what the path kernels read (layered.PathLimits): the record's fields and these derived ones
+        self._limits = path_limits(
+            p, v_max=self.v_max, tan_tilt=self.tan_tilt, g=G, v_up=self.z_up[0], a_down_formed=self.z_down_formed[1]
+        )
+
+    #: the formed step checks the jet-aware separation's conditions too (:func:`~.layered.formed_update`)
+    jet_aware_checks = False
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
+        positions = np.asarray(positions, dtype=float)
         n = self.n
         self.phase = np.full(n, CLIMB, dtype=np.int64)
         self.phase[0] = FORMED  # the leader flies its own trajectory
@@ -141,19 +158,54 @@ class LayeredRule(PaperRule):
         self.path_p = positions[:, :2].copy()  # (n, 2) crossing path: position
         self.path_v = np.zeros((n, 2))  # (n, 2) crossing path: velocity
         self.path_a = np.zeros((n, 2))  # (n, 2) crossing path: acceleration
-        self.blocked = np.zeros(n, dtype=bool)  # (n,) braking for another drone
+        self.blocked = np.zeros(n, dtype=bool)  # (n,) braking for another drone (updated in place)
         self.asides = np.zeros(n, dtype=np.int64)  # (n,) times stepped out from under a drone
         self.layer_index = np.arange(n, dtype=float)
         self.zp = positions[:, 2].copy()  # (n,) altitude path: position
         self.zv = np.zeros(n)  # (n,) altitude path: velocity
         self.za = np.zeros(n)  # (n,) altitude path: acceleration
         self._prev_pos = np.array(positions, dtype=float)  # (n, 3) updated in place
-        self._prev_t: float | None = None
-        self._dt_last = 0.0  # (s) the dt of the last update
+        self._prev_t = np.full(1, np.nan)  # (1,) (s) time of the last update (NaN: none yet)
+        self._dt = np.zeros(1)  # (1,) (s) the dt of the last update
         self.vel = np.zeros((n, 3))  # (n, 3) velocities estimated from positions
         self._all = np.ones(n, dtype=bool)  # (n,) every drone (read-only)
         self._followers = np.ones(n, dtype=bool)  # (n,) the drones the rule steers (read-only)
         self._followers[0] = False
+        # the jet-aware separation's (read by the formed step when ``jet_aware_checks``)
+        self._slot_h = np.full((n, n), np.inf)  # (n, n) horizontal distances of the setpoints
+        self._formation_alt = np.full(1, np.inf)  # (1,) (m) offsets are kept floor_clearance above the floor
+        self._record: FormedRecord | None = None
+
+    def record(self) -> FormedRecord:
+        """The formed step's record (:class:`~swarm_mj.pipeline.records.Rule`) over this rule's own
+        arrays, built once per :meth:`reset`: what :func:`~.layered.formed_update` reads and
+        updates, on either driver of the control period."""
+        if self._record is None:
+            self._record = FormedRecord(
+                on=True,
+                jet_aware=self.jet_aware_checks,
+                safety=float(self.safety),
+                overlap=float(self.overlap),
+                offset=self.offset,
+                prev_pos=self._prev_pos,
+                vel=self.vel,
+                prev_t=self._prev_t,
+                dt=self._dt,
+                formation_alt=self._formation_alt,
+                slot_h=self._slot_h,
+                path_p=self.path_p,
+                path_v=self.path_v,
+                path_a=self.path_a,
+                blocked=self.blocked,
+                zp=self.zp,
+                zv=self.zv,
+                za=self.za,
+                limits=self._limits,
+                vel_d=self.vel_d,
+                acc_d=self.acc_d,
+                steer=self._followers,
+            )
+        return self._record
 
     #: a reference-level separation step (:class:`~.separation.SeparationFilter`), or None
     separation_filter: SeparationFilter | None = None
@@ -173,7 +225,7 @@ class LayeredRule(PaperRule):
         if f is None:
             return pos_d, vel_d, acc_d
         seen = _seen(positions, self.sensing_range)
-        sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, self._dt_last)
+        sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, float(self._dt[0]))
         return f(sensed, pos_d, vel_d, acc_d, self._followers)
 
     # ------------------------------------------------------------------ helpers
@@ -192,7 +244,7 @@ class LayeredRule(PaperRule):
     def _advance_paths(self, dt: float, goal: np.ndarray, goal_vel: np.ndarray) -> None:
         """Move every follower's horizontal path towards ``goal`` (n, 2), which moves at
         ``goal_vel`` (n, 2): speed ≤ ``max_speed`` relative to the goal with a braking
-        profile v = √(2·0.8·a·e), acceleration ≤ ``max_accel``; blocked drones brake to rest."""
+        profile v = √(2·braking_share·a·e), acceleration ≤ ``max_accel``; blocked drones brake to rest."""
         if dt <= 0.0:
             self.path_a[:] = 0.0
             return
@@ -205,12 +257,7 @@ class LayeredRule(PaperRule):
             self.path_a,
             self.blocked,
             self.za,
-            self.a_max,
-            self.jerk,
-            self.k_v,
-            self.v_max,
-            self.tan_tilt,
-            G,
+            self._limits,
         )
 
     def _advance_altitude(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
@@ -229,7 +276,6 @@ class LayeredRule(PaperRule):
             return
         if self.z_down_formed != self.z_down:
             return self._advance_altitude_two(dt, target, target_vel)
-        (vu, au), (vd, ad) = self.z_up, self.z_down
         advance_altitude_kernel(
             float(dt),
             np.ascontiguousarray(target, dtype=np.float64),
@@ -237,12 +283,8 @@ class LayeredRule(PaperRule):
             self.zp,
             self.zv,
             self.za,
-            vu,
-            au,
-            vd,
-            ad,
-            self.jerk,
-            self.k_v,
+            self._limits,
+            self.z_down[1],
         )
 
     def _advance_altitude_two(self, dt: float, target: np.ndarray, target_vel: np.ndarray) -> None:
@@ -251,33 +293,60 @@ class LayeredRule(PaperRule):
         ``formed_descent_accel``, the others with ``descent_accel`` (the kernel moves each drone on
         its own: two calls on the two groups give each row what one call with its own limit would)."""
         joined = self.phase == FORMED  # the leader's row too (its path is not flown)
-        (vu, au), (vd, ad), (_, ad_joined) = self.z_up, self.z_down, self.z_down_formed
+        ad, ad_joined = self.z_down[1], self.z_down_formed[1]
         target = np.asarray(target, dtype=np.float64)
         target_vel = np.asarray(target_vel, dtype=np.float64)
         for rows, a_down in ((np.flatnonzero(joined), ad_joined), (np.flatnonzero(~joined), ad)):
             if rows.size == 0:
                 continue
             zp, zv, za = self.zp[rows], self.zv[rows], self.za[rows]  # (k,) copies
-            advance_altitude_kernel(
-                float(dt), target[rows], target_vel[rows], zp, zv, za, vu, au, vd, a_down, self.jerk, self.k_v
-            )
+            advance_altitude_kernel(float(dt), target[rows], target_vel[rows], zp, zv, za, self._limits, a_down)
             self.zp[rows], self.zv[rows], self.za[rows] = zp, zv, za
 
     # ------------------------------------------------------------------ the rule
     def _update_formed(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """4. *formed* for the whole swarm (every follower formed, nobody in transit): the paper's
-        reactive rule (Fig. 5) and the paths to the slots, in one compiled kernel."""
-        return _update_formed_impl(self, t, positions, pos_d, formation_alt, dt)
+        """4. *formed* for the whole swarm (every follower formed, nobody in transit) while Fig. 5
+        has work to do: the paper's reactive rule among all drones, then the paths towards the slots
+        and formation_alt + offset (:meth:`_formed_paths`)."""
+        h = pair_distances(positions)
+        self._react(t, positions, h, self._all)
+        return self._formed_paths(dt, pos_d, formation_alt, self.offset)
+
+    def _formed_paths(
+        self, dt: float, pos_d: np.ndarray, formation_alt: float, offset: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The formed swarm's paths towards the slots pos_d (n, 3) and formation_alt + offset (n,)
+        (:func:`~.layered.formed_paths`)."""
+        out = formed_paths(
+            self.record(),
+            float(dt),
+            np.ascontiguousarray(pos_d, dtype=np.float64),
+            float(formation_alt),
+            np.ascontiguousarray(offset, dtype=np.float64),
+        )
+        return out, self._followers
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
-        """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others."""
-        dt = self._estimate_velocities(t, positions)
+        """Climb / cross / drop (ours) for followers not yet formed, Fig. 5 for the others. Once every
+        follower is formed, the compiled formed step (:func:`~.layered.formed_update`, what the chunk
+        driver flies too) decides, and the Python reaction (:meth:`_update_formed`) flies only the
+        periods where Fig. 5 has work to do."""
         if self._all_formed:
-            return self._update_formed(t, positions, pos_d, formation_alt, dt)
+            busy, out = formed_update(
+                self.record(),
+                np.ascontiguousarray(positions, dtype=np.float64),
+                np.ascontiguousarray(pos_d, dtype=np.float64),
+                float(t),
+                float(formation_alt),
+            )
+            if not busy:
+                return out, self._followers
+            return self._update_formed(t, positions, pos_d, formation_alt, self._estimate_velocities(t, positions))
+        dt = self._estimate_velocities(t, positions)
         s = self._sense(t, positions, pos_d, formation_alt, dt)
         self._climb(s)
         self._cross(s)
@@ -288,15 +357,9 @@ class LayeredRule(PaperRule):
     # ------------------------------------------------------------------ its steps
     def _estimate_velocities(self, t: float, positions: np.ndarray) -> float:
         """The step dt since the last update and every drone's velocity estimated from its
-        successive positions (decentralised: no drone reads another's velocity)."""
-        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
-        if dt > 0.0:
-            np.subtract(positions, self._prev_pos, out=self.vel)
-            self.vel /= dt
-        self._prev_t = float(t)
-        self._prev_pos[:] = positions
-        self._dt_last = dt
-        return dt
+        successive positions (:func:`~.layered.estimate_velocities`)."""
+        pos = np.ascontiguousarray(positions, dtype=np.float64)
+        return float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
 
     def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> PlanStep:
         """What this step of the transition works from (ours): each follower's layer and altitude
@@ -366,7 +429,7 @@ class LayeredRule(PaperRule):
         z_wait = np.maximum(np.minimum(np.maximum(self.zp, p.hover_min), zmin - self.hop), 0.0)
         overhead = (above & (h < 2.0 * self.footprint)).any(axis=1)
         vz = np.maximum(self.zv, 0.0)
-        z_stop = self.zp + vz * vz / (2.0 * BRAKING_SHARE * self.z_down[1])  # where it could stop
+        z_stop = self.zp + vz * vz / (2.0 * p.braking_share * self.z_down[1])  # where it could stop
         late = z_stop > np.maximum(zmin - self.hop, 0.0) + p.late_margin
         over = np.isfinite(zmin) & late & ~overhead
         wait = np.isfinite(zmin) & ~over
@@ -412,7 +475,7 @@ class LayeredRule(PaperRule):
         blocked = crossing & conflict.any(axis=1)
         for i in np.flatnonzero(blocked & ~self.blocked):
             self.events.append({"t": s.t, "drone": int(i), "other": int(np.argmax(conflict[i])), "action": "hold"})
-        self.blocked = blocked
+        self.blocked[:] = blocked
 
     def _drop(self, s: PlanStep) -> None:
         """3. *drop* (ours): a crossing follower within ``arrive`` of its slot (and its path too)
@@ -465,18 +528,6 @@ class LayeredRule(PaperRule):
         return pos_d, s.steer
 
 
-def _update_formed_impl(
-    rule: LayeredRule, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float
-) -> tuple[np.ndarray, np.ndarray]:
-    """:meth:`LayeredRule.update` once every follower is formed (nobody in transit): the same
-    steps with the climb / cross / drop parts, which then do nothing, left out — the reactive
-    rule (Fig. 5, among all drones), then the horizontal and altitude paths towards the slots
-    and formation_alt + offset in one compiled kernel (:func:`~swarm_mj.formation.layered.formed_step_kernel`)."""
-    h = pair_distances(positions)
-    rule._react(t, positions, h, rule._all)  # 4. Fig. 5 among all drones
-    return formed_step(rule, dt, positions, pos_d, formation_alt, rule.offset)
-
-
 def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
     """(n, n) drone i senses drone j: within ``sensing_range`` (3D); the leader (column 0) always
     (the slots are built from its position); not itself."""
@@ -487,35 +538,7 @@ def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
     return seen
 
 
-def formed_step(
-    rule: LayeredRule, dt: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, offset: np.ndarray
-) -> tuple[np.ndarray, np.ndarray]:
-    """The paths towards the slots and formation_alt + offset (n,), in one compiled kernel
-    (:func:`~swarm_mj.formation.layered.formed_step_kernel`)."""
-    (vu, au), (vd, ad) = rule.z_up, rule.z_down_formed
-    out = np.empty((rule.n, 3))
-    formed_step_kernel(
-        dt,
-        np.ascontiguousarray(pos_d, dtype=np.float64),
-        float(formation_alt),
-        np.ascontiguousarray(offset, dtype=np.float64),
-        rule.vel[0],
-        rule.path_p,
-        rule.path_v,
-        rule.path_a,
-        rule.blocked,
-        rule.zp,
-        rule.zv,
-        rule.za,
-        np.array([rule.a_max, rule.jerk, rule.k_v, rule.v_max, rule.tan_tilt, G, vu, au, vd, ad], dtype=float),
-        out,
-        rule.vel_d,
-        rule.acc_d,
-    )
-    return out, rule._followers
-
-
-#: The layered rule; the name stays for the fused loop's rule check. What the ``compensated`` rule
+#: The layered rule; the name stays for the chunk driver's rule check. What the ``compensated`` rule
 #: was (the layered rule with the downwash feedforward) is ``layers`` with ``[controller]
 #: downwash_feedforward = true``.
 CompensatedRule = LayeredRule

@@ -16,9 +16,8 @@ The fields that are vehicle sizes (:data:`SIZE_KEYS`: ``outline_margin``, ``over
 rotor span (:meth:`RuleParams.for_vehicle`); the others (D̄, the layers, altitudes, tolerances,
 braking margins) are not sizes of the vehicle (docs/anticollision.md, "The vehicle's sizes").
 
-Numbers that shape the compiled paths (the braking share, the approach gains, the thrust floor)
-are :mod:`swarm_mj.formation.layered`'s constants, not fields: the kernels' signatures do not
-carry them (docs/anticollision.md, "fixed in the kernels").
+The compiled path kernels read theirs from :class:`~swarm_mj.formation.layered.PathLimits`, whose
+fields named as fields of this record are taken from it (:func:`~swarm_mj.formation.layered.path_limits`).
 """
 
 from __future__ import annotations
@@ -76,6 +75,10 @@ class RuleParams:
     jerk: float = _p(120.0, "m/s³", "paths' jerk limit: the acceleration reference turns round smoothly")
     velocity_gain: float = _p(15.0, "1/s", "paths' velocity loop gain (the acceleration asked per m/s of error)")
     max_tilt_deg: float = _p(30.0, "deg", "horizontal path acceleration ≤ (g + z̈)·tan(this)", 0.0, 89.0)
+    braking_share: float = _p(0.8, "", "share of its acceleration limit a path plans to brake with", 0.0, 1.0)
+    path_approach_gain: float = _p(3.0, "1/s", "a horizontal path's final approach: speed ≤ this · distance")
+    altitude_approach_gain: float = _p(4.0, "1/s", "an altitude path's final approach: speed ≤ this · distance")
+    thrust_floor: float = _p(1.0, "m/s²", "least vertical specific force the tilt limit of a path is taken from")
     # --- the planner's phases (climb, cross, drop)
     arrive: float = _p(0.2, "m", "a crossing follower this close to its slot (and its path) drops")
     climb_tolerance: float = _p(0.35, "m", "a climbing follower this close under its layer starts crossing")

@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import _jit
 from ..errors import UserError
-from ..formation.anticollision import OVERLAP_M, G, JetAwareRule, LayeredRule, NoRule
+from ..formation.anticollision import JetAwareRule, LayeredRule, NoRule, any_below, idle_record
 from ..physics import _mjstep
 from .records import Obs, Rule
 
@@ -85,22 +85,10 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
 # --------------------------------------------------------------------------- records of a run
 
 
-def _rule_record(rule, n: int, on: bool, jet_aware: bool, prev_t: np.ndarray, alt: np.ndarray) -> Rule:  # noqa: ANN001
-    """The layered rule's formed step as a record (its own arrays; ``on`` False: stand-ins)."""
-    if not on:
-        z, e, b = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n, dtype=bool)
-        return Rule(
-            False, False, 0.8, OVERLAP_M, np.zeros(n), z, z.copy(), prev_t, alt, np.zeros((n, n)), e, e.copy(),
-            e.copy(), b, np.zeros(n), np.zeros(n), np.zeros(n), np.ones(10), z.copy(), z.copy(), b.copy(),
-        )  # fmt: skip
-    (vu, au), (vd, ad) = rule.z_up, rule.z_down_formed
-    limits = np.array([rule.a_max, rule.jerk, rule.k_v, rule.v_max, rule.tan_tilt, G, vu, au, vd, ad], dtype=float)
-    slot_h = rule._slot_h if jet_aware else np.zeros((n, n))
-    return Rule(
-        True, jet_aware, float(rule.safety), float(rule.overlap), rule.offset, rule._prev_pos, rule.vel, prev_t, alt,
-        slot_h, rule.path_p, rule.path_v, rule.path_a, rule.blocked, rule.zp, rule.zv, rule.za, limits, rule.vel_d,
-        rule.acc_d, rule._followers,
-    )  # fmt: skip
+def _rule_record(rule, n: int, on: bool) -> Rule:  # noqa: ANN001 - LayeredRule
+    """The layered rule's formed step as a record: the rule's own (:meth:`LayeredRule.record`, over its
+    arrays), or stand-ins when ``on`` is False."""
+    return rule.record() if on else idle_record(n)
 
 
 class FastLoop:
@@ -116,11 +104,8 @@ class FastLoop:
         self.status = 0
         self.periods = 0  # control periods flown by the chunk driver so far
         self._cool = 0
-        self._prev_t = np.zeros(1)
-        self._alt = np.zeros(1)
         self._obs = Obs.empty(n)
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
-        self._jet_aware = self._layered and isinstance(policy.rule, JetAwareRule)
         self._refs = env._refs
         self._log = log.rows
 
@@ -147,7 +132,7 @@ class FastLoop:
         ``reset`` replaces some)."""
         env, policy = self.env, self.policy
         sim = env.sim
-        rule = _rule_record(policy.rule, env.n, self._layered, self._jet_aware, self._prev_t, self._alt)
+        rule = _rule_record(policy.rule, env.n, self._layered)
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
@@ -170,7 +155,9 @@ class FastLoop:
             return False
         rule = policy.rule
         return not self._layered or (
-            rule._all_formed and rule._prev_t is not None and not (self._jet_aware and rule._slot_yield)
+            rule._all_formed
+            and not np.isnan(rule._prev_t[0])
+            and not (rule.jet_aware_checks and any_below(rule._slot_h, rule.safety))
         )
 
     # ------------------------------------------------------------------ one chunk
@@ -185,9 +172,6 @@ class FastLoop:
         obs = env._obs
         for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
             buf[...] = obs[key] if key != "dist" else env._dist
-        rule = policy.rule
-        if self._layered:
-            self._prev_t[0] = rule._prev_t
         ctl = policy.controller
         policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
         args = list(self._args(env.k, k_end))
@@ -204,10 +188,6 @@ class FastLoop:
         self.status = status
         self.periods += k - k0
         ctl.U = policy.U_last.copy()
-        if self._layered:
-            rule._prev_t = float(self._prev_t[0])
-            if self._jet_aware and k > k0:
-                rule._formation_alt = float(self._alt[0])
         if status == REACT:
             self._cool = COOL_DOWN
         env.k = k

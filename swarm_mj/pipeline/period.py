@@ -9,14 +9,14 @@ period, written once").
 stages' and the monitors' kernels), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
 feedforward (:func:`feedforward_force`); for saturation, the command and the log's input row it
 calls the same kernels from Python (a compiled function taking a large record costs 2-5 s of
-compiling on a first run), and the layered rule's formed step is the rule's own Python
-(swarm_mj/formation), which :func:`rule_formed_step` mirrors; the parity tests keep them equal:
+compiling on a first run; the parity tests keep them equal); the layered rule's formed step is
+the rule's own compiled step, which its Python ``update`` calls too:
 
 =========================  =====================================================================
 stage                      function
 =========================  =====================================================================
-the rule's formed step     :func:`rule_formed_step` (Fig. 5's check, the velocity estimate, the
-                           compiled paths of :func:`~swarm_mj.formation.layered.formed_step_kernel`)
+the rule's formed step     :func:`rule_formed_step`: :func:`~swarm_mj.formation.layered.formed_update`
+                           (Fig. 5's check, the velocity estimate, the paths) and the merge of rows
 downwash feedforward       :func:`feedforward_force`
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
@@ -43,8 +43,7 @@ import numpy as np
 from .._jit import jit
 from ..control.backstepping import backstepping_kernel
 from ..control.lag import predict_kernel
-from ..formation.anticollision import any_below, horizontal_distances, merge_rows, react_needed
-from ..formation.layered import formed_step_kernel
+from ..formation.layered import formed_update, merge_rows
 from ..formation.slots import setpoints_kernel
 from ..physics import _mjstep
 from ..physics.aero import downwash as _downwash
@@ -63,44 +62,16 @@ DONE, REACT, CONTACT, UNHEALTHY, BAD_ACTION = 0, 1, 2, 3, 4
 
 @jit(inline=True)
 def rule_formed_step(rule, obs, t):
-    """The layered rule's update once every follower is formed (LayeredRule.update, JetAwareRule's
-    checks): returns (react, pos_d, vel_d, acc_d); react True when Fig. 5 has work to do (the
-    Python rule then flies the period: drones within D̄ horizontally, an offset held; for
-    ``jet-aware`` slots within D̄ or outlines overlapping), else the references (n, 3)."""
-    n = obs.pos.shape[0]
-    h = horizontal_distances(obs.pos)
-    sh = h
-    if rule.jet_aware:
-        sh = horizontal_distances(obs.sp)
-        if any_below(sh, rule.safety):
-            return True, obs.sp, obs.spv, obs.spa
-        for i in range(1, n):
-            for j in range(n):
-                if h[i, j] < rule.overlap:
-                    return True, obs.sp, obs.spv, obs.spa
-    if react_needed(rule.offset, h, rule.safety):
+    """The layered rule's update once every follower is formed, the rule's own compiled step
+    (:func:`~swarm_mj.formation.layered.formed_update`, which LayeredRule.update calls too) with the
+    observation's slots: returns (react, pos_d, vel_d, acc_d); react True when Fig. 5 has work to do
+    (the Python rule then flies the period), else the references (n, 3), the steered drones' rows of
+    vel_d, acc_d from the rule (Rule.references does the same merge)."""
+    react, pos_d = formed_update(rule, obs.pos, obs.sp, t, obs.pos[0, 2])
+    if react:
         return True, obs.sp, obs.spv, obs.spa
-    if rule.jet_aware:
-        rule.slot_h[:] = sh
-        rule.formation_alt[0] = obs.pos[0, 2]
-    dt = t - rule.prev_t[0]
-    if dt > 0.0:
-        for i in range(n):
-            for j in range(3):
-                rule.vel[i, j] = obs.pos[i, j] - rule.prev_pos[i, j]
-        for i in range(n):
-            for j in range(3):
-                rule.vel[i, j] /= dt
-    rule.prev_t[0] = t
-    rule.prev_pos[:] = obs.pos
-    out = np.empty((n, 3))
-    lim = rule.limits
-    formed_step_kernel(
-        dt, obs.sp, obs.pos[0, 2], rule.offset, rule.vel[0], rule.path_p, rule.path_v, rule.path_a, rule.blocked,
-        rule.zp, rule.zv, rule.za, lim, out, rule.vel_d, rule.acc_d,
-    )  # fmt: skip
     vel_d, acc_d = merge_rows(rule.steer, rule.vel_d, rule.acc_d, obs.spv, obs.spa)
-    return False, out, vel_d, acc_d
+    return False, pos_d, vel_d, acc_d
 
 
 @jit(inline=True)

@@ -117,7 +117,8 @@ class Obs(NamedTuple):
 
 
 class Rule(NamedTuple):
-    """The layered rule's formed step (swarm_mj.formation: LayeredRule, JetAwareRule); ``on`` False: no rule."""
+    """The layered rule's formed step (swarm_mj.formation.layered.formed_update), over the rule's own
+    arrays (built once per reset by LayeredRule.record); ``on`` False: no rule (stand-ins)."""
 
     on: bool
     jet_aware: bool
@@ -126,7 +127,8 @@ class Rule(NamedTuple):
     offset: np.ndarray  # (n,) altitude offsets held
     prev_pos: np.ndarray  # (n, 3) positions at the last update
     vel: np.ndarray  # (n, 3) their finite-difference velocities
-    prev_t: np.ndarray  # (1,) time of the last update
+    prev_t: np.ndarray  # (1,) time of the last update (NaN: none yet)
+    dt: np.ndarray  # (1,) the step between the last two updates
     formation_alt: np.ndarray  # (1,) the formation's altitude (jet-aware)
     slot_h: np.ndarray  # (n, n) horizontal slot distances (jet-aware)
     path_p: np.ndarray  # (n, 2) horizontal paths
@@ -136,7 +138,7 @@ class Rule(NamedTuple):
     zp: np.ndarray  # (n,) altitude paths
     zv: np.ndarray  # (n,)
     za: np.ndarray  # (n,)
-    limits: np.ndarray  # (10,) a_max, jerk, k_v, v_max, tan_tilt, g, v_up, a_up, v_down, a_down
+    limits: tuple  # the paths' limits (swarm_mj.formation.layered.PathLimits: a NamedTuple of floats)
     vel_d: np.ndarray  # (n, 3) references of the steered drones
     acc_d: np.ndarray  # (n, 3)
     steer: np.ndarray  # (n,) bool: the drones the rule steers

@@ -107,6 +107,22 @@ def test_a_touchdown_inside_a_chunk_is_counted_as_on_the_per_period_path(touchdo
     _assert_same(a, b)
 
 
+@pytest.mark.parametrize(
+    ("rule", "key", "value"), [("layers", "path_approach_gain", 1.0), ("jet-aware", "braking_share", 0.5)]
+)
+def test_a_path_tunable_set_by_a_scenario_flies_on_both_drivers(rule, key, value):
+    # a [formation] key read by the compiled path kernels (docs/anticollision.md, "The formed step,
+    # written once"): the chunk driver flies it as the per-period path does, and it changes the flight
+    base = load_scenario("circle").with_overrides(duration=12.0, anti_collision=rule)
+    sc = base.with_overrides(anti_collision_params={**base.anti_collision_params, key: value})
+    a, b = _both(sc)
+    _assert_same(a, b)
+    assert b.extra["fused_periods"] > 0.5 * (len(a.log.t) - 1), b.extra
+    default = run(base, progress=False, fused=True)
+    assert default.extra["fused_periods"] > 0
+    assert not np.array_equal(default.log.pos_d, b.log.pos_d)
+
+
 # --------------------------------------------------------------------------- a new force stage
 
 

@@ -15,6 +15,7 @@ import pytest
 from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.errors import UserError
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule, make_rule
+from swarm_mj.formation.layered import PathLimits
 from swarm_mj.formation.rule_params import (
     PARAM_KEYS,
     PARAM_TABLE,
@@ -72,10 +73,16 @@ def test_every_field_is_explained_in_the_docs():
 
 def test_every_field_is_read_by_the_rules():
     # a field a scenario may set but no code reads would be accepted and then dropped
-    # (the record's own methods read the keep-out fields: self.<field> there)
+    # (the record's own methods read the keep-out fields: self.<field> there; the path kernels read
+    # theirs from layered.PathLimits, whose fields named as the record's come from it: lim.<field>)
     src = "\n".join(p.read_text() for p in FORMATION.glob("*.py"))
-    unread = [k for k in PARAM_KEYS if not re.search(rf"\b(p|params|self\.params|self)\.{k}\b", src)]
-    assert not unread, unread
+    read = [
+        k
+        for k in PARAM_KEYS
+        if re.search(rf"\b(p|params|self\.params|self)\.{k}\b", src)
+        or (k in PathLimits._fields and re.search(rf"\blim\.{k}\b", src))
+    ]
+    assert set(read) == set(PARAM_KEYS), set(PARAM_KEYS) - set(read)
 
 
 def test_every_field_is_settable_from_a_scenario_and_reaches_the_rule():
