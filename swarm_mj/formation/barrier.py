@@ -70,7 +70,7 @@ first version): the filter on its own nominal that goes round the leader on two 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -80,7 +80,8 @@ from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
 from .jet_aware import JetAwareRule
-from .rule_params import PRESETS, RuleParams
+from .rule_params import PRESETS, RuleParams, check_overrides
+from .rule_params import param_field as _p
 from .separation import Sensed
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
@@ -104,110 +105,70 @@ def keepout_radii(
     return np.array([a, a, c])
 
 
+#: Where a scenario sets the filter's parameters (:class:`BarrierParams`): a table of its own, because
+#: two of its names (``max_tilt_deg``, ``sensing_range``) are also the planner's (:class:`RuleParams`).
+BARRIER_TABLE = "formation.barrier"
+
+
 @dataclass(frozen=True)
 class BarrierParams:
-    """The filter's parameters (docs/barrier.md, "parameters", gives each one's reason).
+    """The filter's parameters: each field's unit, admissible range and one-line reason in its
+    metadata (docs/barrier.md, "parameters", gives the long reasons and the measurements). A
+    scenario sets any of them in its ``[formation.barrier]`` table (:data:`BARRIER_TABLE`), validated
+    from the metadata like :class:`RuleParams` (:func:`~.rule_params.check_overrides`); a bad value
+    is one :class:`UserError` naming the key."""
 
-    ``downwash_multiple`` (–): vertical radius / horizontal radius of the keep-out.
-    ``tracking_margin_m`` (m): the real drone's distance from the reference it tracks.
-    ``gain`` k (1/s): the class-K functions α(s) = k·s of (B), both of them (critically damped).
-    ``max_tilt_deg`` (°), ``accel_up``, ``accel_down`` (m/s²): the input limits.
-    ``tiebreak`` (m/s²): the keep-right acceleration of the deadlock tie-break.
-    ``relax_weight`` (–): w, the cost of the slack δ when the constraints are infeasible.
-    ``sensing_range`` (m): a drone filters against the drones within this 3D distance.
-    ``leader_filters`` (bool): whether drone 0 takes its share (False: the followers take all of it).
-    ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
-    towards the formation's (critically damped at 2 rad/s).
-    ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
-    ``gate_rho`` (–): a follower on the ground lifts off only when ρ ≥ gate_rho to every drone of
-    lower index and every airborne drone (the take-off gate).
-    ``priority_share`` (–): the share of a pair's constraint the lower index takes when the constraint
-    asks for an acceleration apart (b > 0; the higher takes the rest; room, b ≤ 0, is split in
-    halves); ½ is Wang et al.'s equal split.
-    ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
-    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
-    ``lane_inner``, ``lane_outer`` (–, in keep-out radii beyond the slot's distance): the rule's
-    nominal goes round the leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
-    ``both_states`` (bool): each constraint also on the drone's sensed state, not only its reference.
-    ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
-    > 0: its acceleration is estimated from its positions, low-passed with this time constant.
-    ``release_m`` (m), ``release_mps`` (m/s): the separation filter (:class:`BarrierFilter`) hands a
-    drone back to its planner once its filtered reference is within these of the planner's.
-    ``ground_band_m`` (m): the separation filter allows no downward acceleration to a drone below it
-    (one just lifted off is not pushed into the ground).
-    ``gate_horizon_s`` (s): the separation filter's take-off gate also holds a follower on the ground
-    while a drone is predicted (straight on at its sensed velocity) within ``gate_rho`` of it over
-    this horizon.
-    """
-
-    downwash_multiple: float = DOWNWASH_MULTIPLE
-    tracking_margin_m: float = 0.02
-    gain: float = 3.0
-    max_tilt_deg: float = 30.0
-    accel_up: float = 5.0
-    accel_down: float = 3.0
-    tiebreak: float = 1.0
-    relax_weight: float = 100.0
-    sensing_range: float = 4.0
-    leader_filters: bool = False
-    nominal_kp: float = 4.0
-    nominal_kd: float = 4.0
-    floor_m: float = 0.1
-    priority_share: float = 0.2
-    leash_m: float = 0.25
-    accel_filter_s: float = 0.05
-    lanes: bool = True
-    lane_speed: float = 2.0
-    arrive_angle: float = 0.15
-    lane_turn_gain: float = 2.0
-    gate_rho: float = 1.2
-    lane_inner: float = 1.2
-    lane_outer: float = 2.4
-    both_states: bool = True
-    release_m: float = 0.02
-    release_mps: float = 0.05
-    ground_band_m: float = 0.5
-    gate_horizon_s: float = 1.5
+    downwash_multiple: float = _p(
+        DOWNWASH_MULTIPLE, "–", "keep-out vertical / horizontal radius (Crazyswarm 2.5, Crazyflie 3)"
+    )
+    tracking_margin_m: float = _p(
+        0.02, "m", "keep-out inflated by twice this for the real drone's tracking error", 0.0, open_lo=False
+    )
+    gain: float = _p(3.0, "1/s", "k of (B): α(s) = k·s for both orders (critically damped)")
+    max_tilt_deg: float = _p(30.0, "deg", "horizontal limit (g − accel_down)·tan(this)", 0.0, 89.0)
+    accel_up: float = _p(5.0, "m/s²", "vertical acceleration limit up")
+    accel_down: float = _p(3.0, "m/s²", "vertical acceleration limit down (below g)", 0.0, 9.8)
+    tiebreak: float = _p(1.0, "m/s²", "keep-right acceleration of the deadlock tie-break", 0.0, open_lo=False)
+    relax_weight: float = _p(100.0, "", "w, the cost of the slack δ when the constraints are infeasible")
+    sensing_range: float = _p(
+        4.0, "m", "a drone filters against the drones within this 3D distance (default: the scenario's)"
+    )
+    leader_filters: bool = _p(False, "", "whether drone 0 takes its share (else the followers take all of it)", None)
+    nominal_kp: float = _p(4.0, "1/s²", "the nominal's PD towards the reference: position gain")
+    nominal_kd: float = _p(4.0, "1/s", "the nominal's PD: velocity gain (critically damped at 2 rad/s with kp 4)")
+    floor_m: float = _p(0.1, "m", "a pair of drones both below this altitude (on the ground) is not filtered", None)
+    priority_share: float = _p(
+        0.2, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
+    )
+    leash_m: float = _p(0.25, "m", "a follower's reference is kept within this of the drone")
+    accel_filter_s: float = _p(
+        0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
+    )
+    lanes: bool = _p(True, "", "a guarded drone's nominal goes round the leader on two lanes", None)
+    lane_speed: float = _p(2.0, "m/s", "speed along a lane")
+    arrive_angle: float = _p(0.15, "rad", "within this angle of its slot's ray a drone leaves its lane", 0.0, 3.14)
+    lane_turn_gain: float = _p(2.0, "1/s", "lane speed ≤ this·r·|angle left| (it stops on its slot's ray)")
+    gate_rho: float = _p(1.2, "", "a grounded follower lifts off only at ρ ≥ this from the drones it yields to")
+    lane_inner: float = _p(1.2, "", "counter-clockwise lane: keep-out radii beyond the slot's distance")
+    lane_outer: float = _p(2.4, "", "clockwise lane: keep-out radii beyond the slot's distance (> lane_inner)")
+    both_states: bool = _p(True, "", "each constraint also on the drone's sensed state, not only its reference", None)
+    release_m: float = _p(
+        0.02, "m", "a guarded drone is handed back within this of the planner's reference", 0.0, open_lo=False
+    )
+    release_mps: float = _p(0.05, "m/s", "… and within this of the planner's velocity", 0.0, open_lo=False)
+    ground_band_m: float = _p(0.5, "m", "no downward acceleration to a drone below this altitude", 0.0, open_lo=False)
+    gate_horizon_s: float = _p(
+        1.5, "s", "the take-off gate predicts the other drones over this horizon", 0.0, open_lo=False
+    )
 
     def __post_init__(self) -> None:
-        positive = (
-            "gate_rho",
-            "downwash_multiple",
-            "gain",
-            "accel_up",
-            "accel_down",
-            "relax_weight",
-            "sensing_range",
-            "nominal_kp",
-            "nominal_kd",
-            "lane_speed",
-            "lane_turn_gain",
-            "lane_inner",
-            "lane_outer",
-        )
-        for name in positive:
-            v = getattr(self, name)
-            if not np.isfinite(v) or v <= 0:
-                raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
-        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m", "gate_horizon_s"):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v < 0:
-                raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
-        if not (0.0 <= self.priority_share <= 1.0):
-            raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
-        if not (0.0 < self.arrive_angle < np.pi):
-            raise UserError(f"barrier parameter arrive_angle must be in (0, π), got {self.arrive_angle!r}")
+        """Every field in its range (the metadata), and lane_outer > lane_inner; else one UserError."""
+        check_overrides({f.name: getattr(self, f.name) for f in fields(self)}, BARRIER_TABLE, record=BarrierParams)
         if self.lane_outer <= self.lane_inner:
-            raise UserError(f"barrier parameter lane_outer must exceed lane_inner, got {self.lane_outer!r}")
-        if not (np.isfinite(self.accel_filter_s) and self.accel_filter_s >= 0):
-            raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
-        if not (np.isfinite(self.leash_m) and self.leash_m > 0):
-            raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
-            raise UserError(f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}")
-        if not (0.0 < self.max_tilt_deg < 90.0):
-            raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
-        if self.accel_down >= 9.81:
-            raise UserError(f"barrier parameter accel_down must be below g, got {self.accel_down!r}")
+            raise UserError(
+                f"must exceed lane_inner ({self.lane_inner!r}), got {self.lane_outer!r}",
+                where=f"{BARRIER_TABLE}.lane_outer",
+            )
 
     def radii(self, vehicle: QuadParams = DEFAULT_PARAMS) -> np.ndarray:
         """The filter's keep-out radii (3,): the vehicle's, inflated by the tracking margin."""
@@ -754,6 +715,22 @@ def takeoff_wait(
     return wait
 
 
+def _own_keys(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The keys of ``overrides`` that only :class:`BarrierParams` has (popped); the names it shares
+    with :class:`RuleParams` (``max_tilt_deg``, ``sensing_range``) stay the planner's."""
+    own = set(BarrierParams.__dataclass_fields__) - set(RuleParams.__dataclass_fields__)
+    return {k: overrides.pop(k) for k in list(overrides) if k in own}
+
+
+def barrier_params(record: RuleParams, table: dict[str, Any]) -> BarrierParams:
+    """The filter's parameters: the defaults of :class:`BarrierParams` with ``table`` (a scenario's
+    ``[formation.barrier]``, validated: one :class:`UserError` naming the key), its ``sensing_range``
+    the rule's (``record``, the scenario's ``sensing_range``) unless the table sets it."""
+    values = check_overrides(table, BARRIER_TABLE, record=BarrierParams)
+    values.setdefault("sensing_range", float(record.sensing_range))
+    return BarrierParams(**values)
+
+
 class BarrierRule(Rule):
     """``anti_collision = "barrier-lanes"`` (docs/barrier.md): the formation's references made safe by the
     barrier filter, with no other separation logic.
@@ -772,13 +749,18 @@ class BarrierRule(Rule):
     """
 
     name = "barrier-lanes"
+    #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
+    takes_barrier_params = True
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+    def __init__(
+        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
+    ) -> None:
         """``params``/``overrides``: the anti-collision record's fields (its ``downwash_feedforward``,
-        ``sensing_range``); the keys of :class:`BarrierParams` among ``overrides`` set the filter."""
-        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+        ``sensing_range``); ``barrier`` and the keys only :class:`BarrierParams` has among
+        ``overrides`` set the filter (:func:`barrier_params`)."""
+        own = _own_keys(overrides)
         super().__init__(n, params, **overrides)
-        self.barrier = BarrierParams(**barrier)
+        self.barrier = barrier_params(self.params, {**own, **(barrier or {})})
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
@@ -1144,12 +1126,20 @@ class BarrierPlannerRule(JetAwareRule):
     parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
 
     name = "barrier"
+    #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
+    takes_barrier_params = True
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
-        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+    def __init__(
+        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
+    ) -> None:
+        """As :class:`~.jet_aware.JetAwareRule`; ``barrier`` and the keys only :class:`BarrierParams`
+        has among ``overrides`` set the filter (:func:`barrier_params`)."""
+        own = _own_keys(overrides)
         vehicle = overrides.get("vehicle", DEFAULT_PARAMS)  # the run's vehicle: its keep-out (Rule keeps it too)
-        self.barrier_filter = BarrierFilter(BarrierParams(**barrier), vehicle)
-        super().__init__(n, params, **overrides)
+        record = PRESETS[self.name].for_vehicle(vehicle) if params is None else params
+        record = record.with_overrides({k: v for k, v in overrides.items() if k != "vehicle"}, where="")
+        self.barrier_filter = BarrierFilter(barrier_params(record, {**own, **(barrier or {})}), vehicle)
+        super().__init__(n, record, vehicle=vehicle)
         self.separation_filter = self.barrier_filter
 
     def reset(self, positions: np.ndarray) -> None:
@@ -1164,12 +1154,14 @@ PRESETS["barrier-lanes"] = RuleParams()
 
 __all__ = [
     "DOWNWASH_MULTIPLE",
+    "BARRIER_TABLE",
     "BarrierFilter",
     "BarrierParams",
     "BarrierPlannerRule",
     "BarrierRecord",
     "BarrierRule",
     "barrier_off",
+    "barrier_params",
     "barrier_step",
     "takeoff_wait",
     "apply_filter",
