@@ -76,8 +76,8 @@ AUTO_CHOICE: dict[bool, tuple[str, str]] = {
     ),
     True: (
         "jet-aware",
-        "downwash: crash-free like barrier and over twice as fast to settle; barrier keeps the keep-out "
-        "invariant and had fewer contacts: name it for that (docs/barrier.md, auto)",
+        "downwash: no crash and over twice as fast to settle on the fresh stress starts; barrier keeps the "
+        "keep-out invariant and had fewer contacts: name it for that (docs/barrier.md, auto)",
     ),
 }
 
