@@ -23,6 +23,7 @@ import numpy as np
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
+from .formation.barrier import BarrierParams
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
 from .physics.aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
@@ -59,7 +60,7 @@ _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
 #: (:class:`~swarm_mj.formation.rule_params.RuleParams`) but the ones asked of the controller,
 #: which are ``[controller]`` keys.
 _RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("formation", "controller")}
-_FORMATION_KEYS = {"diameter", "anti_collision", *_RULE_KEYS["formation"]}
+_FORMATION_KEYS = {"diameter", "anti_collision", "barrier", *_RULE_KEYS["formation"]}
 _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
 _VEHICLE_KEYS = {"model"}
 
@@ -108,6 +109,8 @@ class Scenario:
     vehicle: str = "paper"  # [vehicle] model: a bundled vehicle's name or a vehicle file (docs/vehicles.md)
     params: QuadParams = DEFAULT_PARAMS  # the vehicle's parameters; the paper's (Table 1) by default
     vehicle_mixer: str | None = None  # the vehicle file's ``mixer``: what mixer = "auto" becomes on it
+    #: ``[formation.barrier]``: the barrier filter's parameters the scenario sets (docs/barrier.md)
+    barrier_params: dict[str, Any] = field(default_factory=dict)
 
     @property
     def start_clearance(self) -> float:
@@ -607,6 +610,14 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         )
     ac_params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
     sensing = float(ac_params.pop("sensing_range", RuleParams().sensing_range))
+    barrier = form.get("barrier", {})
+    if not isinstance(barrier, dict):
+        raise UserError("must be a table of the barrier filter's parameters", where=f"{w}formation.barrier")
+    barrier = check_overrides(barrier, where=f"{w}formation.barrier", record=BarrierParams)
+    try:
+        BarrierParams(**barrier)  # the checks across its fields
+    except UserError as exc:
+        raise UserError(str(exc), where=path or None) from None
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
     ac_params |= check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
@@ -696,6 +707,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         vehicle=vehicle,
         params=params,
         vehicle_mixer=vehicle_mixer,
+        barrier_params=barrier,
     )
 
 

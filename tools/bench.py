@@ -36,7 +36,10 @@ Rows:
 * aero: ``runner.run`` of the six-drone circle under the ``realistic`` physics preset (ground,
   downwash, ground effect, rotor lag; docs/aero.md) beside the same run under ``paper``, wall
   time of the loop per simulated second (the "raw" column is the paper run; bar: 1.3×; at least
-  5 interleaved repeats, the best of each).
+  5 interleaved repeats, the best of each);
+* barrier: ``runner.run`` of the six-drone circle under ``realistic`` with ``--anti-collision
+  barrier`` beside the same run with ``jet-aware`` (the "raw" column), wall time of the loop; the
+  ratio is the median of the paired repeats' ``barrier / jet-aware`` (issue 29's bar: 1.3×).
 
 ``tools/bench_peers.py`` adds swarm-mj beside its peers: crazyflow's ``Sim`` (64 worlds x 6 drones,
 state control) beside ``SwarmVectorEnv(64)`` with constant commands and with the backstepping
@@ -77,7 +80,7 @@ import numpy as np
 
 from swarm_mj.physics._mjstep import profiler_paused
 
-SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero")
+SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero", "barrier")
 ROWS: list[dict] = []
 
 
@@ -728,6 +731,40 @@ def bench_aero(quick: bool, repeats: int) -> None:
     )
 
 
+def bench_barrier(quick: bool, repeats: int) -> None:
+    """The barrier separation filter's cost over the jet-aware rule's: the realistic circle (6 drones),
+    the same run with each rule, interleaved (docs/barrier.md, "cost")."""
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.scenario import load_scenario
+
+    dur = 30.0 if quick else 180.0
+    sc = load_scenario("circle").with_overrides(duration=dur)
+    rules = ("jet-aware", "barrier")
+    for rule in rules:
+        run(sc.with_overrides(duration=1.0), progress=False, aero="realistic", anti_collision=rule)  # warm-up
+    loop: dict[str, list[float]] = {r: [] for r in rules}
+    notes = {}
+    for _ in range(repeats):
+        for rule in rules:  # alternate: same machine load
+            res = run(sc, progress=False, aero="realistic", anti_collision=rule)
+            loop[rule].append(res.summary["wall_time_s"])
+            notes[rule] = res
+    ratio = paired(loop["barrier"], loop["jet-aware"])
+    s, x = notes["barrier"].summary, notes["barrier"].extra
+    row(
+        "barrier",
+        f"barrier vs jet-aware, realistic circle (6 drones, {dur:g} s)",
+        min(loop["barrier"]),
+        min(loop["jet-aware"]),
+        value=ratio,
+        unit="× jet-aware",
+        note=f"bar 1.3×; barrier: {x['fused_periods']} periods fused ({x['fast_path']}), keep-out "
+        f"{s['keepout_time_s']:.2f} s, contacts {s['contacts']}; best of {repeats}; ratio: median of the paired "
+        "repeats",
+        ratio=ratio,
+    )
+
+
 def _load_tool(name: str):
     """tools/NAME.py as a module, or None when absent or broken."""
     p = Path(__file__).resolve().parent / f"{name}.py"
@@ -840,6 +877,8 @@ def main(argv: list[str] | None = None) -> int:
             bench_scaling(args.quick, repeats, tuple(args.sizes))
         elif sec == "aero":
             bench_aero(args.quick, repeats)
+        elif sec == "barrier":
+            bench_barrier(args.quick, repeats)
         print(f"  ({sec}: {time.perf_counter() - t:.0f} s)", flush=True)
     extra(args.quick)
     total = time.perf_counter() - t0

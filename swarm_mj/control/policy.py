@@ -81,7 +81,7 @@ class BacksteppingPolicy:
         )
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         name = resolve_rule(anti_collision, sc.aero.downwash) if anti_collision else sc.rule
-        self.rule = make_rule(name, self.n, vehicle=params, **rule_params)  # the run's vehicle's keep-out
+        self.rule = make_rule(name, self.n, vehicle=params, barrier=sc.barrier_params, **rule_params)  # its keep-out
         # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1)
         self.attitude_priority = sc.attitude_priority_on
         # the attitude fed back predicted over the rotors' lag (ours, docs/interpretations.md §2)

@@ -112,6 +112,9 @@ def format_summary(summary: dict, scenario) -> str:
             )
         a = s["anti_collision"]
         lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields")
+        auto = s.get("anti_collision_auto")
+        if auto is not None:
+            lines.append(f"  (auto chose '{auto['rule']}': {auto['why']})")
     aero = s.get("aero") or {}
     if aero.get("model", "paper") != "paper" or aero.get("ground") or aero.get("motor_tau"):
         ctl = s.get("controller") or {}

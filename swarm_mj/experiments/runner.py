@@ -23,6 +23,7 @@ from .._jit import warm_up
 from ..control.policy import BacksteppingPolicy
 from ..env import Command, StepRecord, SwarmEnv
 from ..errors import SimulationDiverged, UserError
+from ..formation.anticollision import AUTO, AUTO_CHOICE
 from ..formation.barrier import keepout_radii
 from ..metrics import (
     downwash_dip,
@@ -337,6 +338,8 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         "mixer": "attitude_priority" if policy.attitude_priority else "clip",
         "lag_compensation_s": list(lag) if lag is not None else None,
     }
+    if sc.anti_collision == AUTO:  # which rule "auto" chose for this physics, and why (docs/barrier.md, "auto")
+        out["anti_collision_auto"] = {"rule": policy.rule.name, "why": AUTO_CHOICE[bool(sc.aero.downwash)][1]}
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
     vehicle = policy.controller.params  # the run's vehicle: the keep-out and the jets are its sizes

@@ -70,8 +70,8 @@ first version): the filter on its own nominal that goes round the leader on two 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-from typing import Any
+from dataclasses import dataclass, fields
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -80,7 +80,8 @@ from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
 from .jet_aware import JetAwareRule
-from .rule_params import PRESETS, RuleParams
+from .rule_params import PRESETS, RuleParams, check_overrides
+from .rule_params import param_field as _p
 from .separation import Sensed
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
@@ -104,110 +105,70 @@ def keepout_radii(
     return np.array([a, a, c])
 
 
+#: Where a scenario sets the filter's parameters (:class:`BarrierParams`): a table of its own, because
+#: two of its names (``max_tilt_deg``, ``sensing_range``) are also the planner's (:class:`RuleParams`).
+BARRIER_TABLE = "formation.barrier"
+
+
 @dataclass(frozen=True)
 class BarrierParams:
-    """The filter's parameters (docs/barrier.md, "parameters", gives each one's reason).
+    """The filter's parameters: each field's unit, admissible range and one-line reason in its
+    metadata (docs/barrier.md, "parameters", gives the long reasons and the measurements). A
+    scenario sets any of them in its ``[formation.barrier]`` table (:data:`BARRIER_TABLE`), validated
+    from the metadata like :class:`RuleParams` (:func:`~.rule_params.check_overrides`); a bad value
+    is one :class:`UserError` naming the key."""
 
-    ``downwash_multiple`` (–): vertical radius / horizontal radius of the keep-out.
-    ``tracking_margin_m`` (m): the real drone's distance from the reference it tracks.
-    ``gain`` k (1/s): the class-K functions α(s) = k·s of (B), both of them (critically damped).
-    ``max_tilt_deg`` (°), ``accel_up``, ``accel_down`` (m/s²): the input limits.
-    ``tiebreak`` (m/s²): the keep-right acceleration of the deadlock tie-break.
-    ``relax_weight`` (–): w, the cost of the slack δ when the constraints are infeasible.
-    ``sensing_range`` (m): a drone filters against the drones within this 3D distance.
-    ``leader_filters`` (bool): whether drone 0 takes its share (False: the followers take all of it).
-    ``nominal_kp`` (1/s²), ``nominal_kd`` (1/s): the rule's nominal command, a PD of its reference
-    towards the formation's (critically damped at 2 rad/s).
-    ``floor_m`` (m): a pair of drones both below this altitude (on the ground) is not filtered.
-    ``gate_rho`` (–): a follower on the ground lifts off only when ρ ≥ gate_rho to every drone of
-    lower index and every airborne drone (the take-off gate).
-    ``priority_share`` (–): the share of a pair's constraint the lower index takes when the constraint
-    asks for an acceleration apart (b > 0; the higher takes the rest; room, b ≤ 0, is split in
-    halves); ½ is Wang et al.'s equal split.
-    ``leash_m`` (m): a follower's reference is kept within this distance of the drone.
-    ``lanes`` (bool), ``lane_speed`` (m/s), ``arrive_angle`` (rad), ``lane_turn_gain`` (1/s),
-    ``lane_inner``, ``lane_outer`` (–, in keep-out radii beyond the slot's distance): the rule's
-    nominal goes round the leader on two lanes (:func:`lane_nominal`) instead of straight to the slot.
-    ``both_states`` (bool): each constraint also on the drone's sensed state, not only its reference.
-    ``accel_filter_s`` (s): 0: a drone that does not filter (the leader) is taken not to accelerate;
-    > 0: its acceleration is estimated from its positions, low-passed with this time constant.
-    ``release_m`` (m), ``release_mps`` (m/s): the separation filter (:class:`BarrierFilter`) hands a
-    drone back to its planner once its filtered reference is within these of the planner's.
-    ``ground_band_m`` (m): the separation filter allows no downward acceleration to a drone below it
-    (one just lifted off is not pushed into the ground).
-    ``gate_horizon_s`` (s): the separation filter's take-off gate also holds a follower on the ground
-    while a drone is predicted (straight on at its sensed velocity) within ``gate_rho`` of it over
-    this horizon.
-    """
-
-    downwash_multiple: float = DOWNWASH_MULTIPLE
-    tracking_margin_m: float = 0.02
-    gain: float = 3.0
-    max_tilt_deg: float = 30.0
-    accel_up: float = 5.0
-    accel_down: float = 3.0
-    tiebreak: float = 1.0
-    relax_weight: float = 100.0
-    sensing_range: float = 4.0
-    leader_filters: bool = False
-    nominal_kp: float = 4.0
-    nominal_kd: float = 4.0
-    floor_m: float = 0.1
-    priority_share: float = 0.2
-    leash_m: float = 0.25
-    accel_filter_s: float = 0.05
-    lanes: bool = True
-    lane_speed: float = 2.0
-    arrive_angle: float = 0.15
-    lane_turn_gain: float = 2.0
-    gate_rho: float = 1.2
-    lane_inner: float = 1.2
-    lane_outer: float = 2.4
-    both_states: bool = True
-    release_m: float = 0.02
-    release_mps: float = 0.05
-    ground_band_m: float = 0.5
-    gate_horizon_s: float = 1.5
+    downwash_multiple: float = _p(
+        DOWNWASH_MULTIPLE, "–", "keep-out vertical / horizontal radius (Crazyswarm 2.5, Crazyflie 3)"
+    )
+    tracking_margin_m: float = _p(
+        0.02, "m", "keep-out inflated by twice this for the real drone's tracking error", 0.0, open_lo=False
+    )
+    gain: float = _p(3.0, "1/s", "k of (B): α(s) = k·s for both orders (critically damped)")
+    max_tilt_deg: float = _p(30.0, "deg", "horizontal limit (g − accel_down)·tan(this)", 0.0, 89.0)
+    accel_up: float = _p(5.0, "m/s²", "vertical acceleration limit up")
+    accel_down: float = _p(3.0, "m/s²", "vertical acceleration limit down (below g)", 0.0, 9.8)
+    tiebreak: float = _p(1.0, "m/s²", "keep-right acceleration of the deadlock tie-break", 0.0, open_lo=False)
+    relax_weight: float = _p(100.0, "", "w, the cost of the slack δ when the constraints are infeasible")
+    sensing_range: float = _p(
+        4.0, "m", "a drone filters against the drones within this 3D distance (default: the scenario's)"
+    )
+    leader_filters: bool = _p(False, "", "whether drone 0 takes its share (else the followers take all of it)", None)
+    nominal_kp: float = _p(4.0, "1/s²", "the nominal's PD towards the reference: position gain")
+    nominal_kd: float = _p(4.0, "1/s", "the nominal's PD: velocity gain (critically damped at 2 rad/s with kp 4)")
+    floor_m: float = _p(0.1, "m", "a pair of drones both below this altitude (on the ground) is not filtered", None)
+    priority_share: float = _p(
+        0.2, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
+    )
+    leash_m: float = _p(0.25, "m", "a follower's reference is kept within this of the drone")
+    accel_filter_s: float = _p(
+        0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
+    )
+    lanes: bool = _p(True, "", "a guarded drone's nominal goes round the leader on two lanes", None)
+    lane_speed: float = _p(2.0, "m/s", "speed along a lane")
+    arrive_angle: float = _p(0.15, "rad", "within this angle of its slot's ray a drone leaves its lane", 0.0, 3.14)
+    lane_turn_gain: float = _p(2.0, "1/s", "lane speed ≤ this·r·|angle left| (it stops on its slot's ray)")
+    gate_rho: float = _p(1.2, "", "a grounded follower lifts off only at ρ ≥ this from the drones it yields to")
+    lane_inner: float = _p(1.2, "", "counter-clockwise lane: keep-out radii beyond the slot's distance")
+    lane_outer: float = _p(2.4, "", "clockwise lane: keep-out radii beyond the slot's distance (> lane_inner)")
+    both_states: bool = _p(True, "", "each constraint also on the drone's sensed state, not only its reference", None)
+    release_m: float = _p(
+        0.02, "m", "a guarded drone is handed back within this of the planner's reference", 0.0, open_lo=False
+    )
+    release_mps: float = _p(0.05, "m/s", "… and within this of the planner's velocity", 0.0, open_lo=False)
+    ground_band_m: float = _p(0.5, "m", "no downward acceleration to a drone below this altitude", 0.0, open_lo=False)
+    gate_horizon_s: float = _p(
+        1.5, "s", "the take-off gate predicts the other drones over this horizon", 0.0, open_lo=False
+    )
 
     def __post_init__(self) -> None:
-        positive = (
-            "gate_rho",
-            "downwash_multiple",
-            "gain",
-            "accel_up",
-            "accel_down",
-            "relax_weight",
-            "sensing_range",
-            "nominal_kp",
-            "nominal_kd",
-            "lane_speed",
-            "lane_turn_gain",
-            "lane_inner",
-            "lane_outer",
-        )
-        for name in positive:
-            v = getattr(self, name)
-            if not np.isfinite(v) or v <= 0:
-                raise UserError(f"barrier parameter {name} must be a positive number, got {v!r}")
-        for name in ("tracking_margin_m", "tiebreak", "release_m", "release_mps", "ground_band_m", "gate_horizon_s"):
-            v = getattr(self, name)
-            if not np.isfinite(v) or v < 0:
-                raise UserError(f"barrier parameter {name} must be >= 0, got {v!r}")
-        if not (0.0 <= self.priority_share <= 1.0):
-            raise UserError(f"barrier parameter priority_share must be in [0, 1], got {self.priority_share!r}")
-        if not (0.0 < self.arrive_angle < np.pi):
-            raise UserError(f"barrier parameter arrive_angle must be in (0, π), got {self.arrive_angle!r}")
+        """Every field in its range (the metadata), and lane_outer > lane_inner; else one UserError."""
+        check_overrides({f.name: getattr(self, f.name) for f in fields(self)}, BARRIER_TABLE, record=BarrierParams)
         if self.lane_outer <= self.lane_inner:
-            raise UserError(f"barrier parameter lane_outer must exceed lane_inner, got {self.lane_outer!r}")
-        if not (np.isfinite(self.accel_filter_s) and self.accel_filter_s >= 0):
-            raise UserError(f"barrier parameter accel_filter_s must be >= 0, got {self.accel_filter_s!r}")
-        if not (np.isfinite(self.leash_m) and self.leash_m > 0):
-            raise UserError(f"barrier parameter leash_m must be a positive number, got {self.leash_m!r}")
-            raise UserError(f"barrier parameter ground_tilt_deg must be in (0, 90), got {self.ground_tilt_deg!r}")
-        if not (0.0 < self.max_tilt_deg < 90.0):
-            raise UserError(f"barrier parameter max_tilt_deg must be in (0, 90), got {self.max_tilt_deg!r}")
-        if self.accel_down >= 9.81:
-            raise UserError(f"barrier parameter accel_down must be below g, got {self.accel_down!r}")
+            raise UserError(
+                f"must exceed lane_inner ({self.lane_inner!r}), got {self.lane_outer!r}",
+                where=f"{BARRIER_TABLE}.lane_outer",
+            )
 
     def radii(self, vehicle: QuadParams = DEFAULT_PARAMS) -> np.ndarray:
         """The filter's keep-out radii (3,): the vehicle's, inflated by the tracking margin."""
@@ -221,12 +182,13 @@ class BarrierParams:
 
 # ------------------------------------------------------------------------------------------ kernels
 _TOL = 1e-9  # feasibility tolerance of a constraint, relative to (1 + |b|)
+_LAM_TOL = 1e-9  # a multiplier counts as non-negative above −this·(1 + max |λ|)
 
 
 @jit
-def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray) -> bool:
-    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting; False if singular."""
-    M = np.empty((4, 5))
+def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray, M: np.ndarray) -> bool:
+    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting (M (4, 5) the
+    caller's work buffer); False if singular."""
     scale = 0.0
     for i in range(s):
         for j in range(s):
@@ -260,14 +222,12 @@ def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray) -> bool:
 
 
 @jit
-def _candidate(
-    w0: np.ndarray, A: np.ndarray, b: np.ndarray, m: int, idx: np.ndarray, s: int, w: np.ndarray, lam: np.ndarray
-) -> bool:
-    """Projection w of w0 onto {w: A[idx[k]]·w = b[idx[k]], k < s}; True if it exists and satisfies
-    every constraint A[:m]·w ≥ b[:m] (within the tolerance)."""
+def _kkt_point(w0, A, b, m, idx, s, w, lam, G, r, M) -> bool:
+    """Whether the projection w of w0 onto {w: A[idx[k]]·w = b[idx[k]], k < s} is the optimum of
+    argmin ‖w − w0‖² s.t. A[:m]·w ≥ b[:m]: w − w0 = A_Sᵀλ with every λ ≥ 0 (within _LAM_TOL) and
+    every constraint satisfied (within _TOL): the KKT conditions, sufficient for this convex QP.
+    G (4, 4), r (4,), M (4, 5): work buffers."""
     d = w0.shape[0]
-    G = np.empty((4, 4))
-    r = np.empty(4)
     for k in range(s):
         rk = b[idx[k]]
         for c in range(d):
@@ -278,8 +238,14 @@ def _candidate(
             for c in range(d):
                 g += A[idx[k], c] * A[idx[l2], c]
             G[k, l2] = g
-    if s > 0 and not _solve_small(G, r, s, lam):
+    if s > 0 and not _solve_small(G, r, s, lam, M):
         return False
+    big = 0.0
+    for k in range(s):
+        big = max(big, abs(lam[k]))
+    for k in range(s):
+        if lam[k] < -_LAM_TOL * (1.0 + big):
+            return False  # a constraint pulls the wrong way: not the optimum's active set
     for c in range(d):
         v = w0[c]
         for k in range(s):
@@ -294,72 +260,47 @@ def _candidate(
     return True
 
 
-@jit
-def _consider(w0, A, b, m, idx, s, best, cand, lam) -> bool:
-    """Evaluate the candidate of the subset idx[:s]; keep it in ``best`` (cost in best[d]) if cheaper."""
-    d = w0.shape[0]
-    if not _candidate(w0, A, b, m, idx, s, cand, lam):
-        return False
-    cost = 0.0
-    for c in range(d):
-        cost += (cand[c] - w0[c]) ** 2
-    if cost < best[d]:
-        for c in range(d):
-            best[c] = cand[c]
-        best[d] = cost
-    return True
-
-
 @jit(samples=lambda: [(np.zeros(3), np.array([[1.0, 0.0, 0.0]]), np.array([1.0]))])
 def project_polyhedron(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
     """argmin ‖w − w0‖² subject to A·w ≥ b (A (m, d), d ≤ 4), exactly, and whether it is feasible.
 
     The optimum w* satisfies w* − w0 = A_Sᵀλ, λ ≥ 0, over its active set S; by Carathéodory a
-    linearly independent subset S' ⊆ S (|S'| ≤ d) carries the same combination, so w* is the
-    projection of w0 onto the affine set A_S'·w = b_S'. Every such projection that satisfies all
-    the constraints is a feasible point, so the cheapest of them over all linearly independent
-    subsets of at most d rows is w* (and w0 itself, the empty subset, when it is feasible).
-    Returns (w0, False) when no candidate is feasible (then the set is empty)."""
+    linearly independent subset S' ⊆ S (|S'| ≤ d) with λ ≥ 0 carries the same combination, so w*
+    is the projection of w0 onto the affine set A_S'·w = b_S'. Conversely, a projection onto such
+    an affine set whose multipliers are all ≥ 0 and which satisfies every constraint satisfies the
+    KKT conditions, sufficient for this strictly convex QP: it is w* (unique). The subsets are
+    tried by size (w0 itself first, then single rows, pairs, …), and the first that passes is
+    returned. Returns (w0, False) when none passes (then the set is empty)."""
     m, d = A.shape
     w0c = w0.copy()
-    best = np.empty(d + 1)
-    best[d] = np.inf
     cand = np.empty(d)
     lam = np.empty(4)
     idx = np.empty(4, dtype=np.int64)
-    if _consider(w0c, A, b, m, idx, 0, best, cand, lam):
+    G = np.empty((4, 4))
+    r = np.empty(4)
+    M = np.empty((4, 5))
+    if _kkt_point(w0c, A, b, m, idx, 0, cand, lam, G, r, M):
         return w0c, True
-    for i0 in range(m):
-        idx[0] = i0
-        _consider(w0c, A, b, m, idx, 1, best, cand, lam)
-        if d < 2:
-            continue
-        for i1 in range(i0 + 1, m):
-            idx[1] = i1
-            _consider(w0c, A, b, m, idx, 2, best, cand, lam)
-            if d < 3:
-                continue
-            for i2 in range(i1 + 1, m):
-                idx[2] = i2
-                _consider(w0c, A, b, m, idx, 3, best, cand, lam)
-                if d < 4:
-                    continue
-                for i3 in range(i2 + 1, m):
-                    idx[3] = i3
-                    _consider(w0c, A, b, m, idx, 4, best, cand, lam)
-    if best[d] == np.inf:
-        return w0c, False
-    return best[:d].copy(), True
+    for s in range(1, min(d, m) + 1):
+        for k in range(s):  # the first subset of s rows, then the next in lexicographic order
+            idx[k] = k
+        while True:
+            if _kkt_point(w0c, A, b, m, idx, s, cand, lam, G, r, M):
+                return cand.copy(), True
+            k = s - 1
+            while k >= 0 and idx[k] == m - s + k:
+                k -= 1
+            if k < 0:
+                break
+            idx[k] += 1
+            for j in range(k + 1, s):
+                idx[j] = idx[j - 1] + 1
+    return w0c, False
 
 
-@jit(samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
-def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
-    """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
-
-    p = p_i − p_j, v = v_i − v_j (3,); q = S·p, S = diag(1/radii); h = ‖q‖² − 1, ḣ = 2 qᵀq̇;
-    A = 2·S·q; b = −2‖q̇‖² − 2k·ḣ − k²·h; b_share = share·b (plus nothing for the other drone:
-    its share is its own constraint, or 0 taken for its acceleration when it does not filter)."""
-    A = np.empty(3)
+@jit
+def _pair_row(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, A: np.ndarray):
+    """:func:`pair_constraint` with share 1, its A written into ``A`` (3,): returns (b, h, ḣ)."""
     h = -1.0
     hd = 0.0
     qd2 = 0.0
@@ -371,6 +312,18 @@ def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float
         qd2 += qd * qd
         A[c] = 2.0 * q / radii[c]
     b = -2.0 * qd2 - 2.0 * gain * hd - gain * gain * h
+    return b, h, hd
+
+
+@jit(samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
+def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
+    """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
+
+    p = p_i − p_j, v = v_i − v_j (3,); q = S·p, S = diag(1/radii); h = ‖q‖² − 1, ḣ = 2 qᵀq̇;
+    A = 2·S·q; b = −2‖q̇‖² − 2k·ḣ − k²·h; b_share = share·b (plus nothing for the other drone:
+    its share is its own constraint, or 0 taken for its acceleration when it does not filter)."""
+    A = np.empty(3)
+    b, h, hd = _pair_row(p, v, radii, gain, A)
     return A, share * b, h, hd
 
 
@@ -396,13 +349,17 @@ def _limit_rows(A: np.ndarray, b: np.ndarray, a_h: float, a_up: float, a_down: f
     return 10
 
 
+#: cos, sin of the octagon's vertex angles (k + ½)·π/4 (constants of the compiled code)
+_VERTEX_COS = np.cos((np.arange(8) + 0.5) * np.pi / 4.0)
+_VERTEX_SIN = np.sin((np.arange(8) + 0.5) * np.pi / 4.0)
+
+
 @jit
 def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> float:
     """min of a·u (a (3,)) over the limit polytope of :func:`_limit_rows` (its 16 vertices)."""
     best = np.inf
     for k in range(8):
-        ang = (k + 0.5) * np.pi / 4.0
-        v = a_h * (a[0] * np.cos(ang) + a[1] * np.sin(ang))
+        v = a_h * (a[0] * _VERTEX_COS[k] + a[1] * _VERTEX_SIN[k])
         best = min(best, v)
     return best + min(a[2] * a_up, -a[2] * a_down)
 
@@ -483,6 +440,7 @@ def filter_accelerations(
     b4 = np.zeros(m_max + 1)
     p = np.empty(3)
     v = np.empty(3)
+    a = np.empty(3)
     un = np.empty(3)
     r2 = sensing_range * sensing_range
     for i in range(n):
@@ -508,7 +466,7 @@ def filter_accelerations(
                     d2 += p[c] * p[c]
                 if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
                     continue
-                a, bs, h, hd = pair_constraint(p, v, radii, gain, 1.0)
+                bs, h, hd = _pair_row(p, v, radii, gain, a)
                 # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
                 # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
                 if not filters[j]:
@@ -608,6 +566,55 @@ def apply_filter(
     )
 
 
+@jit
+def lane_nominal_kernel(
+    ref: np.ndarray,
+    ref_vel: np.ndarray,
+    leader: np.ndarray,
+    pos_d: np.ndarray,
+    vel_d: np.ndarray,
+    acc_d: np.ndarray,
+    radius: float,
+    gains: np.ndarray,
+    lanes: bool,
+    rows: np.ndarray,
+    u: np.ndarray,
+) -> None:
+    """:func:`lane_nominal` for the drones flagged ``rows`` (n,) into ``u`` (n, 3) (other rows untouched).
+
+    ``gains`` (7,): nominal_kp, nominal_kd, lane_speed, arrive_angle, lane_turn_gain, lane_inner,
+    lane_outer (:class:`BarrierParams`). Row 0 (the leader) never goes round on a lane."""
+    kp, kd, speed, arrive, turn, inner, outer = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
+    for i in range(ref.shape[0]):
+        if not rows[i]:
+            continue
+        for c in range(3):  # straight to the slot
+            u[i, c] = acc_d[i, c] + kp * (pos_d[i, c] - ref[i, c]) + kd * (vel_d[i, c] - ref_vel[i, c])
+        if not lanes or i == 0:
+            continue
+        ox, oy = ref[i, 0] - leader[0], ref[i, 1] - leader[1]  # offset from the leader
+        kx, ky = pos_d[i, 0] - leader[0], pos_d[i, 1] - leader[1]  # the slot's
+        gap = (np.arctan2(ky, kx) - np.arctan2(oy, ox) + np.pi) % (2.0 * np.pi) - np.pi  # the shorter way, rad
+        if abs(gap) <= arrive:
+            continue
+        r = max(np.sqrt(ox * ox + oy * oy), 1e-9)
+        rx, ry = ox / r, oy / r  # radial
+        sgn = 1.0 if gap > 0.0 else -1.0
+        tx, ty = -ry * sgn, rx * sgn  # the way to go
+        lane = np.sqrt(kx * kx + ky * ky) + (inner if gap > 0.0 else outer) * radius
+        v_t = min(speed, turn * r * abs(gap))  # slowing onto the slot's ray
+        pull = (kp / kd) * (lane - r)
+        u[i, 0] = acc_d[i, 0] + kd * (vel_d[i, 0] + v_t * tx + pull * rx - ref_vel[i, 0])
+        u[i, 1] = acc_d[i, 1] + kd * (vel_d[i, 1] + v_t * ty + pull * ry - ref_vel[i, 1])
+
+
+def _lane_gains(bp: BarrierParams) -> np.ndarray:
+    """The (7,) gains of :func:`lane_nominal_kernel` from ``bp``."""
+    return np.array(
+        [bp.nominal_kp, bp.nominal_kd, bp.lane_speed, bp.arrive_angle, bp.lane_turn_gain, bp.lane_inner, bp.lane_outer]
+    )
+
+
 def lane_nominal(
     bp: BarrierParams,
     ref: np.ndarray,
@@ -628,26 +635,57 @@ def lane_nominal(
     ``lane_speed`` (at most ``lane_turn_gain``·r·|angle left|, so that it stops on its slot's ray),
     pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
     slot, radially in from the lane (the formed ring is not crossed). The vertical is the PD to the
-    slot's altitude in both. Row 0 (the leader) is the PD too."""
-    kp, kd = bp.nominal_kp, bp.nominal_kd
-    u = acc_d + kp * (pos_d - ref) + kd * (vel_d - ref_vel)  # (n, 3) straight to the slot
-    if not bp.lanes:
-        return u
-    o = ref[:, :2] - leader[None, :2]  # (n, 2) offset from the leader
-    ok = pos_d[:, :2] - leader[None, :2]  # (n, 2) slot offset
-    phi, phik = np.arctan2(o[:, 1], o[:, 0]), np.arctan2(ok[:, 1], ok[:, 0])
-    gap = (phik - phi + np.pi) % (2.0 * np.pi) - np.pi  # (n,) the shorter way round, rad
-    go = np.abs(gap) > bp.arrive_angle
-    go[0] = False
-    r = np.maximum(np.linalg.norm(o, axis=1), 1e-9)
-    radial = o / r[:, None]  # (n, 2)
-    tangent = np.stack([-radial[:, 1], radial[:, 0]], axis=1) * np.sign(gap)[:, None]  # the way to go
-    lane = np.linalg.norm(ok, axis=1) + np.where(gap > 0, bp.lane_inner, bp.lane_outer) * radius  # (n,)
-    v_t = np.minimum(bp.lane_speed, bp.lane_turn_gain * r * np.abs(gap))  # (n,) slowing onto the slot's ray
-    v_want = vel_d[:, :2] + v_t[:, None] * tangent + (kp / kd) * (lane - r)[:, None] * radial
-    u_lane = acc_d[:, :2] + kd * (v_want - ref_vel[:, :2])
-    u[go, :2] = u_lane[go]
+    slot's altitude in both. Row 0 (the leader) is the PD too (:func:`lane_nominal_kernel`)."""
+    c = np.ascontiguousarray
+    n = ref.shape[0]
+    u = np.empty((n, 3))
+    args = (c(ref, dtype=float), c(ref_vel, dtype=float), c(leader, dtype=float), c(pos_d, dtype=float))
+    lane_nominal_kernel(
+        *args, c(vel_d, dtype=float), c(acc_d, dtype=float), float(radius), _lane_gains(bp), bp.lanes,
+        np.ones(n, dtype=np.bool_), u,
+    )  # fmt: skip
     return u
+
+
+@jit
+def takeoff_wait_kernel(
+    positions: np.ndarray,
+    radii: np.ndarray,
+    filters: np.ndarray,
+    velocities: np.ndarray,
+    accelerations: np.ndarray,
+    predict: bool,
+    floor: float,
+    gate_rho: float,
+    horizon: float,
+    wait: np.ndarray,
+) -> None:
+    """:func:`takeoff_wait` into ``wait`` (n,) bool; ``predict`` False: the present positions only."""
+    n = positions.shape[0]
+    for i in range(n):
+        wait[i] = False
+        if not filters[i] or positions[i, 2] >= floor:
+            continue
+        for j in range(n):
+            if j == i or not (j < i or positions[j, 2] >= floor):
+                continue
+            rho2 = 0.0
+            for c in range(3):
+                q = (positions[i, c] - positions[j, c]) / radii[c]
+                rho2 += q * q
+            k = 1
+            while predict and positions[j, 2] >= floor and 0.25 * k < horizon + 1e-9:
+                tau = 0.25 * k  # every 0.25 s over the horizon, the other drone straight on
+                d2 = 0.0
+                for c in range(3):
+                    ahead = positions[j, c] + (tau * velocities[j, c] + 0.5 * tau * tau * accelerations[j, c])
+                    q = (positions[i, c] - ahead) / radii[c]
+                    d2 += q * q
+                rho2 = min(rho2, d2)
+                k += 1
+            if np.sqrt(rho2) < gate_rho:
+                wait[i] = True
+                break
 
 
 def takeoff_wait(
@@ -661,20 +699,36 @@ def takeoff_wait(
     """The take-off gate (module docstring), (n,) bool: a filtering drone on the ground (below
     ``floor_m``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is below
     ``gate_rho`` holds where it is (and does not filter this period). With ``velocities`` (n, 3)
-    (and ``accelerations`` (n, 3)): also when that drone is predicted within ``gate_rho`` (at its
-    velocity and acceleration, sampled every 0.25 s over ``gate_horizon_s``)."""
-    n = positions.shape[0]
-    ground = positions[:, 2] < bp.floor_m
-    rho = np.linalg.norm((positions[:, None, :] - positions[None, :, :]) / radii, axis=2)
-    if velocities is not None:
-        for tau in np.arange(0.25, bp.gate_horizon_s + 1e-9, 0.25):
-            acc = np.zeros_like(positions) if accelerations is None else accelerations
-            ahead = positions + (tau * velocities + 0.5 * tau * tau * acc) * ~ground[:, None]  # grounded: put
-            rho = np.minimum(rho, np.linalg.norm((positions[:, None, :] - ahead[None, :, :]) / radii, axis=2))
-    idx = np.arange(n)
-    blocking = (rho < bp.gate_rho) & ((idx[None, :] < idx[:, None]) | ~ground[None, :])
-    np.fill_diagonal(blocking, False)
-    return ground & blocking.any(axis=1) & filters
+    (and ``accelerations`` (n, 3)): also when that airborne drone is predicted within ``gate_rho`` (at
+    its velocity and acceleration, sampled every 0.25 s over ``gate_horizon_s``; a grounded one is
+    taken where it stands) (:func:`takeoff_wait_kernel`)."""
+    c = np.ascontiguousarray
+    pos = c(positions, dtype=float)
+    z = np.zeros_like(pos)
+    vel = z if velocities is None else c(velocities, dtype=float)
+    acc = z if accelerations is None else c(accelerations, dtype=float)
+    wait = np.zeros(pos.shape[0], dtype=np.bool_)
+    takeoff_wait_kernel(
+        pos, c(radii, dtype=float), c(filters, dtype=np.bool_), vel, acc, velocities is not None, bp.floor_m,
+        bp.gate_rho, bp.gate_horizon_s, wait,
+    )  # fmt: skip
+    return wait
+
+
+def _own_keys(overrides: dict[str, Any]) -> dict[str, Any]:
+    """The keys of ``overrides`` that only :class:`BarrierParams` has (popped); the names it shares
+    with :class:`RuleParams` (``max_tilt_deg``, ``sensing_range``) stay the planner's."""
+    own = set(BarrierParams.__dataclass_fields__) - set(RuleParams.__dataclass_fields__)
+    return {k: overrides.pop(k) for k in list(overrides) if k in own}
+
+
+def barrier_params(record: RuleParams, table: dict[str, Any]) -> BarrierParams:
+    """The filter's parameters: the defaults of :class:`BarrierParams` with ``table`` (a scenario's
+    ``[formation.barrier]``, validated: one :class:`UserError` naming the key), its ``sensing_range``
+    the rule's (``record``, the scenario's ``sensing_range``) unless the table sets it."""
+    values = check_overrides(table, BARRIER_TABLE, record=BarrierParams)
+    values.setdefault("sensing_range", float(record.sensing_range))
+    return BarrierParams(**values)
 
 
 class BarrierRule(Rule):
@@ -695,13 +749,18 @@ class BarrierRule(Rule):
     """
 
     name = "barrier-lanes"
+    #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
+    takes_barrier_params = True
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+    def __init__(
+        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
+    ) -> None:
         """``params``/``overrides``: the anti-collision record's fields (its ``downwash_feedforward``,
-        ``sensing_range``); the keys of :class:`BarrierParams` among ``overrides`` set the filter."""
-        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+        ``sensing_range``); ``barrier`` and the keys only :class:`BarrierParams` has among
+        ``overrides`` set the filter (:func:`barrier_params`)."""
+        own = _own_keys(overrides)
         super().__init__(n, params, **overrides)
-        self.barrier = BarrierParams(**barrier)
+        self.barrier = barrier_params(self.params, {**own, **(barrier or {})})
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
@@ -790,23 +849,209 @@ class BarrierRule(Rule):
         return out_p, out_v, out_a
 
 
+class BarrierRecord(NamedTuple):
+    """:class:`BarrierFilter` as a record (its parameters and its state) for :func:`barrier_step`, the
+    one compiled step both drivers call (docs/design.md, "The control period, written once");
+    ``on`` False: no filter (a stand-in of the same types, :func:`barrier_off`)."""
+
+    on: bool
+    radii: np.ndarray  # (3,) the filter's keep-out radii (m)
+    lane_gains: np.ndarray  # (7,) lane_nominal_kernel's gains
+    a_h: float  # horizontal acceleration limit (m/s²)
+    accel_up: float  # vertical limits (m/s²)
+    accel_down: float
+    gain: float  # k of (B) (1/s)
+    tiebreak: float  # m/s²
+    relax_weight: float
+    sensing_range: float  # m
+    floor_m: float  # m
+    priority_share: float
+    both_states: bool
+    lanes: bool
+    accel_filter_s: float  # s
+    gate_rho: float
+    gate_horizon_s: float  # s
+    leash_m: float  # m
+    release_m: float  # m
+    release_mps: float  # m/s
+    ground_band_m: float  # m
+    guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
+    ref: np.ndarray  # (n, 3) r of a guarded drone
+    ref_vel: np.ndarray  # (n, 3) ṙ
+    sensed_acc: np.ndarray  # (n, 3) low-passed accelerations from the sensed velocities
+    prev_vel: np.ndarray  # (n, 3) the sensed velocities of the last call
+    start_z: np.ndarray  # (n,) where each drone stood on the ground (the first call's altitudes)
+    was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
+    flags: np.ndarray  # (2,) bool: start_z taken, prev_vel taken
+    counts: np.ndarray  # (3,) int64: active, relaxed, guarded drone-periods
+    ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
+    ev_drone: np.ndarray  # (cap,) int64 its drone
+    ev_count: np.ndarray  # (1,) int64 events held
+
+
+#: Relax events a record holds per drone before Python takes them (the chunk driver hands back
+#: before a period that could overflow it).
+EVENTS_PER_DRONE = 8
+
+
+def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> BarrierRecord:
+    """A fresh record of n drones (every drone free, no state taken yet)."""
+    z3 = np.zeros((n, 3))
+    cap = EVENTS_PER_DRONE * max(n, 1)
+    return BarrierRecord(
+        on, bp.radii(vehicle), _lane_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
+        float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
+        float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.lanes), float(bp.accel_filter_s),
+        float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m), float(bp.release_mps),
+        float(bp.ground_band_m), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), np.zeros(n),
+        np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
+        np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
+    )  # fmt: skip
+
+
+def barrier_off(n: int) -> BarrierRecord:
+    """The stand-in record of a run without a barrier filter (``on`` False; the same types, so the
+    chunk driver has one signature with or without the filter)."""
+    return _record(BarrierParams(), DEFAULT_PARAMS, n, False)
+
+
+def _step_samples():
+    n = 3
+    rec = _record(BarrierParams(), DEFAULT_PARAMS, n, True)
+    pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.0, 1.0, 1.0]])
+    z = np.zeros((n, 3))
+    return [(rec, 0.0, pos, z, 0.0, pos, z, z, np.array([False, True, True]))]
+
+
+@jit(samples=_step_samples)
+def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
+    """One period of :class:`BarrierFilter` (its docstring states it) on the record ``rec``: the
+    references (pos_d, vel_d, acc_d) (n, 3) to fly, from the planner's (pos_d, vel_d, acc_d) (n, 3),
+    the sensed ``positions`` and ``vel`` (n, 3) of time ``t``, ``dt`` s after the last call, for the
+    drones flagged ``steer`` (n,). Updates the record's state; appends the relax events to its
+    buffer (the caller drains it)."""
+    n = positions.shape[0]
+    if not rec.flags[0]:
+        rec.start_z[:] = positions[:, 2]  # where each drone stands on the ground
+        rec.flags[0] = True
+    if dt > 0.0 and rec.flags[1] and rec.accel_filter_s > 0.0:
+        f = dt / (rec.accel_filter_s + dt)
+        for i in range(n):
+            for c in range(3):
+                raw = (vel[i, c] - rec.prev_vel[i, c]) / dt
+                rec.sensed_acc[i, c] += (raw - rec.sensed_acc[i, c]) * f
+    rec.prev_vel[:] = vel
+    rec.flags[1] = True
+    g = np.zeros(n, dtype=np.bool_)
+    ref = pos_d.copy()
+    ref_vel = vel_d.copy()
+    u_nom = acc_d.copy()
+    any_g = False
+    for i in range(n):
+        g[i] = rec.guarded[i] and steer[i]
+        if g[i]:
+            any_g = True
+            ref[i] = rec.ref[i]
+            ref_vel[i] = rec.ref_vel[i]
+    if any_g:  # a guarded drone's nominal: round the leader on a lane towards the planner's reference
+        lane_nominal_kernel(ref, ref_vel, positions[0], pos_d, vel_d, acc_d, rec.radii[0], rec.lane_gains,
+                            rec.lanes, g, u_nom)  # fmt: skip
+        face = rec.a_h * np.cos(np.pi / 8.0)
+        for i in range(n):
+            if g[i]:
+                nh = max(np.sqrt(u_nom[i, 0] ** 2 + u_nom[i, 1] ** 2), 1e-12)
+                s = min(1.0, face / nh)
+                u_nom[i, 0] *= s
+                u_nom[i, 1] *= s
+                u_nom[i, 2] = min(max(u_nom[i, 2], -rec.accel_down), rec.accel_up)
+    wait = np.zeros(n, dtype=np.bool_)
+    takeoff_wait_kernel(positions, rec.radii, steer, vel, rec.sensed_acc, True, rec.floor_m, rec.gate_rho,
+                        rec.gate_horizon_s, wait)  # fmt: skip
+    filters = np.empty(n, dtype=np.bool_)
+    a_h = np.full(n, rec.a_h)
+    a_up = np.full(n, rec.accel_up)
+    a_down = np.full(n, rec.accel_down)
+    for i in range(n):
+        filters[i] = steer[i] and not wait[i]
+        if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
+            a_down[i] = 0.0  # near the ground: not pushed down
+    u, active, relaxed, _ = filter_accelerations(
+        ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, filters, rec.radii, rec.gain, a_h, a_up, a_down,
+        rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states,
+    )  # fmt: skip
+    out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
+    for i in range(n):
+        if active[i]:
+            rec.counts[0] += 1
+        if relaxed[i]:
+            rec.counts[1] += 1
+            if not rec.was_relaxed[i]:  # the first period of a relaxed stretch: an event
+                k = rec.ev_count[0]
+                if k < rec.ev_t.shape[0]:
+                    rec.ev_t[k] = t
+                    rec.ev_drone[k] = i
+                    rec.ev_count[0] = k + 1
+        rec.was_relaxed[i] = relaxed[i]
+        g[i] = (g[i] or active[i]) and filters[i]
+        if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
+            rec.ref[i] = positions[i]
+            rec.ref[i, 2] = min(positions[i, 2], rec.start_z[i])
+            rec.ref_vel[i] = 0.0
+        if g[i]:  # (r, ṙ) advance with the filtered command, never below the ground, on the leash
+            rec.counts[2] += 1
+            far2 = 0.0
+            for c in range(3):
+                rec.ref_vel[i, c] = ref_vel[i, c] + u[i, c] * dt
+                rec.ref[i, c] = ref[i, c] + rec.ref_vel[i, c] * dt
+            rec.ref[i, 2] = max(rec.ref[i, 2], 0.0)
+            for c in range(3):
+                far2 += (rec.ref[i, c] - positions[i, c]) ** 2
+            far = np.sqrt(far2)
+            if far > rec.leash_m:
+                for c in range(3):
+                    rec.ref[i, c] = positions[i, c] + (rec.ref[i, c] - positions[i, c]) * (rec.leash_m / far)
+            for c in range(3):
+                out_p[i, c] = rec.ref[i, c]
+                out_v[i, c] = rec.ref_vel[i, c]
+                out_a[i, c] = u[i, c]
+        if wait[i]:
+            for c in range(3):
+                out_p[i, c] = rec.ref[i, c]
+                out_v[i, c] = 0.0
+                out_a[i, c] = 0.0
+        back = g[i] and not active[i]  # handed back to the planner: unchanged and back on its path
+        if back:
+            dp = 0.0
+            dv = 0.0
+            for c in range(3):
+                dp += (rec.ref[i, c] - pos_d[i, c]) ** 2
+                dv += (rec.ref_vel[i, c] - vel_d[i, c]) ** 2
+            back = np.sqrt(dp) <= rec.release_m and np.sqrt(dv) <= rec.release_mps
+        rec.guarded[i] = (g[i] and not back) or wait[i]
+    return out_p, out_v, out_a
+
+
 class BarrierFilter:
     """The barrier as a separation step (:class:`~.separation.SeparationFilter`, docs/barrier.md,
     "the separation filter"): it guards any planner's references (pos_d, vel_d, acc_d).
 
     Each steered drone is either *free* (its references are the planner's, bit for bit) or
     *guarded* (the filter flies its own reference state (r, ṙ)). Every period the nominal
-    acceleration is the planner's acc_d for a free drone, and acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ)
-    for a guarded one (the PD of :class:`BarrierParams` back onto the planner's path, within the
-    input limits); :func:`filter_accelerations` changes it as little as possible so that (B) holds
-    against every sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on
-    the drone's sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ)
-    of a guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``,
-    never below the ground, within ``leash_m`` of the drone); it becomes free again when the filter
-    leaves its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the
-    planner's (pos_d, vel_d). A follower on the ground waits under the take-off gate
-    (:func:`takeoff_wait`). The drones not steered (the leader) do not filter; their acceleration
-    is estimated from the sensed velocities, low-passed (``accel_filter_s``).
+    acceleration is the planner's acc_d for a free drone, and for a guarded one
+    :func:`lane_nominal` towards the planner's reference (round the leader on a lane, else
+    acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ); within the input limits);
+    :func:`filter_accelerations` changes it as little as possible so that (B) holds against every
+    sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
+    sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
+    guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``, never
+    below the ground, within ``leash_m`` of the drone); it becomes free again when the filter leaves
+    its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
+    (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
+    The drones not steered (the leader) do not filter; their acceleration is estimated from the
+    sensed velocities, low-passed (``accel_filter_s``).
+
+    One period is :func:`barrier_step` on the filter's record (:meth:`record`): this class calls it,
+    and so does the chunk driver (swarm_mj/pipeline/period.py), the same function.
 
     Invariant: row i of the output depends only on drone i's references and the sensed state of
     the drones within ``sensing_range``; with no drone guarded and no constraint violated, the
@@ -821,86 +1066,58 @@ class BarrierFilter:
 
     def reset(self, n: int) -> None:
         """Start of a run of n drones: every drone free."""
-        self.guarded = np.zeros(n, dtype=bool)
-        self.ref = np.zeros((n, 3))
-        self.ref_vel = np.zeros((n, 3))
-        self.sensed_acc = np.zeros((n, 3))
-        self._prev_vel: np.ndarray | None = None
-        self._start_z: np.ndarray | None = None
-        self._was_relaxed = np.zeros(n, dtype=bool)
+        self._rec = _record(self.barrier, self.vehicle, n, True)
         self.events: list[dict] = []
-        self.active_periods = 0
-        self.relaxed_periods = 0
-        self.guarded_periods = 0
+
+    def record(self) -> BarrierRecord:
+        """The filter's record (its arrays are the filter's state: :func:`barrier_step` updates them)."""
+        return self._rec
+
+    def take_events(self) -> None:
+        """Move the relax events of the record's buffer to :attr:`events` (``{t, drone, other: -1,
+        action: "relax"}``)."""
+        rec = self._rec
+        k = int(rec.ev_count[0])
+        for j in range(k):
+            self.events.append({"t": float(rec.ev_t[j]), "drone": int(rec.ev_drone[j]), "other": -1, "action": "relax"})
+        rec.ev_count[0] = 0
+
+    @property
+    def guarded(self) -> np.ndarray:
+        """(n,) bool: the drones whose reference the filter flies."""
+        return self._rec.guarded
+
+    @property
+    def active_periods(self) -> int:
+        """Drone-periods in which a barrier constraint changed the command."""
+        return int(self._rec.counts[0])
+
+    @property
+    def relaxed_periods(self) -> int:
+        """Drone-periods in which the constraints were relaxed."""
+        return int(self._rec.counts[1])
+
+    @property
+    def guarded_periods(self) -> int:
+        """Drone-periods flown on the filter's own reference."""
+        return int(self._rec.counts[2])
 
     def __call__(
         self, sensed: Sensed, pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray, steer: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(pos_d, vel_d, acc_d) (n, 3) to fly (:class:`~.separation.SeparationFilter`)."""
-        bp = self.barrier
-        positions = np.asarray(sensed.positions, dtype=float)
-        n, dt = positions.shape[0], float(sensed.dt)
-        if self.guarded.shape[0] != n:
+        """(pos_d, vel_d, acc_d) (n, 3) to fly (:class:`~.separation.SeparationFilter`; :func:`barrier_step`)."""
+        c = np.ascontiguousarray
+        positions = c(sensed.positions, dtype=np.float64)
+        n = positions.shape[0]
+        if self._rec.guarded.shape[0] != n:
             self.reset(n)
-        if self._start_z is None:
-            self._start_z = positions[:, 2].copy()  # where each drone stands on the ground
-        vel = np.array(sensed.velocities, dtype=float)
-        if dt > 0.0 and self._prev_vel is not None and bp.accel_filter_s > 0.0:
-            raw = (vel - self._prev_vel) / dt
-            self.sensed_acc += (raw - self.sensed_acc) * (dt / (bp.accel_filter_s + dt))
-        self._prev_vel = vel
-        steer = np.asarray(steer, dtype=bool)
-        g = self.guarded & steer
-        ref = np.where(g[:, None], self.ref, pos_d)
-        ref_vel = np.where(g[:, None], self.ref_vel, vel_d)
-        u_nom = np.array(acc_d, dtype=float)
-        if g.any():
-            if bp.lanes:  # round the leader on a lane towards the planner's reference
-                lanes = lane_nominal(bp, ref, ref_vel, positions[0], pos_d, vel_d, acc_d, float(self.radii[0]))
-                u_g = lanes[g]
-            else:
-                u_g = acc_d[g] + bp.nominal_kp * (pos_d[g] - ref[g]) + bp.nominal_kd * (vel_d[g] - ref_vel[g])
-            nh = np.maximum(np.hypot(u_g[:, 0], u_g[:, 1]), 1e-12)
-            u_g[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / nh)[:, None]
-            u_g[:, 2] = np.clip(u_g[:, 2], -bp.accel_down, bp.accel_up)
-            u_nom[g] = u_g
-        wait = takeoff_wait(bp, positions, self.radii, steer, vel, self.sensed_acc)
-        filters = steer & ~wait
-        low = np.minimum(ref[:, 2], positions[:, 2]) < bp.ground_band_m  # near the ground: not pushed down
-        limits = np.tile([self.a_h, bp.accel_up, bp.accel_down], (n, 1))
-        limits[low, 2] = 0.0
-        sensed_state = (positions, vel, self.sensed_acc)
-        u, active, relaxed, _ = apply_filter(bp, ref, ref_vel, u_nom, filters, sensed_state, self.vehicle, limits)
-        self.active_periods += int(active.sum())
-        self.relaxed_periods += int(relaxed.sum())
-        for i in np.flatnonzero(relaxed & ~self._was_relaxed):
-            self.events.append({"t": float(sensed.t), "drone": int(i), "other": -1, "action": "relax"})
-        self._was_relaxed = relaxed
-        g = (g | active) & filters
-        # the take-off gate: held where it stands, at most its start altitude
-        if wait.any():
-            self.ref[wait] = positions[wait]
-            self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])
-            self.ref_vel[wait] = 0.0
-        if g.any():
-            rv = ref_vel[g] + u[g] * dt
-            r = ref[g] + rv * dt
-            r[:, 2] = np.maximum(r[:, 2], 0.0)  # never below the ground
-            gap = r - positions[g]
-            far = np.linalg.norm(gap, axis=1)
-            pull = far > bp.leash_m
-            r[pull] = positions[g][pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
-            self.ref[g], self.ref_vel[g] = r, rv
-        self.guarded_periods += int(g.sum())
-        out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
-        out_p[g], out_v[g], out_a[g] = self.ref[g], self.ref_vel[g], u[g]
-        out_p[wait], out_v[wait], out_a[wait] = self.ref[wait], 0.0, 0.0
-        # handed back to the planner: unchanged this period and back on its path
-        back = g & ~active
-        back &= np.linalg.norm(self.ref - pos_d, axis=1) <= bp.release_m
-        back &= np.linalg.norm(self.ref_vel - vel_d, axis=1) <= bp.release_mps
-        self.guarded = (g & ~back) | wait
-        return out_p, out_v, out_a
+        out = barrier_step(
+            self._rec, float(sensed.t), positions, c(sensed.velocities, dtype=np.float64), float(sensed.dt),
+            c(pos_d, dtype=np.float64), c(vel_d, dtype=np.float64), c(acc_d, dtype=np.float64),
+            c(steer, dtype=np.bool_),
+        )  # fmt: skip
+        self.take_events()
+        return out
 
 
 class BarrierPlannerRule(JetAwareRule):
@@ -909,12 +1126,20 @@ class BarrierPlannerRule(JetAwareRule):
     parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
 
     name = "barrier"
+    #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
+    takes_barrier_params = True
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
-        barrier = {k: overrides.pop(k) for k in list(overrides) if k in BarrierParams.__dataclass_fields__}
+    def __init__(
+        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
+    ) -> None:
+        """As :class:`~.jet_aware.JetAwareRule`; ``barrier`` and the keys only :class:`BarrierParams`
+        has among ``overrides`` set the filter (:func:`barrier_params`)."""
+        own = _own_keys(overrides)
         vehicle = overrides.get("vehicle", DEFAULT_PARAMS)  # the run's vehicle: its keep-out (Rule keeps it too)
-        self.barrier_filter = BarrierFilter(BarrierParams(**barrier), vehicle)
-        super().__init__(n, params, **overrides)
+        record = PRESETS[self.name].for_vehicle(vehicle) if params is None else params
+        record = record.with_overrides({k: v for k, v in overrides.items() if k != "vehicle"}, where="")
+        self.barrier_filter = BarrierFilter(barrier_params(record, {**own, **(barrier or {})}), vehicle)
+        super().__init__(n, record, vehicle=vehicle)
         self.separation_filter = self.barrier_filter
 
     def reset(self, positions: np.ndarray) -> None:
@@ -929,10 +1154,15 @@ PRESETS["barrier-lanes"] = RuleParams()
 
 __all__ = [
     "DOWNWASH_MULTIPLE",
+    "BARRIER_TABLE",
     "BarrierFilter",
     "BarrierParams",
     "BarrierPlannerRule",
+    "BarrierRecord",
     "BarrierRule",
+    "barrier_off",
+    "barrier_params",
+    "barrier_step",
     "takeoff_wait",
     "apply_filter",
     "lane_nominal",

@@ -49,6 +49,11 @@ def _p(
     return field(default=default, metadata=meta)
 
 
+#: The field maker, for another parameter record validated the same way (the barrier filter's
+#: ``BarrierParams``, :func:`check_overrides` with ``record=``).
+param_field = _p
+
+
 @dataclass(frozen=True)
 class RuleParams:
     """Every tunable of the anti-collision (units and reasons in each field's metadata).
@@ -157,16 +162,18 @@ def vehicle_outline(vehicle: QuadParams = DEFAULT_PARAMS) -> float:
     return float(vehicle.rotor_span)
 
 
-def check_overrides(overrides: dict[str, Any], where: str = "formation") -> dict[str, Any]:
-    """``overrides`` validated against the record's metadata: known keys, type (bool, integer or
-    number), finite and in range; :class:`UserError` naming ``where.key`` otherwise. Returns them
+def check_overrides(overrides: dict[str, Any], where: str = "formation", record: type | None = None) -> dict[str, Any]:
+    """``overrides`` validated against the metadata of ``record``'s fields (:class:`RuleParams` by
+    default; any frozen record whose fields are made by :func:`_p`): known keys, type (bool, integer
+    or number), finite and in range; :class:`UserError` naming ``where.key`` otherwise. Returns them
     converted (floats as float, integers as int)."""
+    by_name = _FIELDS if record is None else {f.name: f for f in fields(record)}
     out: dict[str, Any] = {}
     for key, v in overrides.items():
         w = f"{where}.{key}" if where else key
-        f = _FIELDS.get(key)
+        f = by_name.get(key)
         if f is None:
-            raise UserError(f"unknown key {key!r}; allowed: {', '.join(PARAM_KEYS)}", where=where or None)
+            raise UserError(f"unknown key {key!r}; allowed: {', '.join(by_name)}", where=where or None)
         m = f.metadata
         if f.type in ("bool", bool):
             if not isinstance(v, (bool, np.bool_)):

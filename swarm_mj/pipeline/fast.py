@@ -9,7 +9,8 @@ whether a run can use it and gathers the records from the run's objects:
 * **Whether a run flies fast is one question** (:func:`why_not`): is every stage, monitor and the
   rule of this run compilable? A force stage or monitor is when its ``record()`` returns a record
   with a registered compiled kernel (:data:`swarm_mj.pipeline.records.FORCE_KERNELS`, ``MONITOR_KERNELS``);
-  the rule when it is the layered family or none. Otherwise the run flies step by step and
+  the rule when it is the layered family (with no separation filter, or the barrier filter) or
+  none. Otherwise the run flies step by step and
   ``RunResult.extra["fast_path"]`` names what refused it (the run also says so on stderr).
 * **Compiling.** The driver's signature comes from the records themselves (Numba types them), one
   per set of force stages and monitors. Compiling it takes Numba 10–20 s, more than a run saves,
@@ -40,6 +41,7 @@ import numpy as np
 from .. import _jit
 from ..errors import UserError
 from ..formation.anticollision import JetAwareRule, LayeredRule, NoRule, any_below, idle_record
+from ..formation.barrier import BarrierFilter, BarrierPlannerRule, BarrierRecord, barrier_off
 from ..physics import _mjstep
 from .records import Obs, Rule
 
@@ -75,11 +77,17 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
     if len(ids) > 1 and not (np.diff(ids) == ids[1] - ids[0]).all():
         return "drone bodies not evenly spaced in the model"
     rule = policy.rule
-    if env.n > 1 and type(rule) not in (LayeredRule, JetAwareRule, NoRule):
+    if env.n > 1 and type(rule) not in (LayeredRule, JetAwareRule, BarrierPlannerRule, NoRule):
         return f"the {rule.name!r} rule has no compiled step"
-    if getattr(rule, "separation_filter", None) is not None:
-        return "a separation filter other than the rule's own has no compiled step"
+    if env.n > 1 and type(getattr(rule, "separation_filter", None)) not in (type(None), BarrierFilter):
+        return "a separation filter other than the barrier filter has no compiled step"
     return None
+
+
+def _filter_record(rule, n: int, on: bool) -> BarrierRecord:  # noqa: ANN001
+    """The rule's barrier separation filter as a record (its own arrays), or the stand-in."""
+    f = getattr(rule, "separation_filter", None) if on else None
+    return barrier_off(n) if f is None else f.record()
 
 
 # --------------------------------------------------------------------------- records of a run
@@ -133,12 +141,13 @@ class FastLoop:
         env, policy = self.env, self.policy
         sim = env.sim
         rule = _rule_record(policy.rule, env.n, self._layered)
+        filt = _filter_record(policy.rule, env.n, self._layered)
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
         return (
-            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, policy.control_record(), ff, pred,
-            self._log, sim.compiled_stages(), monitors,
+            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, filt, policy.control_record(), ff,
+            pred, self._log, sim.compiled_stages(), monitors,
         )  # fmt: skip
 
     def ready(self) -> bool:
@@ -179,6 +188,7 @@ class FastLoop:
         with _mjstep.profiler_paused():  # MuJoCo's profiling clock off, as in Sim.step
             while True:
                 status, k, s = fly(*args)
+                self._take_filter_events()
                 if status == CONTACT:
                     sim.after_physics_step()  # contacts and monitors, as Sim.step after that physics step
                     args[0], args[1] = k, s
@@ -201,6 +211,12 @@ class FastLoop:
         if k >= env.n_steps:
             env._done = True
         return k
+
+    def _take_filter_events(self) -> None:
+        """The barrier filter's relax events of the periods flown, into its ``events`` (as its Python call does)."""
+        f = getattr(self.policy.rule, "separation_filter", None) if self._layered else None
+        if f is not None:
+            f.take_events()
 
     def _record(self, k: int) -> None:
         """The environment's record of the last period flown (as :meth:`SwarmEnv.step` leaves it)."""

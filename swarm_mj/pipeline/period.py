@@ -17,6 +17,8 @@ stage                      function
 =========================  =====================================================================
 the rule's formed step     :func:`rule_formed_step`: :func:`~swarm_mj.formation.layered.formed_update`
                            (Fig. 5's check, the velocity estimate, the paths) and the merge of rows
+separation filter          :func:`~swarm_mj.formation.barrier.barrier_step` (the barrier filter's
+                           period; ``BarrierFilter`` calls the same function)
 downwash feedforward       :func:`feedforward_force`
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
@@ -43,6 +45,7 @@ import numpy as np
 from .._jit import jit
 from ..control.backstepping import backstepping_kernel
 from ..control.lag import predict_kernel
+from ..formation.barrier import barrier_step
 from ..formation.layered import formed_update, merge_rows
 from ..formation.slots import setpoints_kernel
 from ..physics import _mjstep
@@ -197,14 +200,16 @@ def observe_into(phys, refs, obs, k) -> None:
 
 
 @jit
-def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, log, stages, monitors):
+def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, pred, log, stages, monitors):
     """Fly control periods k .. k_end − 1 with the stages above, in the per-period path's order;
     returns (status, k, s): the period and physics step (0 = its start) where it stopped.
 
     ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
     resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
     still holds drones in contact, so every physics step goes back to it. ``stages``, ``monitors``:
-    the records of the simulator's compiled force stages and monitors, in its order."""
+    the records of the simulator's compiled force stages and monitors, in its order. ``filt``: the
+    rule's barrier separation filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on``
+    False: none), after the rule's formed step as in ``LayeredRule.references``."""
     n = phys.qpos.shape[0]
     xf = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 0:3]
     xtorque = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 3:6]
@@ -214,9 +219,14 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
             t = k * phys.T
             pos_d, vel_d, acc_d = obs.sp, obs.spv, obs.spa
             if rule.on:
+                if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
+                    return REACT, k, 0  # its event buffer could overflow: Python flies this period
+                dt = t - rule.prev_t[0]
                 react, pos_d, vel_d, acc_d = rule_formed_step(rule, obs, t)
                 if react:
                     return REACT, k, 0
+                if filt.on:
+                    pos_d, vel_d, acc_d = barrier_step(filt, t, obs.pos, rule.vel, dt, pos_d, vel_d, acc_d, rule.steer)
             U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d)
             for x in U.flat:
                 if not np.isfinite(x):

@@ -51,3 +51,21 @@ def test_take_off_gate_holds_a_follower_under_a_lower_index():
     far[1] = [0.0, 0.0, 5.0]  # follower 1 well above: gate open
     p_d, v_d, a_d = rule.references(0.02, far, slot, z, z, 2.0)
     assert a_d[2, 2] > 0.0
+
+
+@pytest.mark.parametrize(("aero", "chosen"), [("paper", "layers"), ("realistic", "jet-aware")])
+def test_auto_says_which_rule_it_chose_and_why(aero, chosen):
+    """``anti_collision = "auto"`` (the circle's): the summary names the rule auto chose for the
+    physics (``AUTO_CHOICE``, by whether it has downwash, not by the scenario) and the reason, and
+    the text summary prints it; a rule named explicitly has no such key."""
+    from swarm_mj.experiments.report_table import format_summary
+    from swarm_mj.formation.anticollision import AUTO_CHOICE
+
+    res = run("circle", aero=aero, duration=0.5, progress=False)
+    s = res.summary
+    assert res.scenario.anti_collision == "auto"
+    assert s["anti_collision_rule"] == chosen
+    assert s["anti_collision_auto"] == {"rule": chosen, "why": AUTO_CHOICE[aero == "realistic"][1]}
+    assert f"auto chose '{chosen}': {s['anti_collision_auto']['why']}" in format_summary(s, res.scenario)
+    named = run("circle", aero=aero, duration=0.5, progress=False, anti_collision=chosen).summary
+    assert "anti_collision_auto" not in named

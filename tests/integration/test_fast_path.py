@@ -18,6 +18,7 @@ import pytest
 from swarm_mj import _jit
 from swarm_mj.env import SwarmEnv
 from swarm_mj.experiments.runner import _SERIES, preset_signatures, run
+from swarm_mj.experiments.stress import StressCase, stress_scenario
 from swarm_mj.physics import _mjstep
 from swarm_mj.physics.aero.updraft import UpdraftStage
 from swarm_mj.pipeline import fast
@@ -121,6 +122,28 @@ def test_a_path_tunable_set_by_a_scenario_flies_on_both_drivers(rule, key, value
     default = run(base, progress=False, fused=True)
     assert default.extra["fused_periods"] > 0
     assert not np.array_equal(default.log.pos_d, b.log.pos_d)
+
+
+@pytest.mark.parametrize("aero", ["paper", "realistic"])
+def test_the_barrier_filter_flies_fast_bit_identical(aero, monkeypatch):
+    # the barrier separation filter (swarm_mj/formation/barrier.py, barrier_step) after the planner's
+    # formed step in the chunk driver; a start whose followers are still guarded (flown on the
+    # filter's own references) when the chunks begin, so that its state crosses the two drivers
+    guarded = []
+    run_chunk = fast.FastLoop.run
+
+    def counting(self, k_end):
+        f = self.policy.rule.separation_filter
+        before = f.guarded_periods
+        out = run_chunk(self, k_end)
+        guarded.append(f.guarded_periods - before)
+        return out
+
+    monkeypatch.setattr(fast.FastLoop, "run", counting)
+    a, b = _both(stress_scenario(StressCase("barrier", 100015, 5, 3.0, 0.6, 15.0, aero=aero)))
+    _assert_same(a, b)
+    assert b.extra["fused_periods"] > 0.3 * (len(a.log.t) - 1), b.extra
+    assert sum(guarded) > 0  # the filter flew guarded drones inside the chunks
 
 
 # --------------------------------------------------------------------------- a new force stage

@@ -467,3 +467,21 @@ def test_filter_take_off_gate():
     far[1] = [0.0, 0.0, 5.0]
     o_p, o_v, o_a = f(_sensed(0.01, far, z, 0.01), p_d, v_d, a_d, steer)
     assert o_a[2, 2] > 0.0
+
+
+def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
+    """Two followers closing at 4 m/s, 0.9 m apart, the tilt limited to 5° (the case of
+    test_relaxation_is_used_and_flagged): the filter relaxes both, and each gets one relax event
+    at the first period of the stretch (t of that call), not one per period; the counters count
+    drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``."""
+    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, lanes=False))
+    f.reset(3)
+    pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
+    vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    steer = np.array([False, True, True])
+    z = np.zeros((3, 3))
+    for k in range(2):
+        f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
+    assert f.relaxed_periods == 4 and f.active_periods == 4
+    assert f.events == [{"t": 0.0, "drone": d, "other": -1, "action": "relax"} for d in (1, 2)]
+    assert f.record().ev_count[0] == 0  # the buffer was emptied into events

@@ -1,0 +1,116 @@
+"""The barrier filter's parameter record (swarm_mj/formation/barrier.py, ``BarrierParams``;
+docs/barrier.md, "parameters"): every field with a unit, a reason and a range, validated from that
+metadata, settable from a scenario's ``[formation.barrier]`` table and reaching the filter the run
+flies; a bad value is one line naming the file and the key, before anything flies."""
+
+from __future__ import annotations
+
+from dataclasses import fields, replace
+from pathlib import Path
+
+import pytest
+
+from swarm_mj.control.policy import BacksteppingPolicy
+from swarm_mj.errors import UserError
+from swarm_mj.formation.anticollision import make_rule
+from swarm_mj.formation.barrier import BarrierParams, BarrierPlannerRule, BarrierRule
+from swarm_mj.formation.rule_params import check_overrides
+from swarm_mj.scenario import parse_scenario
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _scenario(rule: str = "barrier", planner_sensing: float | None = None, **barrier) -> dict:
+    form: dict = {"anti_collision": rule}
+    if planner_sensing is not None:
+        form["sensing_range"] = planner_sensing
+    if barrier:
+        form["barrier"] = barrier
+    return {
+        "duration": 1.0,
+        "leader": {"trajectory": "hover", "params": {"position": [0.0, 0.0, 2.0]}},
+        "followers": {"start": [[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]},
+        "formation": form,
+    }
+
+
+def _other_value(f) -> object:
+    """A valid value of field f that is not its default."""
+    if f.type in ("bool", bool):
+        return not f.default
+    hi = f.metadata["hi"]
+    v = f.default * 1.25 if f.default else 0.05
+    return min(v, hi) if hi is not None and v > hi else v
+
+
+def test_every_field_has_a_unit_a_reason_a_range_and_a_valid_default():
+    for f in fields(BarrierParams):
+        m = f.metadata
+        assert {"unit", "why", "lo", "hi", "open_lo"} <= set(m), f.name
+        assert m["why"] and len(m["why"]) <= 100, f.name  # one line; the long reasons are in docs/
+        assert check_overrides({f.name: f.default}, record=BarrierParams) == {f.name: f.default}, f.name
+
+
+def test_every_field_is_explained_in_the_docs():
+    doc = (ROOT / "docs" / "barrier.md").read_text()
+    assert not [f.name for f in fields(BarrierParams) if f"`{f.name}`" not in doc]
+
+
+@pytest.mark.parametrize("rule", ["barrier", "barrier-lanes"])
+def test_every_field_is_settable_from_a_scenario_and_reaches_the_filter(rule):
+    for f in fields(BarrierParams):
+        v = _other_value(f)
+        sc = parse_scenario(_scenario(rule, **{f.name: v}))
+        assert sc.barrier_params == {f.name: v}
+        r = BacksteppingPolicy(sc).rule
+        bp = r.barrier_filter.barrier if isinstance(r, BarrierPlannerRule) else r.barrier
+        assert isinstance(r, (BarrierPlannerRule, BarrierRule))
+        assert getattr(bp, f.name) == v, f.name
+        # the other fields keep their defaults (the sensing range: the scenario's, 4 m)
+        assert replace(bp, **{f.name: getattr(BarrierParams(), f.name)}) == BarrierParams(), f.name
+
+
+def test_the_filter_senses_as_far_as_the_scenario_unless_its_table_says():
+    r = BacksteppingPolicy(parse_scenario(_scenario(planner_sensing=2.5))).rule
+    assert r.barrier_filter.barrier.sensing_range == 2.5 and r.params.sensing_range == 2.5
+    own = _scenario(planner_sensing=2.5)
+    own["formation"]["barrier"] = {"sensing_range": 3.0}
+    r = BacksteppingPolicy(parse_scenario(own)).rule
+    assert r.barrier_filter.barrier.sensing_range == 3.0 and r.params.sensing_range == 2.5
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "needle"),
+    [
+        ("gain", -1.0, "positive"),
+        ("gain", "3", "a number"),
+        ("priority_share", 1.5, "<= 1"),
+        ("max_tilt_deg", 95.0, "<= 89 deg"),
+        ("accel_down", 9.9, "<= 9.8"),
+        ("tracking_margin_m", -0.01, ">= 0 m"),
+        ("lanes", 1, "true or false"),
+        ("leash_m", float("nan"), "finite"),
+        ("lane_outer", 1.0, "must exceed lane_inner"),
+        ("gian", 3.0, "unknown key 'gian'; allowed: downwash_multiple"),
+    ],
+)
+def test_bad_values_are_one_line_naming_the_key(key, value, needle):
+    with pytest.raises(UserError, match=needle) as e:
+        parse_scenario(_scenario(**{key: value}), path="x.toml")
+    msg = str(e.value)
+    assert "\n" not in msg and msg.startswith("x.toml: formation.barrier")
+    assert key == "gian" or f"formation.barrier.{key}:" in msg
+
+
+def test_the_table_must_be_a_table_and_is_refused_for_a_rule_without_a_filter():
+    with pytest.raises(UserError, match="x.toml: formation.barrier: must be a table"):
+        parse_scenario({**_scenario(), "formation": {"anti_collision": "barrier", "barrier": 3}}, path="x.toml")
+    sc = parse_scenario(_scenario("jet-aware", gain=2.0))
+    with pytest.raises(UserError, match="formation.barrier: is set, but the rule flown, 'jet-aware', has no barrier"):
+        BacksteppingPolicy(sc)
+    assert isinstance(make_rule("barrier", 3, barrier={"gain": 2.0}), BarrierPlannerRule)
+
+
+def test_a_record_built_in_code_is_checked_the_same_way():
+    with pytest.raises(UserError, match="formation.barrier.relax_weight: must be positive"):
+        BarrierParams(relax_weight=0.0)
