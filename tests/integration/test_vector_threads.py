@@ -61,7 +61,8 @@ def fly(threads: int, mode: AutoresetMode, steps: int = 90) -> tuple[list, dict]
         r = env.step(a)
         out.append(r)
         info = r[4]
-        seen["contacts"] += int(info.get("new_contacts", np.zeros(7))[info.get("_new_contacts", np.zeros(7, bool))].sum())
+        if "new_contacts" in info:
+            seen["contacts"] += int(info["new_contacts"][info["_new_contacts"]].sum())
         seen["diverged"] += int(r[2].sum())  # terminated: diverged (contacts do not terminate here)
         seen["truncated"] += int(r[3].sum())
     ours = set(pool_threads()) - before
@@ -103,7 +104,7 @@ def test_one_two_and_three_threads_give_the_same_bits(mode):
 
 
 def test_bad_threads_one_line():
-    for bad in (0, -1, 1.5, True, "2", None.__class__):
+    for bad in (0, -1, 1.5, True, "2"):
         with pytest.raises(UserError, match="threads must be an integer >= 1") as err:
             SwarmVectorEnv("circle", num_envs=2, threads=bad)
         assert "\n" not in str(err.value)
