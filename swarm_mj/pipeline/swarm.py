@@ -147,12 +147,16 @@ class SwarmPhysics:
         per = int(min(per, m))
         if force_stages and per < m:
             raise UserError("extra force stages need every copy in one model (block = the number of copies)")
-        worlds: dict[int, World] = {}
+        # Blocks of the same size share one model, unless threads step them and a block writes its model as it
+        # steps (a solid floor's gate sets the floor's contype each period, Sim.floor_gate): then one model each.
+        own = threads > 1 and bool(aero.ground)
+        worlds: dict[tuple[int, int], World] = {}
         self.blocks: list[Block] = []
         for c0 in range(0, m, per):
             b = min(per, m - c0)
-            if b not in worlds:
-                worlds[b] = build_world(
+            key = (b, c0 if own else 0)
+            if key not in worlds:
+                worlds[key] = build_world(
                     b * n,
                     positions=np.tile(start, (b, 1)),
                     names=[f"c{i}_{name}" for i in range(b) for name in sc.names] if contact_pairs else sc.names,
@@ -164,7 +168,7 @@ class SwarmPhysics:
                     contact_groups=b if contact_pairs else None,
                     params=sc.params,
                 )
-            sim = Sim(worlds[b], T, n_copies=b, force_stages=force_stages)
+            sim = Sim(worlds[key], T, n_copies=b, force_stages=force_stages)
             if not aero.is_paper:
                 install_aero(sim, aero)  # downwash, ground effect, ground contacts (docs/aero.md)
             self.blocks.append(Block(sim, c0, b, n))

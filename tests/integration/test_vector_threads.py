@@ -160,3 +160,37 @@ def test_a_failing_group_is_raised_after_every_group_has_ended():
         with pytest.raises(ValueError, match="parts"):
             team.run(work, [0, 2, 0, 2])
     assert not [t for t in threading.enumerate() if t.name.startswith("swarm-mj-test")]
+
+
+def test_physics_with_a_solid_floor_on_threads_gives_one_model_per_block_and_the_same_bits():
+    """A solid floor's gate writes the model as a block steps (Sim.floor_gate), so on threads each block
+    gets its own model (SwarmPhysics; the vector env itself flies the paper's physics only). Copies 0 and 2
+    stay on the floor (no thrust: the gate keeps it solid), copies 1 and 3 climb away (the gate turns it
+    off): they fly the same bit for bit on 1 and 2 threads."""
+    from swarm_mj.physics.aero.presets import with_aero
+    from swarm_mj.pipeline.swarm import SwarmPhysics
+
+    sc = with_aero(load_scenario("circle"), "realistic").with_overrides(duration=1.0)
+    runs = []
+    for threads in (1, 2):
+        ph = SwarmPhysics(sc, 4, block=1, threads=threads)
+        assert ph.blocks[0].sim.floor_gate
+        models = {id(blk.sim.model) for blk in ph.blocks}
+        assert len(models) == (1 if threads == 1 else 4)
+        ph.begin(np.ones(4, bool), [5, 6, 7, 8])
+        ph.reset()
+        rng = np.random.default_rng(0)
+        p, N = ph.params, 4 * ph.n
+        out = []
+        for _ in range(40):
+            lift = np.repeat([0.0, 2.0, 0.0, 2.0], ph.n) * rng.uniform(0.9, 1.1, N)  # (N,) x hover thrust
+            U = np.column_stack([p.m * p.g * lift, 0.002 * rng.standard_normal((N, 3))])
+            health = ph.step(U).copy()
+            state = [np.concatenate([blk.sim.qpos.ravel(), blk.sim.qvel.ravel()]) for blk in ph.blocks]
+            out.append((health, ph.contacts.copy(), ph.k.copy(), *state))
+        ph.close()
+        runs.append(out)
+    same(runs[0], runs[1])
+    z = [o[3:] for o in runs[0][-1:]][0]  # the last step's state of each block: the leader's z
+    assert z[0][2] > -0.05 and z[2][2] > -0.05  # held by the floor
+    assert z[1][2] > 0.3 and z[3][2] > 0.3  # climbed away
