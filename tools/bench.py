@@ -18,8 +18,10 @@ Rows:
   swarm_mj/pipeline/fast.py, is compared with; the bench compiles the chunk driver before it starts);
 * env: ``SwarmEnv`` steps per second, random U near hover and with ``BacksteppingPolicy``;
 * vector: ``SwarmVectorEnv`` with 64 copies of the six-drone circle, random U near hover, in
-  drone-steps per second, against raw mj_step on the same batched models (its blocks), beside
-  ``SwarmEnv`` stepping one swarm at a time (against raw mj_step on its own model);
+  drone-steps per second, with its default threads (one per usable CPU, at most one per block)
+  and with one thread, against raw mj_step on the same batched models (its blocks, one thread),
+  the threads' speed-up (the median of the paired repeats), beside ``SwarmEnv`` stepping one
+  swarm at a time (against raw mj_step on its own model);
 * startup: wall time of ``python -m swarm_mj.cli run circle`` in a fresh process: start-up
   (``--duration 0.1 --no-record``; baseline: a process that only imports mujoco and numpy), the
   whole 180-s run with recording with a warm Numba cache, and the same with an EMPTY Numba
@@ -169,6 +171,21 @@ def raw_seconds(world, n_steps: int, *, lift: float = 2.0, clock: bool = False) 
         t0 = time.perf_counter()
         for _ in range(n_steps):
             step(model, d)
+        return time.perf_counter() - t0
+
+
+def raw_threads_seconds(worlds: list, n_steps: int, threads: int) -> float:
+    """Wall time of :func:`raw_seconds` of every world, the worlds in ``threads`` contiguous groups, each group
+    on its own thread (:class:`swarm_mj.experiments.parallel.ThreadTeam`, as the vector env splits its blocks):
+    the ceiling of the vector env's threads on this machine at this moment (MuJoCo releases the GIL in
+    ``mj_step``)."""
+    from swarm_mj.experiments.parallel import ThreadTeam
+
+    groups = [[worlds[int(j)] for j in g] for g in np.array_split(np.arange(len(worlds)), threads)]
+    # the profiling clock is one global: paused once here, so each thread's raw_seconds finds it paused
+    with ThreadTeam(threads, "bench-raw") as team, profiler_paused():
+        t0 = time.perf_counter()
+        team.run(lambda g: [raw_seconds(w, n_steps) for w in g], groups)
         return time.perf_counter() - t0
 
 
@@ -331,14 +348,16 @@ def bench_env(quick: bool, repeats: int) -> None:
 
 def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
     from swarm_mj.env import SwarmEnv
+    from swarm_mj.experiments.parallel import default_workers
     from swarm_mj.scenario import load_scenario
     from swarm_mj.wrappers.vector import SwarmVectorEnv
 
     K = 100 if quick else 300
     sc = load_scenario("circle")
     t0 = time.perf_counter()
-    venv = SwarmVectorEnv(sc, num_envs=num_envs)
+    venv = SwarmVectorEnv(sc, num_envs=num_envs)  # the default: one thread per usable CPU (at most one per block)
     build = time.perf_counter() - t0
+    one = SwarmVectorEnv(sc, num_envs=num_envs, threads=1) if venv.threads > 1 else venv
     m, n, nsub = venv.num_envs, venv.n, venv._blocks[0].sim.n_substeps
     p = venv.params
     rng = np.random.default_rng(0)
@@ -347,35 +366,63 @@ def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
     U[..., 1:] = rng.uniform(-0.002, 0.002, (K, m, n, 3))
     U = U.reshape(K, m, 4 * n)
     env = SwarmEnv(sc, terminate_on_contact=False)
-    t_vec, t_raw, t_one, t_one_raw = [], [], [], []
-    for _ in range(repeats):
-        venv.reset(seed=0)
-        venv.step(U[0])  # first call: kernels loaded
+
+    def fly(v) -> float:
+        v.reset(seed=0)
+        v.step(U[0])  # first call: kernels loaded, threads started
         t0 = time.perf_counter()
         for k in range(K):
-            venv.step(U[k])
-        t_vec.append(time.perf_counter() - t0)
-        t_raw.append(sum(raw_seconds(blk.sim.world, K * nsub) for blk in venv._blocks))
+            v.step(U[k])
+        return time.perf_counter() - t0
+
+    worlds = [blk.sim.world for blk in venv._blocks]
+    t_vec, t_one_thread, t_raw, t_raw1, t_rawT, t_one, t_one_raw = [], [], [], [], [], [], []
+    for _ in range(repeats):
+        t_vec.append(fly(venv))
+        t_one_thread.append(fly(one) if one is not venv else t_vec[-1])
+        t_raw.append(sum(raw_seconds(w, K * nsub) for w in worlds))
+        if one is not venv:  # the same raw steps on 1 thread and on the env's threads, back to back
+            t_raw1.append(raw_threads_seconds(worlds, K * nsub, 1))
+            t_rawT.append(raw_threads_seconds(worlds, K * nsub, venv.threads))
         env.reset()
         t0 = time.perf_counter()
         for k in range(K):
             env.step(U[k, 0].reshape(n, 4))
         t_one.append(time.perf_counter() - t0)
         t_one_raw.append(raw_seconds(env.world, K * nsub))
-    v, r = min(t_vec), min(t_raw)
+    r = min(t_raw)
     blocks = sorted({blk.b for blk in venv._blocks})
-    row(
-        "vector",
-        f"SwarmVectorEnv, {m} x {n} drones, random U near hover",
-        v,
-        r,
-        value=K * m * n / v,
-        unit="drone-steps/s",
-        note=f"raw mj_step on the same {len(venv._blocks)} models ({blocks} copies each) "
+    raw_note = (
+        f"raw mj_step on the same {len(venv._blocks)} models ({blocks} copies each, one thread) "
         f"{K * m * n / r:,.0f} drone-steps/s; built in {build:.1f} s; best of {repeats}; "
-        "ratio: median of the paired repeats",
-        ratio=paired(t_vec, t_raw),
+        "ratio: median of the paired repeats"
     )
+    variants = [(venv, t_vec)] + ([(one, t_one_thread)] if one is not venv else [])
+    for v, t in variants:
+        threads = f"{v.threads} thread{'s' if v.threads > 1 else ''}"
+        row(
+            "vector",
+            f"SwarmVectorEnv, {m} x {n} drones, random U near hover, {threads}",
+            min(t),
+            r,
+            value=K * m * n / min(t),
+            unit="drone-steps/s",
+            note=raw_note + ("" if v is one else " (the default threads; blocks stepped on threads)"),
+            ratio=paired(t, t_raw),
+        )
+    if one is not venv:
+        each = ", ".join(f"{a / b:.2f}" for a, b in zip(t_one_thread, t_vec))
+        row(
+            "vector",
+            f"vector env threads: {venv.threads} threads over 1 thread ({m} x {n} drones)",
+            None,
+            None,
+            value=paired(t_one_thread, t_vec),
+            unit="x",
+            note=f"drone-steps/s speed-up, median of the paired repeats ({each}); raw mj_step on the same models, "
+            f"the blocks split the same way: {paired(t_raw1, t_rawT):.2f}x (the ceiling here and now); "
+            f"{default_workers()} usable CPUs, shared with whatever else runs on the machine",
+        )
     o, orw = min(t_one), min(t_one_raw)
     row(
         "vector",
@@ -385,9 +432,11 @@ def bench_vector(quick: bool, repeats: int, num_envs: int = 64) -> None:
         value=K * n / o,
         unit="drone-steps/s",
         note=f"raw mj_step on its model {K * n / orw:,.0f} drone-steps/s; "
-        f"the vector env: {K * m * n / v / (K * n / o):.1f}x its drone-steps/s",
+        f"the vector env (1 thread): {K * m * n / min(t_one_thread) / (K * n / o):.1f}x its drone-steps/s",
         ratio=paired(t_one, t_one_raw),
     )
+    venv.close()
+    one.close()
 
 
 def _wall(cmd: list[str], env: dict | None = None, cwd: str | None = None) -> float:

@@ -9,7 +9,8 @@ repeats; the ratios are the medians of the repeats' own ratios, as in tools/benc
   100 Hz, physics at its default 500 Hz, JAX on this machine's CPU): ``state_control`` with a
   constant hover set-point, then ``step(5)`` (five physics steps = 10 ms), the last one waited
   for (``block_until_ready``); its compile time (the first step) is reported apart;
-* ``SwarmVectorEnv("circle", num_envs=64)`` with constant U (hover thrust, no torque);
+* ``SwarmVectorEnv("circle", num_envs=64)`` with constant U (hover thrust, no torque), on its
+  default threads (one per usable CPU) and on one thread (the threads' speed-up, paired);
 * the same with the product's ``BacksteppingPolicy``, one per copy, on each copy's observation.
 
 **Time to a first result** (section "first result"): the wall time of a whole new process
@@ -69,16 +70,17 @@ def throughput(K: int, repeats: int) -> list[dict]:
     from swarm_mj.wrappers.vector import SwarmVectorEnv
 
     sc = load_scenario("circle")
-    venv = SwarmVectorEnv(sc, num_envs=N_WORLDS)
+    venv = SwarmVectorEnv(sc, num_envs=N_WORLDS)  # its default threads: one per usable CPU (at most one per block)
+    venv1 = SwarmVectorEnv(sc, num_envs=N_WORLDS, threads=1)
     m, n, p = venv.num_envs, venv.n, venv.params
     hover = np.tile([p.hover_thrust, 0.0, 0.0, 0.0], (m, n)).reshape(m, 4 * n)  # (m, 4n)
     policies = [BacksteppingPolicy(sc, p) for _ in range(m)]
 
-    def ours_constant() -> float:
-        venv.reset(seed=0)
+    def ours_constant(v=venv) -> float:
+        v.reset(seed=0)
         t0 = time.perf_counter()
         for _ in range(K):
-            venv.step(hover)
+            v.step(hover)
         return time.perf_counter() - t0
 
     def ours_backstepping() -> float:
@@ -122,24 +124,36 @@ def throughput(K: int, repeats: int) -> list[dict]:
         cf.data.states.pos.block_until_ready()
         return time.perf_counter() - t0
 
-    ours_constant()  # first calls: kernels loaded
-    t_c, t_b, t_cf = [], [], []
+    ours_constant()  # first calls: kernels loaded, threads started
+    t_c, t_c1, t_b, t_cf = [], [], [], []
     for _ in range(repeats):
         t_c.append(ours_constant())
+        t_c1.append(ours_constant(venv1))
         t_b.append(ours_backstepping())
         if cf is not None:
             t_cf.append(crazyflow_state())
     work = K * m * n  # drone-command-steps
+    th = f"threads={venv.threads}"
+    venv.close()
+    venv1.close()
     rows = [
         {
-            "name": f"SwarmVectorEnv('circle', num_envs={m}), {n} drones, constant U (hover)",
+            "name": f"SwarmVectorEnv('circle', num_envs={m}, {th}), {n} drones, constant U (hover)",
             "ours_s": min(t_c),
             "value": work / min(t_c),
             "unit": "drone-command-steps/s",
-            "note": f"{K} commands of 10 ms; best of {repeats}",
+            "note": f"{K} commands of 10 ms; best of {repeats}; the default threads (one per usable CPU)",
         },
         {
-            "name": f"SwarmVectorEnv('circle', num_envs={m}) + BacksteppingPolicy per copy",
+            "name": f"SwarmVectorEnv('circle', num_envs={m}, threads=1), {n} drones, constant U (hover)",
+            "ours_s": min(t_c1),
+            "value": work / min(t_c1),
+            "unit": "drone-command-steps/s",
+            "note": f"{K} commands of 10 ms; best of {repeats}; {th} over threads=1: {paired(t_c1, t_c):.2f}x "
+            "(median of the paired repeats; the machine's CPUs are shared with whatever else runs)",
+        },
+        {
+            "name": f"SwarmVectorEnv('circle', num_envs={m}, {th}) + BacksteppingPolicy per copy",
             "ours_s": min(t_b),
             "value": work / min(t_b),
             "unit": "drone-command-steps/s",

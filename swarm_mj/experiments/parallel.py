@@ -23,6 +23,13 @@ once per FPA iteration. Both guarantee:
 
 ``fn`` must be a module-level function (it is pickled by reference), and, as with any spawn
 pool, a script that starts workers needs the ``if __name__ == "__main__":`` guard.
+
+:class:`ThreadTeam` is the same idea on threads of this process, for the copies axis: one function
+over a few parts (the tuner's groups of candidates, the vector environment's groups of model
+blocks), the first part on the calling thread, the others on a pool of threads; it returns when
+every part is done. Each part touches only its own models and rows, so the results are the same
+bit for bit whatever the number of threads (MuJoCo's ``mj_step`` and the ``nogil`` kernels release
+the GIL, so the parts' physics runs on as many cores).
 """
 
 from __future__ import annotations
@@ -30,7 +37,8 @@ from __future__ import annotations
 import os
 import platform
 import signal
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeVar
 
@@ -53,6 +61,59 @@ def default_workers() -> int:
         return max(1, len(os.sched_getaffinity(0)))
     except (AttributeError, OSError):
         return max(1, os.cpu_count() or 1)
+
+
+def check_count(name: str, v: Any) -> int:
+    """``v`` as an int if it is an integer >= 1 (a count of workers, threads, copies); else one UserError line."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+        raise UserError(f"{name} must be an integer >= 1, got {v!r}")
+    return int(v)
+
+
+class ThreadTeam:
+    """``threads`` threads running one function over parts (module docstring): :meth:`run` calls
+    ``fn(part)`` for each part, the first on the calling thread and the others on a pool of
+    ``threads`` - 1 threads, started at the first run with more than one part and kept until
+    :meth:`close` (or until the team is garbage-collected: an idle pool's threads then end). A
+    ``with`` block closes it, so that no thread outlives it (the tuner: a process that forks workers
+    must have no other thread, see ``tuning.backends.worker_start_method``)."""
+
+    def __init__(self, threads: int, name: str = "swarm-mj") -> None:
+        self.threads = check_count("threads", threads)
+        self.name = name
+        self._pool: ThreadPoolExecutor | None = None
+
+    def run(self, fn: Callable[[T], object], parts: Sequence[T]) -> None:
+        """``fn(part)`` for every part (at most ``threads`` of them), each on its own thread; returns when
+        every call has ended, and raises the exception of the first part (in order) that raised."""
+        if len(parts) > self.threads:
+            raise ValueError(f"{len(parts)} parts for {self.threads} threads")
+        if len(parts) <= 1:
+            for part in parts:
+                fn(part)
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.threads - 1, thread_name_prefix=self.name)
+        futures = [self._pool.submit(fn, part) for part in parts[1:]]
+        try:
+            fn(parts[0])
+        finally:
+            for f in futures:  # every call has ended when this returns or raises
+                f.exception()
+        for f in futures:
+            f.result()
+
+    def close(self) -> None:
+        """End the pool's threads (waits for them); the team starts a new pool if it runs again."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
+
+    def __enter__(self) -> ThreadTeam:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def import_ray():

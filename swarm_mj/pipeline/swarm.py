@@ -23,8 +23,10 @@ references        the leader trajectory and D(t) at every control instant, share
                   (:attr:`reference`, :attr:`D`); :meth:`refs` a copy's
                   :class:`~swarm_mj.pipeline.records.Refs` (its wind, its leader estimate)
 step              :meth:`step`: the wind force of each copy's period k (for the physics), the
-                  control period of every block, each copy's health code and new drone–drone
-                  contacts, k + 1; copies being restarted fly it with zero input and are put back
+                  control period of every block (on ``threads`` threads: contiguous groups of
+                  blocks, :class:`~swarm_mj.experiments.parallel.ThreadTeam`), each copy's health
+                  code and new drone–drone contacts, k + 1; copies being restarted fly it with
+                  zero input and are put back
 wind              :func:`copy_winds` (uniform wind) or each copy's
                   :meth:`~swarm_mj.physics.wind.WindSeries.drone_forces` (relative airspeed),
                   for the physics and for the observation's known wind
@@ -42,7 +44,9 @@ import numpy as np
 
 from .._jit import jit
 from ..errors import UserError
+from ..experiments.parallel import ThreadTeam, check_count
 from ..formation.slots import DiameterSchedule, polygon_offsets
+from ..physics._mjstep import profiler_paused
 from ..physics.aero.ground import REST_HEIGHT, rest_positions
 from ..physics.aero.presets import install as install_aero
 from ..physics.sim import MUJOCO_WARNING, ForceStage, Sim
@@ -90,7 +94,14 @@ class SwarmPhysics:
     seed also draws the copy's random follower starts (Gymnasium's ``reset(seed)``); False: the
     scenario's own starts (dm_env's, where the seed is the wind's). ``force_stages``: extra
     :class:`~swarm_mj.physics.sim.ForceStage` s after drag and wind (one block only: a stage is one
-    simulator's)."""
+    simulator's).
+
+    ``threads``: the blocks are stepped in that many contiguous groups (at most one per block), each
+    on its own thread (:class:`~swarm_mj.experiments.parallel.ThreadTeam`: the first on the calling
+    thread, the others on a pool started at the first such step and ended by :meth:`close`). A
+    group's threads touch only its blocks' simulators and their slices of :attr:`health`; what is
+    gathered over blocks (contacts, k) is done after, in block order, and the blocks are the same
+    whatever the thread count, so every result is the same bit for bit with 1 thread or many."""
 
     def __init__(
         self,
@@ -101,7 +112,9 @@ class SwarmPhysics:
         contact_pairs: bool = False,
         seeded_starts: bool = False,
         force_stages: Sequence[ForceStage] = (),
+        threads: int = 1,
     ) -> None:
+        threads = check_count("threads", threads)
         self.scenario = sc = scenario
         self.m = m = int(m)
         self.n = n = sc.n_drones
@@ -134,12 +147,16 @@ class SwarmPhysics:
         per = int(min(per, m))
         if force_stages and per < m:
             raise UserError("extra force stages need every copy in one model (block = the number of copies)")
-        worlds: dict[int, World] = {}
+        # Blocks of the same size share one model, unless threads step them and a block writes its model as it
+        # steps (a solid floor's gate sets the floor's contype each period, Sim.floor_gate): then one model each.
+        own = threads > 1 and bool(aero.ground)
+        worlds: dict[tuple[int, int], World] = {}
         self.blocks: list[Block] = []
         for c0 in range(0, m, per):
             b = min(per, m - c0)
-            if b not in worlds:
-                worlds[b] = build_world(
+            key = (b, c0 if own else 0)
+            if key not in worlds:
+                worlds[key] = build_world(
                     b * n,
                     positions=np.tile(start, (b, 1)),
                     names=[f"c{i}_{name}" for i in range(b) for name in sc.names] if contact_pairs else sc.names,
@@ -151,11 +168,16 @@ class SwarmPhysics:
                     contact_groups=b if contact_pairs else None,
                     params=sc.params,
                 )
-            sim = Sim(worlds[b], T, n_copies=b, force_stages=force_stages)
+            sim = Sim(worlds[key], T, n_copies=b, force_stages=force_stages)
             if not aero.is_paper:
                 install_aero(sim, aero)  # downwash, ground effect, ground contacts (docs/aero.md)
             self.blocks.append(Block(sim, c0, b, n))
         self.params = self.blocks[0].sim.params
+        # the blocks' threads: contiguous groups of blocks, one per thread
+        cuts = np.array_split(np.arange(len(self.blocks)), min(threads, len(self.blocks)))
+        self.groups: list[list[Block]] = [[self.blocks[int(j)] for j in cut] for cut in cuts]
+        self.threads = len(self.groups)
+        self.team = ThreadTeam(self.threads, "swarm-mj-env")
 
         # per-copy state
         N = m * n
@@ -260,11 +282,18 @@ class SwarmPhysics:
         else:
             copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
         new[:] = 0
-        for blk in self.blocks:
-            sim = blk.sim
-            sim.step(U[blk.rows], self.wind_now[blk.rows])
-            sim.health(health[blk.copies])
-            log = sim.contact_log
+        wind = self.wind_now
+
+        def fly(group: list[Block]) -> None:  # one thread's blocks: their simulators and health rows only
+            for blk in group:
+                blk.sim.step(U[blk.rows], wind[blk.rows])
+                blk.sim.health(health[blk.copies])
+
+        # MuJoCo's profiling clock is one global: paused here, once, rather than by each thread's Sim.step
+        with profiler_paused():
+            self.team.run(fly, self.groups)
+        for blk in self.blocks:  # then the contacts, in block order
+            log = blk.sim.contact_log
             if len(log) > blk.n_log:
                 for _, i, _ in log[blk.n_log :]:
                     new[blk.c0 + i // n] += 1
@@ -278,6 +307,10 @@ class SwarmPhysics:
             self.contacts[restart] = 0  # begun: none before this step, and this step's are not theirs
             health[restart] = 0
         return health
+
+    def close(self) -> None:
+        """End the threads of :attr:`team` (a later :meth:`step` starts them again)."""
+        self.team.close()
 
     def forget_warnings(self) -> None:
         """Clear MuJoCo's divergence warnings of the blocks whose copies the last :meth:`step` reported

@@ -19,8 +19,8 @@ from typing import Protocol
 import numpy as np
 
 from ..errors import UserError
-from ..experiments.parallel import RAY_INSTALL_HINT, Executor, default_workers
-from .evaluator import StepCostSettings, check_count, evaluate_batch
+from ..experiments.parallel import RAY_INSTALL_HINT, Executor, check_count, default_workers
+from .evaluator import StepCostSettings, evaluate_batch
 
 
 def worker_start_method() -> str:

@@ -47,7 +47,6 @@ The backends that spread a population over processes or a Ray cluster are in
 from __future__ import annotations
 
 import math
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
@@ -57,7 +56,7 @@ from .._jit import jit
 from ..control.backstepping import Backstepping
 from ..control.lag import AttitudePredictor
 from ..errors import UserError
-from ..experiments.parallel import default_workers
+from ..experiments.parallel import ThreadTeam, check_count, default_workers
 from ..metrics import ise, step_metrics_batch
 from ..paper import TABLE4_GAINS
 from ..physics._mjstep import profiler_paused
@@ -212,12 +211,6 @@ def error_kernel(
         for j in range(4):
             if not np.isfinite(U[i, j]):
                 bad[i] = True
-
-
-def check_count(name: str, v: Any) -> int:
-    if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
-        raise UserError(f"{name} must be an integer >= 1, got {v!r}")
-    return int(v)
 
 
 @dataclass
@@ -402,18 +395,8 @@ class BatchEvaluator:
     def _fly_all(self, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
         """Every group, each on its own thread (the first on this one); the first exception is raised here."""
         self._stop = False
-        if len(self.groups) == 1:
-            self._fly(self.groups[0], g, alive, tilt)
-            return
-        with ThreadPoolExecutor(len(self.groups) - 1, thread_name_prefix="swarm-mj-tune") as pool:
-            futures = [pool.submit(self._fly_or_stop, grp, g, alive, tilt) for grp in self.groups[1:]]
-            try:
-                self._fly_or_stop(self.groups[0], g, alive, tilt)
-            finally:
-                for f in futures:  # every thread has ended when this returns or raises
-                    f.exception()
-            for f in futures:
-                f.result()
+        with ThreadTeam(len(self.groups), "swarm-mj-tune") as team:  # its threads end with this call
+            team.run(lambda grp: self._fly_or_stop(grp, g, alive, tilt), self.groups)
 
     def evaluate(self, gains: np.ndarray) -> np.ndarray:
         """ISE (m,) of eq. (25) for gains (m, 12); ``inf`` where a copy diverged."""

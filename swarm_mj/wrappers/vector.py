@@ -29,6 +29,16 @@ solver works on all of a model's contacts together).
 (:data:`swarm_mj.tuning.evaluator.DEFAULT_BLOCK`). Blocks of the same size share one model.
 ``block=num_envs`` puts every copy in one model.
 
+**Threads.** ``threads`` (default: the CPUs this process may use, ``os.sched_getaffinity``) steps
+the blocks on that many threads, in contiguous groups of blocks (at most one thread per block; one
+block: no thread is started): MuJoCo's ``mj_step`` releases the GIL, so the blocks' physics runs on
+as many cores. Each thread steps only its own blocks' models; the contacts, health codes and
+periods gathered over blocks are gathered after, in block order, and the blocks themselves do not
+depend on the thread count, so every observation, reward, flag and info is the same **bit for bit**
+with 1 thread or many (tested: 1, 2 and 3 threads, with contacts and auto-resets). The pool of
+threads is started at the first step and ended by :meth:`close` (or when the environment is
+garbage-collected).
+
 **Spaces.** ``single_action_space``: a flat float64 ``Box`` (4n,), U1..U4 of drone 0, then
 drone 1, ... (``SwarmEnv.action_spec()`` reshaped: the same bounds); out-of-bound values are
 clipped per rotor by the saturation, a non-finite action raises ``UserError``.
@@ -81,6 +91,7 @@ from gymnasium.vector.utils import batch_space
 
 from ..env import SwarmEnv, all_finite
 from ..errors import UserError
+from ..experiments.parallel import check_count, default_workers
 from ..physics.sim import HEALTH_NAMES, HEALTHY
 from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
 from ..scenario import Scenario, load_scenario
@@ -109,6 +120,7 @@ class SwarmVectorEnv(VectorEnv):
     ``scenario``: a name, path or :class:`Scenario`. ``flatten``: one float64 Box observation
     per copy instead of the Dict. ``block``: copies per MuJoCo model (default: ``BLOCK_DRONES``
     drones' worth). ``autoreset_mode``: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP``.
+    ``threads``: the threads that step the blocks (default: the usable CPUs; results do not depend on it).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
@@ -123,7 +135,9 @@ class SwarmVectorEnv(VectorEnv):
         block: int | None = None,
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
+        threads: int | None = None,
     ) -> None:
+        threads = default_workers() if threads is None else check_count("threads", threads)
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
@@ -148,7 +162,8 @@ class SwarmVectorEnv(VectorEnv):
                 "auto-reset restores neither the rotors' lag nor the ground contacts' memory); use SwarmEnv"
             )
         # the physics side: the copies in blocks of MuJoCo models, their seeds, starts, wind, contacts, health
-        self.physics = ph = SwarmPhysics(sc, m, block=block, contact_pairs=True, seeded_starts=True)
+        self.physics = ph = SwarmPhysics(sc, m, block=block, contact_pairs=True, seeded_starts=True, threads=threads)
+        self.threads = ph.threads  # at most one per block
         self._blocks: list[Block] = ph.blocks
         self.params = ph.params
         self.T = ph.T
@@ -334,5 +349,6 @@ class SwarmVectorEnv(VectorEnv):
         return info
 
     def close(self, **kwargs: Any) -> None:
+        self.physics.close()  # the blocks' threads end
         self._started = False
         self.closed = True
