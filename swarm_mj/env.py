@@ -59,7 +59,7 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
-from ._jit import jit
+from ._jit import Bound, jit
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .formation.slots import DiameterSchedule, polygon_offsets
@@ -182,6 +182,7 @@ class SwarmEnv(dm_env.Environment):
         f = self.params.f_max
         self._u_low = np.tile([0.0, -f, -f, -2 * f], (n, 1))
         self._u_high = np.tile([4 * f, f, f, 2 * f], (n, 1))
+        self._observe_call = Bound(observe, records=2)  # bound to the records: no re-typing per call (_jit.py)
         self.reset()
 
     # ------------------------------------------------------------------ dm_env API
@@ -312,7 +313,7 @@ class SwarmEnv(dm_env.Environment):
     def _observe(self) -> dict:
         """The observation of period ``self.k``: :func:`swarm_mj.pipeline.period.observe`, the function the chunk
         driver calls (with the wind on the relative airspeed, the known wind force from the field)."""
-        o = observe(self.sim.record(), self._refs, self.k)
+        o = self._observe_call(self.sim.record(), self._refs, self.k)
         wf = o.wf
         if self._wind_known and self.wind.relative_airspeed:
             wf = self.wind.drone_forces(self.k, o.vel)

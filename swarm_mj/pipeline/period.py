@@ -46,12 +46,11 @@ from ..control.lag import predict_kernel
 from ..formation.anticollision import any_below, horizontal_distances, merge_rows, react_needed
 from ..formation.layered import formed_step_kernel
 from ..formation.slots import setpoints_kernel
-from ..physics import _mjstep
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel
 from ..physics.observation import observe_kernel
-from ..physics.sim import apply_forces, hold_inputs, log_stage_forces, track_monitors, unhealthy, unmix_kernel
-from .records import Kinematics, Obs
+from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
+from .records import Obs
 
 #: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
 #: a contact to count (then resume); unhealthy (Python raises); a non-finite command.
@@ -235,9 +234,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
     still holds drones in contact, so every physics step goes back to it. ``stages``, ``monitors``:
     the records of the simulator's compiled force stages and monitors, in its order."""
     n = phys.qpos.shape[0]
-    xf = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 0:3]
-    xtorque = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 3:6]
-    kin = _kinematics(phys)
+    kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
@@ -257,12 +254,9 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
             hold_inputs(phys, U)
             log.U[k] = phys.ctrl
             log.wind_force[k] = phys.wind
-        for s in range(s0, phys.nsub):
-            apply_forces(phys, stages, kin, xf, xtorque)
-            _mjstep.step_call(phys.fn, phys.m_addr, phys.d_addr)
-            if phys.ncon[0] > 0 or python_each:
-                return CONTACT, k, s + 1
-            track_monitors(monitors, kin)
+        s = physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
+        if s > 0:
+            return CONTACT, k, s
         s0 = 0
         log_outputs(log, k, phys, stages)
         k += 1
@@ -270,12 +264,6 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, ctl, ff, pred, l
             return UNHEALTHY, k, 0
         observe_into(phys, refs, obs, k)
     return DONE, k, 0
-
-
-@jit(inline=True)
-def _kinematics(phys):
-    """The drones' state views a force stage reads (:class:`~swarm_mj.pipeline.records.Kinematics`)."""
-    return Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
 
 
 @jit(inline=True)
