@@ -1,6 +1,8 @@
 """The simulation core: one control period of the step pipeline (docs/design.md, "the step pipeline").
 
-:meth:`Sim.step` owns each control period T:
+:meth:`Sim.step` owns each control period T, in one compiled call where it can (:func:`period_physics`:
+1. and 2. below, handing back to Python only the physics steps Python must see, as the chunk driver of
+swarm_mj/pipeline/period.py does; else 2. is a Python loop):
 
 1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
    [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.physics.mixing.saturate_kernel`,
@@ -341,7 +343,9 @@ def hold_inputs(phys, U) -> None:
     ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
     saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
     if phys.lag:
-        phys.rotor_command[:] = phys.rotor_thrust
+        for i in range(phys.rotor_command.shape[0]):  # a loop: a slice copy costs seconds of compiling
+            for r in range(4):
+                phys.rotor_command[i, r] = phys.rotor_thrust[i, r]
     if phys.gate_on:
         floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
 
@@ -742,10 +746,13 @@ class Sim:
         calls = self._bound()
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/physics/_mjstep.py)
         try:
-            if calls.period is not None and U.shape == self.ctrl.shape:
-                self._period_compiled(calls, np.ascontiguousarray(U))  # (N, 4) C order: the bound type
+            bound = U.shape == self.ctrl.shape  # else the dispatcher types U (and its shape is the caller's)
+            if bound:
+                U = np.ascontiguousarray(U)  # (N, 4) C order: the bound calls' type
+            if bound and calls.period is not None:
+                self._period_compiled(calls, U)
             else:
-                self._hold_inputs(U)
+                (calls.hold_inputs if bound else hold_inputs)(calls.phys, U)
                 if self._fused:
                     self._substeps_fused(calls)
                 else:
@@ -781,16 +788,6 @@ class Sim:
         if not self.monitors:
             return False
         return calls.monitors_python or any(not m.compiled_ready() or m.holds_steps() for m in self.monitors)  # type: ignore[attr-defined]
-
-    def _hold_inputs(self, U: np.ndarray) -> None:
-        """1. of the module docstring from Python (:func:`hold_inputs` in kernels): saturation, the rotors'
-        command, the floor gate."""
-        saturate_kernel(U, self._unmix_t, self._mix_t, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
-        if self.motor_lag:
-            self.rotor_command[:] = self.rotor_thrust
-        if self._gate_on:
-            fid, solid, z_near = self._gate  # type: ignore[misc]
-            floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
 
     def _substeps_fused(self, calls: _Calls) -> None:
         """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
@@ -950,13 +947,14 @@ class _Calls:
         self.unhealthy = bind(unhealthy, phys)
         self.period: Callable[..., int] | None = None
         self.apply_forces: Callable[..., None] = apply_forces  # through the dispatcher unless bound below
+        self.hold_inputs: Callable[..., None] = hold_inputs
         #: the compiled monitors' records; ``monitors_python``: some monitor has none (Python sees each step)
         self.monitors_python = sim.monitors_not_compiled() is not None
         self.monitors: tuple = () if self.monitors_python else tuple(m.record() for m in sim.monitors)  # type: ignore[attr-defined]
-        if stages is None:
-            return
-        if _mjstep.available():
-            U = np.zeros(sim.ctrl.shape)  # (N, 4) C order, as Sim.step passes it
+        U = np.zeros(sim.ctrl.shape)  # (N, 4) C order, as Sim.step passes it
+        if stages is not None and _mjstep.available():
             self.period = bind(period_physics, phys, stages, self.monitors, U, 0, False)
-        else:
+            return
+        self.hold_inputs = bind(hold_inputs, phys, U)  # saturation from Python: the physics steps looped there
+        if stages is not None:
             self.apply_forces = bind(apply_forces, phys, stages, sim.kinematics, sim._xfrc_force, sim._xfrc_torque)

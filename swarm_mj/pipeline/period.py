@@ -4,13 +4,15 @@ period, written once").
 
 :func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
 (:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.physics.sim.Sim.step`,
-:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones for the observation
-(:func:`observe`), the forces of a physics step (:func:`~swarm_mj.physics.sim.apply_forces`, the force
-stages' and the monitors' kernels), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
-feedforward (:func:`feedforward_force`); for saturation, the command and the log's input row it
-calls the same kernels from Python (a compiled function taking a large record costs 2-5 s of
-compiling on a first run), and the layered rule's formed step is the rule's own Python
-(swarm_mj/formation), which :func:`rule_formed_step` mirrors; the parity tests keep them equal:
+:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones, each bound to its records
+(:func:`swarm_mj._jit.bind`), for the observation (:func:`observe`), saturation and the physics steps
+(:func:`~swarm_mj.physics.sim.period_physics`: :func:`~swarm_mj.physics.sim.hold_inputs`, then
+:func:`~swarm_mj.physics.sim.physics_steps`, which :func:`fly_chunk` calls too), the health check
+(:func:`~swarm_mj.physics.sim.unhealthy`) and the feedforward (:func:`feedforward_force`); for the
+command and the log's input row it calls the same kernels from Python (compiling them for Python
+callers would add 8-13 s and 3-4 s to a first run; docs/design.md), and the layered rule's formed
+step is the rule's own Python (swarm_mj/formation), which :func:`rule_formed_step` mirrors; the
+parity tests keep them equal:
 
 =========================  =====================================================================
 stage                      function
@@ -23,6 +25,7 @@ backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_ke
                            :func:`~swarm_mj.physics.mixing.attitude_priority_kernel`
 log rows                   :func:`log_inputs`, :func:`log_outputs`
 saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
+physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
                            :data:`swarm_mj.pipeline.records.FORCE_KERNELS`, in the simulator's order)
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
