@@ -148,6 +148,27 @@ def bind(fn: Callable[..., Any], *args: Any) -> Callable[..., Any]:
     return dispatcher.compile(tuple(_numba.typeof(a) for a in args))
 
 
+def compiled(fn: Callable[..., Any], *args: Any) -> bool:
+    """:func:`bind` would not compile: ``fn`` has an overload for the types of ``args`` in memory or in
+    Numba's on-disk cache for its current source (True without Numba: nothing compiles). Reads Numba's
+    cache index (an internal API: False on any surprise, and the caller then does without)."""
+    if not AVAILABLE or not hasattr(fn, "overloads"):
+        return True
+    return has_overload(fn, tuple(_numba.typeof(a) for a in args))
+
+
+def has_overload(fn: Callable[..., Any], sig: tuple) -> bool:
+    """``fn`` (a Numba dispatcher) has an overload for ``sig`` (a tuple of Numba types) in memory or in
+    its on-disk cache for its current source (False on any surprise of Numba's internals)."""
+    dispatcher: Any = fn
+    if sig in dispatcher.overloads:
+        return True
+    try:
+        return any(key[0] == sig for key in dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals changed
+        return False
+
+
 class Bound:
     """``fn`` called through :func:`bind`, for a caller that does not own the records it passes: rebound
     whenever one of the first ``records`` arguments is not the object it was bound with (compared by

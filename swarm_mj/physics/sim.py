@@ -49,7 +49,7 @@ import mujoco
 import numpy as np
 
 from .. import _jit
-from .._jit import AVAILABLE, bind, jit
+from .._jit import AVAILABLE, bind, compiled, jit
 from ..errors import SimulationDiverged, UserError
 from ..pipeline.records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
 from . import _mjstep
@@ -617,6 +617,14 @@ class Sim:
             self._calls = _Calls(self)
         return self._calls
 
+    def compile_period(self) -> bool:
+        """Compile :func:`period_physics` for this simulator's records now (else :meth:`step` loops over the
+        physics steps in Python until it is in Numba's cache: the chunk driver's compile, in the background
+        of a first run, and ``swarm-mj warm-up`` compile it too); True if :meth:`step` now flies a control
+        period in one compiled call (it needs every force stage compiled and a compiled ``mj_step``)."""
+        self._calls = _Calls(self, compile=True)
+        return self._calls.period is not None
+
     def not_compiled(self) -> str | None:
         """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
         not drag, wind or a stage with a registered compiled kernel (``record()`` returning a record of
@@ -938,10 +946,13 @@ class Sim:
 class _Calls:
     """:class:`Sim`'s compiled calls bound to its records (:func:`swarm_mj._jit.bind`); built by
     :meth:`Sim._bound`, dropped whenever a record is rebuilt. ``period`` (:func:`period_physics`) where the
-    force stages are compiled and a kernel can call ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`),
-    else None (the Python loop over the physics steps, with ``apply_forces`` where the stages are compiled)."""
+    force stages are compiled, a kernel can call ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`) and
+    it is compiled for these records already (in memory or Numba's on-disk cache: compiling it costs a first
+    run 2-3 s, so it is compiled with the chunk driver, :func:`swarm_mj.pipeline.fast.compile_now`, in the
+    background or by ``swarm-mj warm-up``), else None (the Python loop over the physics steps, with
+    ``apply_forces`` where the stages are compiled)."""
 
-    def __init__(self, sim: Sim) -> None:
+    def __init__(self, sim: Sim, compile: bool = False) -> None:  # noqa: A002
         #: the records the calls are bound to (passed with them: never another record)
         self.phys, self.stages = phys, stages = sim._record, sim._compiled
         self.unhealthy = bind(unhealthy, phys)
@@ -952,8 +963,9 @@ class _Calls:
         self.monitors_python = sim.monitors_not_compiled() is not None
         self.monitors: tuple = () if self.monitors_python else tuple(m.record() for m in sim.monitors)  # type: ignore[attr-defined]
         U = np.zeros(sim.ctrl.shape)  # (N, 4) C order, as Sim.step passes it
-        if stages is not None and _mjstep.available():
-            self.period = bind(period_physics, phys, stages, self.monitors, U, 0, False)
+        args = (phys, stages, self.monitors, U, 0, False)
+        if stages is not None and _mjstep.available() and (compile or compiled(period_physics, *args)):
+            self.period = bind(period_physics, *args)
             return
         self.hold_inputs = bind(hold_inputs, phys, U)  # saturation from Python: the physics steps looped there
         if stages is not None:

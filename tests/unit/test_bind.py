@@ -89,11 +89,13 @@ def test_a_stage_added_after_flying_is_used_by_the_rebound_period(monkeypatch: p
     world = lambda: build_world(2, positions=[[0.0, 0.0, 2.0], [3.0, 0.0, 2.0]])  # noqa: E731
     U = np.tile([world().params.hover_thrust, 0.0, 0.0, 0.0], (2, 1))
     late = Sim(world())
+    assert late.compile_period()
     _fly(late, 5, U)  # bound to the records without the stage
     assert late._bound().period is not None
     late.add_stage(UpdraftStage((0.0, 0.0), 1.0, 0.3))  # over drone 0 only
     late.reset()
     early = Sim(world(), force_stages=[UpdraftStage((0.0, 0.0), 1.0, 0.3)])
+    assert early.compile_period()  # the signature with the stage, now cached: late rebinds to it below
     none = Sim(world())
     a, b, c = _fly(late, 50, U), _fly(early, 50, U), _fly(none, 50, U)
     np.testing.assert_array_equal(a, b)
@@ -126,6 +128,7 @@ def test_the_compiled_period_equals_the_python_loop_through_contacts_and_the_gro
         return np.concatenate([_fly(sim, 40, up), _fly(sim, 80, roll), _fly(sim, 120, fall)])
 
     compiled = make()
+    assert compiled.compile_period()
     a = fly(compiled)
     assert compiled._bound().period is not None  # flown by period_physics
     b, looped = _python_loop(monkeypatch, make, fly)
