@@ -125,6 +125,74 @@ def jit(
     return register if fn is None else register(fn)
 
 
+def bind(fn: Callable[..., Any], *args: Any) -> Callable[..., Any]:
+    """``fn``'s compiled overload for the Numba types of ``args`` (compiled, or loaded from the cache, now
+    if needed), as a callable that skips the dispatcher: the same machine code ``fn(*args)`` runs.
+
+    Why: a call through Numba's dispatcher types every argument on every call, and a record
+    (:mod:`swarm_mj.pipeline.records`) is typed field by field: ``apply_forces(phys, stages, kin, xf,
+    xt)`` costs 4.3 µs through the dispatcher against 1.3 µs through the bound overload, ``unhealthy(phys)``
+    3.5 against 1.2 µs (a six-drone ``mj_step``: 17.6 µs; docs/design.md, "The control period, written
+    once").
+
+    **Invariant**: call the result only with arguments of the types it was bound to (the same record
+    objects, or arrays of the same dtype, dimensions and layout). It unboxes its arguments by that fixed
+    signature and does not check them: an argument of another type is undefined behaviour, not an
+    error. So an owner rebinds whenever it rebuilds a record it passes (``Sim`` after ``reset``,
+    ``add_stage``, ``add_monitor``), and a caller passing arrays it does not own makes them of the bound
+    type first (``np.ascontiguousarray(a, dtype=float)``) or calls ``fn`` itself.
+
+    Without Numba (or for a plain Python function) ``fn`` itself is returned."""
+    if not AVAILABLE or not hasattr(fn, "overloads"):
+        return fn
+    dispatcher: Any = fn
+    return dispatcher.compile(tuple(_numba.typeof(a) for a in args))
+
+
+def compiled(fn: Callable[..., Any], *args: Any) -> bool:
+    """:func:`bind` would not compile: ``fn`` has an overload for the types of ``args`` in memory or in
+    Numba's on-disk cache for its current source (True without Numba: nothing compiles). Reads Numba's
+    cache index (an internal API: False on any surprise, and the caller then does without)."""
+    if not AVAILABLE or not hasattr(fn, "overloads"):
+        return True
+    return has_overload(fn, tuple(_numba.typeof(a) for a in args))
+
+
+def has_overload(fn: Callable[..., Any], sig: tuple) -> bool:
+    """``fn`` (a Numba dispatcher) has an overload for ``sig`` (a tuple of Numba types) in memory or in
+    its on-disk cache for its current source (False on any surprise of Numba's internals)."""
+    dispatcher: Any = fn
+    if sig in dispatcher.overloads:
+        return True
+    try:
+        return any(key[0] == sig for key in dispatcher._cache._cache_file._load_index())
+    except Exception:  # noqa: BLE001 - numba internals changed
+        return False
+
+
+class Bound:
+    """``fn`` called through :func:`bind`, for a caller that does not own the records it passes: rebound
+    whenever one of the first ``records`` arguments is not the object it was bound with (compared by
+    identity; the bound objects are kept, so an identity is never reused by another object). The other
+    arguments must keep the types of the first call (the invariant of :func:`bind`): scalars, or arrays
+    the caller makes."""
+
+    __slots__ = ("_call", "_ids", "_keep", "fn", "records")
+
+    def __init__(self, fn: Callable[..., Any], records: int = 1) -> None:
+        self.fn, self.records = fn, records
+        self._call: Callable[..., Any] = fn
+        self._ids: tuple[int, ...] = ()
+        self._keep: tuple[Any, ...] = ()
+
+    def __call__(self, *args: Any) -> Any:
+        ids = tuple(map(id, args[: self.records]))
+        if ids != self._ids:
+            self._call = bind(self.fn, *args)
+            self._ids, self._keep = ids, args[: self.records]
+        return self._call(*args)
+
+
 def _cache_index(kernel: Callable[..., Any]) -> bool | None:
     """Whether Numba's on-disk cache index holds ``kernel`` for its current source; None when that
     cannot be told (no Numba, or Numba's internals surprise us: the index is an internal API)."""

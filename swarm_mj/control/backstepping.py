@@ -30,11 +30,12 @@ body angular velocity, see :mod:`swarm_mj.physics.state`.
 from __future__ import annotations
 
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import bind, jit
 from ..errors import UserError
 from ..paper import TABLE4_GAINS
 from ..physics.params import DEFAULT_PARAMS, QuadParams
@@ -118,6 +119,8 @@ class Backstepping:
         self._torque_scale = self._inertia / p.L
         self._drag_over_m = p.drag / p.m
         #: the constants of eqs. (17)–(24) as one record (what the kernel takes)
+        #: backstepping_kernel bound to the record and C-ordered float64 inputs (:func:`swarm_mj._jit.bind`)
+        self._kernel: Callable[..., np.ndarray] | None = None
         self.record = Gains(
             self._a_pos, self._c1_pos, self._c2_pos, self._a_att, self._c1_att, self._c2_att, self._drag_over_m,
             float(p.m), float(p.g), self._inertia, self._torque_scale, self._cor, float(p.L), self.T,
@@ -163,26 +166,18 @@ class Backstepping:
         first = self._prev_att_d is None
         if first:
             self._prev_att_d = np.zeros((n, 2))
-        U = backstepping_kernel(
-            self.record,
-            rpy,
-            rpy_rate,
-            omega,
-            pos,
-            vel,
-            pos_d,
-            vel_d,
-            acc_d,
-            yaw,
-            yaw_rate,
-            yaw_acc,
-            wind,
-            use_wind,
-            self._prev_att_d,
-            first,
-            exact,
-            self.att_d,
-        )
+        c = np.ascontiguousarray  # the inputs as the bound kernel takes them (the same values: the same U)
+        f8 = np.float64
+        states = (c(rpy, dtype=f8), c(rpy_rate, dtype=f8), c(omega, dtype=f8), c(pos, dtype=f8), c(vel, dtype=f8))
+        refs = (c(pos_d, dtype=np.float64), c(vel_d, dtype=np.float64), c(acc_d, dtype=np.float64))
+        yaws = (c(yaw), c(yaw_rate), c(yaw_acc))
+        args = (self.record, *states, *refs, *yaws, c(wind), use_wind, self._prev_att_d, first, exact, self.att_d)
+        kernel = backstepping_kernel
+        if all(a.shape == (n, 3) for a in (*states, *refs)):  # else the dispatcher types (and checks) them
+            if self._kernel is None:
+                self._kernel = bind(backstepping_kernel, *args)
+            kernel = self._kernel
+        U = kernel(*args)
         self.U = U
         return U
 

@@ -8,10 +8,12 @@ returns the same U with the references and commanded attitude that produced it (
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
+from .._jit import bind
 from ..env import Command
 from ..formation.anticollision import make_rule, resolve_rule
 from ..physics.mixing import attitude_priority
@@ -41,6 +43,7 @@ class DownwashFeedforward:
         # uses the jet the physics flies); its coefficients; the kernel is called directly (one call per step)
         st = DownwashStage.for_vehicle(params)
         self.force = np.zeros((n, 3))  # (n, 3) the last prediction (N)
+        self._call: Callable[..., None] | None = None  # feedforward_force bound to the record (_jit.bind)
         z3 = np.zeros((n, 3))
         self._record = Feedforward(
             True, n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, np.zeros((n, 3)),
@@ -54,7 +57,14 @@ class DownwashFeedforward:
     def __call__(self, pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray) -> np.ndarray:
         """pos (n, 3), quat (n, 4) (w, x, y, z), thrust (n,) each drone's U1 (N) → force (n, 3) (N)
         (:func:`swarm_mj.pipeline.period.feedforward_force`, the function the compiled driver calls)."""
-        feedforward_force(self._record, pos, quat, np.asarray(thrust, dtype=float))
+        c = np.ascontiguousarray  # the inputs as the bound function takes them (the same values)
+        args = (self._record, c(pos, dtype=np.float64), c(quat, dtype=np.float64), c(thrust, dtype=np.float64))
+        if args[1].shape == (self.n, 3) and args[2].shape == (self.n, 4) and args[3].shape == (self.n,):
+            if self._call is None:
+                self._call = bind(feedforward_force, *args)
+            self._call(*args)
+        else:  # the dispatcher types (and checks) them
+            feedforward_force(*args)
         return self.force
 
 

@@ -1,6 +1,8 @@
 """The simulation core: one control period of the step pipeline (docs/design.md, "the step pipeline").
 
-:meth:`Sim.step` owns each control period T:
+:meth:`Sim.step` owns each control period T, in one compiled call where it can (:func:`period_physics`:
+1. and 2. below, handing back to Python only the physics steps Python must see, as the chunk driver of
+swarm_mj/pipeline/period.py does; else 2. is a Python loop):
 
 1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
    [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.physics.mixing.saturate_kernel`,
@@ -40,14 +42,14 @@ the rotor thrusts F1..F4 actually produced.
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
 import mujoco
 import numpy as np
 
 from .. import _jit
-from .._jit import AVAILABLE, jit
+from .._jit import AVAILABLE, bind, compiled, jit
 from ..errors import SimulationDiverged, UserError
 from ..pipeline.records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
 from . import _mjstep
@@ -341,7 +343,9 @@ def hold_inputs(phys, U) -> None:
     ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
     saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
     if phys.lag:
-        phys.rotor_command[:] = phys.rotor_thrust
+        for i in range(phys.rotor_command.shape[0]):  # a loop: a slice copy costs seconds of compiling
+            for r in range(4):
+                phys.rotor_command[i, r] = phys.rotor_thrust[i, r]
     if phys.gate_on:
         floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
 
@@ -354,6 +358,48 @@ def unhealthy(phys) -> bool:
             return True
     n = phys.qpos.shape[0]
     return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
+
+
+@jit(inline=True)
+def physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each) -> int:
+    """The physics steps s0 .. nsub − 1 of a control period (2. of the module docstring): each step's forces
+    (:func:`apply_forces`), MuJoCo's own ``mj_step`` (:func:`swarm_mj.physics._mjstep.step_call`), then the
+    compiled monitors (:func:`track_monitors`). Returns 0 when the period's steps are done, else the
+    number of the next step (1 .. nsub) after the step that hands back to Python: one with a contact
+    (``ncon`` > 0: :meth:`Sim.after_physics_step` counts it), or every step when ``python_each`` (Python
+    still holds drones in contact, or a monitor's Python must see each step). Needs a compiled
+    ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`). The chunk driver's physics
+    (swarm_mj/pipeline/period.py) and :meth:`Sim.step`'s (through :func:`period_physics`)."""
+    for s in range(s0, phys.nsub):
+        apply_forces(phys, stages, kin, xf, xtorque)
+        _mjstep.step_call(phys.fn, phys.m_addr, phys.d_addr)  # type: ignore[call-arg]  # a Numba intrinsic
+        if phys.ncon[0] > 0 or python_each:
+            return s + 1
+        track_monitors(monitors, kin)
+    return 0
+
+
+@jit(inline=True)
+def drone_views(phys):
+    """The views of the drones' rows a physics step reads and writes: (kinematics, xfrc force (N, 3),
+    xfrc torque (N, 3)), the drones' bodies at body0 + i·body_step of ``phys.xfrc``."""
+    n = phys.qpos.shape[0]
+    rows = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step]
+    kin = Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
+    return kin, rows[:, 0:3], rows[:, 3:6]
+
+
+@jit
+def period_physics(phys, stages, monitors, U, s0, python_each) -> int:
+    """:meth:`Sim.step`'s one compiled call per control period: from its start (``s0`` = 0) saturation
+    and the floor gate (:func:`hold_inputs`, U (N, 4)), then :func:`physics_steps` from step ``s0``; returns
+    what :func:`physics_steps` returns (0: the period is flown; s > 0: Python handles step s − 1's contacts
+    and monitors, then calls again with ``s0`` = s unless s = nsub). The chunk driver calls the same two
+    stage functions (swarm_mj/pipeline/period.py, ``fly_chunk``)."""
+    if s0 == 0:
+        hold_inputs(phys, U)
+    kin, xf, xtorque = drone_views(phys)
+    return physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
 
 
 # --------------------------------------------------------------------------- force stages
@@ -501,6 +547,7 @@ class Sim:
         self.monitors: list[Monitor] = list(monitors)
         self._gate = floor_gate(world)  # (floor geom id, its contype, z_near) or None: no solid floor
         self._gate_on = self._gate is not None
+        self._calls: _Calls | None = None  # the compiled calls bound to the records (:meth:`_bound`)
         self.reset()
 
     @property
@@ -515,6 +562,7 @@ class Sim:
         self._gate_on = bool(on) and self._gate is not None
         self._floor_solid()
         self._record = self._physics()
+        self._calls = None  # rebound at the next step (:meth:`_bound`)
 
     def _floor_solid(self) -> None:
         if self._gate is not None:
@@ -547,6 +595,7 @@ class Sim:
         """Append a monitor (run after every physics step); it is reset now."""
         self.monitors.append(monitor)
         monitor.reset(self)
+        self._calls = None
 
     def _set_path(self) -> None:
         """Drag and wind first (the default): they run fused in one compiled call and the extra
@@ -557,6 +606,24 @@ class Sim:
         self._record = self._physics()
         why = self.not_compiled()
         self._compiled = None if why else tuple(st.record() for st in self._extra)  # type: ignore[attr-defined]
+        self._calls = None
+
+    def _bound(self) -> _Calls:
+        """The compiled calls of a control period bound to this simulator's records (:func:`swarm_mj._jit.bind`:
+        a call through Numba's dispatcher re-types every record field at every call). Bound at the first
+        step or check after the records were (re)built: :meth:`reset`, :meth:`add_stage`,
+        :meth:`add_monitor`, :attr:`floor_gate` set ``_calls`` to None."""
+        if self._calls is None:
+            self._calls = _Calls(self)
+        return self._calls
+
+    def compile_period(self) -> bool:
+        """Compile :func:`period_physics` for this simulator's records now (else :meth:`step` loops over the
+        physics steps in Python until it is in Numba's cache: the chunk driver's compile, in the background
+        of a first run, and ``swarm-mj warm-up`` compile it too); True if :meth:`step` now flies a control
+        period in one compiled call (it needs every force stage compiled and a compiled ``mj_step``)."""
+        self._calls = _Calls(self, compile=True)
+        return self._calls.period is not None
 
     def not_compiled(self) -> str | None:
         """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
@@ -683,19 +750,21 @@ class Sim:
         parked = self._any_parked
         if parked:
             U = self._hold_parked(U)
-        saturate_kernel(U, self._unmix_t, self._mix_t, self._f_min, self._f_max, self.ctrl, self.rotor_thrust)
         self.wind.set(wind_force)
-        if self.motor_lag:
-            self.rotor_command[:] = self.rotor_thrust
-        if self._gate_on:
-            fid, solid, z_near = self._gate  # type: ignore[misc]
-            floor_gate_kernel(self.qpos, self.qvel, z_near, self.control_period, self.model.geom_contype, fid, solid)
+        calls = self._bound()
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/physics/_mjstep.py)
         try:
-            if self._fused:
-                self._substeps_fused()
+            bound = U.shape == self.ctrl.shape  # else the dispatcher types U (and its shape is the caller's)
+            if bound:
+                U = np.ascontiguousarray(U)  # (N, 4) C order: the bound calls' type
+            if bound and calls.period is not None:
+                self._period_compiled(calls, U)
             else:
-                self._substeps()
+                (calls.hold_inputs if bound else hold_inputs)(calls.phys, U)
+                if self._fused:
+                    self._substeps_fused(calls)
+                else:
+                    self._substeps()
         finally:
             timer_resume(saved)
         if self.motor_lag:
@@ -703,16 +772,41 @@ class Sim:
         if parked:
             self._put_back()
 
-    def _substeps_fused(self) -> None:
+    def _period_compiled(self, calls: _Calls, U: np.ndarray) -> None:
+        """1. and 2. of the module docstring in one compiled call (:func:`period_physics`: saturation, the
+        floor gate, then :func:`physics_steps`, the chunk driver's physics), back in Python only after a
+        physics step with a contact, or after every step while Python must see each one (drones still in
+        contact, a monitor without a compiled step or not ready for it): exactly where the chunk driver
+        hands back (swarm_mj/pipeline/fast.py)."""
+        period, phys, stages, monitors = calls.period, calls.phys, calls.stages, calls.monitors
+        assert period is not None
+        s = period(phys, stages, monitors, U, 0, self._python_each(calls))
+        while s:
+            self.after_physics_step()
+            if s == self.n_substeps:
+                return
+            s = period(phys, stages, monitors, U, s, self._python_each(calls))
+
+    def _python_each(self, calls: _Calls) -> bool:
+        """Python must see every physics step: drones still in contact, or a monitor whose Python
+        ``after_step`` does more than its compiled step now (none compiled, or one not ``compiled_ready``,
+        or one that ``holds_steps``)."""
+        if self._pairs_in_contact:
+            return True
+        if not self.monitors:
+            return False
+        return calls.monitors_python or any(not m.compiled_ready() or m.holds_steps() for m in self.monitors)  # type: ignore[attr-defined]
+
+    def _substeps_fused(self, calls: _Calls) -> None:
         """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
         then the extra stages' sum added (and their torque set): :func:`apply_forces`, the function
         the compiled driver calls (swarm_mj/pipeline/period.py), where every extra stage has a compiled kernel."""
         m, d = self.model, self.data
         xf, xt = self._xfrc_force, self._xfrc_torque
         if self._compiled is not None:
-            phys, stages, kin = self._record, self._compiled, self.kinematics
+            phys, stages, kin, apply = calls.phys, calls.stages, self.kinematics, calls.apply_forces
             for _ in range(self.n_substeps):
-                apply_forces(phys, stages, kin, xf, xt)
+                apply(phys, stages, kin, xf, xt)
                 mujoco.mj_step(m, d)
                 self.after_physics_step()
             return
@@ -773,7 +867,8 @@ class Sim:
 
     def check(self) -> None:
         """Raise :class:`SimulationDiverged` if a copy is unhealthy (:meth:`health`), naming why."""
-        if not unhealthy(self._record):  # the chunk driver's test
+        calls = self._bound()
+        if not calls.unhealthy(calls.phys):  # the chunk driver's test
             return
         if self.mujoco_warned():
             code = MUJOCO_WARNING
@@ -846,3 +941,32 @@ class Sim:
             if a >= 0 and b >= 0 and a != b:
                 out.add((int(min(a, b)), int(max(a, b))))
         return sorted(out)
+
+
+class _Calls:
+    """:class:`Sim`'s compiled calls bound to its records (:func:`swarm_mj._jit.bind`); built by
+    :meth:`Sim._bound`, dropped whenever a record is rebuilt. ``period`` (:func:`period_physics`) where the
+    force stages are compiled, a kernel can call ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`) and
+    it is compiled for these records already (in memory or Numba's on-disk cache: compiling it costs a first
+    run 2-3 s, so it is compiled with the chunk driver, :func:`swarm_mj.pipeline.fast.compile_now`, in the
+    background or by ``swarm-mj warm-up``), else None (the Python loop over the physics steps, with
+    ``apply_forces`` where the stages are compiled)."""
+
+    def __init__(self, sim: Sim, compile: bool = False) -> None:  # noqa: A002
+        #: the records the calls are bound to (passed with them: never another record)
+        self.phys, self.stages = phys, stages = sim._record, sim._compiled
+        self.unhealthy = bind(unhealthy, phys)
+        self.period: Callable[..., int] | None = None
+        self.apply_forces: Callable[..., None] = apply_forces  # through the dispatcher unless bound below
+        self.hold_inputs: Callable[..., None] = hold_inputs
+        #: the compiled monitors' records; ``monitors_python``: some monitor has none (Python sees each step)
+        self.monitors_python = sim.monitors_not_compiled() is not None
+        self.monitors: tuple = () if self.monitors_python else tuple(m.record() for m in sim.monitors)  # type: ignore[attr-defined]
+        U = np.zeros(sim.ctrl.shape)  # (N, 4) C order, as Sim.step passes it
+        args = (phys, stages, self.monitors, U, 0, False)
+        if stages is not None and _mjstep.available() and (compile or compiled(period_physics, *args)):
+            self.period = bind(period_physics, *args)
+            return
+        self.hold_inputs = bind(hold_inputs, phys, U)  # saturation from Python: the physics steps looped there
+        if stages is not None:
+            self.apply_forces = bind(apply_forces, phys, stages, sim.kinematics, sim._xfrc_force, sim._xfrc_torque)

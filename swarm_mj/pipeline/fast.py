@@ -258,6 +258,22 @@ def signature(args: tuple) -> tuple:
     return tuple(typeof(a) for a in args)
 
 
+def _period(sig: tuple) -> tuple[Any, tuple]:
+    """:func:`swarm_mj.physics.sim.period_physics` (what ``Sim.step`` flies a control period with) and its
+    signature for the simulator of the driver's signature ``sig``: its Physics record, force stages and
+    monitors, U (N, 4) C-ordered float64, the physics step and the bool ``Sim.step`` passes. Compiled with
+    the driver, so that a first run's ``Sim.step`` never waits for it (swarm_mj/physics/sim.py, ``_Calls``)."""
+    import inspect
+
+    from numba import types
+
+    from ..physics.sim import period_physics
+
+    names = list(inspect.signature(_driver().py_func).parameters)  # the driver's arguments, by name
+    phys, stages, monitors = (sig[names.index(k)] for k in ("phys", "stages", "monitors"))
+    return period_physics, (phys, stages, monitors, types.Array(types.float64, 2, "C"), types.int64, types.boolean)
+
+
 def _sources_hash() -> str:
     """A hash of the sources the driver is compiled from: every module of ``_jit.KERNEL_MODULES``, the
     records and the compiler switch itself."""
@@ -297,7 +313,7 @@ def compiled(sig: tuple) -> bool:
         fresh = stamp.read_text() == _sources_hash()
     except OSError:
         return False
-    return fresh and (sig in _driver().overloads or sig in _cached_signatures())
+    return fresh and (sig in _driver().overloads or sig in _cached_signatures()) and _jit.has_overload(*_period(sig))
 
 
 def compile_now(signatures: list[tuple]) -> float:
@@ -317,6 +333,8 @@ def compile_now(signatures: list[tuple]) -> float:
         fly._cache.flush()  # Numba would load a stale one
     for sig in signatures:
         fly.compile(sig)
+        period, period_sig = _period(sig)
+        period.compile(period_sig)
     try:
         tmp = stamp.with_suffix(f".{os.getpid()}.tmp")
         tmp.write_text(_sources_hash())

@@ -4,13 +4,15 @@ period, written once").
 
 :func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
 (:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.physics.sim.Sim.step`,
-:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones for the observation
-(:func:`observe`), the forces of a physics step (:func:`~swarm_mj.physics.sim.apply_forces`, the force
-stages' and the monitors' kernels), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
-feedforward (:func:`feedforward_force`); for saturation, the command and the log's input row it
-calls the same kernels from Python (a compiled function taking a large record costs 2-5 s of
-compiling on a first run; the parity tests keep them equal); the layered rule's formed step is
-the rule's own compiled step, which its Python ``update`` calls too:
+(:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones, each bound to its records
+(:func:`swarm_mj._jit.bind`), for the observation (:func:`observe`), saturation and the physics steps
+(:func:`~swarm_mj.physics.sim.period_physics`: :func:`~swarm_mj.physics.sim.hold_inputs`, then
+:func:`~swarm_mj.physics.sim.physics_steps`, which :func:`fly_chunk` calls too), the health check
+(:func:`~swarm_mj.physics.sim.unhealthy`) and the feedforward (:func:`feedforward_force`); for the
+command and the log's input row it calls the same kernels from Python (compiling them for Python
+callers would add 8-13 s and 3-4 s to a first run; docs/design.md; the parity tests keep them
+equal); the layered rule's formed step is the rule's own compiled step, which its Python ``update``
+calls too, and the barrier filter's period is one compiled function its Python call shares:
 
 =========================  =====================================================================
 stage                      function
@@ -25,6 +27,7 @@ backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_ke
                            :func:`~swarm_mj.physics.mixing.attitude_priority_kernel`
 log rows                   :func:`log_inputs`, :func:`log_outputs`
 saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
+physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
                            :data:`swarm_mj.pipeline.records.FORCE_KERNELS`, in the simulator's order)
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
@@ -48,12 +51,11 @@ from ..control.lag import predict_kernel
 from ..formation.barrier import barrier_step
 from ..formation.layered import formed_update, merge_rows
 from ..formation.slots import setpoints_kernel
-from ..physics import _mjstep
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel
 from ..physics.observation import observe_kernel
-from ..physics.sim import apply_forces, hold_inputs, log_stage_forces, track_monitors, unhealthy, unmix_kernel
-from .records import Kinematics, Obs
+from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
+from .records import Obs
 
 #: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
 #: a contact to count (then resume); unhealthy (Python raises); a non-finite command.
@@ -211,9 +213,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
     rule's barrier separation filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on``
     False: none), after the rule's formed step as in ``LayeredRule.references``."""
     n = phys.qpos.shape[0]
-    xf = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 0:3]
-    xtorque = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step, 3:6]
-    kin = _kinematics(phys)
+    kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
@@ -238,12 +238,9 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
             hold_inputs(phys, U)
             log.U[k] = phys.ctrl
             log.wind_force[k] = phys.wind
-        for s in range(s0, phys.nsub):
-            apply_forces(phys, stages, kin, xf, xtorque)
-            _mjstep.step_call(phys.fn, phys.m_addr, phys.d_addr)
-            if phys.ncon[0] > 0 or python_each:
-                return CONTACT, k, s + 1
-            track_monitors(monitors, kin)
+        s = physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
+        if s > 0:
+            return CONTACT, k, s
         s0 = 0
         log_outputs(log, k, phys, stages)
         k += 1
@@ -251,12 +248,6 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
             return UNHEALTHY, k, 0
         observe_into(phys, refs, obs, k)
     return DONE, k, 0
-
-
-@jit(inline=True)
-def _kinematics(phys):
-    """The drones' state views a force stage reads (:class:`~swarm_mj.pipeline.records.Kinematics`)."""
-    return Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
 
 
 @jit(inline=True)

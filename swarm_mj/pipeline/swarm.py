@@ -42,7 +42,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import Bound, jit
 from ..errors import UserError
 from ..experiments.parallel import ThreadTeam, check_count
 from ..formation.slots import DiameterSchedule, polygon_offsets
@@ -132,6 +132,7 @@ class SwarmPhysics:
         self._D = c(self.D, dtype=float)
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
+        self._observe = Bound(observe, records=2)  # bound to the records: no re-typing per call (_jit.py)
         self._copy_refs = CopyRefs(
             float(T), float(sc.sensing_range), *self._ref, self._D, self._unit_offsets, self.wind_known,
             self.relative_wind,
@@ -339,7 +340,7 @@ class SwarmPhysics:
         :func:`~swarm_mj.pipeline.period.observe` (the chunk driver's stage) on its simulator's record and
         ``refs`` (:meth:`refs`, kept by the caller: the chunk driver shares it), with the known wind on the
         relative airspeed from :meth:`drone_wind`."""
-        o = observe(self.blocks[0].sim.record(), refs, int(self.k[0]))
+        o = self._observe(self.blocks[0].sim.record(), refs, int(self.k[0]))
         if self.wind_known and self.relative_wind:
             o = o._replace(wf=self.drone_wind(0, o.vel))
         return o
