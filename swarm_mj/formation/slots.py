@@ -49,15 +49,40 @@ def setpoints_kernel(
     prev_leader (3,) set to leader; at k = 0 the velocity is left as it is). Returns sp, sp_vel,
     sp_acc (n, 3) and the yaw references (n,)."""
     n = unit_offsets.shape[0] + 1
+    sp, sp_vel, sp_acc, yaw = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+    setpoints_into(
+        k,
+        T,
+        leader,
+        prev_leader,
+        leader_vel,
+        ref_pos,
+        ref_vel,
+        ref_acc,
+        ref_yaw,
+        D,
+        unit_offsets,
+        sp,
+        sp_vel,
+        sp_acc,
+        yaw,
+    )
+    return sp, sp_vel, sp_acc, yaw
+
+
+@jit(inline=True)
+def setpoints_into(
+    k, T, leader, prev_leader, leader_vel, ref_pos, ref_vel, ref_acc, ref_yaw, D, unit_offsets, sp, sp_vel, sp_acc, yaw
+) -> None:
+    """:func:`setpoints_kernel` into sp, sp_vel, sp_acc (n, 3), yaw (n,) (the chunk driver's observation)."""
+    n = unit_offsets.shape[0] + 1
     if k > 0:
         for j in range(3):
             leader_vel[j] = (leader[j] - prev_leader[j]) / T
     for j in range(3):
         prev_leader[j] = leader[j]
-    sp = np.empty((n, 3))
-    sp_vel = np.empty((n, 3))
-    sp_acc = np.zeros((n, 3))
-    yaw = np.zeros(n)
+    sp_acc[:] = 0.0
+    yaw[:] = 0.0
     for j in range(3):
         sp[0, j] = ref_pos[j]
         sp_vel[0, j] = ref_vel[j]
@@ -67,7 +92,6 @@ def setpoints_kernel(
         for j in range(3):
             sp[i, j] = leader[j] + D * unit_offsets[i - 1, j]
             sp_vel[i, j] = leader_vel[j]
-    return sp, sp_vel, sp_acc, yaw
 
 
 def slot_positions(leader_pos: np.ndarray, D: float, unit_offsets: np.ndarray) -> np.ndarray:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from .state import euler_rates_kernel, quat_to_euler_kernel
+from .state import euler_rates_into, euler_rates_kernel, quat_to_euler_into, quat_to_euler_kernel
 
 
 def _rest_state(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -24,15 +24,30 @@ def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
     Euler angles and rates (n, 3), neighbours (n, n, 3) = p_j − p_i within ``sensing_range``
     (zero elsewhere), the mask (n, n) and the 3D distances (n, n) (+inf on the diagonal)."""
     n = qpos.shape[0]
-    pos = qpos[:, 0:3].copy()
-    quat = qpos[:, 3:7].copy()
-    vel = qvel[:, 0:3].copy()
-    omega = qvel[:, 3:6].copy()
-    rpy = quat_to_euler_kernel(quat)
-    rpy_rate = euler_rates_kernel(rpy, omega)
-    rel = np.zeros((n, n, 3))
-    mask = np.zeros((n, n))
-    dist = np.empty((n, n))
+    pos, vel, quat, omega = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3))
+    rpy, rpy_rate, rel, mask, dist = (
+        np.empty((n, 3)),
+        np.empty((n, 3)),
+        np.empty((n, n, 3)),
+        np.empty((n, n)),
+        np.empty((n, n)),
+    )
+    observe_kernel_into(qpos, qvel, sensing_range, pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist)
+    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist
+
+
+@jit(inline=True)
+def observe_kernel_into(qpos, qvel, sensing_range, pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist) -> None:
+    """:func:`observe_kernel` into the buffers pos .. dist (the chunk driver's observation, no allocation)."""
+    n = qpos.shape[0]
+    pos[:] = qpos[:, 0:3]
+    quat[:] = qpos[:, 3:7]
+    vel[:] = qvel[:, 0:3]
+    omega[:] = qvel[:, 3:6]
+    quat_to_euler_into(quat, rpy)
+    euler_rates_into(rpy, omega, rpy_rate)
+    rel[:] = 0.0
+    mask[:] = 0.0
     for i in range(n):
         for j in range(n):
             dx = pos[j, 0] - pos[i, 0]
@@ -48,7 +63,6 @@ def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
                 rel[i, j, 0] = dx
                 rel[i, j, 1] = dy
                 rel[i, j, 2] = dz
-    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist
 
 
 @jit(samples=lambda: [_rest_state()])
