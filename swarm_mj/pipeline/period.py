@@ -33,7 +33,7 @@ force stages               :func:`apply_forces` (drag + wind, then each register
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
 monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
 health check               :func:`~swarm_mj.physics.sim.unhealthy`
-observation                :func:`observe` (:func:`observe_into` its buffers)
+observation                :func:`observe_into` (into the driver's buffers; :func:`observe` on new ones)
 =========================  =====================================================================
 
 A compiled driver hands control back to Python for what the per-period path does in Python
