@@ -24,12 +24,6 @@ def polygon_offsets(n_followers: int, D: float = 1.0) -> np.ndarray:
     return np.column_stack([D * np.cos(ang), D * np.sin(ang), np.zeros(n_followers)])
 
 
-def _setpoint_samples():
-    z = np.zeros(3)
-    return [(1, 0.01, z, z.copy(), z.copy(), z, z, z, 0.0, 1.0, np.zeros((1, 3)))]
-
-
-@jit(samples=_setpoint_samples)
 def setpoints_kernel(
     k: int,
     T: float,
@@ -70,7 +64,7 @@ def setpoints_kernel(
     return sp, sp_vel, sp_acc, yaw
 
 
-@jit(inline=True)
+@jit
 def setpoints_into(
     k, T, leader, prev_leader, leader_vel, ref_pos, ref_vel, ref_acc, ref_yaw, D, unit_offsets, sp, sp_vel, sp_acc, yaw
 ) -> None:

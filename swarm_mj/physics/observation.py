@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 
 from .._jit import jit
-from .state import euler_rates_into, euler_rates_kernel, quat_to_euler_into, quat_to_euler_kernel
+from .state import euler_rates_kernel, quat_to_euler_kernel
 
 
 def _rest_state(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
@@ -18,7 +18,6 @@ def _rest_state(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
     return qpos, np.zeros((n, 6))
 
 
-@jit(samples=lambda: [(*_rest_state(), 2.0)])
 def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
     """From the free-joint state qpos (n, 7), qvel (n, 6): pos, vel, quat, body rates (copies),
     Euler angles and rates (n, 3), neighbours (n, n, 3) = p_j − p_i within ``sensing_range``
@@ -36,16 +35,23 @@ def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
     return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist
 
 
-@jit(inline=True)
+@jit
 def observe_kernel_into(qpos, qvel, sensing_range, pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist) -> None:
     """:func:`observe_kernel` into the buffers pos .. dist (the chunk driver's observation, no allocation)."""
     n = qpos.shape[0]
-    pos[:] = qpos[:, 0:3]
-    quat[:] = qpos[:, 3:7]
-    vel[:] = qvel[:, 0:3]
-    omega[:] = qvel[:, 3:6]
-    quat_to_euler_into(quat, rpy)
-    euler_rates_into(rpy, omega, rpy_rate)
+    for i in range(n):  # loops: a slice copy costs Numba's shape checks to compile
+        for j in range(3):
+            pos[i, j] = qpos[i, j]
+            vel[i, j] = qvel[i, j]
+            omega[i, j] = qvel[i, 3 + j]
+        for j in range(4):
+            quat[i, j] = qpos[i, 3 + j]
+    angles = quat_to_euler_kernel(quat)
+    rates = euler_rates_kernel(angles, omega)
+    for i in range(n):
+        for j in range(3):
+            rpy[i, j] = angles[i, j]
+            rpy_rate[i, j] = rates[i, j]
     rel[:] = 0.0
     mask[:] = 0.0
     for i in range(n):

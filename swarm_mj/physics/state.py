@@ -33,12 +33,7 @@ def quat_to_euler_kernel(quat: np.ndarray) -> np.ndarray:
 
     A loop over rows rather than array expressions: the same operations per element (compiled:
     bit for bit the same results), ten times faster for Numba to compile (0.3 s instead of 2.9 s)."""
-    return quat_to_euler_into(quat, np.empty((quat.shape[0], 3)))
-
-
-@jit(inline=True)
-def quat_to_euler_into(quat: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """:func:`quat_to_euler_kernel` into ``out`` (m, 3), returned (the chunk driver's buffers)."""
+    out = np.empty((quat.shape[0], 3))
     for i in range(quat.shape[0]):
         w, x, y, z = quat[i, 0], quat[i, 1], quat[i, 2], quat[i, 3]
         out[i, 0] = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
@@ -51,12 +46,7 @@ def quat_to_euler_into(quat: np.ndarray, out: np.ndarray) -> np.ndarray:
 def euler_rates_kernel(rpy: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """Euler-angle rates (m, 3) from Euler angles rpy (m, 3) and body rates omega (m, 3): the formulas above.
     (A loop over rows, like :func:`quat_to_euler_kernel`: quicker to compile, the same results.)"""
-    return euler_rates_into(rpy, omega, np.empty((omega.shape[0], 3)))
-
-
-@jit(inline=True)
-def euler_rates_into(rpy: np.ndarray, omega: np.ndarray, out: np.ndarray) -> np.ndarray:
-    """:func:`euler_rates_kernel` into ``out`` (m, 3), returned (the chunk driver's buffers)."""
+    out = np.empty((omega.shape[0], 3))
     for i in range(omega.shape[0]):
         sphi, cphi = np.sin(rpy[i, 0]), np.cos(rpy[i, 0])
         ctheta = np.cos(rpy[i, 1])
