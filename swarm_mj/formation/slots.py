@@ -66,7 +66,21 @@ def setpoints_kernel(
 
 @jit
 def setpoints_into(
-    k, T, leader, prev_leader, leader_vel, ref_pos, ref_vel, ref_acc, ref_yaw, D, unit_offsets, sp, sp_vel, sp_acc, yaw
+    k: int,
+    T: float,
+    leader: np.ndarray,
+    prev_leader: np.ndarray,
+    leader_vel: np.ndarray,
+    ref_pos: np.ndarray,
+    ref_vel: np.ndarray,
+    ref_acc: np.ndarray,
+    ref_yaw: float,
+    D: float,
+    unit_offsets: np.ndarray,
+    sp: np.ndarray,
+    sp_vel: np.ndarray,
+    sp_acc: np.ndarray,
+    yaw: np.ndarray,
 ) -> None:
     """:func:`setpoints_kernel` into sp, sp_vel, sp_acc (n, 3), yaw (n,) (the chunk driver's observation)."""
     n = unit_offsets.shape[0] + 1

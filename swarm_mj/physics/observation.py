@@ -36,8 +36,22 @@ def observe_kernel(qpos: np.ndarray, qvel: np.ndarray, sensing_range: float):
 
 
 @jit
-def observe_kernel_into(qpos, qvel, sensing_range, pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist) -> None:
-    """:func:`observe_kernel` into the buffers pos .. dist (the chunk driver's observation, no allocation)."""
+def observe_kernel_into(
+    qpos: np.ndarray,
+    qvel: np.ndarray,
+    sensing_range: float,
+    pos: np.ndarray,
+    vel: np.ndarray,
+    quat: np.ndarray,
+    omega: np.ndarray,
+    rpy: np.ndarray,
+    rpy_rate: np.ndarray,
+    rel: np.ndarray,
+    mask: np.ndarray,
+    dist: np.ndarray,
+) -> None:
+    """:func:`observe_kernel` into the buffers pos .. dist (the chunk driver's observation; the Euler angles
+    and rates come from the compiled kernels' two fresh arrays, copied in)."""
     n = qpos.shape[0]
     for i in range(n):  # loops: a slice copy costs Numba's shape checks to compile
         for j in range(3):
