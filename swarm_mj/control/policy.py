@@ -106,6 +106,8 @@ class BacksteppingPolicy:
         self._ff_started = False
         self._started = False
         self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the compiled command reads it
+        # the compiled command's buffers (Control.zeros1, scratch, U_out): no allocation per period
+        self._zeros1, self._scratch, self._U_out = np.zeros(self.n), np.zeros((5, self.n, 3)), np.zeros((self.n, 4))
         z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
         self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
         self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
@@ -118,7 +120,8 @@ class BacksteppingPolicy:
         prev = ctl._prev_att_d if ctl._prev_att_d is not None else np.zeros((self.n, 2))  # not started yet
         return Control(
             ctl.record, prev, ctl.att_d, self.U_last, ctl.attitude_map == "exact", bool(ctl.wind_feedforward),
-            bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max),
+            bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max), self._zeros1,
+            self._scratch, self._U_out,
         )  # fmt: skip
 
     def feedforward_record(self) -> Feedforward:

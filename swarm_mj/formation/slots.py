@@ -24,12 +24,6 @@ def polygon_offsets(n_followers: int, D: float = 1.0) -> np.ndarray:
     return np.column_stack([D * np.cos(ang), D * np.sin(ang), np.zeros(n_followers)])
 
 
-def _setpoint_samples():
-    z = np.zeros(3)
-    return [(1, 0.01, z, z.copy(), z.copy(), z, z, z, 0.0, 1.0, np.zeros((1, 3)))]
-
-
-@jit(samples=_setpoint_samples)
 def setpoints_kernel(
     k: int,
     T: float,
@@ -49,15 +43,54 @@ def setpoints_kernel(
     prev_leader (3,) set to leader; at k = 0 the velocity is left as it is). Returns sp, sp_vel,
     sp_acc (n, 3) and the yaw references (n,)."""
     n = unit_offsets.shape[0] + 1
+    sp, sp_vel, sp_acc, yaw = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
+    setpoints_into(
+        k,
+        T,
+        leader,
+        prev_leader,
+        leader_vel,
+        ref_pos,
+        ref_vel,
+        ref_acc,
+        ref_yaw,
+        D,
+        unit_offsets,
+        sp,
+        sp_vel,
+        sp_acc,
+        yaw,
+    )
+    return sp, sp_vel, sp_acc, yaw
+
+
+@jit
+def setpoints_into(
+    k: int,
+    T: float,
+    leader: np.ndarray,
+    prev_leader: np.ndarray,
+    leader_vel: np.ndarray,
+    ref_pos: np.ndarray,
+    ref_vel: np.ndarray,
+    ref_acc: np.ndarray,
+    ref_yaw: float,
+    D: float,
+    unit_offsets: np.ndarray,
+    sp: np.ndarray,
+    sp_vel: np.ndarray,
+    sp_acc: np.ndarray,
+    yaw: np.ndarray,
+) -> None:
+    """:func:`setpoints_kernel` into sp, sp_vel, sp_acc (n, 3), yaw (n,) (the chunk driver's observation)."""
+    n = unit_offsets.shape[0] + 1
     if k > 0:
         for j in range(3):
             leader_vel[j] = (leader[j] - prev_leader[j]) / T
     for j in range(3):
         prev_leader[j] = leader[j]
-    sp = np.empty((n, 3))
-    sp_vel = np.empty((n, 3))
-    sp_acc = np.zeros((n, 3))
-    yaw = np.zeros(n)
+    sp_acc[:] = 0.0
+    yaw[:] = 0.0
     for j in range(3):
         sp[0, j] = ref_pos[j]
         sp_vel[0, j] = ref_vel[j]
@@ -67,7 +100,6 @@ def setpoints_kernel(
         for j in range(3):
             sp[i, j] = leader[j] + D * unit_offsets[i - 1, j]
             sp_vel[i, j] = leader_vel[j]
-    return sp, sp_vel, sp_acc, yaw
 
 
 def slot_positions(leader_pos: np.ndarray, D: float, unit_offsets: np.ndarray) -> np.ndarray:

@@ -33,7 +33,7 @@ force stages               :func:`apply_forces` (drag + wind, then each register
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
 monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
 health check               :func:`~swarm_mj.physics.sim.unhealthy`
-observation                :func:`observe` (:func:`observe_into` its buffers)
+observation                :func:`observe_into` (into the driver's buffers; :func:`observe` on new ones)
 =========================  =====================================================================
 
 A compiled driver hands control back to Python for what the per-period path does in Python
@@ -50,10 +50,10 @@ from ..control.backstepping import backstepping_kernel
 from ..control.lag import predict_kernel
 from ..formation.barrier import barrier_step
 from ..formation.layered import formed_update, merge_rows
-from ..formation.slots import setpoints_kernel
+from ..formation.slots import setpoints_into
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel
-from ..physics.observation import observe_kernel
+from ..physics.observation import observe_kernel_into
 from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
 from .records import Obs
 
@@ -105,18 +105,18 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
     mixer. Reads of ``obs`` the drones' state, yaw references and wind force only. Writes ctl.att_d,
     ctl.U_last (the thrust the next feedforward uses)."""
     n = obs.pos.shape[0]
-    zeros1 = np.zeros(n)
-    zeros3 = np.zeros((n, 3))
+    zeros1, zeros3 = ctl.zeros1, ctl.scratch[0]
     ext = obs.wf
     if ff.on:
         feedforward_force(ff, obs.pos, obs.quat, ctl.U_last[:, 0])
-        ext = obs.wf + ff.force
+        ext = ctl.scratch[4]
+        for i in range(n):
+            for j in range(3):
+                ext[i, j] = obs.wf[i, j] + ff.force[i, j]
     wind = ext if ctl.use_wind else zeros3
     rpy_in, rate_in, body_in = obs.rpy, obs.rpy_rate, obs.omega
     if pred.on:
-        rpy_in = np.empty((n, 3))
-        rate_in = np.empty((n, 3))
-        body_in = np.empty((n, 3))
+        rpy_in, rate_in, body_in = ctl.scratch[1], ctl.scratch[2], ctl.scratch[3]
         predict_kernel(
             obs.rpy, obs.rpy_rate, obs.omega, pred.prev_rate, pred.prev_body, pred.d_att, pred.k_rate, rpy_in,
             rate_in, body_in,
@@ -127,9 +127,8 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
         ctl.use_wind, ctl.prev_att_d, False, ctl.exact, ctl.att_d,
     )  # fmt: skip
     if ctl.priority:
-        Up = np.empty_like(U)
-        attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, Up)
-        U = Up
+        attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, ctl.U_out)
+        U = ctl.U_out
     ctl.U_last[:] = U
     return U
 
@@ -151,51 +150,39 @@ def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
 
 
 @jit(inline=True)
-def observe_state(phys, refs, k):
-    """:func:`observe` without the wind force: (pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp,
-    spv, spa, yaw) of period k (what the vector env's copies read, swarm_mj/task.py)."""
-    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist = observe_kernel(phys.qpos, phys.qvel, refs.sensing_range)
-    sp, spv, spa, yaw = setpoints_kernel(
-        k, phys.T, pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
-        refs.D[k], refs.unit_offsets,
-    )  # fmt: skip
-    return pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw
-
-
-@jit(inline=True)
 def observe(phys, refs, k):
     """The observation of period k (:class:`~swarm_mj.pipeline.records.Obs`, fresh arrays; SwarmEnv's keys):
-    the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
-    estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
-    (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
+    :func:`observe_into` new buffers."""
     n = phys.qpos.shape[0]
-    pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw = observe_state(phys, refs, k)
-    wf = np.zeros((n, 3))
-    if refs.wind_known:
-        for i in range(n):
-            for j in range(3):
-                wf[i, j] = refs.wind_force[k, j]
-    return Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf)
+    obs = Obs(
+        np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
+        np.empty((n, n, 3)), np.empty((n, n)), np.empty((n, n)), np.empty((n, 3)), np.empty((n, 3)),
+        np.empty((n, 3)), np.empty(n), np.empty((n, 3)),
+    )  # fmt: skip
+    observe_into(phys, refs, obs, k)
+    return obs
 
 
 @jit(inline=True)
 def observe_into(phys, refs, obs, k) -> None:
-    """:func:`observe` into the buffers of ``obs`` (the chunk driver's observation)."""
-    o = observe(phys, refs, k)
-    obs.pos[:] = o.pos
-    obs.vel[:] = o.vel
-    obs.quat[:] = o.quat
-    obs.omega[:] = o.omega
-    obs.rpy[:] = o.rpy
-    obs.rpy_rate[:] = o.rpy_rate
-    obs.rel[:] = o.rel
-    obs.mask[:] = o.mask
-    obs.dist[:] = o.dist
-    obs.sp[:] = o.sp
-    obs.spv[:] = o.spv
-    obs.spa[:] = o.spa
-    obs.yaw[:] = o.yaw
-    obs.wf[:] = o.wf
+    """The observation of period k into the buffers of ``obs`` (the chunk driver's; :func:`observe` new ones):
+    the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
+    estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
+    (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
+    n = phys.qpos.shape[0]
+    observe_kernel_into(
+        phys.qpos, phys.qvel, refs.sensing_range, obs.pos, obs.vel, obs.quat, obs.omega, obs.rpy, obs.rpy_rate,
+        obs.rel, obs.mask, obs.dist,
+    )  # fmt: skip
+    setpoints_into(
+        k, phys.T, obs.pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
+        refs.D[k], refs.unit_offsets, obs.sp, obs.spv, obs.spa, obs.yaw,
+    )  # fmt: skip
+    obs.wf[:] = 0.0
+    if refs.wind_known:
+        for i in range(n):
+            for j in range(3):
+                obs.wf[i, j] = refs.wind_force[k, j]
 
 
 # --------------------------------------------------------------------------- the chunk driver

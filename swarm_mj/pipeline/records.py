@@ -177,6 +177,9 @@ class Control(NamedTuple):
     mix_t: np.ndarray  # (4, 4) rotor thrusts → U, transposed
     f_min: float  # rotor thrust limits (N)
     f_max: float
+    zeros1: np.ndarray  # (n,) zeros (the yaw references' rate and acceleration; never written)
+    scratch: np.ndarray  # (5, n, 3): zeros (never written), the predicted rpy, rates, body rates, the known force
+    U_out: np.ndarray  # (n, 4) the mixer's command (written)
 
 
 class Feedforward(NamedTuple):
