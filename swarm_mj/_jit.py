@@ -55,6 +55,8 @@ Samples = Callable[[], Iterable[tuple[Any, ...]]]
 
 #: name -> (kernel, samples): every kernel declared with :func:`jit`.
 REGISTRY: dict[str, tuple[Callable[..., Any], Samples | None]] = {}
+#: the names in :data:`REGISTRY` of the ``on_demand`` kernels (:func:`jit`).
+ON_DEMAND: set[str] = set()
 
 try:  # pragma: no cover - exercised by the environment, not by a branch of ours
     if not ENABLED:
@@ -104,6 +106,7 @@ def jit(
     samples: Samples | None = None,
     deferred: bool = False,
     inline: bool = False,
+    on_demand: bool = False,
 ):
     """Compile ``fn`` with numba.njit (cached, no fastmath: results match numpy) and register it.
 
@@ -111,6 +114,9 @@ def jit(
     calls the kernel with (a kernel only called from another kernel needs none).
     ``deferred``: not registered, so :func:`warm_up` leaves it alone (a large kernel its caller
     compiles when it chooses, with :func:`compile_samples`).
+    ``on_demand``: registered, but a run's :func:`warm_up` compiles it only when asked for everything
+    (``swarm-mj warm-up``): a kernel only some runs need (the barrier filter's, the vector env's), which
+    its owner compiles with :func:`warm_module` when it is built, before a run's clock starts.
     ``inline``: Numba inlines it into its compiled callers (a stage of the chunk driver: a call that
     passes a whole record costs ~0.2 µs, an inlined one reads the record's fields in place); it is
     still compiled on its own for Python callers.
@@ -119,7 +125,10 @@ def jit(
     def register(f: Callable[..., Any]) -> Callable[..., Any]:
         compiled = _compile(f, inline)
         if not deferred:
-            REGISTRY[f"{f.__module__}.{f.__qualname__}"] = (compiled, samples)
+            name = f"{f.__module__}.{f.__qualname__}"
+            REGISTRY[name] = (compiled, samples)
+            if on_demand:
+                ON_DEMAND.add(name)
         return compiled
 
     return register if fn is None else register(fn)
@@ -221,19 +230,27 @@ def compile_samples(kernel: Callable[..., Any], samples: Samples | None) -> None
 COMPILE_S_PER_KERNEL = 0.4
 
 
-def uncached() -> list[str]:
+def uncached(everything: bool = False) -> list[str]:
     """The registered kernels (with samples) that Numba's on-disk cache does not hold for their
-    current source, i.e. that :func:`warm_up` will compile. Uses Numba's cache index (an internal
-    API: on any surprise a kernel counts as cached, and only the notice is lost)."""
+    current source, i.e. that :func:`warm_up` (with the same ``everything``) will compile. Uses Numba's
+    cache index (an internal API: on any surprise a kernel counts as cached, and only the notice is lost)."""
     return [
         name
         for name, (kernel, samples) in list(REGISTRY.items())
-        if samples is not None and _cache_index(kernel) is False
+        if samples is not None and (everything or name not in ON_DEMAND) and _cache_index(kernel) is False
     ]
 
 
-def warm_up(announce: Callable[[str], None] | None = None) -> float:
-    """Compile (or load from the on-disk cache) every registered kernel; returns the seconds spent.
+def warm_module(module: str) -> None:
+    """Compile (or load from the cache) the ``on_demand`` kernels of ``module`` (see :func:`jit`)."""
+    for name in sorted(ON_DEMAND):
+        if name.rsplit(".", 1)[0] == module or name.startswith(module + "."):
+            compile_samples(*REGISTRY[name])
+
+
+def warm_up(announce: Callable[[str], None] | None = None, everything: bool = False) -> float:
+    """Compile (or load from the on-disk cache) every registered kernel but the ``on_demand`` ones
+    (``everything``: those too); returns the seconds spent.
 
     Called before a run's clock starts so that the real-time factor measures simulation,
     not compilation (the first run on a machine compiles for several seconds). ``announce``
@@ -248,12 +265,13 @@ def warm_up(announce: Callable[[str], None] | None = None) -> float:
     for name in KERNEL_MODULES:
         importlib.import_module(name)
     if announce is not None:
-        missing = uncached()
+        missing = uncached(everything)
         if missing:
             announce(
                 f"compiling the control kernels (first run only, ~{max(1, round(COMPILE_S_PER_KERNEL * len(missing)))}"
                 f" s)…"
             )
-    for kernel, samples in list(REGISTRY.values()):
-        compile_samples(kernel, samples)
+    for name, (kernel, samples) in list(REGISTRY.items()):
+        if everything or name not in ON_DEMAND:
+            compile_samples(kernel, samples)
     return time.perf_counter() - t0

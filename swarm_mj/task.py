@@ -208,7 +208,7 @@ def _observe_samples():
     ]
 
 
-@jit(samples=_observe_samples)
+@jit(on_demand=True, samples=_observe_samples)
 def observe_copies(
     qpos: np.ndarray,
     qvel: np.ndarray,

@@ -25,7 +25,7 @@ def main(args: argparse.Namespace) -> int:
         print("Numba is not in use (SWARM_MJ_NO_JIT or not installed): nothing to compile", file=sys.stderr)
         return 0
     print("compiling the per-step kernels…", file=sys.stderr, flush=True)
-    t_kernels = _jit.warm_up()
+    t_kernels = _jit.warm_up(everything=True)
     sigs = runner.preset_signatures()
     if all(fast.compiled(sig) for sig in sigs):
         t_fast = 0.0

@@ -75,7 +75,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, warm_module
 from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
@@ -260,7 +260,7 @@ def _kkt_point(w0, A, b, m, idx, s, w, lam, G, r, M) -> bool:
     return True
 
 
-@jit(samples=lambda: [(np.zeros(3), np.array([[1.0, 0.0, 0.0]]), np.array([1.0]))])
+@jit(on_demand=True, samples=lambda: [(np.zeros(3), np.array([[1.0, 0.0, 0.0]]), np.array([1.0]))])
 def project_polyhedron(w0: np.ndarray, A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, bool]:
     """argmin ‖w − w0‖² subject to A·w ≥ b (A (m, d), d ≤ 4), exactly, and whether it is feasible.
 
@@ -315,7 +315,7 @@ def _pair_row(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, A: n
     return b, h, hd
 
 
-@jit(samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
+@jit(on_demand=True, samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
 def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
     """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
 
@@ -391,7 +391,7 @@ def _filter_samples():
     ]
 
 
-@jit(samples=_filter_samples)
+@jit(on_demand=True, samples=_filter_samples)
 def filter_accelerations(
     pos: np.ndarray,
     vel: np.ndarray,
@@ -760,6 +760,7 @@ class BarrierRule(Rule):
         ``overrides`` set the filter (:func:`barrier_params`)."""
         own = _own_keys(overrides)
         super().__init__(n, params, **overrides)
+        warm_module(__name__)  # the filter's kernels, before a run's clock starts (_jit.jit's on_demand)
         self.barrier = barrier_params(self.params, {**own, **(barrier or {})})
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
@@ -923,7 +924,7 @@ def _step_samples():
     return [(rec, 0.0, pos, z, 0.0, pos, z, z, np.array([False, True, True]))]
 
 
-@jit(samples=_step_samples)
+@jit(on_demand=True, samples=_step_samples)
 def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     """One period of :class:`BarrierFilter` (its docstring states it) on the record ``rec``: the
     references (pos_d, vel_d, acc_d) (n, 3) to fly, from the planner's (pos_d, vel_d, acc_d) (n, 3),
@@ -1058,6 +1059,7 @@ class BarrierFilter:
     output is the input."""
 
     def __init__(self, params: BarrierParams | None = None, vehicle: QuadParams = DEFAULT_PARAMS) -> None:
+        warm_module(__name__)  # the filter's kernels, before a run's clock starts (_jit.jit's on_demand)
         self.barrier = BarrierParams() if params is None else params
         self.vehicle = vehicle
         self.radii = self.barrier.radii(vehicle)

@@ -89,6 +89,7 @@ from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
+from .._jit import warm_module
 from ..env import SwarmEnv, all_finite
 from ..errors import UserError
 from ..experiments.parallel import check_count, default_workers
@@ -152,6 +153,7 @@ class SwarmVectorEnv(VectorEnv):
         self.autoreset_mode = mode
         self.render_mode = None
         self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        warm_module("swarm_mj.task")  # the copies' observation kernel (_jit.jit's on_demand), compiled once
         self.num_envs = m = int(num_envs)
         self.n = n = sc.n_drones
         self.flatten = bool(flatten)

@@ -212,13 +212,38 @@ def test_setpoint_actions_record_their_references_and_attitude():
 
 
 def test_warm_up_compiles_every_registered_kernel():
-    _jit.warm_up()
+    _jit.warm_up(everything=True)  # what `swarm-mj warm-up` does
     assert len(_jit.REGISTRY) >= 15
+    assert {"swarm_mj.formation.barrier.barrier_step", "swarm_mj.task.observe_copies"} <= _jit.ON_DEMAND
     if not _jit.AVAILABLE:
         pytest.skip("numba not in use: kernels run as numpy")
     for name, (kernel, samples) in _jit.REGISTRY.items():
         if samples is not None:
             assert kernel.signatures, name
+
+
+def test_a_runs_warm_up_leaves_on_demand_kernels_to_their_owner():
+    """_jit.jit(on_demand=True): a run's warm_up does not compile it (a first run compiles only what
+    every run needs); warm_module, which the owner calls when it is built, does."""
+    if not _jit.AVAILABLE:
+        pytest.skip("numba not in use: kernels run as numpy")
+
+    def _probe_on_demand(x):
+        return x + 1.0
+
+    _probe_on_demand.__module__ = "_probe_on_demand_module"
+    _probe_on_demand.__qualname__ = "_probe_on_demand"
+    kernel = _jit.jit(on_demand=True, samples=lambda: [(1.0,)])(_probe_on_demand)
+    name = "_probe_on_demand_module._probe_on_demand"
+    try:
+        assert name in _jit.ON_DEMAND and name not in _jit.uncached()
+        _jit.warm_up()
+        assert not kernel.signatures
+        _jit.warm_module("_probe_on_demand_module")
+        assert kernel.signatures
+    finally:
+        _jit.REGISTRY.pop(name, None)
+        _jit.ON_DEMAND.discard(name)
 
 
 def _imports(path: Path) -> list[tuple[str, list[str]]]:
