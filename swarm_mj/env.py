@@ -324,47 +324,30 @@ class SwarmEnv(dm_env.Environment):
         """The observation of period ``self.k``: :meth:`swarm_mj.pipeline.swarm.SwarmPhysics.observe`, the chunk
         driver's stage :func:`swarm_mj.pipeline.period.observe` (the known wind on the relative airspeed
         from the field)."""
-        return self._observation(*self.physics.observe(self._refs))
+        return self._observation(self.physics.observe(self._refs))
 
-    def _observation(
-        self,
-        pos: np.ndarray,
-        vel: np.ndarray,
-        quat: np.ndarray,
-        omega: np.ndarray,
-        rpy: np.ndarray,
-        rpy_rate: np.ndarray,
-        rel: np.ndarray,
-        mask: np.ndarray,
-        dist: np.ndarray,
-        sp: np.ndarray,
-        sp_vel: np.ndarray,
-        sp_acc: np.ndarray,
-        yaw: np.ndarray,
-        wf: np.ndarray,
-    ) -> dict:
-        """The observation dict of period ``self.k`` from its arrays (see :meth:`observation_spec`);
+    def _observation(self, o: Obs) -> dict:
+        """The observation dict of period ``self.k`` from its record ``o`` (see :meth:`observation_spec`);
         ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.pipeline.fast`)
         hands back after a chunk."""
-        self._dist = dist
-        #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
-        self.obs_record = Obs(pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, sp_vel, sp_acc, yaw, wf)
+        self._dist = o.dist
+        self.obs_record = o  #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
         return {
             "time": np.float64(self.k * self.T),
-            "pos": pos,
-            "vel": vel,
-            "quat": quat,
-            "rpy": rpy,
-            "rpy_rate": rpy_rate,
-            "body_rates": omega,
-            "setpoint": sp,
-            "setpoint_vel": sp_vel,
-            "setpoint_acc": sp_acc,
-            "setpoint_yaw": yaw,
-            "leader_pos": pos[0].copy(),
-            "neighbours": rel,
-            "neighbour_mask": mask,
-            "wind_force": wf,
+            "pos": o.pos,
+            "vel": o.vel,
+            "quat": o.quat,
+            "rpy": o.rpy,
+            "rpy_rate": o.rpy_rate,
+            "body_rates": o.omega,
+            "setpoint": o.sp,
+            "setpoint_vel": o.spv,
+            "setpoint_acc": o.spa,
+            "setpoint_yaw": o.yaw,
+            "leader_pos": o.pos[0].copy(),
+            "neighbours": o.rel,
+            "neighbour_mask": o.mask,
+            "wind_force": o.wf,
         }
 
     def _reward(self, obs: dict, new_contacts: int) -> float:

@@ -24,3 +24,41 @@ class UnitRuleError(RuntimeError):
     """Raised inside tests/unit by what the folder does not do (tests/unit/conftest.py): start a process,
     fly a whole scenario, run a flying command or validate a whole data set. Not a
     :class:`swarm_mj.errors.SwarmError`, so that the command line does not turn it into an exit code."""
+
+
+def start_until_progress(args: list[str], cwd: Path, stdout: int | None, poll: float) -> tuple:
+    """Start ``args`` with a terminal on stderr (so the progress bar shows) and SIGINT at its default in the
+    child (a shell's background job starts with it ignored); return (the process, the terminal's master fd,
+    the stderr read so far) once the progress bar is up: the simulation loop is running. The caller
+    closes the master fd and kills the process if it is still running."""
+    import select
+    import signal
+    import subprocess
+    import time
+
+    pty = pytest.importorskip("pty")
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(
+        args,
+        cwd=cwd,
+        stdin=subprocess.DEVNULL,
+        stdout=stdout,
+        stderr=slave,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    os.close(slave)
+    err = b""
+    try:
+        deadline = time.monotonic() + 120
+        while b"%" not in err:  # the progress bar: the simulation loop is running
+            assert time.monotonic() < deadline, err
+            assert proc.poll() is None, err
+            r, _, _ = select.select([master], [], [], poll)
+            if r:
+                err += os.read(master, 4096)
+    except BaseException:
+        proc.kill()
+        proc.wait()
+        os.close(master)
+        raise
+    return proc, master, err

@@ -206,7 +206,7 @@ class FastLoop:
             return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
         if status == BAD_ACTION:
             return k
-        env._obs = env._observation(*(b.copy() for b in self._obs))
+        env._obs = env._observation(Obs(*(b.copy() for b in self._obs)))
         self._record(k)
         if k >= env.n_steps:
             env._done = True

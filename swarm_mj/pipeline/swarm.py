@@ -124,17 +124,15 @@ class SwarmPhysics:
         # the leader's reference and D at every control instant (analytic, docs/interpretations.md §3)
         self.times = np.arange(K + 1) * T  # (K+1,)
         self.reference = ref = sc.make_trajectory()(self.times)
-        self.D = DiameterSchedule(sc.diameter)(self.times)  # (K+1,)
-        self.unit_offsets = polygon_offsets(n - 1, 1.0)  # (n-1, 3)
-        c = np.ascontiguousarray
-        self._unit_offsets = c(self.unit_offsets, dtype=np.float64).reshape(n - 1, 3)
+        c = np.ascontiguousarray  # C-ordered float64: the records' types (swarm_mj/pipeline/records.py)
+        self.D = c(DiameterSchedule(sc.diameter)(self.times), dtype=float)  # (K+1,)
+        self.unit_offsets = c(polygon_offsets(n - 1, 1.0), dtype=float).reshape(n - 1, 3)  # (n-1, 3)
         self._ref = (c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float))
-        self._D = c(self.D, dtype=float)
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
         self._observe = Bound(observe, records=2)  # bound to the records: no re-typing per call (_jit.py)
         self._copy_refs = CopyRefs(
-            float(T), float(sc.sensing_range), *self._ref, self._D, self._unit_offsets, self.wind_known,
+            float(T), float(sc.sensing_range), *self._ref, self.D, self.unit_offsets, self.wind_known,
             self.relative_wind,
         )  # fmt: skip
         self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
@@ -244,7 +242,7 @@ class SwarmPhysics:
         its leader-velocity estimate, views updated in place by :func:`~swarm_mj.pipeline.period.observe`)."""
         pos, vel, acc, yaw = self._ref
         return Refs(
-            pos, vel, acc, yaw, self._D, self._unit_offsets, self.prev_leader[c], self.leader_vel[c],
+            pos, vel, acc, yaw, self.D, self.unit_offsets, self.prev_leader[c], self.leader_vel[c],
             float(self.scenario.sensing_range), self.wind[c], np.ascontiguousarray(self.series[c].speed, dtype=float),
             self.wind_known,
         )  # fmt: skip

@@ -15,11 +15,11 @@ import select
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers import start_until_progress
 
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
 RERUN = Path(sys.executable).with_name("rerun")
@@ -231,26 +231,10 @@ def test_diverging_run_exits_1_with_a_message_and_a_readable_recording(tmp_path)
 
 
 def test_interrupted_run_exits_130_with_a_readable_recording(tmp_path):
-    pty = pytest.importorskip("pty")
-    master, slave = pty.openpty()  # a terminal on stderr, so that the progress bar shows
-    proc = subprocess.Popen(
-        [*CLI, "run", "circle", "-o", "X.rrd", "--summary", "X.json"],
-        cwd=tmp_path,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=slave,  # SIGINT at its default in the child (a shell's background job starts with it ignored)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    proc, master, err = start_until_progress(
+        [*CLI, "run", "circle", "-o", "X.rrd", "--summary", "X.json"], tmp_path, subprocess.PIPE, 0.2
     )
-    os.close(slave)
-    err = b""
     try:
-        deadline = time.monotonic() + 120
-        while b"%" not in err:  # the progress bar: the simulation loop is running
-            assert time.monotonic() < deadline, err
-            assert proc.poll() is None, err
-            r, _, _ = select.select([master], [], [], 0.2)
-            if r:
-                err += os.read(master, 4096)
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=120)
         while True:

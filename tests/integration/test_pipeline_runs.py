@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 import pytest
+from helpers import start_until_progress
 
 CLI = [sys.executable, "-m", "swarm_mj.cli"]
 RERUN = Path(sys.executable).with_name("rerun")
@@ -54,26 +55,10 @@ def test_hover_in_an_absurd_wind_ends_diverged_with_exit_1_and_the_recording_kep
 
 
 def _interrupt_once(tmp_path: Path, delay: float) -> tuple[int, str]:
-    pty = pytest.importorskip("pty")
-    master, slave = pty.openpty()  # a terminal on stderr, so that the progress bar shows
-    proc = subprocess.Popen(
-        [*CLI, "run", "circle", "--duration", "3000", "-o", "X.rrd"],
-        cwd=tmp_path,
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.DEVNULL,
-        stderr=slave,  # SIGINT at its default in the child (a shell's background job starts with it ignored)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    proc, master, err = start_until_progress(
+        [*CLI, "run", "circle", "--duration", "3000", "-o", "X.rrd"], tmp_path, subprocess.DEVNULL, 0.05
     )
-    os.close(slave)
-    err = b""
     try:
-        deadline = time.monotonic() + 120
-        while b"%" not in err:  # the progress bar: the simulation loop is running
-            assert time.monotonic() < deadline, err
-            assert proc.poll() is None, err
-            r, _, _ = select.select([master], [], [], 0.05)
-            if r:
-                err += os.read(master, 4096)
         time.sleep(delay)
         proc.send_signal(signal.SIGINT)
         t_end = time.monotonic() + 180
