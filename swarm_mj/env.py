@@ -113,7 +113,7 @@ class StepRecord:
 
 
 class Observation(dict):
-    """SwarmEnv's observation: a dict of the keys above, and ``record``, the
+    """SwarmEnv's observation: a dict of the module docstring's keys, and ``record``, the
     :class:`~swarm_mj.pipeline.records.Obs` whose arrays its values are (C-ordered float64 arrays of the
     observation's shapes, new each period). What the built-in policy reads without checking every array
     again, where the dict's arrays are still the record's (:meth:`BacksteppingPolicy.command
