@@ -125,8 +125,9 @@ class BacksteppingPolicy:
         self._unread = (np.zeros((n, n, 3)), np.zeros((n, n)), np.zeros((n, n)), z3, z3, z3)
         self._records: tuple[Control, Feedforward, Predictor] | None = None
         # the command stage the chunk driver compiles, its Python body here with its kernels compiled and
-        # bound to this policy's records (_jit.python_body; docs/design.md, "The control period, written once")
-        self._command = python_body(command)
+        # bound to this policy's records (_jit.python_body; docs/design.md, "The control period, written once");
+        # made at the first command (a policy not used yet pickles)
+        self._command: Callable[..., np.ndarray] | None = None
 
     def _stage_records(self) -> tuple[Control, Feedforward, Predictor]:
         """The records of :func:`swarm_mj.pipeline.period.command` over this policy's own arrays (made again
@@ -217,6 +218,8 @@ class BacksteppingPolicy:
         o = self._obs_record(obs)
         pos_d, vel_d, acc_d = _f8(pos_d, n3), _f8(vel_d, n3), _f8(acc_d, n3)
         rec, ff, pred = self._stage_records()
+        if self._command is None:
+            self._command = python_body(command)
         U = self._command(rec, ff, pred, o, pos_d, vel_d, acc_d, not ctl.started)
         ctl.started = True
         if U is self._U_out:  # the mixer's buffer, rewritten by the next command
