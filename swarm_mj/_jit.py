@@ -24,6 +24,7 @@ import importlib
 import os
 import pickle
 import time
+import types
 from collections.abc import Callable, Iterable
 from typing import Any
 
@@ -200,6 +201,47 @@ class Bound:
             self._call = bind(self.fn, *args)
             self._ids, self._keep = ids, args[: self.records]
         return self._call(*args)
+
+
+def python_body(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """``fn``'s Python body (a Numba dispatcher's ``py_func``) as a function of its own whose calls of
+    compiled functions run compiled: the same orchestration as the compiled ``fn``, called from Python
+    without compiling ``fn`` for Python callers (docs/design.md, "The control period, written once").
+    Without Numba, ``fn`` itself.
+
+    Each compiled callee is bound (:func:`bind`) at its first call, to that call's argument types, and
+    called through the bound overload from then on (no dispatcher, no per-call check). **Invariant** (that
+    of :func:`bind`): every later call of the new function hands each callee arguments of those types, so
+    its caller passes records of fixed types (records it owns) and arrays of fixed dtype, dimensions and
+    layout (C-ordered float64 it checked or made). Each call of ``python_body`` makes a new function with
+    its own bindings, so each caller keeps its own. The module's other globals are those of ``fn``'s
+    module when it is made."""
+    py = getattr(fn, "py_func", fn)
+    if not AVAILABLE or py is fn:
+        return fn
+    names = dict(py.__globals__)
+    for name in py.__code__.co_names:
+        callee: Any = names.get(name)
+        if hasattr(callee, "overloads") and hasattr(callee, "py_func"):  # a Numba dispatcher
+            names[name] = _BindAtFirstCall(names, name, callee)
+    body = types.FunctionType(py.__code__, names, py.__name__, py.__defaults__, py.__closure__)
+    body.__doc__, body.__qualname__ = py.__doc__, py.__qualname__
+    return body
+
+
+class _BindAtFirstCall:
+    """A callee of a :func:`python_body`: at its first call, bound to that call's types and put in the
+    body's globals in its place (so later calls go straight to the compiled overload)."""
+
+    __slots__ = ("fn", "name", "names")
+
+    def __init__(self, names: dict[str, Any], name: str, fn: Callable[..., Any]) -> None:
+        self.names, self.name, self.fn = names, name, fn
+
+    def __call__(self, *args: Any) -> Any:
+        call = bind(self.fn, *args)
+        self.names[self.name] = call
+        return call(*args)
 
 
 def _cache_index(kernel: Callable[..., Any]) -> bool | None:

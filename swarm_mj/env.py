@@ -112,6 +112,17 @@ class StepRecord:
     #                                                    over the period's last physics step (docs/aero.md)
 
 
+class Observation(dict):
+    """SwarmEnv's observation: a dict of the module docstring's keys, and ``record``, the
+    :class:`~swarm_mj.pipeline.records.Obs` whose arrays its values are (C-ordered float64 arrays of the
+    observation's shapes, new each period). What the built-in policy reads without checking every array
+    again, where the dict's arrays are still the record's (:meth:`BacksteppingPolicy.command
+    <swarm_mj.control.policy.BacksteppingPolicy.command>`)."""
+
+    __slots__ = ("record",)
+    record: Obs
+
+
 #: The one copy of SwarmEnv's physics (SwarmPhysics.begin's mask).
 _ONE = np.ones(1, dtype=bool)
 
@@ -326,29 +337,31 @@ class SwarmEnv(dm_env.Environment):
         from the field)."""
         return self._observation(self.physics.observe(self._refs))
 
-    def _observation(self, o: Obs) -> dict:
+    def _observation(self, o: Obs) -> Observation:
         """The observation dict of period ``self.k`` from its record ``o`` (see :meth:`observation_spec`);
         ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.pipeline.fast`)
         hands back after a chunk."""
         self._dist = o.dist
         self.obs_record = o  #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
-        return {
-            "time": np.float64(self.k * self.T),
-            "pos": o.pos,
-            "vel": o.vel,
-            "quat": o.quat,
-            "rpy": o.rpy,
-            "rpy_rate": o.rpy_rate,
-            "body_rates": o.omega,
-            "setpoint": o.sp,
-            "setpoint_vel": o.spv,
-            "setpoint_acc": o.spa,
-            "setpoint_yaw": o.yaw,
-            "leader_pos": o.pos[0].copy(),
-            "neighbours": o.rel,
-            "neighbour_mask": o.mask,
-            "wind_force": o.wf,
-        }
+        obs = Observation(
+            time=np.float64(self.k * self.T),
+            pos=o.pos,
+            vel=o.vel,
+            quat=o.quat,
+            rpy=o.rpy,
+            rpy_rate=o.rpy_rate,
+            body_rates=o.omega,
+            setpoint=o.sp,
+            setpoint_vel=o.spv,
+            setpoint_acc=o.spa,
+            setpoint_yaw=o.yaw,
+            leader_pos=o.pos[0].copy(),
+            neighbours=o.rel,
+            neighbour_mask=o.mask,
+            wind_force=o.wf,
+        )
+        obs.record = o
+        return obs
 
     def _reward(self, obs: dict, new_contacts: int) -> float:
         """The task's reward of this step (:func:`swarm_mj.task.copy_reward`)."""

@@ -129,7 +129,9 @@ class Backstepping:
 
     def reset(self) -> None:
         """Forget the finite-difference history of the commanded attitude."""
-        self._prev_att_d: np.ndarray | None = None  # (n, 2) previous (φ_d, θ_d)
+        #: a command since the reset (the first one has zero desired-attitude rates; ``prev_att_d`` is its memory)
+        self.started = False
+        self.prev_att_d = np.zeros((self.n, 2))  # (n, 2) previous (φ_d, θ_d)
         self.att_d = np.zeros((self.n, 3))  # (n, 3) last commanded (φ_d, θ_d, ψ_d)
         self.U = np.zeros((self.n, 4))  # (n, 4) last output
 
@@ -163,15 +165,14 @@ class Backstepping:
         wind = _per_drone3(wind_force, n) if use_wind else self._zeros3
         exact = self.attitude_map == "exact" and omega_body is not None
         omega = omega_body if exact else self._zeros3
-        first = self._prev_att_d is None
-        if first:
-            self._prev_att_d = np.zeros((n, 2))
+        first = not self.started
+        self.started = True
         c = np.ascontiguousarray  # the inputs as the bound kernel takes them (the same values: the same U)
         f8 = np.float64
         states = (c(rpy, dtype=f8), c(rpy_rate, dtype=f8), c(omega, dtype=f8), c(pos, dtype=f8), c(vel, dtype=f8))
         refs = (c(pos_d, dtype=np.float64), c(vel_d, dtype=np.float64), c(acc_d, dtype=np.float64))
         yaws = (c(yaw), c(yaw_rate), c(yaw_acc))
-        args = (self.record, *states, *refs, *yaws, c(wind), use_wind, self._prev_att_d, first, exact, self.att_d)
+        args = (self.record, *states, *refs, *yaws, c(wind), use_wind, self.prev_att_d, first, exact, self.att_d)
         kernel = backstepping_kernel
         if all(a.shape == (n, 3) for a in (*states, *refs)):  # else the dispatcher types (and checks) them
             if self._kernel is None:

@@ -34,7 +34,7 @@ __all__ = ["AttitudePredictor", "predict_kernel"]
 
 def _predict_samples():
     z = np.zeros((2, 3))
-    return [(z, z.copy(), z.copy(), z.copy(), z.copy(), 0.025, 1.5, z.copy(), z.copy(), z.copy())]
+    return [(z, z.copy(), z.copy(), z.copy(), z.copy(), 0.025, 1.5, False, z.copy(), z.copy(), z.copy())]
 
 
 @jit(samples=_predict_samples)
@@ -46,20 +46,24 @@ def predict_kernel(
     prev_body: np.ndarray,
     d_att: float,
     k_rate: float,
+    first: bool,
     rpy_p: np.ndarray,
     rate_p: np.ndarray,
     body_p: np.ndarray,
 ) -> None:
     """The module docstring's prediction for (n, 3) arrays: rpy_p = rpy + d_att·rate,
     rate_p = rate + k_rate·(rate − prev_rate), body_p = body + k_rate·(body − prev_body) (k_rate =
-    d_rate / T); then prev_rate, prev_body take rate, body."""
+    d_rate / T); then prev_rate, prev_body take rate, body. ``first``: no previous rates yet (they are
+    taken as the current ones: the rates predicted constant)."""
     for i in range(rpy.shape[0]):
         for c in range(3):
             r = rate[i, c]
             b = body[i, c]
+            pr = r if first else prev_rate[i, c]
+            pb = b if first else prev_body[i, c]
             rpy_p[i, c] = rpy[i, c] + d_att * r
-            rate_p[i, c] = r + k_rate * (r - prev_rate[i, c])
-            body_p[i, c] = b + k_rate * (b - prev_body[i, c])
+            rate_p[i, c] = r + k_rate * (r - pr)
+            body_p[i, c] = b + k_rate * (b - pb)
             prev_rate[i, c] = r
             prev_body[i, c] = b
 
@@ -97,12 +101,10 @@ class AttitudePredictor:
         rpy = np.ascontiguousarray(rpy, dtype=np.float64)
         rpy_rate = np.ascontiguousarray(rpy_rate, dtype=np.float64)
         body_rates = np.ascontiguousarray(body_rates, dtype=np.float64)
-        if self._first:
-            self._prev_rate[:] = rpy_rate
-            self._prev_body[:] = body_rates
-            self._first = False
-        out = self._out
+        out, first = self._out, self._first
+        self._first = False
         predict_kernel(
-            rpy, rpy_rate, body_rates, self._prev_rate, self._prev_body, self.d_att, self.k_rate, out[0], out[1], out[2]
-        )
+            rpy, rpy_rate, body_rates, self._prev_rate, self._prev_body, self.d_att, self.k_rate, first, out[0], out[1],
+            out[2],
+        )  # fmt: skip
         return out[0], out[1], out[2]

@@ -13,16 +13,26 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import bind
+from .._jit import bind, python_body
 from ..env import Command
 from ..formation.anticollision import make_rule, resolve_rule
-from ..physics.mixing import attitude_priority
 from ..physics.params import DEFAULT_PARAMS, QuadParams
-from ..pipeline.period import feedforward_force
-from ..pipeline.records import Control, Feedforward, Predictor
+from ..pipeline.period import command, feedforward_force
+from ..pipeline.records import Control, Feedforward, Obs, Predictor
 from ..scenario import Scenario
 from .backstepping import Backstepping
 from .lag import AttitudePredictor
+
+_F8 = np.dtype(np.float64)
+
+
+def _f8(a: Any, shape: tuple[int, ...]) -> np.ndarray:
+    """``a`` as a writeable C-ordered float64 array of ``shape`` (itself when it is one, else a copy; a
+    smaller array is broadcast): what the bound kernels take (the invariant of :func:`swarm_mj._jit.bind`)."""
+    b = np.ascontiguousarray(a, dtype=_F8)
+    if b.shape == shape and b.flags.writeable:
+        return b
+    return np.array(np.broadcast_to(b, shape), dtype=_F8, order="C")
 
 
 class DownwashFeedforward:
@@ -103,58 +113,97 @@ class BacksteppingPolicy:
             if self.n > 1 and self.rule.downwash_feedforward and sc.aero.downwash and sc.wind_feedforward
             else None
         )
-        self._ff_started = False
-        self._started = False
-        self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the compiled command reads it
-        # the compiled command's buffers (Control.zeros1, scratch, U_out): no allocation per period
+        self._started = False  # the rule has seen the first observation
+        self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the command stage reads it
+        # the command stage's buffers (Control.zeros1, scratch, U_out): no allocation per period
         self._zeros1, self._scratch, self._U_out = np.zeros(self.n), np.zeros((5, self.n, 3)), np.zeros((self.n, 4))
         z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
         self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
         self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
+        # the Obs fields the command does not read (the neighbours, distances, setpoints)
+        n = self.n
+        self._unread = (np.zeros((n, n, 3)), np.zeros((n, n)), np.zeros((n, n)), z3, z3, z3)
+        self._records: tuple[Control, Feedforward, Predictor] | None = None
+        # the command stage the chunk driver compiles, its Python body here with its kernels compiled and
+        # bound to this policy's records (_jit.python_body; docs/design.md, "The control period, written once");
+        # made at the first command (a policy not used yet pickles)
+        self._command: Callable[..., np.ndarray] | None = None
+
+    def _stage_records(self) -> tuple[Control, Feedforward, Predictor]:
+        """The records of :func:`swarm_mj.pipeline.period.command` over this policy's own arrays (made again
+        after a reset of the controller)."""
+        ctl = self.controller
+        if self._records is None or self._records[0].att_d is not ctl.att_d:
+            p = ctl.params
+            rec = Control(
+                ctl.record, ctl.prev_att_d, ctl.att_d, self.U_last, ctl.attitude_map == "exact",
+                bool(ctl.wind_feedforward), bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min),
+                float(p.f_max), self._zeros1, self._scratch, self._U_out,
+            )  # fmt: skip
+            ff = self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
+            pred = self.predictor.record() if self.predictor is not None else self._no_pred
+            self._records = (rec, ff, pred)
+        return self._records
 
     def control_record(self) -> Control:
-        """The controller for the compiled :func:`swarm_mj.pipeline.period.command` (its own arrays; ``U_last``
-        the buffer of the last command)."""
-        ctl = self.controller
-        p = ctl.params
-        prev = ctl._prev_att_d if ctl._prev_att_d is not None else np.zeros((self.n, 2))  # not started yet
-        return Control(
-            ctl.record, prev, ctl.att_d, self.U_last, ctl.attitude_map == "exact", bool(ctl.wind_feedforward),
-            bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max), self._zeros1,
-            self._scratch, self._U_out,
-        )  # fmt: skip
+        """The controller for :func:`swarm_mj.pipeline.period.command` (its own arrays; ``U_last`` the buffer
+        of the last command)."""
+        return self._stage_records()[0]
 
     def feedforward_record(self) -> Feedforward:
         """The downwash feedforward's record (a stand-in with ``on`` False where there is none)."""
-        return self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
+        return self._stage_records()[1]
 
     def predictor_record(self) -> Predictor:
         """The lag prediction's record (a stand-in with ``on`` False where there is none)."""
-        return self.predictor.record() if self.predictor is not None else self._no_pred
+        return self._stage_records()[2]
 
     def started(self) -> bool:
         """Past the first command: every memory of the controller (the attitude history, the lag
         prediction's last rates, the feedforward's last thrust) holds a value."""
-        return (
-            self._started
-            and self.controller._prev_att_d is not None
-            and (self.predictor is None or not self.predictor._first)
-            and (self.downwash_ff is None or self._ff_started)
-        )
+        return self._started and self.controller.started
 
     def reset(self) -> None:
         self.controller.reset()
         if self.predictor is not None:
             self.predictor.reset()
         self._started = False
-        self._ff_started = False
+        self._records = None
+
+    def _obs_record(self, obs: dict) -> Obs:
+        """The observation as the record the command reads: SwarmEnv's own (``Observation.record``) where the
+        dict's arrays the command reads are still its arrays, else one of the dict's arrays made C-ordered
+        float64 of the observation's shapes (:func:`_f8`; the fields the command does not read: zeros)."""
+        rec, n = getattr(obs, "record", None), self.n
+        if (
+            type(rec) is Obs
+            and rec.pos.shape == (n, 3)
+            and obs["pos"] is rec.pos
+            and obs["vel"] is rec.vel
+            and obs["quat"] is rec.quat
+            and obs["body_rates"] is rec.omega
+            and obs["rpy"] is rec.rpy
+            and obs["rpy_rate"] is rec.rpy_rate
+            and obs["setpoint_yaw"] is rec.yaw
+            and obs["wind_force"] is rec.wf
+        ):
+            return rec
+        n3 = (n, 3)
+        rel, mask, dist, sp, spv, spa = self._unread
+        return Obs(
+            _f8(obs["pos"], n3), _f8(obs["vel"], n3), _f8(obs["quat"], (n, 4)), _f8(obs["body_rates"], n3),
+            _f8(obs["rpy"], n3), _f8(obs["rpy_rate"], n3), rel, mask, dist, sp, spv, spa,
+            _f8(obs["setpoint_yaw"], (n,)), _f8(obs["wind_force"], n3),
+        )  # fmt: skip
 
     @property
     def events(self) -> list[dict]:
         return self.rule.events
 
     def command(self, obs: dict) -> Command:
-        """U1..U4 (n, 4) for the observation, with the references (n, 3) and attitude (n, 3) behind them."""
+        """U1..U4 (n, 4) for the observation, with the references (n, 3) and attitude (n, 3) behind them:
+        the rule's references, then :func:`swarm_mj.pipeline.period.command` (the function the chunk
+        driver calls) on this policy's records."""
         if not self._started:
             self.rule.reset(obs["pos"])
             self._started = True
@@ -165,30 +214,17 @@ class BacksteppingPolicy:
             pos_d, vel_d, acc_d = self.rule.references(
                 float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
             )
-        ctl = self.controller
-        ext = obs["wind_force"]
-        if self.downwash_ff is not None:  # the rule's downwash feedforward (docs/interpretations.md §4)
-            thrust = ctl.U[:, 0] if self._ff_started else np.full(self.n, ctl.params.m * ctl.params.g)
-            ext = ext + self.downwash_ff(obs["pos"], obs["quat"], thrust)
-            self._ff_started = True
-        rpy, rpy_rate, body_rates = obs["rpy"], obs["rpy_rate"], obs["body_rates"]
-        if self.predictor is not None:
-            rpy, rpy_rate, body_rates = self.predictor(rpy, rpy_rate, body_rates)
-        U = ctl.compute(
-            rpy,
-            rpy_rate,
-            obs["pos"],
-            obs["vel"],
-            pos_d,
-            vel_d,
-            acc_d,
-            obs["setpoint_yaw"],
-            wind_force=ext,
-            omega_body=body_rates,
-        )
-        if self.attitude_priority:
-            U = attitude_priority(U, ctl.params.f_min, ctl.params.f_max, ctl.params.unmix_t, ctl.params.mix_t)
-            ctl.U = U
+        ctl, n3 = self.controller, (self.n, 3)
+        o = self._obs_record(obs)
+        pos_d, vel_d, acc_d = _f8(pos_d, n3), _f8(vel_d, n3), _f8(acc_d, n3)
+        rec, ff, pred = self._stage_records()
+        if self._command is None:
+            self._command = python_body(command)
+        U = self._command(rec, ff, pred, o, pos_d, vel_d, acc_d, not ctl.started)
+        ctl.started = True
+        if U is self._U_out:  # the mixer's buffer, rewritten by the next command
+            U = U.copy()
+        ctl.U = U
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
 
     def __call__(self, obs: dict) -> np.ndarray:

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._jit import warm_up
+from .._jit import python_body, warm_up
 from ..control.policy import BacksteppingPolicy
 from ..env import Command, StepRecord, SwarmEnv
 from ..errors import SimulationDiverged, UserError
@@ -40,6 +40,7 @@ from ..output.progress import Progress
 from ..physics.aero.presets import with_aero
 from ..physics.sim import ForceStage
 from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
+from ..pipeline.period import log_inputs
 from ..pipeline.records import LogRows, Obs
 from ..scenario import Scenario, load_scenario
 
@@ -51,6 +52,9 @@ __all__ = [
     "summarize",
 ]
 
+
+#: the log's input row of a period (the chunk driver's stage), its Python body (_jit.python_body)
+_log_inputs = python_body(log_inputs)
 
 _SERIES = ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor", "wind_speed", "wind_force", "D")
 
@@ -113,19 +117,10 @@ class RunLog:
         return LogRows(**series, forces=self.stage_rows)
 
     def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
-        """Sample k (time t) from the observation and the command computed from it (before the step);
-        the chunk driver writes the same row with :func:`swarm_mj.pipeline.period.log_inputs` (kept in Python
-        here: a compiled call taking the log's record costs ~1.6 s of compiling on a first run)."""
-        self.t[k] = t
-        self.pos[k] = obs.pos
-        self.vel[k] = obs.vel
-        self.quat[k] = obs.quat
-        self.rpy[k] = obs.rpy
-        self.pos_d[k] = cmd.pos_d
-        self.slot[k] = obs.sp
-        self.att_d[k] = cmd.att_d
-        self.wind_speed[k] = wind_speed
-        self.D[k] = D
+        """Sample k (time t) from the observation and the command computed from it (before the step):
+        :func:`swarm_mj.pipeline.period.log_inputs`, the chunk driver's log row, its Python body on
+        :attr:`rows` (compiled for Python callers it would cost a first run seconds of compiling)."""
+        _log_inputs(self.rows, k, t, obs, cmd.pos_d, cmd.att_d, wind_speed, D)
 
     def applied(self, k: int, rec: StepRecord) -> None:
         """What the environment applied over the period after sample k (each force stage by its name)."""

@@ -4,15 +4,18 @@ period, written once").
 
 :func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
 (:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.physics.sim.Sim.step`,
-(:class:`swarm_mj.control.policy.BacksteppingPolicy`) calls the same ones, each bound to its records
-(:func:`swarm_mj._jit.bind`), for the observation (:func:`observe`), saturation and the physics steps
-(:func:`~swarm_mj.physics.sim.period_physics`: :func:`~swarm_mj.physics.sim.hold_inputs`, then
-:func:`~swarm_mj.physics.sim.physics_steps`, which :func:`fly_chunk` calls too), the health check
-(:func:`~swarm_mj.physics.sim.unhealthy`) and the feedforward (:func:`feedforward_force`); for the
-command and the log's input row it calls the same kernels from Python (compiling them for Python
-callers would add 8-13 s and 3-4 s to a first run; docs/design.md; the parity tests keep them
-equal); the layered rule's formed step is the rule's own compiled step, which its Python ``update``
-calls too, and the barrier filter's period is one compiled function its Python call shares:
+:class:`swarm_mj.control.policy.BacksteppingPolicy`, :class:`swarm_mj.experiments.runner.RunLog`) calls the
+same ones: compiled, each bound to its records (:func:`swarm_mj._jit.bind`), for the observation
+(:func:`observe`), saturation and the physics steps (:func:`~swarm_mj.physics.sim.period_physics`:
+:func:`~swarm_mj.physics.sim.hold_inputs`, then :func:`~swarm_mj.physics.sim.physics_steps`, which
+:func:`fly_chunk` calls too), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
+feedforward (:func:`feedforward_force`); as their Python bodies (:func:`swarm_mj._jit.python_body`: the
+orchestration run by the interpreter, its kernels compiled and bound to the caller's records) for the
+command (:func:`command`, in ``BacksteppingPolicy.command`` after the rule's references) and the log's
+input row (:func:`log_inputs`, in ``RunLog.observe``), since compiling those two for Python callers
+would add 8-13 s and 3-4 s to a first run (docs/design.md). The layered rule's formed step is the rule's
+own compiled step, which its Python ``update`` calls too, and the barrier filter's period is one
+compiled function its Python call shares:
 
 =========================  =====================================================================
 stage                      function
@@ -98,33 +101,38 @@ def feedforward_force(ff, pos, quat, thrust) -> None:
 
 
 @jit(inline=True)
-def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
+def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, first):
     """U1..U4 (n, 4) of the built-in policy from the references (n, 3): the known external force
     (the wind given to the controller, plus the downwash feedforward from the last command),
     the attitude predicted over the rotors' lag, backstepping (eqs. 17–24), the attitude-priority
     mixer. Reads of ``obs`` the drones' state, yaw references and wind force only. Writes ctl.att_d,
-    ctl.U_last (the thrust the next feedforward uses)."""
-    n = obs.pos.shape[0]
+    ctl.prev_att_d, ctl.U_last (the thrust the next feedforward uses) and the predictor's last rates.
+
+    ``first``: no command since the controller's reset (the per-period path's first period; the chunk
+    driver starts later): the feedforward takes each drone's last thrust as m·g, the lag prediction
+    holds the rates (its last rates are the current ones), backstepping's desired-attitude rates are
+    zero. The per-period path calls this function's Python body (``_jit.python_body``: its callees
+    compiled), so its statements are ones NumPy and Numba both run: array expressions, no loops."""
     zeros1, zeros3 = ctl.zeros1, ctl.scratch[0]
     ext = obs.wf
     if ff.on:
+        if first:
+            ctl.U_last[:, 0] = ctl.gains.m * ctl.gains.g
         feedforward_force(ff, obs.pos, obs.quat, ctl.U_last[:, 0])
         ext = ctl.scratch[4]
-        for i in range(n):
-            for j in range(3):
-                ext[i, j] = obs.wf[i, j] + ff.force[i, j]
+        np.add(obs.wf, ff.force, ext)
     wind = ext if ctl.use_wind else zeros3
     rpy_in, rate_in, body_in = obs.rpy, obs.rpy_rate, obs.omega
     if pred.on:
         rpy_in, rate_in, body_in = ctl.scratch[1], ctl.scratch[2], ctl.scratch[3]
         predict_kernel(
-            obs.rpy, obs.rpy_rate, obs.omega, pred.prev_rate, pred.prev_body, pred.d_att, pred.k_rate, rpy_in,
+            obs.rpy, obs.rpy_rate, obs.omega, pred.prev_rate, pred.prev_body, pred.d_att, pred.k_rate, first, rpy_in,
             rate_in, body_in,
         )  # fmt: skip
     omega = body_in if ctl.exact else zeros3
     U = backstepping_kernel(
         ctl.gains, rpy_in, rate_in, omega, obs.pos, obs.vel, pos_d, vel_d, acc_d, obs.yaw, zeros1, zeros1, wind,
-        ctl.use_wind, ctl.prev_att_d, False, ctl.exact, ctl.att_d,
+        ctl.use_wind, ctl.prev_att_d, first, ctl.exact, ctl.att_d,
     )  # fmt: skip
     if ctl.priority:
         attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, ctl.U_out)
@@ -136,7 +144,7 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d):
 @jit(inline=True)
 def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
     """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
-    wind speed (3,) and D of that instant (RunLog.observe writes the same row in Python)."""
+    wind speed (3,) and D of that instant (RunLog.observe calls this function's Python body)."""
     log.t[k] = t
     log.pos[k] = obs.pos
     log.vel[k] = obs.vel
@@ -214,7 +222,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
                     return REACT, k, 0
                 if filt.on:
                     pos_d, vel_d, acc_d = barrier_step(filt, t, obs.pos, rule.vel, dt, pos_d, vel_d, acc_d, rule.steer)
-            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d)
+            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, False)
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0
