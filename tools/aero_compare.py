@@ -86,11 +86,11 @@ def fly_scenario(job: tuple[str, str, str, float | None]) -> dict:
 
 def stress_rows(starts: int, workers: int) -> list[dict]:
     """The random-start part: every rule under every physics."""
-    from swarm_mj.commands.stress import stress
+    from swarm_mj.commands.stress import StressCase, stress
 
     out = []
     for aero in AEROS:
-        table, _ = stress(list(RULES), starts, 5, 3.0, 0.6, 15.0, 0, workers, 4.0, aero=aero)
+        table, _ = stress(list(RULES), starts, StressCase("", 0, 5, 3.0, 0.6, 15.0, 4.0, aero=aero), workers)
         for rule, r in table.items():
             out.append(
                 {

@@ -57,6 +57,13 @@ def add_parser(sub) -> None:
     p.add_argument("--followers", type=int, default=5, help="followers per start (default 5)")
     p.add_argument("--radius", type=float, default=3.0, help="starts within this distance of the leader (m, default 3)")
     p.add_argument("--min-spacing", type=float, default=0.6, help="minimum start spacing (m, default 0.6)")
+    p.add_argument(
+        "--diameter",
+        type=float,
+        default=1.0,
+        help="formation diameter D: each follower's distance from the leader (m, default 1; "
+        "the barrier needs its keep-out between neighbours, e.g. D >= 1.32 m for 12 followers)",
+    )
     p.add_argument("--duration", type=float, default=15.0, help="simulated seconds per start (default 15)")
     p.add_argument("--seed0", type=int, default=0, help="first seed (default 0)")
     p.add_argument(
@@ -113,37 +120,24 @@ def main(args: argparse.Namespace) -> int:
 
         load_gains(gains)
         gains = str(Path(gains).resolve())
-    table, rows = stress(
-        rules,
-        args.starts,
+    case = StressCase(
+        rules[0],
+        args.seed0,
         args.followers,
         args.radius,
         args.min_spacing,
         args.duration,
-        args.seed0,
-        args.workers,
         args.sensing_range,
-        progress=not args.quiet,
+        diameter=args.diameter,
         aero=args.aero or "paper",
         vehicle=vehicle,
         gains=gains,
     )
+    table, rows = stress(rules, args.starts, case, args.workers, progress=not args.quiet)
     if save:
         from ..output.atomic import write_text_atomic
         from ..scenario import scenario_toml
 
-        case = StressCase(
-            rules[0],
-            args.seed0,
-            args.followers,
-            args.radius,
-            args.min_spacing,
-            args.duration,
-            args.sensing_range,
-            aero=args.aero or "paper",
-            vehicle=vehicle,
-            gains=gains,
-        )
         write_text_atomic(
             save,
             "# written by swarm-mj stress; replay start S with rule R:\n"

@@ -25,6 +25,7 @@ from ..env import Command, StepRecord, SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..formation.anticollision import AUTO, AUTO_CHOICE
 from ..formation.barrier import keepout_radii
+from ..formation.slots import check_formation_fits
 from ..metrics import (
     downwash_dip,
     formation_settling,
@@ -158,6 +159,21 @@ class RunResult:
     extra: dict = field(default_factory=dict)
 
 
+def check_keepout_fits(sc: Scenario, rule: object, where: str | None = None) -> None:
+    """A rule with a separation filter (``barrier``) must be able to reach the formation at its smallest D:
+    one :class:`~swarm_mj.errors.UserError` naming the diameter that fits, before anything flies
+    (:func:`~swarm_mj.formation.slots.check_formation_fits`)."""
+    filt = getattr(rule, "separation_filter", None)
+    if filt is not None and sc.n_drones > 1:
+        check_formation_fits(
+            sc.n_drones - 1,
+            float(np.min(sc.diameter_schedule().values)),
+            float(filt.radii[0]),
+            f"the {getattr(rule, 'name', 'rule')} filter's keep-out",
+            where=where or f"{sc.path}: formation.diameter",
+        )
+
+
 def run(
     scenario: Scenario | str,
     *,
@@ -206,6 +222,7 @@ def run(
             print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
         env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
         policy = BacksteppingPolicy(sc, env.params)
+        check_keepout_fits(sc, policy.rule)
         K = env.n_steps
         log = RunLog.allocate(env.names, K + 1, [st.name for st in env.sim.force_stages])
         bar = Progress(K, sc.name, progress)

@@ -14,7 +14,7 @@ The command line is ``swarm_mj/commands/stress.py`` (``swarm-mj stress``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -140,57 +140,58 @@ def summarize_rule(rows: list[dict]) -> dict:
 def stress(
     rules: list[str],
     starts: int,
-    followers: int,
-    radius: float,
-    min_spacing: float,
-    duration: float,
-    seed0: int = 0,
+    case: StressCase,
     workers: int | None = None,
-    sensing_range: float = 4.0,
     progress: bool = False,
-    aero: str = "paper",
-    vehicle: str | None = None,
-    gains: str | None = None,
 ) -> tuple[dict, list[dict]]:
     """Fly ``starts`` seeded random starts with each rule, in parallel; (per-rule table, rows).
 
-    The flights go through :func:`swarm_mj.experiments.parallel.map_ordered` (spawn workers, CPU affinity,
-    Ctrl-C handled by the parent); rows come back in case order, rule-major then seed.
-    ``progress``: a progress bar on stderr when it is a terminal. ``vehicle``, ``gains``: the
-    scenario's ``[vehicle] model`` and ``[controller] gains`` (docs/vehicles.md); None: the paper's
-    drone and Table 4.
+    ``case`` is the request every start shares (its ``seed`` the first seed, its ``rule`` ignored):
+    the followers, their random start, the duration, sensing range, formation diameter, physics,
+    vehicle and gains (:class:`StressCase`). The flights go through
+    :func:`swarm_mj.experiments.parallel.map_ordered` (spawn workers, CPU affinity, Ctrl-C handled by
+    the parent); rows come back in case order, rule-major then seed. ``progress``: a progress bar on
+    stderr when it is a terminal.
     """
-    if starts < 1 or followers < 1:
-        raise UserError("--starts and --followers must be at least 1")
-    if duration <= 0:
-        raise UserError("--duration must be positive")
-    if sensing_range <= 0:
-        raise UserError("--sensing-range must be positive")
-    if workers is not None and workers < 1:
-        raise UserError("--workers must be at least 1")
-    check_random_start_feasible(followers, RandomStart(radius=radius, min_spacing=min_spacing), "<stress>")
+    check_stress_case(case, starts, workers)
     # "auto" flies, and is reported as, the rule it stands for under this physics
-    rules = list(dict.fromkeys(resolve_rule(r, preset(aero).downwash) for r in rules))
-    cases = [
-        StressCase(
-            rule,
-            seed0 + k,
-            followers,
-            radius,
-            min_spacing,
-            duration,
-            sensing_range,
-            aero=aero,
-            vehicle=vehicle,
-            gains=gains,
-        )
-        for rule in rules
-        for k in range(starts)
-    ]
+    rules = list(dict.fromkeys(resolve_rule(r, preset(case.aero).downwash) for r in rules))
+    check_rules_fit(rules, case)
+    cases = [replace(case, rule=rule, seed=case.seed + k) for rule in rules for k in range(starts)]
     with Progress(len(cases), "stress", None if progress else False, unit="starts") as bar:
         rows = map_ordered(fly_case, cases, workers=workers, progress=bar)
     table = {rule: summarize_rule([r for r in rows if r["rule"] == rule]) for rule in rules}
     return table, rows
+
+
+def check_stress_case(case: StressCase, starts: int = 1, workers: int | None = None) -> None:
+    """One :class:`UserError` line for a request that cannot fly, before anything flies."""
+    if starts < 1 or case.followers < 1:
+        raise UserError("--starts and --followers must be at least 1")
+    if case.duration <= 0:
+        raise UserError("--duration must be positive")
+    if case.sensing_range <= 0:
+        raise UserError("--sensing-range must be positive")
+    if not (np.isfinite(case.diameter) and case.diameter > 0):
+        raise UserError(f"--diameter must be positive, got {case.diameter:g}")
+    if workers is not None and workers < 1:
+        raise UserError("--workers must be at least 1")
+    check_random_start_feasible(
+        case.followers, RandomStart(radius=case.radius, min_spacing=case.min_spacing), "<stress>"
+    )
+
+
+def check_rules_fit(rules: list[str], case: StressCase) -> None:
+    """Every rule with a separation filter (``barrier``) must leave the formation reachable at
+    ``case.diameter`` (:func:`~swarm_mj.experiments.runner.check_keepout_fits`), checked here so that
+    the request fails in one line before any worker starts."""
+    from ..formation.anticollision import make_rule
+    from .runner import check_keepout_fits
+
+    for rule in rules:
+        sc = stress_scenario(replace(case, rule=rule))
+        made = make_rule(rule, sc.n_drones, vehicle=sc.params, barrier=sc.barrier_params)
+        check_keepout_fits(sc, made, where="--diameter")
 
 
 def format_table(table: dict, followers: int) -> str:

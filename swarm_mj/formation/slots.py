@@ -24,6 +24,29 @@ def polygon_offsets(n_followers: int, D: float = 1.0) -> np.ndarray:
     return np.column_stack([D * np.cos(ang), D * np.sin(ang), np.zeros(n_followers)])
 
 
+def min_slot_spacing(n_followers: int, D: float) -> float:
+    """The smallest horizontal distance (m) between two of the formation's positions, the leader's
+    included, for ``n_followers`` slots on the regular polygon of circumradius D (:func:`polygon_offsets`):
+    D from the leader, 2·D·sin(π/n) between neighbours (n ≥ 2)."""
+    if n_followers < 1:
+        return float("inf")
+    return float(D if n_followers == 1 else min(D, 2.0 * D * np.sin(np.pi / n_followers)))
+
+
+def check_formation_fits(n_followers: int, D: float, width: float, what: str, where: str = "") -> None:
+    """Refuse a formation whose positions are closer than ``width`` (m), the horizontal width of the
+    keep-out ``what`` holds (e.g. the barrier filter's, docs/barrier.md, "keep-out"): the filter would
+    hold the drones off their slots for ever. One :class:`UserError` naming the smallest D that fits."""
+    spacing = min_slot_spacing(n_followers, D)
+    if spacing < width:
+        need = width / min_slot_spacing(n_followers, 1.0)
+        raise UserError(
+            f"{n_followers} followers at D = {D:g} m are {spacing:.2f} m apart, inside {what} "
+            f"({width:.2f} m wide): the formation cannot be reached; use a diameter of at least {need:.2f} m",
+            where=where or None,
+        )
+
+
 def setpoints_kernel(
     k: int,
     T: float,

@@ -108,9 +108,7 @@ def test_variable_diameter_reforms_within_3_s_of_each_change():
 
 
 def test_stress_tool_table_and_json(tmp_path):
-    table, rows = stress(
-        ["layers", "paper"], starts=2, followers=5, radius=3.0, min_spacing=0.6, duration=3.0, seed0=0, workers=2
-    )
+    table, rows = stress(["layers", "paper"], 2, StressCase("layers", 0, 5, 3.0, 0.6, 3.0), workers=2)
     assert set(table) == {"layers", "paper"} and len(rows) == 4
     for rule, r in table.items():
         assert r["starts"] == 2

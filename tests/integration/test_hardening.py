@@ -621,3 +621,10 @@ def _leaves(o):
             yield from _leaves(v)
     else:
         yield o
+
+
+def test_stress_barrier_formation_inside_its_keepout_is_one_line_exit_2(capsys):
+    argv = ["stress", "--rule", "barrier", "--followers", "12", "--starts", "1", "--duration", "1", "--quiet"]
+    assert cli.main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--diameter" in err[0] and "keep-out" in err[0], err
