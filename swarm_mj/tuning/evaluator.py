@@ -31,8 +31,11 @@ as m copies of one drone in ``Sim(world, T, n_copies=b)`` (:class:`~swarm_mj.phy
 same saturation, force stages, ``mj_step`` and health mask as every run), the world built by
 ``build_world(b, collisions=False)`` — contacts off, so the copies all start at the same
 point and fly through each other — in blocks of at most :data:`DEFAULT_BLOCK` copies per
-MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), all m driven by ONE
-vectorised ``Backstepping.compute`` (gains (m, 12)). The copies do not interact: a free
+MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), the copies of a thread's
+group driven by ONE call per period of the command every run flies, ``period.command``'s Python body
+(:func:`swarm_mj._jit.python_body`) on records of the copies: the lag prediction, backstepping with
+the gains (m, 12) in its ``Gains`` record, the attitude-priority mixer where the rotors lag
+(``Control.priority``; docs/design.md, "The control period, written once"). The copies do not interact: a free
 body's dynamics depend only on its own state and inputs, so a candidate's cost does not
 depend on its batch, block or worker (tested: batched == alone, bit for bit on the
 development machine; and == eq. (25) from ``runner.run`` to 1e-9). A copy that the health
