@@ -39,7 +39,7 @@ from .._jit import bind, jit
 from ..errors import UserError
 from ..paper import TABLE4_GAINS
 from ..physics.params import DEFAULT_PARAMS, QuadParams
-from ..pipeline.records import Gains
+from ..pipeline.records import Control, Gains
 
 __all__ = ["TABLE4_GAINS", "Backstepping", "backstepping_kernel", "check_gains", "load_gains"]
 MAX_TILT = np.deg2rad(45.0)
@@ -134,6 +134,17 @@ class Backstepping:
         self.prev_att_d = np.zeros((self.n, 2))  # (n, 2) previous (φ_d, θ_d)
         self.att_d = np.zeros((self.n, 3))  # (n, 3) last commanded (φ_d, θ_d, ψ_d)
         self.U = np.zeros((self.n, 4))  # (n, 4) last output
+
+    def control_record(self, U_last: np.ndarray, *, priority: bool) -> Control:
+        """This controller as :func:`swarm_mj.pipeline.period.command` takes it: its gains record and attitude
+        memories (valid until :meth:`reset`), ``U_last`` (n, 4) the caller's buffer of the last command, the
+        attitude-priority mixer on when ``priority`` (the vehicle's rotor limits), new stage buffers."""
+        p, n = self.params, self.n
+        return Control(
+            self.record, self.prev_att_d, self.att_d, U_last, self.attitude_map == "exact", self.wind_feedforward,
+            bool(priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max), np.zeros(n), np.zeros((5, n, 3)),
+            np.zeros((n, 4)),
+        )  # fmt: skip
 
     def compute(
         self,

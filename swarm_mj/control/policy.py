@@ -115,13 +115,9 @@ class BacksteppingPolicy:
         )
         self._started = False  # the rule has seen the first observation
         self.U_last = np.zeros((self.n, 4))  # (n, 4) the last command, as the command stage reads it
-        # the command stage's buffers (Control.zeros1, scratch, U_out): no allocation per period
-        self._zeros1, self._scratch, self._U_out = np.zeros(self.n), np.zeros((5, self.n, 3)), np.zeros((self.n, 4))
-        z3, z4 = np.zeros((self.n, 3)), np.zeros((self.n, 4))
-        self._no_ff = Feedforward(False, self.n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)  # stand-in
-        self._no_pred = Predictor(False, 0.0, 0.0, np.zeros((self.n, 3)), np.zeros((self.n, 3)))
+        self._no_ff, self._no_pred = Feedforward.off(self.n), Predictor.off(self.n)  # stand-ins
         # the Obs fields the command does not read (the neighbours, distances, setpoints)
-        n = self.n
+        n, z3 = self.n, np.zeros((self.n, 3))
         self._unread = (np.zeros((n, n, 3)), np.zeros((n, n)), np.zeros((n, n)), z3, z3, z3)
         self._records: tuple[Control, Feedforward, Predictor] | None = None
         # the command stage the chunk driver compiles, its Python body here with its kernels compiled and
@@ -134,12 +130,8 @@ class BacksteppingPolicy:
         after a reset of the controller)."""
         ctl = self.controller
         if self._records is None or self._records[0].att_d is not ctl.att_d:
-            p = ctl.params
-            rec = Control(
-                ctl.record, ctl.prev_att_d, ctl.att_d, self.U_last, ctl.attitude_map == "exact",
-                bool(ctl.wind_feedforward), bool(self.attitude_priority), p.unmix_t, p.mix_t, float(p.f_min),
-                float(p.f_max), self._zeros1, self._scratch, self._U_out,
-            )  # fmt: skip
+            # the command stage's buffers (Control.zeros1, scratch, U_out) made here: no allocation per period
+            rec = ctl.control_record(self.U_last, priority=self.attitude_priority)
             ff = self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
             pred = self.predictor.record() if self.predictor is not None else self._no_pred
             self._records = (rec, ff, pred)
@@ -222,7 +214,7 @@ class BacksteppingPolicy:
             self._command = python_body(command)
         U = self._command(rec, ff, pred, o, pos_d, vel_d, acc_d, not ctl.started)
         ctl.started = True
-        if U is self._U_out:  # the mixer's buffer, rewritten by the next command
+        if U is rec.U_out:  # the mixer's buffer, rewritten by the next command
             U = U.copy()
         ctl.U = U
         return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())

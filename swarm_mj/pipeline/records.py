@@ -200,6 +200,12 @@ class Feedforward(NamedTuple):
     sum_force: np.ndarray  # (n, 3)
     sum_torque: np.ndarray  # (n, 3)
 
+    @classmethod
+    def off(cls, n: int) -> Feedforward:
+        """No feedforward for n drones (``on`` False): the stand-in a command without one passes."""
+        z3, z4 = np.zeros((n, 3)), np.zeros((n, 4))
+        return cls(False, n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)
+
 
 class Predictor(NamedTuple):
     """The attitude predicted over the rotors' lag (swarm_mj.control.lag); ``on`` False: none."""
@@ -209,6 +215,11 @@ class Predictor(NamedTuple):
     k_rate: float
     prev_rate: np.ndarray  # (n, 3)
     prev_body: np.ndarray  # (n, 3)
+
+    @classmethod
+    def off(cls, n: int) -> Predictor:
+        """No lag prediction for n drones (``on`` False): the stand-in a command without one passes."""
+        return cls(False, 0.0, 0.0, np.zeros((n, 3)), np.zeros((n, 3)))
 
 
 class GroundTrack(NamedTuple):

@@ -31,8 +31,11 @@ as m copies of one drone in ``Sim(world, T, n_copies=b)`` (:class:`~swarm_mj.phy
 same saturation, force stages, ``mj_step`` and health mask as every run), the world built by
 ``build_world(b, collisions=False)`` — contacts off, so the copies all start at the same
 point and fly through each other — in blocks of at most :data:`DEFAULT_BLOCK` copies per
-MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), all m driven by ONE
-vectorised ``Backstepping.compute`` (gains (m, 12)). The copies do not interact: a free
+MuJoCo model (MuJoCo's site motors cost O(copies²) per model; see there), the copies of a thread's
+group driven by ONE call per period of the command every run flies, ``period.command``'s Python body
+(:func:`swarm_mj._jit.python_body`) on records of the copies: the lag prediction, backstepping with
+the gains (m, 12) in its ``Gains`` record, the attitude-priority mixer where the rotors lag
+(``Control.priority``; docs/design.md, "The control period, written once"). The copies do not interact: a free
 body's dynamics depend only on its own state and inputs, so a candidate's cost does not
 depend on its batch, block or worker (tested: batched == alone, bit for bit on the
 development machine; and == eq. (25) from ``runner.run`` to 1e-9). A copy that the health
@@ -52,7 +55,7 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, python_body
 from ..control.backstepping import Backstepping
 from ..control.lag import AttitudePredictor
 from ..errors import UserError
@@ -60,11 +63,12 @@ from ..experiments.parallel import ThreadTeam, check_count, default_workers
 from ..metrics import ise, step_metrics_batch
 from ..paper import TABLE4_GAINS
 from ..physics._mjstep import profiler_paused
-from ..physics.mixing import attitude_priority
 from ..physics.observation import attitude_kernel
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..physics.sim import Sim
 from ..physics.world import INTEGRATORS, build_world
+from ..pipeline.period import command as period_command
+from ..pipeline.records import Feedforward, Obs, Predictor
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
 __all__ = [
@@ -345,11 +349,20 @@ class BatchEvaluator:
         s, rows = self.settings, grp.rows
         m_g = rows.stop - rows.start
         g, alive, tilt, diverged_at = g[rows], alive[rows], tilt[rows], self.diverged_at[rows]  # views
-        ctl = Backstepping(m_g, g, params=s.params, control_period=s.control_period, attitude_map=s.attitude_map)
-        # the controller of a run with rotor lag (Scenario.lag_horizons, mixer "auto"; docs/vehicles.md)
-        T, p = s.control_period, s.params
-        predictor = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T) if s.motor_tau > 0 else None
+        # The command of every run (period.command's Python body, its kernels compiled), over records of this
+        # group's copies: backstepping with the copies' gains (m_g, 12) in its Gains record, no wind force and
+        # no feedforward; with rotor lag the controller of a lagged run (Scenario.lag_horizons, mixer "auto";
+        # docs/vehicles.md): the attitude predicted τ + T ahead and the attitude-priority mixer.
+        ctl = Backstepping(
+            m_g, g, params=s.params, control_period=s.control_period, wind_feedforward=False,
+            attitude_map=s.attitude_map,
+        )  # fmt: skip
+        T, lagged = s.control_period, s.motor_tau > 0
+        rec = ctl.control_record(np.zeros((m_g, 4)), priority=lagged)
+        pred = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T).record() if lagged else Predictor.off(m_g)
+        ff, obs, command = Feedforward.off(m_g), Obs.empty(m_g), python_body(period_command)
         pos_d, zero3, yaw_d = self._pos_d[rows], self._zero3[rows], self._yaw_d[rows]
+        obs.yaw[:] = yaw_d  # ψ_d (m_g,); the known wind force obs.wf stays zero
         errors, track = self._errors, grp.track
         blocks = grp.blocks
         must_park = not alive.all()  # invalid gains: parked from the start
@@ -365,13 +378,9 @@ class BatchEvaluator:
             if k == self.K:
                 self._kill(alive, bad, k, diverged_at)
                 break
-            pos, vel, omega = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
-            if predictor is None:
-                U = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)  # (m_g, 4)
-            else:
-                rpy_p, rate_p, omega_p = predictor(rpy, rate, omega)
-                U = ctl.compute(rpy_p, rate_p, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega_p)
-                U = attitude_priority(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
+            obs.pos[:], obs.vel[:], obs.omega[:] = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
+            obs.rpy[:], obs.rpy_rate[:] = rpy, rate
+            U = command(rec, ff, pred, obs, pos_d, zero3, zero3, k == 0)  # (m_g, 4)
             error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k, rows], bad)
             if self._kill(alive, bad, k, diverged_at) or must_park:
                 if not alive.any():

@@ -120,13 +120,19 @@ def test_forked_and_spawned_workers_give_the_in_process_costs(monkeypatch):
 
 
 def test_an_error_in_one_thread_is_raised_and_stops_the_others(monkeypatch):
-    class FailsInTheSecondGroup(evaluator_mod.Backstepping):
-        def compute(self, *args, **kwargs):
-            if self.gains[0, 0] == 2.5:
-                raise RuntimeError("boom")
-            return super().compute(*args, **kwargs)
+    python_body = evaluator_mod.python_body
 
-    monkeypatch.setattr(evaluator_mod, "Backstepping", FailsInTheSecondGroup)
+    def fails_in_the_second_group(fn):  # the evaluator's command (period.command's Python body)
+        command = python_body(fn)
+
+        def checked(ctl, *args):
+            if ctl.gains.a_att[0, 0] == 2.5:  # α1 of the group's first copy
+                raise RuntimeError("boom")
+            return command(ctl, *args)
+
+        return checked
+
+    monkeypatch.setattr(evaluator_mod, "python_body", fails_in_the_second_group)
     X = np.tile(TABLE4_GAINS, (4, 1))
     X[2:, 0] = 2.5  # the second group's copies
     ev = BatchEvaluator(4, SHORT, threads=2)

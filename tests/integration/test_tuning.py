@@ -95,17 +95,21 @@ def test_nan_input_of_one_copy_never_reaches_mujoco(monkeypatch):
     X = np.vstack([TABLE4_GAINS, TABLE4_GAINS * 1.1, _random_gains(1, seed=9)])  # (3, 12)
     alone = np.array([BatchEvaluator(1, SHORT).evaluate(x[None])[0] for x in X[[0, 2]]])
 
-    class NaNFromStep50(evaluator_mod.Backstepping):
-        calls = 0
+    python_body = evaluator_mod.python_body
 
-        def compute(self, *args, **kwargs):
-            U = super().compute(*args, **kwargs)
-            NaNFromStep50.calls += 1
-            if NaNFromStep50.calls > 50:
+    def nan_from_period_50(fn):  # the evaluator's command (period.command's Python body), copy 1 NaN from period 50
+        command, calls = python_body(fn), [0]
+
+        def with_nan(*args):
+            U = command(*args)
+            calls[0] += 1
+            if calls[0] > 50:
                 U[1] = np.nan
             return U
 
-    monkeypatch.setattr(evaluator_mod, "Backstepping", NaNFromStep50)
+        return with_nan
+
+    monkeypatch.setattr(evaluator_mod, "python_body", nan_from_period_50)
     ev = BatchEvaluator(3, SHORT)
     c = ev.evaluate(X)
     assert math.isinf(c[1]) and ev.diverged_at[1] == 50
