@@ -116,6 +116,11 @@ class FastLoop:
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._refs = env._refs
         self._log = log.rows
+        # the stand-ins of a run without the layered rule or without the barrier filter, built once: the
+        # driver reads neither (``on`` False) and writes neither, so every chunk can pass the same ones
+        self._filtered = self._layered and getattr(policy.rule, "separation_filter", None) is not None
+        self._idle_rule = idle_record(n)
+        self._no_filter = barrier_off(n)
 
     @classmethod
     def build(cls, env, policy, log, *, compile: bool = False, announce=None) -> FastLoop | None:  # noqa: ANN001, A002
@@ -136,12 +141,13 @@ class FastLoop:
 
     # ------------------------------------------------------------------ the records
     def _args(self, k: int, k_end: int) -> tuple:
-        """The driver's arguments for periods k .. k_end − 1 (the owners' arrays, read at each call:
-        ``reset`` replaces some)."""
+        """The driver's arguments for periods k .. k_end − 1 (the owners' records, read at each call: a
+        ``reset`` or a period flown in Python may replace their arrays)."""
         env, policy = self.env, self.policy
         sim = env.sim
-        rule = _rule_record(policy.rule, env.n, self._layered)
-        filt = _filter_record(policy.rule, env.n, self._layered)
+        # the rule's and its filter's own records (over their arrays), or the run's stand-ins
+        rule = _rule_record(policy.rule, env.n, True) if self._layered else self._idle_rule
+        filt = _filter_record(policy.rule, env.n, True) if self._filtered else self._no_filter
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
