@@ -6,6 +6,7 @@ from typing import cast
 
 import numpy as np
 
+from ._jit import jit
 from .physics.aero.downwash import S0, SPREAD
 from .physics.params import DEFAULT_PARAMS, QuadParams
 
@@ -87,16 +88,10 @@ def ise(errors: np.ndarray, dt: float, weights: np.ndarray = ISE_WEIGHTS) -> np.
     return dt * np.einsum("k...j,j->...", errors * errors, weights)
 
 
-def pair_offsets(pos: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The centre offsets p_i − p_j (k, pairs, 3) of every pair i < j of pos (k, n, 3), and i, j (pairs,):
-    what :func:`min_separation` and :func:`keepout_per_sample` measure, computed once for both."""
-    i, j = np.triu_indices(pos.shape[1], 1)
-    return pos[:, i, :] - pos[:, j, :], i, j
-
-
 def min_separation(pos: np.ndarray, dist: np.ndarray | None = None) -> tuple[float, float, tuple[int, int]]:
     """Smallest 3D centre distance over time and pairs; pos: (k, n, 3) → (distance, time index, pair).
-    ``dist``: the pairs' distances (k, pairs) ‖p_i − p_j‖ in :func:`pair_offsets`' order, if already known."""
+    ``dist``: the pairs' distances (k, pairs) ‖p_i − p_j‖, i < j in ``np.triu_indices`` order, if already
+    known (:func:`pair_measures`)."""
     n = pos.shape[1]
     if n < 2:
         return float("inf"), -1, (-1, -1)
@@ -211,23 +206,39 @@ def in_jet(
     that axis and radial offset r from it, is in the jet when 0 < s ≤ ``reach`` and
     r < ``r0`` + ``spread``·s + ``radius`` (its rotor span reaches into the jet's edge).
     """
-    pos = np.asarray(pos, dtype=float)
-    axis = -_body_z(np.asarray(quat, dtype=float))  # (k, n, 3) jet direction of each drone
-    # per coordinate c, on (k, n, n) planes: rel_c = p_j,c − p_i,c; the sums in the order NumPy's einsum
-    # took here before (x + z, then + y: the same bits), without the (k, n, n, 3) array
-    rx, ry, rz = (pos[:, None, :, c] - pos[:, :, None, c] for c in range(3))  # (k, n, n) each
-    s = rx * axis[:, :, None, 0]
-    s += rz * axis[:, :, None, 2]
-    s += ry * axis[:, :, None, 1]  # (k, n, n) depth of j in i's jet
-    r2 = rx * rx
-    r2 += rz * rz
-    r2 += ry * ry
-    r2 -= s * s  # (k, n, n) squared radial offset
-    edge = r0 + spread * s + radius
-    out = (s > 0.0) & (s <= reach) & (r2 < edge * edge)
-    idx = np.arange(pos.shape[1])
-    out[:, idx, idx] = False
+    pos = np.ascontiguousarray(pos, dtype=float)
+    axis = np.ascontiguousarray(-_body_z(np.asarray(quat, dtype=float)))  # (k, n, 3) jet direction of each drone
+    out = np.empty(pos.shape[:2] + pos.shape[1:2], dtype=np.bool_)  # (k, n, n)
+    in_jet_kernel(pos, axis, float(r0), float(spread), float(reach), float(radius), out)
     return out
+
+
+def _in_jet_samples():
+    pos = np.array([[[0.0, 0.0, 2.0], [0.1, 0.0, 1.0]]])
+    axis = np.tile([0.0, 0.0, -1.0], (1, 2, 1))
+    return [(pos, axis, 0.4, 0.15, 6.0, 0.34, np.empty((1, 2, 2), dtype=np.bool_))]
+
+
+@jit(samples=_in_jet_samples)
+def in_jet_kernel(
+    pos: np.ndarray, axis: np.ndarray, r0: float, spread: float, reach: float, radius: float, out: np.ndarray
+) -> None:
+    """:func:`in_jet` into out (k, n, n) bool, from pos (k, n, 3) and each drone's jet direction axis
+    (k, n, 3), in one pass: rel = p_j − p_i, s = rel·axis_i, r² = |rel|² − s², in j's jet when
+    0 < s ≤ reach and r² < (r0 + spread·s + radius)², never its own. The sums are taken in the order
+    NumPy's ``einsum`` took them here before (x + z, then + y: the same bits)."""
+    k, n = pos.shape[0], pos.shape[1]
+    for t in range(k):
+        for i in range(n):
+            ax, ay, az = axis[t, i, 0], axis[t, i, 1], axis[t, i, 2]
+            for j in range(n):
+                rx = pos[t, j, 0] - pos[t, i, 0]
+                ry = pos[t, j, 1] - pos[t, i, 1]
+                rz = pos[t, j, 2] - pos[t, i, 2]
+                s = rx * ax + rz * az + ry * ay
+                r2 = rx * rx + rz * rz + ry * ry - s * s
+                edge = r0 + spread * s + radius
+                out[t, i, j] = i != j and s > 0.0 and s <= reach and r2 < edge * edge
 
 
 def downwash_dip(
@@ -300,21 +311,52 @@ def keepout_distance(offset: np.ndarray, radii: np.ndarray) -> np.ndarray:
     return norm(np.asarray(offset, dtype=float) / np.asarray(radii, dtype=float))
 
 
-def keepout_per_sample(
-    pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M, offsets: np.ndarray | None = None
-) -> np.ndarray:
+def keepout_per_sample(pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> np.ndarray:
     """Smallest normalised ellipsoidal distance (k,) over the pairs of drones both airborne (centre
-    above ``airborne`` m) at each sample of pos (k, n, 3); +inf where no pair is. ``offsets``: the
-    pairs' offsets (k, pairs, 3) of :func:`pair_offsets`, if already known."""
-    pos = np.asarray(pos, dtype=float)
+    above ``airborne`` m) at each sample of pos (k, n, 3); +inf where no pair is (NaN where a pair's
+    is: :func:`pair_measures`)."""
+    return pair_measures(pos, radii, airborne)[1]
+
+
+def pair_measures(pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> tuple[np.ndarray, np.ndarray]:
+    """One pass over every pair i < j of pos (k, n, 3) (``np.triu_indices`` order): their centre distances
+    ‖p_i − p_j‖ (k, pairs) (what :func:`min_separation` takes) and :func:`keepout_per_sample` (k,)."""
+    pos = np.ascontiguousarray(pos, dtype=float)
     k, n = pos.shape[:2]
-    if n < 2 or k == 0:
-        return np.full(k, np.inf)
-    i, j = np.triu_indices(n, 1)
-    rho = keepout_distance(pos[:, i, :] - pos[:, j, :] if offsets is None else offsets, radii)  # (k, pairs)
-    up = pos[:, :, 2] > airborne  # (k, n)
-    rho = np.where(up[:, i] & up[:, j], rho, np.inf)
-    return rho.min(axis=1)
+    dist, rho = np.empty((k, n * (n - 1) // 2)), np.full(k, np.inf)
+    if n >= 2:
+        pair_kernel(pos, np.ascontiguousarray(radii, dtype=float).reshape(3), float(airborne), dist, rho)
+    return dist, rho
+
+
+def _pair_samples():
+    pos = np.array([[[0.0, 0.0, 1.0], [0.5, 0.0, 1.0], [0.0, 0.5, 0.0]]])
+    return [(pos, np.array([0.6, 0.6, 0.9]), 0.1, np.empty((1, 3)), np.empty(1))]
+
+
+@jit(samples=_pair_samples)
+def pair_kernel(pos: np.ndarray, radii: np.ndarray, airborne: float, dist: np.ndarray, rho: np.ndarray) -> None:
+    """:func:`pair_measures` into dist (k, pairs) and rho (k,): for each pair i < j at each sample, d = p_i − p_j,
+    dist = sqrt((d_x² + d_y²) + d_z²) (:func:`norm`'s order), and, where both centres are above
+    ``airborne``, ρ = ‖d / radii‖ (:func:`keepout_distance`), rho the smallest (NaN if any is NaN, as
+    NumPy's ``min``; +inf where no pair is airborne)."""
+    k, n = pos.shape[0], pos.shape[1]
+    for t in range(k):
+        best = np.inf
+        p = 0
+        for i in range(n):
+            for j in range(i + 1, n):
+                dx = pos[t, i, 0] - pos[t, j, 0]
+                dy = pos[t, i, 1] - pos[t, j, 1]
+                dz = pos[t, i, 2] - pos[t, j, 2]
+                dist[t, p] = np.sqrt(dx * dx + dy * dy + dz * dz)
+                p += 1
+                if pos[t, i, 2] > airborne and pos[t, j, 2] > airborne:
+                    ex, ey, ez = dx / radii[0], dy / radii[1], dz / radii[2]
+                    r = np.sqrt(ex * ex + ey * ey + ez * ez)
+                    if r < best or r != r:
+                        best = r if best == best else best
+        rho[t] = best
 
 
 def keepout_min_distance(pos: np.ndarray, radii: np.ndarray, airborne: float = AIRBORNE_M) -> float:
@@ -337,11 +379,11 @@ def _time_inside(t: np.ndarray, rho: np.ndarray) -> float:
     return float((rho < 1.0).sum() * np.median(np.diff(t)))
 
 
-def keepout_summary(t: np.ndarray, pos: np.ndarray, radii: np.ndarray, offsets: np.ndarray | None = None) -> dict:
+def keepout_summary(t: np.ndarray, pos: np.ndarray, radii: np.ndarray, rho: np.ndarray | None = None) -> dict:
     """The run summary's keep-out keys: ``keepout_min_distance`` (None for one drone, +inf when
     never two are airborne) and ``keepout_time_s`` (docs/barrier.md, "the invariant measured"),
-    from one pass over the log (:func:`keepout_per_sample`; ``offsets`` as there)."""
+    from one pass over the log (:func:`keepout_per_sample`; ``rho``: its result, if already known)."""
     if np.asarray(pos).shape[1] < 2:
         return {"keepout_min_distance": None, "keepout_time_s": 0.0}
-    rho = keepout_per_sample(pos, radii, offsets=offsets)
+    rho = keepout_per_sample(pos, radii) if rho is None else rho
     return {"keepout_min_distance": float(np.min(rho, initial=np.inf)), "keepout_time_s": _time_inside(t, rho)}

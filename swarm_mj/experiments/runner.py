@@ -33,7 +33,7 @@ from ..metrics import (
     leader_distances,
     min_separation,
     norm,
-    pair_offsets,
+    pair_measures,
     rmse,
     step_metrics,
 )
@@ -356,16 +356,14 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
     vehicle = policy.controller.params  # the run's vehicle: the keep-out and the jets are its sizes
-    offsets = pair_offsets(log.pos)[0] if sc.n_drones > 1 else None  # (k, pairs, 3), for both measures below
-    out.update(
-        keepout_summary(t, log.pos, keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius), offsets)
-    )  # docs/barrier.md
+    radii = keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius)
+    dist, rho = pair_measures(log.pos, radii)  # (k, pairs) distances, (k,) keep-out: one pass over the pairs
+    out.update(keepout_summary(t, log.pos, radii, rho))  # docs/barrier.md
     if len(t):
         out["downwash_force_max_n"] = (
             float(norm(log.downwash).max()) if "downwash" in log.forces else 0.0
         )  # zeros without that stage
-    if offsets is not None:
-        dist = norm(offsets)  # (k, pairs)
+    if sc.n_drones > 1:
         sep, kk, pair = min_separation(log.pos, dist)
         out["min_separation_m"] = sep
         out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None

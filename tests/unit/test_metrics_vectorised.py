@@ -10,11 +10,12 @@ import pytest
 
 from swarm_mj.metrics import (
     in_jet,
+    keepout_distance,
     keepout_per_sample,
     keepout_summary,
     min_separation,
     norm,
-    pair_offsets,
+    pair_measures,
 )
 
 
@@ -53,17 +54,38 @@ def test_in_jet_against_its_definition_pair_by_pair():
     assert got[:, 0, 1].any()
 
 
-def test_shared_pair_offsets_give_what_each_measure_computes_alone():
+def test_pair_measures_are_the_numpy_definitions_to_the_bit():
     pos, _ = _log(300, 6, seed=2)
-    offsets, i, j = pair_offsets(pos)
-    assert np.array_equal(offsets, pos[:, i] - pos[:, j])
-    dist = norm(offsets)
-    assert min_separation(pos, dist) == min_separation(pos)
-    sub = pos[:, :, 2].min(axis=1) > 0.5
-    assert min_separation(pos[sub], dist[sub]) == min_separation(pos[sub])
-    brute = min(float(np.linalg.norm(pos[t, a] - pos[t, b])) for t in range(300) for a in range(6) for b in range(a))
-    assert min_separation(pos)[0] == pytest.approx(brute, rel=1e-15)
+    pos[:, :, 2] -= 0.8  # some drones below the airborne bar
     radii = np.array([0.6, 0.6, 0.9])
-    assert np.array_equal(keepout_per_sample(pos, radii, offsets=offsets), keepout_per_sample(pos, radii))
+    dist, rho = pair_measures(pos, radii, 0.1)
+    i, j = np.triu_indices(6, 1)
+    offsets = pos[:, i] - pos[:, j]
+    assert np.array_equal(dist, np.linalg.norm(offsets, axis=-1))
+    up = pos[:, :, 2] > 0.1
+    expected = np.where(up[:, i] & up[:, j], keepout_distance(offsets, radii), np.inf).min(axis=1)
+    assert np.array_equal(rho, expected)
+    assert np.isinf(rho).any() and np.isfinite(rho).any()  # samples with and without two airborne
+    assert np.array_equal(keepout_per_sample(pos, radii, 0.1), rho)
     t = np.arange(300) * 0.01
-    assert keepout_summary(t, pos, radii, offsets) == keepout_summary(t, pos, radii)
+    assert keepout_summary(t, pos, radii, pair_measures(pos, radii)[1]) == keepout_summary(t, pos, radii)
+    # the distances the summary passes to min_separation are the ones it computes itself
+    assert min_separation(pos, dist) == min_separation(pos)
+    brute = min(float(np.linalg.norm(pos[s, a] - pos[s, b])) for s in range(300) for a in range(6) for b in range(a))
+    assert min_separation(pos)[0] == pytest.approx(brute, rel=1e-15)
+
+
+def test_pair_measures_keep_numpys_nan_and_small_cases():
+    pos, _ = _log(5, 3, seed=3)
+    pos[:, :, 2] = 1.0
+    pos[2, 1, 0] = np.nan
+    dist, rho = pair_measures(pos, np.ones(3))
+    assert np.isnan(rho[2]) and np.isfinite(np.delete(rho, 2)).all()
+    assert np.isnan(dist[2, [0, 2]]).all() and np.isfinite(dist[2, 1])  # pairs (0, 1), (0, 2), (1, 2)
+    i, j = np.triu_indices(3, 1)
+    numpy_rho = keepout_distance(pos[:, i] - pos[:, j], np.ones(3)).min(axis=1)
+    assert np.array_equal(rho, numpy_rho, equal_nan=True)
+    one = pair_measures(pos[:, :1], np.ones(3))
+    assert one[0].shape == (5, 0) and np.isinf(one[1]).all()
+    empty = pair_measures(pos[:0], np.ones(3))
+    assert empty[0].shape == (0, 3) and empty[1].shape == (0,)
