@@ -113,6 +113,7 @@ class FastLoop:
         self.periods = 0  # control periods flown by the chunk driver so far
         self._cool = 0
         self._obs = Obs.empty(n)
+        self._handed: dict | None = None  # the observation the last chunk handed back (its buffers hold it)
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._refs = env._refs
         self._log = log.rows
@@ -185,8 +186,9 @@ class FastLoop:
         env, policy, sim = self.env, self.policy, self.env.sim
         fly = _driver()
         obs = env._obs
-        for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
-            buf[...] = obs[key] if key != "dist" else env._dist
+        if obs is not self._handed:  # periods flown in Python since the last chunk: their observation in
+            for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
+                buf[...] = obs[key] if key != "dist" else env._dist
         ctl = policy.controller
         policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
         args = list(self._args(env.k, k_end))
@@ -212,7 +214,7 @@ class FastLoop:
             return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
         if status == BAD_ACTION:
             return k
-        env._obs = env._observation(Obs(*(b.copy() for b in self._obs)))
+        env._obs = self._handed = env._observation(Obs(*(b.copy() for b in self._obs)))
         self._record(k)
         if k >= env.n_steps:
             env._done = True

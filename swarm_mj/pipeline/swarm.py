@@ -42,7 +42,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jit import Bound, jit
+from .._jit import Bound, bind, jit
 from ..errors import UserError
 from ..experiments.parallel import ThreadTeam, check_count
 from ..formation.slots import DiameterSchedule, polygon_offsets
@@ -195,6 +195,8 @@ class SwarmPhysics:
         self.wind = np.zeros((m, K + 1, 3))  # (m, K+1, 3) each copy's uniform wind force series
         self.wind_now = np.zeros((N, 3))  # the wind force held over the current period (the physics)
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)
+        # bound once (no re-typing per step, _jit.bind): these arrays are this object's, written only in place
+        self._copy_winds = bind(copy_winds, self.wind, self.k, K, n, self.wind_now)
 
     # ------------------------------------------------------------------ episodes
     def _starts(self, seed: int | None) -> np.ndarray:
@@ -279,7 +281,7 @@ class SwarmPhysics:
         if self.relative_wind:
             self._relative(self.wind_now)
         else:
-            copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
+            self._copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
         new[:] = 0
         wind = self.wind_now
 
@@ -340,7 +342,7 @@ class SwarmPhysics:
         :func:`~swarm_mj.pipeline.period.observe_into` (the chunk driver's stage) on its simulator's record and
         ``refs`` (:meth:`refs`, kept by the caller: the chunk driver shares it), with the known wind on the
         relative airspeed from :meth:`drone_wind`."""
-        o = Obs.empty(self.n)  # new buffers: the environments hand out every observation's arrays
+        o = Obs.empty(self.n, fill=False)  # new buffers (observe_into writes each): the environments hand them out
         self._observe(self.blocks[0].sim.record(), refs, o, int(self.k[0]))
         if self.wind_known and self.relative_wind:
             o = o._replace(wf=self.drone_wind(0, o.vel))
