@@ -10,6 +10,7 @@ namespace (``leader/``, ``follower1/``, ...), so names come out scoped
 from __future__ import annotations
 
 import copy
+import dataclasses
 import os
 import threading
 from collections import OrderedDict
@@ -108,14 +109,15 @@ def _cache_key(
     contact_groups: int | None,
 ) -> tuple | None:
     """Everything a built model depends on, exactly: the starts and yaws as their float64 bytes, the
-    other arguments by ``repr`` (exact for floats; -0.0 and 0.0 differ), the asset file's path and
-    bytes (an edited file is another key). None when the asset cannot be read (then the build
-    says why)."""
+    other arguments (the vehicle's every field) by ``repr`` (exact for floats; -0.0 and 0.0 differ),
+    the asset file's path and bytes (an edited file is another key). None when the asset cannot be
+    read (then the build says why)."""
     try:
         asset_bytes = asset_path.read_bytes()
     except OSError:
         return None
-    scalars = (n_drones, names, params, timestep, integrator, collisions, floor, torque_motors, ground, motor_tau)
+    vehicle = (type(params).__qualname__, dataclasses.astuple(params))  # every field, whatever its repr shows
+    scalars = (n_drones, names, vehicle, timestep, integrator, collisions, floor, torque_motors, ground, motor_tau)
     return (
         positions.tobytes(), yaws.tobytes(), repr(scalars), repr(contact_groups), str(asset_path), asset_bytes,
     )  # fmt: skip
