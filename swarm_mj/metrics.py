@@ -184,12 +184,6 @@ JET_REACH_M = _PAPER_JET["reach"]  # 6 m for the paper's drone
 DRONE_RADIUS_M = _PAPER_JET["radius"]  # rotor span of the paper's drone: L + rotor radius (0.25 + 0.09 m)
 
 
-def _body_z(quat: np.ndarray) -> np.ndarray:
-    """World-frame body z axis (..., 3) of unit quaternions (..., 4) in MuJoCo's (w, x, y, z) order."""
-    w, x, y, z = (quat[..., c] for c in range(4))
-    return np.stack([2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y)], axis=-1)
-
-
 def in_jet(
     pos: np.ndarray,
     quat: np.ndarray,
@@ -207,30 +201,35 @@ def in_jet(
     r < ``r0`` + ``spread``·s + ``radius`` (its rotor span reaches into the jet's edge).
     """
     pos = np.ascontiguousarray(pos, dtype=float)
-    axis = np.ascontiguousarray(-_body_z(np.asarray(quat, dtype=float)))  # (k, n, 3) jet direction of each drone
     out = np.empty(pos.shape[:2] + pos.shape[1:2], dtype=np.bool_)  # (k, n, n)
-    in_jet_kernel(pos, axis, float(r0), float(spread), float(reach), float(radius), out)
+    in_jet_kernel(
+        pos, np.ascontiguousarray(quat, dtype=float), float(r0), float(spread), float(reach), float(radius), out
+    )
     return out
 
 
 def _in_jet_samples():
     pos = np.array([[[0.0, 0.0, 2.0], [0.1, 0.0, 1.0]]])
-    axis = np.tile([0.0, 0.0, -1.0], (1, 2, 1))
-    return [(pos, axis, 0.4, 0.15, 6.0, 0.34, np.empty((1, 2, 2), dtype=np.bool_))]
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (1, 2, 1))
+    return [(pos, quat, 0.4, 0.15, 6.0, 0.34, np.empty((1, 2, 2), dtype=np.bool_))]
 
 
 @jit(samples=_in_jet_samples)
 def in_jet_kernel(
-    pos: np.ndarray, axis: np.ndarray, r0: float, spread: float, reach: float, radius: float, out: np.ndarray
+    pos: np.ndarray, quat: np.ndarray, r0: float, spread: float, reach: float, radius: float, out: np.ndarray
 ) -> None:
-    """:func:`in_jet` into out (k, n, n) bool, from pos (k, n, 3) and each drone's jet direction axis
-    (k, n, 3), in one pass: rel = p_j − p_i, s = rel·axis_i, r² = |rel|² − s², in j's jet when
-    0 < s ≤ reach and r² < (r0 + spread·s + radius)², never its own. The sums are taken in the order
-    NumPy's ``einsum`` took them here before (x + z, then + y: the same bits)."""
+    """:func:`in_jet` into out (k, n, n) bool, from pos (k, n, 3) and quat (k, n, 4) (w, x, y, z), in one
+    pass: drone i's jet direction a_i = −(body z of i) = −(2(xz + wy), 2(yz − wx), 1 − 2(x² + y²));
+    rel = p_j − p_i, s = rel·a_i, r² = |rel|² − s², j in i's jet when 0 < s ≤ reach and
+    r² < (r0 + spread·s + radius)², never its own. The sums are taken in the order NumPy's ``einsum``
+    took them here before (x + z, then + y: the same bits)."""
     k, n = pos.shape[0], pos.shape[1]
     for t in range(k):
         for i in range(n):
-            ax, ay, az = axis[t, i, 0], axis[t, i, 1], axis[t, i, 2]
+            w, x, y, z = quat[t, i, 0], quat[t, i, 1], quat[t, i, 2], quat[t, i, 3]
+            ax = -(2.0 * (x * z + w * y))
+            ay = -(2.0 * (y * z - w * x))
+            az = -(1.0 - 2.0 * (x * x + y * y))
             for j in range(n):
                 rx = pos[t, j, 0] - pos[t, i, 0]
                 ry = pos[t, j, 1] - pos[t, i, 1]

@@ -314,7 +314,10 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     e = ref - log.pos  # (k, n, 3)
     att_e = np.rad2deg(log.att_d[:, :, :2] - log.rpy[:, :, :2])  # (k, n, 2) roll, pitch errors (deg)
     errors = _rmse_dicts(e, att_e)
-    errors_steady = _rmse_dicts(e[steady], att_e[steady]) if steady.any() else [None] * len(log.names)
+    # t rises, so the steady samples are the last ones: a view of them, not a copy (the same rows, the same sums)
+    first = int(np.argmax(steady))
+    tail = slice(first, None) if steady[first:].all() else steady
+    errors_steady = _rmse_dicts(e[tail], att_e[tail]) if steady.any() else [None] * len(log.names)
     tilt = np.rad2deg(np.abs(log.rpy[:, :, :2]).max(axis=0))  # (n, 2) the largest |roll|, |pitch|
     if len(t) > 1:
         # over time, then over the rotors (n,): the same extrema, along NumPy's fast axis order
