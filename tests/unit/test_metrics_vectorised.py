@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from swarm_mj.metrics import (
+    follower_distances,
     in_jet,
     keepout_distance,
     keepout_per_sample,
@@ -89,3 +90,11 @@ def test_pair_measures_keep_numpys_nan_and_small_cases():
     assert one[0].shape == (5, 0) and np.isinf(one[1]).all()
     empty = pair_measures(pos[:0], np.ones(3))
     assert empty[0].shape == (0, 3) and empty[1].shape == (0,)
+
+
+def test_follower_distances_are_numpys_norm_to_the_bit():
+    pos, _ = _log(200, 6, seed=4)
+    d, pairs = follower_distances(pos)
+    assert pairs == [(a, b) for a in range(1, 6) for b in range(a + 1, 6)]
+    expected = np.stack([np.linalg.norm(pos[:, a, :2] - pos[:, b, :2], axis=-1) for a, b in pairs], axis=1)
+    assert np.array_equal(d, expected)
