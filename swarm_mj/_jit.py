@@ -50,6 +50,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.physics.aero.updraft",
     "swarm_mj.pipeline.period",
     "swarm_mj.pipeline.swarm",
+    "swarm_mj.metrics",
 )
 
 Samples = Callable[[], Iterable[tuple[Any, ...]]]

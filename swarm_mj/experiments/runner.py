@@ -33,6 +33,8 @@ from ..metrics import (
     keepout_summary,
     leader_distances,
     min_separation,
+    norm,
+    pair_measures,
     rmse,
     step_metrics,
 )
@@ -318,17 +320,31 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         "drones": {},
     }
     steady = t >= sc.steady_after
+    # every drone at once (k, n, ...): the references are the followers' slots and the leader's commanded position
+    ref = log.slot.copy()
+    ref[:, 0] = log.pos_d[:, 0]
+    e = ref - log.pos  # (k, n, 3)
+    att_e = np.rad2deg(log.att_d[:, :, :2] - log.rpy[:, :, :2])  # (k, n, 2) roll, pitch errors (deg)
+    errors = _rmse_dicts(e, att_e)
+    # t rises, so the steady samples are the last ones: a view of them, not a copy (the same rows, the same sums)
+    first = int(np.argmax(steady))
+    tail = slice(first, None) if steady[first:].all() else steady
+    errors_steady = _rmse_dicts(e[tail], att_e[tail]) if steady.any() else [None] * len(log.names)
+    tilt = np.rad2deg(np.abs(log.rpy[:, :, :2]).max(axis=0))  # (n, 2) the largest |roll|, |pitch|
+    if len(t) > 1:
+        # over time, then over the rotors (n,): the same extrema, along NumPy's fast axis order
+        rotor_max, rotor_min = (
+            np.nanmax(np.nanmax(log.rotor, axis=0), axis=1),
+            np.nanmin(np.nanmin(log.rotor, axis=0), axis=1),
+        )
     for i, name in enumerate(log.names):
-        ref = log.slot[:, i] if i > 0 else log.pos_d[:, i]
-        e = ref - log.pos[:, i]
-        att_e = np.rad2deg(log.att_d[:, i, :2] - log.rpy[:, i, :2])
         d: dict = {
-            "rmse": _rmse_dict(e, att_e),
-            "rmse_steady": _rmse_dict(e[steady], att_e[steady]) if steady.any() else None,
-            "max_rotor_thrust_n": float(np.nanmax(log.rotor[:, i])) if len(t) > 1 else 0.0,
-            "min_rotor_thrust_n": float(np.nanmin(log.rotor[:, i])) if len(t) > 1 else 0.0,
-            "max_abs_roll_deg": float(np.rad2deg(np.abs(log.rpy[:, i, 0]).max())),
-            "max_abs_pitch_deg": float(np.rad2deg(np.abs(log.rpy[:, i, 1]).max())),
+            "rmse": errors[i],
+            "rmse_steady": errors_steady[i],
+            "max_rotor_thrust_n": float(rotor_max[i]) if len(t) > 1 else 0.0,
+            "min_rotor_thrust_n": float(rotor_min[i]) if len(t) > 1 else 0.0,
+            "max_abs_roll_deg": float(tilt[i, 0]),
+            "max_abs_pitch_deg": float(tilt[i, 1]),
         }
         if i == 0 and sc.trajectory == "step" and len(t) > 1:
             target = env.reference.pos[0]
@@ -355,28 +371,30 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
     vehicle = policy.controller.params  # the run's vehicle: the keep-out and the jets are its sizes
-    out.update(
-        keepout_summary(t, log.pos, keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius))
-    )  # docs/barrier.md
+    radii = keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius)
+    dist, rho = pair_measures(log.pos, radii)  # (k, pairs) distances, (k,) keep-out: one pass over the pairs
+    out.update(keepout_summary(t, log.pos, radii, rho))  # docs/barrier.md
     if len(t):
-        out["downwash_force_max_n"] = float(np.linalg.norm(log.downwash, axis=2).max())
+        out["downwash_force_max_n"] = (
+            float(norm(log.downwash).max()) if "downwash" in log.forces else 0.0
+        )  # zeros without that stage
     if sc.n_drones > 1:
-        sep, kk, pair = min_separation(log.pos)
+        sep, kk, pair = min_separation(log.pos, dist)
         out["min_separation_m"] = sep
         out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
         out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
         airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
         if airborne.any():
-            out["min_separation_airborne_m"] = min_separation(log.pos[airborne])[0]
-        dist = leader_distances(log.pos)
+            out["min_separation_airborne_m"] = min_separation(log.pos[airborne], dist[airborne])[0]
+        lead = leader_distances(log.pos)
         changes = env.scenario.diameter_schedule().change_times
         changes = changes[changes <= sim_time]
-        settling, max_err = formation_settling(t, dist, log.D, changes)
+        settling, max_err = formation_settling(t, lead, log.D, changes)
         out["formation"] = {
             "settling_s": settling,
             "change_times_s": changes.tolist(),
             "max_distance_error_m": max_err,
-            "final_distance_error_m": float(np.abs(dist[-1] - log.D[-1]).max()),
+            "final_distance_error_m": float(np.abs(lead[-1] - log.D[-1]).max()),
         }
         dip = downwash_dip(t, log.pos, log.pos_d, log.quat, **jet_geometry(vehicle))
         out["downwash_dip_worst_m"] = dip["worst_m"]
@@ -402,7 +420,11 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     return out
 
 
-def _rmse_dict(e: np.ndarray, att_e: np.ndarray) -> dict:
-    r = rmse(e)
-    ra = rmse(att_e)
-    return {"x": float(r[0]), "y": float(r[1]), "z": float(r[2]), "roll_deg": float(ra[0]), "pitch_deg": float(ra[1])}
+def _rmse_dicts(e: np.ndarray, att_e: np.ndarray) -> list[dict]:
+    """Each drone's RMSE (eq. 38) of its position errors e (k, n, 3) and attitude errors att_e (k, n, 2) (deg)."""
+    r = rmse(e)  # (n, 3)
+    ra = rmse(att_e)  # (n, 2)
+    return [
+        {"x": float(x), "y": float(y), "z": float(z), "roll_deg": float(roll), "pitch_deg": float(pitch)}
+        for (x, y, z), (roll, pitch) in zip(r.tolist(), ra.tolist(), strict=True)
+    ]

@@ -9,7 +9,11 @@ namespace (``leader/``, ``follower1/``, ...), so names come out scoped
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import os
+import threading
+from collections import OrderedDict
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -42,6 +46,81 @@ INTEGRATORS = {
     "Euler": mujoco.mjtIntegrator.mjINT_EULER,
     "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
 }
+
+
+#: Compiled swarm models kept for later builds in this process (docs/design.md, "Start-up and the step's own cost").
+WORLD_CACHE_SIZE = 16
+
+
+class _Built:
+    """The last :data:`WORLD_CACHE_SIZE` compiled models with their XML, by everything that makes them
+    (:func:`_cache_key`), least recently used dropped first. A kept model is never handed out:
+    :func:`build_world` returns a copy (``mj_copyModel``), so a caller writing its model (the solid
+    floor's gate does) cannot change a later build. Thread-safe (a lock around the dictionary)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+        self._items: OrderedDict[tuple, tuple[mujoco.MjModel, str]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def get(self, key: tuple) -> tuple[mujoco.MjModel, str] | None:
+        with self._lock:
+            hit = self._items.get(key)
+            if hit is not None:
+                self._items.move_to_end(key)
+            return hit
+
+    def put(self, key: tuple, built: tuple[mujoco.MjModel, str]) -> None:
+        with self._lock:
+            self._items[key] = built
+            while len(self._items) > self.size:
+                self._items.popitem(last=False)
+
+    def clear(self) -> None:
+        with self._lock:
+            self._items.clear()
+
+    def __len__(self) -> int:
+        return len(self._items)
+
+
+_BUILT = _Built(WORLD_CACHE_SIZE)
+
+
+def clear_world_cache() -> None:
+    """Forget the compiled models kept by :func:`build_world` (the next build composes and compiles again)."""
+    _BUILT.clear()
+
+
+def _cache_key(
+    n_drones: int,
+    positions: np.ndarray,
+    yaws: np.ndarray,
+    names: list[str],
+    params: QuadParams,
+    timestep: float,
+    integrator: str,
+    collisions: bool,
+    asset_path: Path,
+    floor: bool,
+    torque_motors: str,
+    ground: bool,
+    motor_tau: float,
+    contact_groups: int | None,
+) -> tuple | None:
+    """Everything a built model depends on, exactly: the starts and yaws as their float64 bytes, the
+    other arguments (the vehicle's every field) by ``repr`` (exact for floats; -0.0 and 0.0 differ),
+    the asset file's path and bytes (an edited file is another key). None when the asset cannot be
+    read (then the build says why)."""
+    try:
+        asset_bytes = asset_path.read_bytes()
+    except OSError:
+        return None
+    vehicle = (type(params).__qualname__, dataclasses.astuple(params))  # every field, whatever its repr shows
+    scalars = (n_drones, names, vehicle, timestep, integrator, collisions, floor, torque_motors, ground, motor_tau)
+    return (
+        positions.tobytes(), yaws.tobytes(), repr(scalars), repr(contact_groups), str(asset_path), asset_bytes,
+    )  # fmt: skip
 
 
 def default_names(n_drones: int) -> list[str]:
@@ -236,6 +315,13 @@ def build_world(
     the colliding geoms' contype/conaffinity are cleared and every pair of them on two drones of
     one group becomes an explicit ``<pair>`` (condim 3, friction 1: the same contact as the
     geoms' defaults). 32 contype bits cannot separate more than 32 groups; explicit pairs can.
+
+    The composed and compiled model is kept (the last :data:`WORLD_CACHE_SIZE`, keyed by every
+    argument above exactly and the asset file's bytes, not files it includes): a later build with
+    the same arguments in this process copies it (``mj_copyModel``, 0.5 ms) instead of composing it
+    with PyMJCF and compiling it again (60 ms for six drones). The copy is the same model bit for
+    bit, and every build returns its own copy, so nothing written to one world's model reaches
+    another (:func:`clear_world_cache` forgets them).
     """
     if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
         raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
@@ -259,7 +345,66 @@ def build_world(
         raise UserError(f"motor_tau must be a time constant >= 0 s, got {motor_tau!r}")
     if torque_motors not in ("joint", "site"):
         raise UserError(f"torque_motors must be 'joint' or 'site', got {torque_motors!r}")
+    if contact_groups is not None and (
+        not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
+    ):
+        raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
+    if contact_groups is not None and ground:
+        raise UserError(
+            "contact_groups (independent copies) with a solid ground is not supported yet: "
+            "the copies' floor contacts would need pairs too"
+        )
+    key = _cache_key(
+        n_drones, positions, yaws, names, params, timestep, integrator, collisions, asset_path, floor, torque_motors,
+        ground, motor_tau, contact_groups,
+    )  # fmt: skip
+    built = _BUILT.get(key) if key is not None else None
+    if built is None:
+        built = _compose(
+            n_drones, positions, yaws, names, params, timestep, integrator, collisions, asset_path, floor,
+            torque_motors, ground, motor_tau, contact_groups,
+        )  # fmt: skip
+        if key is not None:
+            _BUILT.put(key, built)
+    cached, xml = built
+    model = copy.copy(cached)  # mj_copyModel: the cached model is never handed out, so never mutated
 
+    body_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{n}/body") for n in names])
+    if (body_ids < 0).any():
+        raise UserError("compiled model lacks a drone body named '<drone>/body'")
+    geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
+    for k, bid in enumerate(body_ids):
+        geom_drone[model.geom_bodyid == bid] = k
+    return World(
+        model=model,
+        names=names,
+        params=params,
+        body_ids=body_ids,
+        geom_drone=geom_drone,
+        initial_positions=positions.copy(),
+        initial_yaws=yaws.copy(),
+        xml=xml,
+    )
+
+
+def _compose(
+    n_drones: int,
+    positions: np.ndarray,
+    yaws: np.ndarray,
+    names: list[str],
+    params: QuadParams,
+    timestep: float,
+    integrator: str,
+    collisions: bool,
+    asset_path: Path,
+    floor: bool,
+    torque_motors: str,
+    ground: bool,
+    motor_tau: float,
+    contact_groups: int | None,
+) -> tuple[mujoco.MjModel, str]:
+    """The swarm's MJCF composed with PyMJCF and compiled: (model, xml), from :func:`build_world`'s checked
+    arguments."""
     arena = mjcf.RootElement(model="swarm")
     arena.option.timestep = timestep
     arena.option.integrator = integrator
@@ -312,15 +457,6 @@ def build_world(
         "light", name="sun", pos=[0, 0, 12], dir=[0, 0, -1], directional=True, diffuse=[0.6, 0.6, 0.6], castshadow=True
     )
 
-    if contact_groups is not None and (
-        not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
-    ):
-        raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
-    if contact_groups is not None and ground:
-        raise UserError(
-            "contact_groups (independent copies) with a solid ground is not supported yet: "
-            "the copies' floor contacts would need pairs too"
-        )
     frames = []
     colliders: list[list[str]] = []  # per drone: its colliding geoms' full names (contact_groups only)
     for k, name in enumerate(names):
@@ -360,20 +496,4 @@ def build_world(
         model = mujoco.MjModel.from_xml_string(xml, arena.get_assets())
     except Exception as exc:
         raise UserError(f"MuJoCo could not compile the swarm model: {exc}") from None
-
-    body_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{n}/body") for n in names])
-    if (body_ids < 0).any():
-        raise UserError("compiled model lacks a drone body named '<drone>/body'")
-    geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
-    for k, bid in enumerate(body_ids):
-        geom_drone[model.geom_bodyid == bid] = k
-    return World(
-        model=model,
-        names=names,
-        params=params,
-        body_ids=body_ids,
-        geom_drone=geom_drone,
-        initial_positions=positions.copy(),
-        initial_yaws=yaws.copy(),
-        xml=xml,
-    )
+    return model, xml

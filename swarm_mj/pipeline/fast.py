@@ -113,9 +113,15 @@ class FastLoop:
         self.periods = 0  # control periods flown by the chunk driver so far
         self._cool = 0
         self._obs = Obs.empty(n)
+        self._handed: dict | None = None  # the observation the last chunk handed back (its buffers hold it)
         self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
         self._refs = env._refs
         self._log = log.rows
+        # the stand-ins of a run without the layered rule or without the barrier filter, built once: the
+        # driver reads neither (``on`` False) and writes neither, so every chunk can pass the same ones
+        self._filtered = self._layered and getattr(policy.rule, "separation_filter", None) is not None
+        self._idle_rule = idle_record(n)
+        self._no_filter = barrier_off(n)
 
     @classmethod
     def build(cls, env, policy, log, *, compile: bool = False, announce=None) -> FastLoop | None:  # noqa: ANN001, A002
@@ -136,12 +142,13 @@ class FastLoop:
 
     # ------------------------------------------------------------------ the records
     def _args(self, k: int, k_end: int) -> tuple:
-        """The driver's arguments for periods k .. k_end − 1 (the owners' arrays, read at each call:
-        ``reset`` replaces some)."""
+        """The driver's arguments for periods k .. k_end − 1 (the owners' records, read at each call: a
+        ``reset`` or a period flown in Python may replace their arrays)."""
         env, policy = self.env, self.policy
         sim = env.sim
-        rule = _rule_record(policy.rule, env.n, self._layered)
-        filt = _filter_record(policy.rule, env.n, self._layered)
+        # the rule's and its filter's own records (over their arrays), or the run's stand-ins
+        rule = _rule_record(policy.rule, env.n, True) if self._layered else self._idle_rule
+        filt = _filter_record(policy.rule, env.n, True) if self._filtered else self._no_filter
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
@@ -179,8 +186,9 @@ class FastLoop:
         env, policy, sim = self.env, self.policy, self.env.sim
         fly = _driver()
         obs = env._obs
-        for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
-            buf[...] = obs[key] if key != "dist" else env._dist
+        if obs is not self._handed:  # periods flown in Python since the last chunk: their observation in
+            for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
+                buf[...] = obs[key] if key != "dist" else env._dist
         ctl = policy.controller
         policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
         args = list(self._args(env.k, k_end))
@@ -206,7 +214,7 @@ class FastLoop:
             return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
         if status == BAD_ACTION:
             return k
-        env._obs = env._observation(Obs(*(b.copy() for b in self._obs)))
+        env._obs = self._handed = env._observation(Obs(*(b.copy() for b in self._obs)))
         self._record(k)
         if k >= env.n_steps:
             env._done = True

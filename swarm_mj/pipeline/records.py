@@ -108,8 +108,10 @@ class Obs(NamedTuple):
     wf: np.ndarray  # (n, 3) the wind force given to the controller
 
     @classmethod
-    def empty(cls, n: int) -> Obs:
-        z = np.zeros
+    def empty(cls, n: int, fill: bool = True) -> Obs:
+        """Buffers for n drones: zeros, or uninitialised (``fill`` False: half the cost) for a stage that
+        writes every one (``observe_into``)."""
+        z = np.zeros if fill else np.empty
         return cls(
             z((n, 3)), z((n, 3)), z((n, 4)), z((n, 3)), z((n, 3)), z((n, 3)), z((n, n, 3)), z((n, n)), z((n, n)),
             z((n, 3)), z((n, 3)), z((n, 3)), z(n), z((n, 3)),

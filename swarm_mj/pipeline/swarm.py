@@ -30,7 +30,7 @@ step              :meth:`step`: the wind force of each copy's period k (for the 
 wind              :func:`copy_winds` (uniform wind) or each copy's
                   :meth:`~swarm_mj.physics.wind.WindSeries.drone_forces` (relative airspeed),
                   for the physics and for the observation's known wind
-observation       :meth:`observe` (one copy: :func:`swarm_mj.pipeline.period.observe`, the chunk
+observation       :meth:`observe` (one copy: :func:`swarm_mj.pipeline.period.observe_into`, the chunk
                   driver's stage) and :meth:`observe_copies` (m copies into a flat buffer:
                   :func:`swarm_mj.task.observe_copies`, the same function per copy)
 ================  ==================================================================================
@@ -42,7 +42,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from .._jit import Bound, jit
+from .._jit import Bound, bind, jit
 from ..errors import UserError
 from ..experiments.parallel import ThreadTeam, check_count
 from ..formation.slots import DiameterSchedule, polygon_offsets
@@ -54,7 +54,7 @@ from ..physics.wind import WindConfig, WindField, WindSeries
 from ..physics.world import World, build_world
 from ..scenario import Scenario
 from ..task import CopyRefs, observe_copies
-from .period import observe
+from .period import observe_into
 from .records import Obs, Refs
 
 __all__ = ["BLOCK_DRONES", "Block", "SwarmPhysics", "copy_winds"]
@@ -130,7 +130,7 @@ class SwarmPhysics:
         self._ref = (c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float))
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
-        self._observe = Bound(observe, records=2)  # bound to the records: no re-typing per call (_jit.py)
+        self._observe = Bound(observe_into, records=2)  # bound to the records: no re-typing per call (_jit.py)
         self._copy_refs = CopyRefs(
             float(T), float(sc.sensing_range), *self._ref, self.D, self.unit_offsets, self.wind_known,
             self.relative_wind,
@@ -195,6 +195,8 @@ class SwarmPhysics:
         self.wind = np.zeros((m, K + 1, 3))  # (m, K+1, 3) each copy's uniform wind force series
         self.wind_now = np.zeros((N, 3))  # the wind force held over the current period (the physics)
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)
+        # bound once (no re-typing per step, _jit.bind): these arrays are this object's, written only in place
+        self._copy_winds = bind(copy_winds, self.wind, self.k, K, n, self.wind_now)
 
     # ------------------------------------------------------------------ episodes
     def _starts(self, seed: int | None) -> np.ndarray:
@@ -279,7 +281,7 @@ class SwarmPhysics:
         if self.relative_wind:
             self._relative(self.wind_now)
         else:
-            copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
+            self._copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
         new[:] = 0
         wind = self.wind_now
 
@@ -288,9 +290,11 @@ class SwarmPhysics:
                 blk.sim.step(U[blk.rows], wind[blk.rows])
                 blk.sim.health(health[blk.copies])
 
-        # MuJoCo's profiling clock is one global: paused here, once, rather than by each thread's Sim.step
-        with profiler_paused():
-            self.team.run(fly, self.groups)
+        if self.threads == 1:  # on this thread, where each Sim.step pauses MuJoCo's profiling clock itself
+            fly(self.blocks)
+        else:  # the clock is one global: paused here, once, rather than by each thread's Sim.step
+            with profiler_paused():
+                self.team.run(fly, self.groups)
         for blk in self.blocks:  # then the contacts, in block order
             log = blk.sim.contact_log
             if len(log) > blk.n_log:
@@ -335,10 +339,11 @@ class SwarmPhysics:
     # ------------------------------------------------------------------ observation
     def observe(self, refs: Refs) -> Obs:
         """The observation of copy 0 of a one-copy physics at its period k (fresh arrays):
-        :func:`~swarm_mj.pipeline.period.observe` (the chunk driver's stage) on its simulator's record and
+        :func:`~swarm_mj.pipeline.period.observe_into` (the chunk driver's stage) on its simulator's record and
         ``refs`` (:meth:`refs`, kept by the caller: the chunk driver shares it), with the known wind on the
         relative airspeed from :meth:`drone_wind`."""
-        o = self._observe(self.blocks[0].sim.record(), refs, int(self.k[0]))
+        o = Obs.empty(self.n, fill=False)  # new buffers (observe_into writes each): the environments hand them out
+        self._observe(self.blocks[0].sim.record(), refs, o, int(self.k[0]))
         if self.wind_known and self.relative_wind:
             o = o._replace(wf=self.drone_wind(0, o.vel))
         return o
