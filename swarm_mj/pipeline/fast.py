@@ -190,7 +190,6 @@ class FastLoop:
             for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
                 buf[...] = obs[key] if key != "dist" else env._dist
         ctl = policy.controller
-        policy.U_last[:] = ctl.U  # the last command (the downwash feedforward's thrust)
         args = list(self._args(env.k, k_end))
         k0 = env.k
         with _mjstep.profiler_paused():  # MuJoCo's profiling clock off, as in Sim.step
@@ -205,7 +204,7 @@ class FastLoop:
                 break
         self.status = status
         self.periods += k - k0
-        ctl.U = policy.U_last.copy()
+        ctl.U = policy.U_last.copy()  # the last command (command() kept it in U_last, as in Python)
         if status == REACT:
             self._cool = COOL_DOWN
         env.k = k
