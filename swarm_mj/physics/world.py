@@ -92,35 +92,42 @@ def clear_world_cache() -> None:
     _BUILT.clear()
 
 
-def _cache_key(
-    n_drones: int,
-    positions: np.ndarray,
-    yaws: np.ndarray,
-    names: list[str],
-    params: QuadParams,
-    timestep: float,
-    integrator: str,
-    collisions: bool,
-    asset_path: Path,
-    floor: bool,
-    torque_motors: str,
-    ground: bool,
-    motor_tau: float,
-    contact_groups: int | None,
-) -> tuple | None:
+@dataclass(frozen=True)
+class WorldSpec:
+    """Everything a swarm model is built from: :func:`build_world`'s checked arguments (see there)."""
+
+    n_drones: int
+    positions: np.ndarray  # (n, 3) initial centre-of-mass positions
+    yaws: np.ndarray  # (n,) initial yaws (rad)
+    names: tuple[str, ...]  # (n,) the drones' names
+    params: QuadParams
+    timestep: float
+    integrator: str
+    collisions: bool
+    asset_path: Path
+    floor: bool
+    torque_motors: str
+    ground: bool
+    motor_tau: float
+    contact_groups: int | None
+
+
+def _cache_key(spec: WorldSpec) -> tuple | None:
     """Everything a built model depends on, exactly: the starts and yaws as their float64 bytes, the
     other arguments (the vehicle's every field) by ``repr`` (exact for floats; -0.0 and 0.0 differ),
     the asset file's path and bytes (an edited file is another key). None when the asset cannot be
     read (then the build says why)."""
     try:
-        asset_bytes = asset_path.read_bytes()
+        asset_bytes = spec.asset_path.read_bytes()
     except OSError:
         return None
-    vehicle = (type(params).__qualname__, dataclasses.astuple(params))  # every field, whatever its repr shows
-    scalars = (n_drones, names, vehicle, timestep, integrator, collisions, floor, torque_motors, ground, motor_tau)
-    return (
-        positions.tobytes(), yaws.tobytes(), repr(scalars), repr(contact_groups), str(asset_path), asset_bytes,
-    )  # fmt: skip
+    vehicle = (type(spec.params).__qualname__, dataclasses.astuple(spec.params))  # every field, whatever its repr shows
+    scalars = tuple(
+        vehicle if f.name == "params" else getattr(spec, f.name)
+        for f in dataclasses.fields(spec)
+        if f.name not in ("positions", "yaws", "asset_path")
+    )
+    return (spec.positions.tobytes(), spec.yaws.tobytes(), repr(scalars), str(spec.asset_path), asset_bytes)
 
 
 def default_names(n_drones: int) -> list[str]:
@@ -354,16 +361,14 @@ def build_world(
             "contact_groups (independent copies) with a solid ground is not supported yet: "
             "the copies' floor contacts would need pairs too"
         )
-    key = _cache_key(
-        n_drones, positions, yaws, names, params, timestep, integrator, collisions, asset_path, floor, torque_motors,
-        ground, motor_tau, contact_groups,
+    spec = WorldSpec(
+        n_drones, positions, yaws, tuple(names), params, timestep, integrator, collisions, asset_path, floor,
+        torque_motors, ground, motor_tau, contact_groups,
     )  # fmt: skip
+    key = _cache_key(spec)
     built = _BUILT.get(key) if key is not None else None
     if built is None:
-        built = _compose(
-            n_drones, positions, yaws, names, params, timestep, integrator, collisions, asset_path, floor,
-            torque_motors, ground, motor_tau, contact_groups,
-        )  # fmt: skip
+        built = _compose(spec)
         if key is not None:
             _BUILT.put(key, built)
     cached, xml = built
@@ -387,31 +392,16 @@ def build_world(
     )
 
 
-def _compose(
-    n_drones: int,
-    positions: np.ndarray,
-    yaws: np.ndarray,
-    names: list[str],
-    params: QuadParams,
-    timestep: float,
-    integrator: str,
-    collisions: bool,
-    asset_path: Path,
-    floor: bool,
-    torque_motors: str,
-    ground: bool,
-    motor_tau: float,
-    contact_groups: int | None,
-) -> tuple[mujoco.MjModel, str]:
+def _compose(spec: WorldSpec) -> tuple[mujoco.MjModel, str]:
     """The swarm's MJCF composed with PyMJCF and compiled: (model, xml), from :func:`build_world`'s checked
     arguments."""
     arena = mjcf.RootElement(model="swarm")
-    arena.option.timestep = timestep
-    arena.option.integrator = integrator
-    arena.option.gravity = [0.0, 0.0, -params.g]
+    arena.option.timestep = spec.timestep
+    arena.option.integrator = spec.integrator
+    arena.option.gravity = [0.0, 0.0, -spec.params.g]
     arena.option.density = 0.0  # fluid model off: drag enters through xfrc_applied
     arena.option.viscosity = 0.0
-    if not collisions:
+    if not spec.collisions:
         arena.option.flag.contact = "disable"
     arena.visual.headlight.ambient = [0.4, 0.4, 0.4]
     arena.visual.headlight.diffuse = [0.6, 0.6, 0.6]
@@ -441,13 +431,13 @@ def _compose(
         width=256,
         height=256,
     )
-    if ground:
+    if spec.ground:
         # A solid floor (aero presets with ground = true, docs/aero.md): it touches each drone's rotor
         # disc and landing skid (collision bit 4, see _drone_mjcf).
         arena.worldbody.add(
             "geom", name="floor", type="plane", size=[0, 0, 0.05], material="grid", contype=4, conaffinity=0, group=0
         )
-    elif floor:
+    elif spec.floor:
         # The floor is seen but never touched: contacts are drone-drone only (docs/interpretations.md §1),
         # and a drone below the floor is reported as a divergence by the simulator.
         arena.worldbody.add(
@@ -459,17 +449,17 @@ def _compose(
 
     frames = []
     colliders: list[list[str]] = []  # per drone: its colliding geoms' full names (contact_groups only)
-    for k, name in enumerate(names):
+    for k, name in enumerate(spec.names):
         rgba = LEADER_RGBA if k == 0 else FOLLOWER_RGBA
-        drone = _drone_mjcf(name, params, rgba, asset_path, ground=ground, motor_tau=motor_tau)
-        if contact_groups is not None and collisions:
+        drone = _drone_mjcf(name, spec.params, rgba, spec.asset_path, ground=spec.ground, motor_tau=spec.motor_tau)
+        if spec.contact_groups is not None and spec.collisions:
             colliders.append([f"{name}/{geom}" for geom in _take_colliders(drone)])
         frame = arena.worldbody.attach(drone)
-        frame.pos = positions[k]
-        c, s = np.cos(yaws[k] / 2), np.sin(yaws[k] / 2)
+        frame.pos = spec.positions[k]
+        c, s = np.cos(spec.yaws[k] / 2), np.sin(spec.yaws[k] / 2)
         frame.quat = [c, 0.0, 0.0, s]
         free = frame.add("freejoint", name=f"{name}_free")
-        if torque_motors == "joint":
+        if spec.torque_motors == "joint":
             for act in ("U2", "U3", "U4"):
                 motor = drone.find("actuator", act)
                 motor.site = None
@@ -479,12 +469,12 @@ def _compose(
 
     xml = arena.to_xml_string()
     if colliders:
-        assert contact_groups is not None  # colliders are only collected with contact_groups
+        assert spec.contact_groups is not None  # colliders are only collected with contact_groups
         # written into the XML directly: PyMJCF's own pair elements cost O(pairs · geoms) to resolve
-        size = n_drones // contact_groups
+        size = spec.n_drones // spec.contact_groups
         pairs = [
             f'<pair geom1="{ga}" geom2="{gb}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>'
-            for g in range(contact_groups)
+            for g in range(spec.contact_groups)
             for a in range(g * size, (g + 1) * size)
             for b in range(a + 1, (g + 1) * size)
             for ga in colliders[a]
