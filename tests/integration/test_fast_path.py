@@ -142,7 +142,7 @@ def test_the_barrier_filter_flies_fast_bit_identical(aero, monkeypatch):
         return out
 
     monkeypatch.setattr(fast.FastLoop, "run", counting)
-    a, b = _both(stress_scenario(StressCase("barrier", 100015, 5, 3.0, 0.6, 15.0, aero=aero)))
+    a, b = _both(stress_scenario(StressCase("barrier", 100032, 5, 3.0, 0.6, 15.0, aero=aero)))
     _assert_same(a, b)
     assert b.extra["fused_periods"] > 0.3 * (len(a.log.t) - 1), b.extra
     assert sum(guarded) > 0  # the filter flew guarded drones inside the chunks
