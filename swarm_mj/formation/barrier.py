@@ -146,8 +146,8 @@ class BarrierParams:
         0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
     )
     lanes: bool = _p(True, "", "`barrier-lanes`: its nominal goes round the leader on two lanes", None)
-    guard_kp: float = _p(9.0, "1/s²", "`barrier`: the guarded nominal's PD onto the planner's reference: position gain")
-    guard_kd: float = _p(6.0, "1/s", "… velocity gain (critically damped at 3 rad/s with guard_kp 9)")
+    guard_kp: float = _p(6.25, "1/s²", "`barrier`: the guarded nominal's PD onto the planner's reference, position")
+    guard_kd: float = _p(5.0, "1/s", "… velocity gain (critically damped at 2.5 rad/s with guard_kp 6.25)")
     guard_lanes: bool = _p(
         False, "", "`barrier`: a guarded drone's nominal goes round the leader on the lanes (else straight)", None
     )
