@@ -1065,8 +1065,9 @@ class BarrierFilter:
     Each steered drone is either *free* (its references are the planner's, bit for bit) or
     *guarded* (the filter flies its own reference state (r, ṙ)). Every period the nominal
     acceleration is the planner's acc_d for a free drone, and for a guarded one
-    :func:`lane_nominal` towards the planner's reference (round the leader on a lane, else
-    acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ); within the input limits);
+    :func:`lane_nominal` towards the planner's reference (acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ),
+    ``guard_kp``, ``guard_kd``; round the leader on a lane first with ``guard_lanes``; within the
+    input limits);
     :func:`filter_accelerations` changes it as little as possible so that (B) holds against every
     sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
     sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
@@ -1150,8 +1151,10 @@ class BarrierFilter:
 
 class BarrierPlannerRule(JetAwareRule):
     """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset, its
-    altitude separation) with :class:`BarrierFilter` as its separation step. The filter's own
-    parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
+    altitude separation) with :class:`BarrierFilter` as its separation step, its followers flying to
+    slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
+    no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
+    among ``overrides`` set them)."""
 
     name = "barrier"
     #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
