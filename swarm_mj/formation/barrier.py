@@ -83,6 +83,7 @@ from .jet_aware import JetAwareRule
 from .rule_params import PRESETS, RuleParams, check_overrides
 from .rule_params import param_field as _p
 from .separation import Sensed
+from .slots import capt_assignment
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
 #: 0.3/0.12 = 2.5, the Crazyflie firmware 0.9/0.3 = 3 (docs/barrier.md, "keep-out").
@@ -144,7 +145,12 @@ class BarrierParams:
     accel_filter_s: float = _p(
         0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
     )
-    lanes: bool = _p(True, "", "a guarded drone's nominal goes round the leader on two lanes", None)
+    lanes: bool = _p(True, "", "`barrier-lanes`: its nominal goes round the leader on two lanes", None)
+    guard_kp: float = _p(6.25, "1/s²", "`barrier`: the guarded nominal's PD onto the planner's reference, position")
+    guard_kd: float = _p(5.0, "1/s", "… velocity gain (critically damped at 2.5 rad/s with guard_kp 6.25)")
+    guard_lanes: bool = _p(
+        False, "", "`barrier`: a guarded drone's nominal goes round the leader on the lanes (else straight)", None
+    )
     lane_speed: float = _p(2.0, "m/s", "speed along a lane")
     arrive_angle: float = _p(0.15, "rad", "within this angle of its slot's ray a drone leaves its lane", 0.0, 3.14)
     lane_turn_gain: float = _p(2.0, "1/s", "lane speed ≤ this·r·|angle left| (it stops on its slot's ray)")
@@ -159,6 +165,12 @@ class BarrierParams:
     ground_band_m: float = _p(0.5, "m", "no downward acceleration to a drone below this altitude", 0.0, open_lo=False)
     gate_horizon_s: float = _p(
         1.5, "s", "the take-off gate predicts the other drones over this horizon", 0.0, open_lo=False
+    )
+    gate_holds_start: bool = _p(
+        True, "", "the take-off gate holds a follower where it stood (else where it is now)", None
+    )
+    assign_slots: bool = _p(
+        True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
     )
 
     def __post_init__(self) -> None:
@@ -615,6 +627,14 @@ def _lane_gains(bp: BarrierParams) -> np.ndarray:
     )
 
 
+def _guard_gains(bp: BarrierParams) -> np.ndarray:
+    """The (7,) gains of :func:`lane_nominal_kernel` for :class:`BarrierFilter`'s guarded nominal: the
+    lane rule's with the PD gains ``guard_kp``, ``guard_kd``."""
+    gains = _lane_gains(bp)
+    gains[0], gains[1] = bp.guard_kp, bp.guard_kd
+    return gains
+
+
 def lane_nominal(
     bp: BarrierParams,
     ref: np.ndarray,
@@ -857,7 +877,7 @@ class BarrierRecord(NamedTuple):
 
     on: bool
     radii: np.ndarray  # (3,) the filter's keep-out radii (m)
-    lane_gains: np.ndarray  # (7,) lane_nominal_kernel's gains
+    lane_gains: np.ndarray  # (7,) lane_nominal_kernel's gains (_guard_gains: the guarded nominal's PD)
     a_h: float  # horizontal acceleration limit (m/s²)
     accel_up: float  # vertical limits (m/s²)
     accel_down: float
@@ -868,7 +888,7 @@ class BarrierRecord(NamedTuple):
     floor_m: float  # m
     priority_share: float
     both_states: bool
-    lanes: bool
+    lanes: bool  # the params' guard_lanes: a guarded drone's nominal on the lanes
     accel_filter_s: float  # s
     gate_rho: float
     gate_horizon_s: float  # s
@@ -876,14 +896,15 @@ class BarrierRecord(NamedTuple):
     release_m: float  # m
     release_mps: float  # m/s
     ground_band_m: float  # m
+    gate_holds_start: bool
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
     sensed_acc: np.ndarray  # (n, 3) low-passed accelerations from the sensed velocities
     prev_vel: np.ndarray  # (n, 3) the sensed velocities of the last call
-    start_z: np.ndarray  # (n,) where each drone stood on the ground (the first call's altitudes)
+    start: np.ndarray  # (n, 3) where each drone stood on the ground (the first call's positions)
     was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
-    flags: np.ndarray  # (2,) bool: start_z taken, prev_vel taken
+    flags: np.ndarray  # (2,) bool: start taken, prev_vel taken
     counts: np.ndarray  # (3,) int64: active, relaxed, guarded drone-periods
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
@@ -900,11 +921,13 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
     z3 = np.zeros((n, 3))
     cap = EVENTS_PER_DRONE * max(n, 1)
     return BarrierRecord(
-        on, bp.radii(vehicle), _lane_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
+        on, bp.radii(vehicle), _guard_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
         float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
-        float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.lanes), float(bp.accel_filter_s),
-        float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m), float(bp.release_mps),
-        float(bp.ground_band_m), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), np.zeros(n),
+        float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
+        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m),
+        float(bp.release_mps),
+        float(bp.ground_band_m), bool(bp.gate_holds_start), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(),
+        z3.copy(), z3.copy(),
         np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
     )  # fmt: skip
@@ -933,7 +956,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     buffer (the caller drains it)."""
     n = positions.shape[0]
     if not rec.flags[0]:
-        rec.start_z[:] = positions[:, 2]  # where each drone stands on the ground
+        rec.start[:] = positions  # where each drone stands on the ground
         rec.flags[0] = True
     if dt > 0.0 and rec.flags[1] and rec.accel_filter_s > 0.0:
         f = dt / (rec.accel_filter_s + dt)
@@ -996,7 +1019,10 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
             rec.ref[i] = positions[i]
-            rec.ref[i, 2] = min(positions[i, 2], rec.start_z[i])
+            if rec.gate_holds_start:
+                rec.ref[i, 0] = rec.start[i, 0]
+                rec.ref[i, 1] = rec.start[i, 1]
+            rec.ref[i, 2] = min(positions[i, 2], rec.start[i, 2])
             rec.ref_vel[i] = 0.0
         if g[i]:  # (r, ṙ) advance with the filtered command, never below the ground, on the leash
             rec.counts[2] += 1
@@ -1039,8 +1065,9 @@ class BarrierFilter:
     Each steered drone is either *free* (its references are the planner's, bit for bit) or
     *guarded* (the filter flies its own reference state (r, ṙ)). Every period the nominal
     acceleration is the planner's acc_d for a free drone, and for a guarded one
-    :func:`lane_nominal` towards the planner's reference (round the leader on a lane, else
-    acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ); within the input limits);
+    :func:`lane_nominal` towards the planner's reference (acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ),
+    ``guard_kp``, ``guard_kd``; round the leader on a lane first with ``guard_lanes``; within the
+    input limits);
     :func:`filter_accelerations` changes it as little as possible so that (B) holds against every
     sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
     sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
@@ -1124,8 +1151,10 @@ class BarrierFilter:
 
 class BarrierPlannerRule(JetAwareRule):
     """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset, its
-    altitude separation) with :class:`BarrierFilter` as its separation step. The filter's own
-    parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
+    altitude separation) with :class:`BarrierFilter` as its separation step, its followers flying to
+    slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
+    no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
+    among ``overrides`` set them)."""
 
     name = "barrier"
     #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
@@ -1147,6 +1176,19 @@ class BarrierPlannerRule(JetAwareRule):
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)
         self.barrier_filter.reset(self.n)
+        self._assign = self.barrier_filter.barrier.assign_slots and self.n > 2
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The jet-aware planner's update; at the first, with ``assign_slots``, each follower's slot
+        (``slot_of``) from :func:`~.slots.capt_assignment` of the followers' positions and the slots
+        (docs/barrier.md, "slot assignment")."""
+        if self._assign:
+            self._assign = False
+            sigma = capt_assignment(np.asarray(positions)[1:, :2], np.asarray(pos_d)[1:, :2])
+            self.slot_of[1:] = 1 + sigma
+        return super().update(t, positions, pos_d, formation_alt)
 
 
 ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule  # the registration (docs/barrier.md)

@@ -52,7 +52,7 @@ class JetAwareRule(LayeredRule):
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
     ) -> tuple[np.ndarray, np.ndarray]:
         if not self._all_formed:  # (formed, the compiled formed step sets both: layered.formed_update)
-            self.set_slots(pos_d)
+            self.set_slots(self.slots(pos_d))
             self._formation_alt[0] = formation_alt
         return super().update(t, positions, pos_d, formation_alt)
 

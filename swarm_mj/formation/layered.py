@@ -58,7 +58,7 @@ def idle_record(n: int) -> FormedRecord:
     return FormedRecord(
         False, False, 0.0, 0.0, np.zeros(n), z, z.copy(), np.full(1, np.nan), np.zeros(1), np.zeros(1),
         np.zeros((n, n)), e, e.copy(), e.copy(), b, np.zeros(n), np.zeros(n), np.zeros(n), limits, z.copy(), z.copy(),
-        b.copy(),
+        b.copy(), np.arange(n, dtype=np.int64),
     )  # fmt: skip
 
 
@@ -303,6 +303,17 @@ def formed_paths(rule: FormedRecord, dt: float, pos_d: np.ndarray, formation_alt
     return out
 
 
+@jit(inline=True, samples=lambda: [(np.zeros((2, 3)), np.arange(2, dtype=np.int64))])
+def slotted(pos_d: np.ndarray, slot_of: np.ndarray) -> np.ndarray:
+    """The setpoints (n, 3) with drone i's row the slot ``slot_of[i]`` of pos_d (n, 3) (a new array:
+    pos_d[slot_of]; row 0, the leader's, stays its own)."""
+    out = np.empty_like(pos_d)
+    for i in range(pos_d.shape[0]):
+        for c in range(pos_d.shape[1]):
+            out[i, c] = pos_d[slot_of[i], c]
+    return out
+
+
 @jit(inline=True, samples=_record_samples)
 def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: float, formation_alt: float) -> Any:
     """The layered rule's update once every follower is formed (:meth:`LayeredRule.update
@@ -314,8 +325,11 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     ``jet-aware`` also slots within D̄, or keep-outs overlapping in plan view), and nothing but the
     jet-aware slot distances and formation altitude (rule.slot_h, rule.formation_alt) is written:
     the rule's Python reaction flies the period. Else the velocity estimate
-    (:func:`estimate_velocities`) and the paths (:func:`formed_paths`) with the offsets held."""
+    (:func:`estimate_velocities`) and the paths (:func:`formed_paths`) with the offsets held.
+    Drone i's slot is row ``rule.slot_of[i]`` of pos_d (:func:`slotted`; identity but for a rule
+    that assigns slots, docs/barrier.md)."""
     n = pos.shape[0]
+    pos_d = slotted(pos_d, rule.slot_of)
     h = horizontal_distances(pos)
     if rule.jet_aware:
         sh = horizontal_distances(pos_d)

@@ -19,6 +19,7 @@ from .layered import (
     formed_paths,
     formed_update,
     path_limits,
+    slotted,
 )
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm
@@ -174,6 +175,7 @@ class LayeredRule(PaperRule):
         # the jet-aware separation's (read by the formed step when ``jet_aware_checks``)
         self._slot_h = np.full((n, n), np.inf)  # (n, n) horizontal distances of the setpoints
         self._formation_alt = np.full(1, np.inf)  # (1,) (m) offsets are kept floor_clearance above the floor
+        self.slot_of = np.arange(n, dtype=np.int64)  # (n,) drone i flies to slot slot_of[i] (layered.slotted)
         self._record: FormedRecord | None = None
 
     def record(self) -> FormedRecord:
@@ -204,6 +206,7 @@ class LayeredRule(PaperRule):
                 vel_d=self.vel_d,
                 acc_d=self.acc_d,
                 steer=self._followers,
+                slot_of=self.slot_of,
             )
         return self._record
 
@@ -345,7 +348,9 @@ class LayeredRule(PaperRule):
             )
             if not busy:
                 return out, self._followers
+            pos_d = self.slots(pos_d)
             return self._update_formed(t, positions, pos_d, formation_alt, self._estimate_velocities(t, positions))
+        pos_d = self.slots(pos_d)
         dt = self._estimate_velocities(t, positions)
         s = self._sense(t, positions, pos_d, formation_alt, dt)
         self._climb(s)
@@ -353,6 +358,17 @@ class LayeredRule(PaperRule):
         self._drop(s)
         self._formed(s)
         return self._fly_paths(s)
+
+    def slots(self, pos_d: np.ndarray) -> np.ndarray:
+        """Each drone's slot (n, 3): row ``slot_of[i]`` of the setpoints pos_d (n, 3) for drone i
+        (:func:`~.layered.slotted`); pos_d itself when every drone flies to its own."""
+        if self._own_slots:
+            return pos_d
+        return slotted(np.ascontiguousarray(pos_d, dtype=np.float64), self.slot_of)
+
+    @property
+    def _own_slots(self) -> bool:
+        return bool((self.slot_of == np.arange(self.n)).all())
 
     # ------------------------------------------------------------------ its steps
     def _estimate_velocities(self, t: float, positions: np.ndarray) -> float:

@@ -47,6 +47,31 @@ def check_formation_fits(n_followers: int, D: float, width: float, what: str, wh
         )
 
 
+def capt_assignment(starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
+    """The goal of each start: a permutation σ (m,) such that every pair satisfies
+    (x_i − x_j)·(g_σ(i) − g_σ(j)) ≥ 0, starts x (m, d), goals g (m, d) (docs/barrier.md, "slot
+    assignment"). From the identity, any pair that violates it swaps goals; a swap changes
+    Σ‖x_i − g_σ(i)‖² by 2·(x_i − x_j)·(g_σ(i) − g_σ(j)) < 0, so the sum of squared distances falls
+    at every swap and the loop ends (finitely many permutations). The pairwise condition is the one
+    the separation argument of CAPT (Turpin, Michael & Kumar, IJRR 2014) uses: straight paths flown
+    in step from such an assignment do not cross; the assignment minimising the sum satisfies it too."""
+    x = np.asarray(starts, dtype=float)
+    g = np.asarray(goals, dtype=float)
+    m = x.shape[0]
+    sigma = np.arange(m)
+    swapped = True
+    while swapped:
+        swapped = False
+        for i in range(m - 1):
+            dots = ((x[i] - x[i + 1 :]) * (g[sigma[i]] - g[sigma[i + 1 :]])).sum(axis=1)  # (m − i − 1,)
+            worst = int(np.argmin(dots))
+            if dots[worst] < -1e-12 * (1.0 + float(np.abs(dots).max())):
+                j = i + 1 + worst
+                sigma[i], sigma[j] = sigma[j], sigma[i]
+                swapped = True
+    return sigma
+
+
 def setpoints_kernel(
     k: int,
     T: float,

@@ -144,6 +144,7 @@ class Rule(NamedTuple):
     vel_d: np.ndarray  # (n, 3) references of the steered drones
     acc_d: np.ndarray  # (n, 3)
     steer: np.ndarray  # (n,) bool: the drones the rule steers
+    slot_of: np.ndarray  # (n,) int64: drone i flies to the slot of row slot_of[i] (identity: its own)
 
 
 class Gains(NamedTuple):

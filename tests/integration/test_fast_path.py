@@ -128,8 +128,9 @@ def test_a_path_tunable_set_by_a_scenario_flies_on_both_drivers(rule, key, value
 def test_the_barrier_filter_flies_fast_bit_identical(aero, monkeypatch):
     # the barrier separation filter (swarm_mj/formation/barrier.py, barrier_step) after the planner's
     # formed step in the chunk driver; a start whose followers are still guarded (flown on the
-    # filter's own references) when the chunks begin, so that its state crosses the two drivers
-    guarded = []
+    # filter's own references) when the chunks begin, so that its state crosses the two drivers; its
+    # followers fly to assigned slots (docs/barrier.md, "slot assignment"), not their own
+    guarded, slot_of = [], []
     run_chunk = fast.FastLoop.run
 
     def counting(self, k_end):
@@ -137,13 +138,15 @@ def test_the_barrier_filter_flies_fast_bit_identical(aero, monkeypatch):
         before = f.guarded_periods
         out = run_chunk(self, k_end)
         guarded.append(f.guarded_periods - before)
+        slot_of.append(self.policy.rule.slot_of.copy())
         return out
 
     monkeypatch.setattr(fast.FastLoop, "run", counting)
-    a, b = _both(stress_scenario(StressCase("barrier", 100015, 5, 3.0, 0.6, 15.0, aero=aero)))
+    a, b = _both(stress_scenario(StressCase("barrier", 100032, 5, 3.0, 0.6, 15.0, aero=aero)))
     _assert_same(a, b)
     assert b.extra["fused_periods"] > 0.3 * (len(a.log.t) - 1), b.extra
     assert sum(guarded) > 0  # the filter flew guarded drones inside the chunks
+    assert (slot_of[0] != np.arange(6)).any()  # the chunks flew permuted slots
 
 
 # --------------------------------------------------------------------------- a new force stage

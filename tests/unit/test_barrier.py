@@ -226,7 +226,7 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
         accel_down=down,
         tiebreak=0.0,
         sensing_range=1e9,
-        floor_m=-1.0,
+        floor_m=-1e6,  # below every sampled altitude: no pair is "both on the ground" (the filter skips those)
         priority_share=prio,
     )
     radii, a_h = bp.radii(), bp.horizontal_limit()
