@@ -144,7 +144,7 @@ def main(args: argparse.Namespace) -> int:
             "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)),
         )
     doc = {
-        "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")},
+        "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")} | {"aero": case.aero},
         "table": table,
         "starts": rows,
     }
