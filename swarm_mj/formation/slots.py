@@ -3,7 +3,7 @@
 Follower k (1-based) of n_f sits at angle π/2 + 2π(k−1)/n_f, at distance D from the
 leader's CURRENT position, at the leader's altitude. D is the leader-to-follower
 distance (circumradius): docs/interpretations.md §4 explains why the paper's "diameter"
-cannot be a true diameter. :func:`setpoints_kernel` builds every drone's references of a
+cannot be a true diameter. :func:`setpoints_into` builds every drone's references of a
 control step from them (the observation's ``setpoint*`` keys).
 """
 
@@ -72,46 +72,6 @@ def capt_assignment(starts: np.ndarray, goals: np.ndarray) -> np.ndarray:
     return sigma
 
 
-def setpoints_kernel(
-    k: int,
-    T: float,
-    leader: np.ndarray,
-    prev_leader: np.ndarray,
-    leader_vel: np.ndarray,
-    ref_pos: np.ndarray,
-    ref_vel: np.ndarray,
-    ref_acc: np.ndarray,
-    ref_yaw: float,
-    D: float,
-    unit_offsets: np.ndarray,
-):
-    """The references of the observation (paper §4): the leader's (n = 0) from its trajectory,
-    each follower's slot leader + D·offset_k (unit_offsets (n−1, 3)) moving with the leader's
-    velocity, estimated as (leader − prev_leader)/T (updated in place in leader_vel (3,), and
-    prev_leader (3,) set to leader; at k = 0 the velocity is left as it is). Returns sp, sp_vel,
-    sp_acc (n, 3) and the yaw references (n,)."""
-    n = unit_offsets.shape[0] + 1
-    sp, sp_vel, sp_acc, yaw = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)), np.empty(n)
-    setpoints_into(
-        k,
-        T,
-        leader,
-        prev_leader,
-        leader_vel,
-        ref_pos,
-        ref_vel,
-        ref_acc,
-        ref_yaw,
-        D,
-        unit_offsets,
-        sp,
-        sp_vel,
-        sp_acc,
-        yaw,
-    )
-    return sp, sp_vel, sp_acc, yaw
-
-
 @jit
 def setpoints_into(
     k: int,
@@ -130,7 +90,11 @@ def setpoints_into(
     sp_acc: np.ndarray,
     yaw: np.ndarray,
 ) -> None:
-    """:func:`setpoints_kernel` into sp, sp_vel, sp_acc (n, 3), yaw (n,) (the chunk driver's observation)."""
+    """The references of the observation (paper §4), into sp, sp_vel, sp_acc (n, 3) and the yaw references
+    yaw (n,): the leader's (n = 0) from its trajectory, each follower's slot leader + D·offset_k
+    (unit_offsets (n−1, 3)) moving with the leader's velocity, estimated as (leader − prev_leader)/T
+    (updated in place in leader_vel (3,), and prev_leader (3,) set to leader; at k = 0 the velocity is
+    left as it is)."""
     n = unit_offsets.shape[0] + 1
     if k > 0:
         for j in range(3):
@@ -152,7 +116,7 @@ def setpoints_into(
 
 def slot_positions(leader_pos: np.ndarray, D: float, unit_offsets: np.ndarray) -> np.ndarray:
     """Slots (n_followers, 3) = leader position (3,) + D · unit offsets (n_followers, 3)
-    (what :func:`setpoints_kernel` computes for the followers' rows)."""
+    (what :func:`setpoints_into` computes for the followers' rows)."""
     return leader_pos + D * unit_offsets
 
 
