@@ -127,9 +127,9 @@ class BarrierParams:
     )
     gain: float = _p(3.0, "1/s", "k of (B): α(s) = k·s for both orders (critically damped)")
     max_tilt_deg: float = _p(30.0, "deg", "horizontal limit (g − accel_down)·tan(this)", 0.0, 89.0)
-    accel_up: float = _p(5.0, "m/s²", "vertical acceleration limit up")
-    accel_down: float = _p(3.0, "m/s²", "vertical acceleration limit down (below g)", 0.0, 9.8)
-    tiebreak: float = _p(1.0, "m/s²", "keep-right acceleration of the deadlock tie-break", 0.0, open_lo=False)
+    accel_up: float = _p(3.0, "m/s²", "vertical acceleration limit up")
+    accel_down: float = _p(2.0, "m/s²", "vertical acceleration limit down (below g)", 0.0, 9.8)
+    tiebreak: float = _p(0.25, "m/s²", "keep-right acceleration of the deadlock tie-break", 0.0, open_lo=False)
     relax_weight: float = _p(100.0, "", "w, the cost of the slack δ when the constraints are infeasible")
     sensing_range: float = _p(
         4.0, "m", "a drone filters against the drones within this 3D distance (default: the scenario's)"
@@ -168,6 +168,9 @@ class BarrierParams:
     )
     gate_holds_start: bool = _p(
         True, "", "the take-off gate holds a follower where it stood (else where it is now)", None
+    )
+    gate_leader_way: bool = _p(
+        False, "", "the take-off gate also holds a follower near the leader's way to its reference", None
     )
     assign_slots: bool = _p(
         True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
@@ -679,8 +682,11 @@ def takeoff_wait_kernel(
     gate_rho: float,
     horizon: float,
     wait: np.ndarray,
+    leader_goal: np.ndarray,
+    use_goal: bool,
 ) -> None:
-    """:func:`takeoff_wait` into ``wait`` (n,) bool; ``predict`` False: the present positions only."""
+    """:func:`takeoff_wait` into ``wait`` (n,) bool; ``predict`` False: the present positions only;
+    ``use_goal``: also the leader's way, the segment from drone 0 to its reference ``leader_goal`` (3,)."""
     n = positions.shape[0]
     for i in range(n):
         wait[i] = False
@@ -703,6 +709,14 @@ def takeoff_wait_kernel(
                     d2 += q * q
                 rho2 = min(rho2, d2)
                 k += 1
+            if use_goal and j == 0:  # the leader's way to its reference, sampled every tenth
+                for k in range(1, 11):
+                    d2 = 0.0
+                    for c in range(3):
+                        on = positions[0, c] + 0.1 * k * (leader_goal[c] - positions[0, c])
+                        q = (positions[i, c] - on) / radii[c]
+                        d2 += q * q
+                    rho2 = min(rho2, d2)
             if np.sqrt(rho2) < gate_rho:
                 wait[i] = True
                 break
@@ -730,7 +744,7 @@ def takeoff_wait(
     wait = np.zeros(pos.shape[0], dtype=np.bool_)
     takeoff_wait_kernel(
         pos, c(radii, dtype=float), c(filters, dtype=np.bool_), vel, acc, velocities is not None, bp.floor_m,
-        bp.gate_rho, bp.gate_horizon_s, wait,
+        bp.gate_rho, bp.gate_horizon_s, wait, np.zeros(3), False,
     )  # fmt: skip
     return wait
 
@@ -897,6 +911,8 @@ class BarrierRecord(NamedTuple):
     release_mps: float  # m/s
     ground_band_m: float  # m
     gate_holds_start: bool
+    leader_filters: bool  # drone 0 filters too (its trajectory's references are its nominal)
+    gate_leader_way: bool  # the take-off gate also keeps off the leader's way to its reference
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -926,7 +942,7 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
         float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m),
         float(bp.release_mps),
-        float(bp.ground_band_m), bool(bp.gate_holds_start), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(),
+        float(bp.ground_band_m), bool(bp.gate_holds_start), bool(bp.leader_filters), bool(bp.gate_leader_way), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(),
         z3.copy(), z3.copy(),
         np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
@@ -955,6 +971,9 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     drones flagged ``steer`` (n,). Updates the record's state; appends the relax events to its
     buffer (the caller drains it)."""
     n = positions.shape[0]
+    own = steer.copy()  # the drones this filter flies: the steered ones, and the leader with leader_filters
+    if rec.leader_filters and n > 0:
+        own[0] = True
     if not rec.flags[0]:
         rec.start[:] = positions  # where each drone stands on the ground
         rec.flags[0] = True
@@ -972,7 +991,15 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     u_nom = acc_d.copy()
     any_g = False
     for i in range(n):
-        g[i] = rec.guarded[i] and steer[i]
+        g[i] = rec.guarded[i] and own[i]
+        if own[i] and not steer[i] and not g[i]:  # the leader, with leader_filters
+            far2 = 0.0
+            for c in range(3):
+                far2 += (pos_d[i, c] - positions[i, c]) ** 2
+            if far2 > rec.leash_m * rec.leash_m:  # a reference it cannot fly now (its trajectory's first):
+                g[i] = True  # guarded from where it is, its nominal the PD onto that reference
+                rec.ref[i] = positions[i]
+                rec.ref_vel[i] = vel[i]
         if g[i]:
             any_g = True
             ref[i] = rec.ref[i]
@@ -990,13 +1017,13 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                 u_nom[i, 2] = min(max(u_nom[i, 2], -rec.accel_down), rec.accel_up)
     wait = np.zeros(n, dtype=np.bool_)
     takeoff_wait_kernel(positions, rec.radii, steer, vel, rec.sensed_acc, True, rec.floor_m, rec.gate_rho,
-                        rec.gate_horizon_s, wait)  # fmt: skip
+                        rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way)  # fmt: skip
     filters = np.empty(n, dtype=np.bool_)
     a_h = np.full(n, rec.a_h)
     a_up = np.full(n, rec.accel_up)
     a_down = np.full(n, rec.accel_down)
     for i in range(n):
-        filters[i] = steer[i] and not wait[i]
+        filters[i] = own[i] and not wait[i]
         if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
             a_down[i] = 0.0  # near the ground: not pushed down
     u, active, relaxed, _ = filter_accelerations(
