@@ -134,12 +134,12 @@ class BarrierParams:
     sensing_range: float = _p(
         4.0, "m", "a drone filters against the drones within this 3D distance (default: the scenario's)"
     )
-    leader_filters: bool = _p(False, "", "whether drone 0 takes its share (else the followers take all of it)", None)
+    leader_filters: bool = _p(True, "", "whether drone 0 takes its share (else the followers take all of it)", None)
     nominal_kp: float = _p(4.0, "1/s²", "the nominal's PD towards the reference: position gain")
     nominal_kd: float = _p(4.0, "1/s", "the nominal's PD: velocity gain (critically damped at 2 rad/s with kp 4)")
     floor_m: float = _p(0.1, "m", "a pair of drones both below this altitude (on the ground) is not filtered", None)
     priority_share: float = _p(
-        0.2, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
+        0.0, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
     )
     leash_m: float = _p(0.25, "m", "a follower's reference is kept within this of the drone")
     accel_filter_s: float = _p(
@@ -710,13 +710,17 @@ def takeoff_wait_kernel(
                 rho2 = min(rho2, d2)
                 k += 1
             if use_goal and j == 0:  # the leader's way to its reference, sampled every tenth
+                w2 = 1e9
                 for k in range(1, 11):
                     d2 = 0.0
                     for c in range(3):
                         on = positions[0, c] + 0.1 * k * (leader_goal[c] - positions[0, c])
                         q = (positions[i, c] - on) / radii[c]
                         d2 += q * q
-                    rho2 = min(rho2, d2)
+                    w2 = min(w2, d2)
+                if np.sqrt(w2) < 1.0:
+                    wait[i] = True
+                    break
             if np.sqrt(rho2) < gate_rho:
                 wait[i] = True
                 break

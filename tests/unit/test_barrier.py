@@ -263,10 +263,11 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
 
 def test_relaxation_is_used_and_flagged():
     """Two drones closing at 4 m/s, 0.9 m apart (ρ = 1.2), the tilt limited to 5°: braking within the
-    limits cannot satisfy (B) (it asks for 2.5 m/s² each, the limits give 0.6)."""
+    limits cannot satisfy (B) (it asks for 2.5 m/s² each, the limits give 0.6). The burden split in
+    halves (``priority_share`` 0.5), so that both drones have a share to relax."""
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
-    bp = BarrierParams(max_tilt_deg=5.0)
+    bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5)
     u, active, relaxed, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
     assert active.all() and relaxed.all()
     for i in range(2):
@@ -396,8 +397,9 @@ def test_filter_guards_a_violating_reference_and_satisfies_the_barrier():
 
 def test_filter_hands_a_drone_back_to_its_planner():
     """A follower guarded once (by a neighbour passing close) is handed back once its nominal is
-    safe and its reference is back on the planner's: the output is then the planner's bit for bit."""
-    bp = BarrierParams(lanes=False)
+    safe and its reference is back on the planner's: the output is then the planner's bit for bit
+    (the burden split in halves, so that both are guarded)."""
+    bp = BarrierParams(lanes=False, priority_share=0.5)
     f = BarrierFilter(bp)
     f.reset(3)
     dt = 0.01
@@ -473,8 +475,9 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     """Two followers closing at 4 m/s, 0.9 m apart, the tilt limited to 5° (the case of
     test_relaxation_is_used_and_flagged): the filter relaxes both, and each gets one relax event
     at the first period of the stretch (t of that call), not one per period; the counters count
-    drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``."""
-    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, lanes=False))
+    drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``
+    (the burden split in halves, so that both relax)."""
+    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, lanes=False, priority_share=0.5))
     f.reset(3)
     pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
@@ -485,3 +488,63 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     assert f.relaxed_periods == 4 and f.active_periods == 4
     assert f.events == [{"t": 0.0, "drone": d, "other": -1, "action": "relax"} for d in (1, 2)]
     assert f.record().ev_count[0] == 0  # the buffer was emptied into events
+
+
+def test_filter_flies_the_leader_with_leader_filters():
+    """The leader (not steered) and a follower closing head-on. Without ``leader_filters`` the
+    leader's row is its trajectory's, bit for bit, and the follower takes the whole constraint
+    (the leader's acceleration added); with it the leader is filtered too: its row changes and (B),
+    written out here, holds for its share of the pair (the lower index, ``priority_share`` of the
+    burden). A leader whose trajectory's reference is beyond ``leash_m`` (its first) is guarded
+    from where it is: its reference is its position, its velocity its sensed one
+    (docs/barrier.md, "the leader")."""
+    pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
+    vel = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    a_d = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    steer = np.array([False, True])
+    for on in (False, True):
+        bp = BarrierParams(leader_filters=on, tiebreak=0.0, both_states=False)
+        f = BarrierFilter(bp)
+        f.reset(2)
+        o_p, o_v, o_a = f(_sensed(0.0, pos, vel, 0.0), pos, vel, a_d, steer)
+        A, b = _by_hand_barrier(pos[0], vel[0], pos[1], vel[1], bp.radii(), bp.gain)
+        assert b > 0.0  # a burden
+        if not on:
+            for o, i in zip((o_p, o_v, o_a), (pos, vel, a_d)):
+                np.testing.assert_array_equal(o[0], i[0])
+            assert not f.guarded[0]
+        else:
+            assert f.guarded[0]
+            assert A @ o_a[0] >= bp.priority_share * b - 1e-9
+            assert A @ a_d[0] < bp.priority_share * b
+    f = BarrierFilter(BarrierParams(leader_filters=True))
+    f.reset(2)
+    far = pos.copy()
+    far[1] = [30.0, 0.0, 2.0]
+    goal = far.copy()
+    goal[0] = [2.0, 2.5, 2.0]  # the leader's trajectory starts 3.2 m away
+    o_p, o_v, _ = f(_sensed(0.0, far, vel, 0.0), goal, np.zeros((2, 3)), np.zeros((2, 3)), steer)
+    assert f.guarded[0]
+    np.testing.assert_array_equal(o_p[0], far[0])  # where it is (dt = 0)
+    np.testing.assert_array_equal(o_v[0], vel[0])
+
+
+def test_take_off_gate_keeps_off_the_leaders_way():
+    """A follower on the ground 1.2 m from the leader, under the leader's way to its reference
+    (3 m past it at 2 m up), out of its present and predicted keep-out: ``gate_leader_way`` holds
+    it; off, it is free; a follower beside the way, off it by more than the gate, is free either
+    way (takeoff_wait_kernel's segment, docs/barrier.md, "take-off gate")."""
+    from swarm_mj.formation.barrier import takeoff_wait_kernel
+
+    bp = BarrierParams()
+    radii = bp.radii()
+    pos = np.array([[0.0, 0.0, 0.5], [0.0, 1.2, 0.05], [2.5, -0.5, 0.05]])
+    filters = np.array([False, True, True])
+    z = np.zeros((3, 3))
+    goal = np.array([0.0, 3.0, 2.0])
+    for use in (True, False):
+        wait = np.zeros(3, dtype=np.bool_)
+        takeoff_wait_kernel(pos, radii, filters, z, z, True, bp.floor_m, bp.gate_rho, bp.gate_horizon_s, wait,
+                            goal, use)  # fmt: skip
+        assert wait[1] == use
+        assert not wait[2]
