@@ -310,6 +310,9 @@ class BatchEvaluator:
         self._errors = np.empty((self.K, self.m, 6))  # (K, m, 6) e_x..e_ψ
         self._t = np.arange(self.K + 1) * s.control_period  # (K+1,) sample times
         self._stop = False  # set when one thread fails: the others stop at their next period
+        # period.command's Python body, made once: its callees are bound at the first flight and every
+        # flight passes records of the same types (before, each flight made and bound its own: 2.6 ms)
+        self._command = python_body(period_command)
         self.max_tilt_deg = np.zeros(self.m)  # (m,) of the last batch
         self.violation = np.zeros(self.m)  # (m,) of the last batch
         self.step: dict[str, dict[str, np.ndarray]] = {}
@@ -360,7 +363,7 @@ class BatchEvaluator:
         T, lagged = s.control_period, s.motor_tau > 0
         rec = ctl.control_record(np.zeros((m_g, 4)), priority=lagged)
         pred = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T).record() if lagged else Predictor.off(m_g)
-        ff, obs, command = Feedforward.off(m_g), Obs.empty(m_g), python_body(period_command)
+        ff, obs, command = Feedforward.off(m_g), Obs.empty(m_g), self._command
         pos_d, zero3, yaw_d = self._pos_d[rows], self._zero3[rows], self._yaw_d[rows]
         obs.yaw[:] = yaw_d  # ψ_d (m_g,); the known wind force obs.wf stays zero
         errors, track = self._errors, grp.track
