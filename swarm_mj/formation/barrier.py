@@ -24,9 +24,10 @@ ACC 2016; Wang, Ames & Egerstedt, IEEE T-RO 2017, whose decentralised split is u
 in the relative acceleration, A·(u_i − u_j) ≥ b with A = 2 S q and b = −2‖q̇‖² − 2k·ḣ − k²·h; drone i
 enforces A·u_i ≥ s_ij·b and drone j enforces −A·u_j ≥ (1 − s_ij)·b, so that their sum is (B). Room
 (b ≤ 0) is split in halves (Wang et al.'s equal split); a burden (b > 0) by priority, the lower
-index taking ``priority_share`` (b is symmetric in i, j, so both drones split the same way). Against
-a drone that does not filter (the leader, which flies its trajectory) a follower takes all of it,
-A·u_i ≥ b + A·â_j, â_j the leader's acceleration estimated from its positions (low-passed).
+index taking ``priority_share`` (b is symmetric in i, j, so both drones split the same way). The
+leader filters too (``leader_filters``); against a drone that does not filter (the leader with it
+off, which flies its trajectory) a follower takes all of it, A·u_i ≥ b + A·â_j, â_j the leader's
+acceleration estimated from its positions (low-passed).
 
 **Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
 constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
@@ -781,7 +782,7 @@ class BarrierRule(Rule):
     positions as sensed, their velocities and the leader's acceleration estimated from successive
     positions), and (r, ṙ) advance with the result (semi-implicit Euler over the control period),
     kept within ``leash_m`` of the drone. A follower on the ground waits under the take-off gate.
-    The leader flies its trajectory and does not filter; the followers take all of each constraint
+    The leader filters or not by ``leader_filters``; when it does not, the followers take all of each constraint
     with it. A relaxation is an event ``{t, drone, other: -1, action: "relax"}`` (the first period of
     each stretch); ``active_periods`` and ``relaxed_periods`` count drone-periods.
     """
@@ -1106,7 +1107,9 @@ class BarrierFilter:
     below the ground, within ``leash_m`` of the drone); it becomes free again when the filter leaves
     its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
     (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
-    The drones not steered (the leader) do not filter; their acceleration is estimated from the
+    The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
+    trajectory's reference is beyond ``leash_m``, as at its first period); drones that do not filter
+    (the leader without it) keep their references; their acceleration is estimated from the
     sensed velocities, low-passed (``accel_filter_s``).
 
     One period is :func:`barrier_step` on the filter's record (:meth:`record`): this class calls it,
