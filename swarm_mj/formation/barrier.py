@@ -946,9 +946,8 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
         float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
         float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m),
-        float(bp.release_mps),
-        float(bp.ground_band_m), bool(bp.gate_holds_start), bool(bp.leader_filters), bool(bp.gate_leader_way), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(),
-        z3.copy(), z3.copy(),
+        float(bp.release_mps), float(bp.ground_band_m), bool(bp.gate_holds_start), bool(bp.leader_filters),
+        bool(bp.gate_leader_way), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
         np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
     )  # fmt: skip
