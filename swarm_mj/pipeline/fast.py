@@ -41,9 +41,9 @@ import numpy as np
 from .. import _jit
 from ..errors import UserError
 from ..formation.anticollision import JetAwareRule, LayeredRule, NoRule, any_below, idle_record
-from ..formation.barrier import BarrierFilter, BarrierPlannerRule, BarrierRecord, barrier_off
+from ..formation.barrier import BarrierFilter, BarrierPlannerRule, barrier_off
 from ..physics import _mjstep
-from .records import Obs, Rule
+from .records import Obs
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
@@ -82,21 +82,6 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
     if env.n > 1 and type(getattr(rule, "separation_filter", None)) not in (type(None), BarrierFilter):
         return "a separation filter other than the barrier filter has no compiled step"
     return None
-
-
-def _filter_record(rule, n: int, on: bool) -> BarrierRecord:  # noqa: ANN001
-    """The rule's barrier separation filter as a record (its own arrays), or the stand-in."""
-    f = getattr(rule, "separation_filter", None) if on else None
-    return barrier_off(n) if f is None else f.record()
-
-
-# --------------------------------------------------------------------------- records of a run
-
-
-def _rule_record(rule, n: int, on: bool) -> Rule:  # noqa: ANN001 - LayeredRule
-    """The layered rule's formed step as a record: the rule's own (:meth:`LayeredRule.record`, over its
-    arrays), or stand-ins when ``on`` is False."""
-    return rule.record() if on else idle_record(n)
 
 
 class FastLoop:
@@ -147,8 +132,8 @@ class FastLoop:
         env, policy = self.env, self.policy
         sim = env.sim
         # the rule's and its filter's own records (over their arrays), or the run's stand-ins
-        rule = _rule_record(policy.rule, env.n, True) if self._layered else self._idle_rule
-        filt = _filter_record(policy.rule, env.n, True) if self._filtered else self._no_filter
+        rule = policy.rule.record() if self._layered else self._idle_rule
+        filt = policy.rule.separation_filter.record() if self._filtered else self._no_filter
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)

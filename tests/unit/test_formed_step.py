@@ -16,7 +16,7 @@ from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule
 from swarm_mj.formation.layered import PathLimits, formed_update
 from swarm_mj.formation.rule_params import PARAM_KEYS, RuleParams
-from swarm_mj.pipeline import fast, period
+from swarm_mj.pipeline import period
 from swarm_mj.pipeline.records import Obs
 from swarm_mj.scenario import parse_scenario
 
@@ -55,7 +55,7 @@ def _fly_per_period(rule: LayeredRule, slots: np.ndarray, k: int) -> list[tuple[
 def _fly_chunk_stage(rule: LayeredRule, slots: np.ndarray, k: int) -> list[tuple[np.ndarray, ...]]:
     """k periods of the chunk driver's stage on the record the chunk driver builds for this rule."""
     n = len(slots)
-    record = fast._rule_record(rule, n, True)
+    record = rule.record()  # what the chunk driver passes for a layered rule (FastLoop._args)
     obs = Obs.empty(n)
     obs.pos[:] = slots
     obs.sp[:] = slots
