@@ -1113,8 +1113,9 @@ class BarrierFilter:
     sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
     sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
     guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``, never
-    below the ground, within ``leash_m`` of the drone); it becomes free again when the filter leaves
-    its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
+    below the ground, within ``leash_m`` of the drone, and there its velocity not running away from
+    the drone's: ``leash_anti_windup``); it becomes free again when the filter leaves its nominal
+    unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
     (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
     trajectory's reference is beyond ``leash_m``, as at its first period); drones that do not filter
