@@ -143,9 +143,6 @@ class BarrierParams:
         0.0, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
     )
     leash_m: float = _p(0.25, "m", "a follower's reference is kept within this of the drone")
-    leash_anti_windup: bool = _p(
-        True, "", "`barrier`: on the leash, the reference's velocity does not run away from the drone's", None
-    )
     accel_filter_s: float = _p(
         0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
     )
@@ -915,7 +912,6 @@ class BarrierRecord(NamedTuple):
     gate_rho: float
     gate_horizon_s: float  # s
     leash_m: float  # m
-    leash_anti_windup: bool  # on the leash, ṙ does not run away from the drone
     release_m: float  # m
     release_mps: float  # m/s
     ground_band_m: float  # m
@@ -949,9 +945,8 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         on, bp.radii(vehicle), _guard_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
         float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
         float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
-        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m),
-        bool(bp.leash_anti_windup), float(bp.release_m), float(bp.release_mps), float(bp.ground_band_m),
-        bool(bp.gate_holds_start), bool(bp.leader_filters),
+        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m),
+        float(bp.release_mps), float(bp.ground_band_m), bool(bp.gate_holds_start), bool(bp.leader_filters),
         bool(bp.gate_leader_way), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
         np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
@@ -1071,12 +1066,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                 far2 += (rec.ref[i, c] - positions[i, c]) ** 2
             far = np.sqrt(far2)
             if far > rec.leash_m:
-                away = 0.0  # (ṙ − v)·ê, ê the unit vector from the drone to r: r running away from it
                 for c in range(3):
-                    away += (rec.ref_vel[i, c] - vel[i, c]) * (rec.ref[i, c] - positions[i, c]) / far
-                for c in range(3):
-                    if rec.leash_anti_windup and away > 0.0:  # ṙ loses that part: no wind-up on the leash
-                        rec.ref_vel[i, c] -= away * (rec.ref[i, c] - positions[i, c]) / far
                     rec.ref[i, c] = positions[i, c] + (rec.ref[i, c] - positions[i, c]) * (rec.leash_m / far)
             for c in range(3):
                 out_p[i, c] = rec.ref[i, c]
@@ -1113,9 +1103,8 @@ class BarrierFilter:
     sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
     sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
     guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``, never
-    below the ground, within ``leash_m`` of the drone, and there its velocity not running away from
-    the drone's: ``leash_anti_windup``); it becomes free again when the filter leaves its nominal
-    unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
+    below the ground, within ``leash_m`` of the drone); it becomes free again when the filter leaves
+    its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
     (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
     trajectory's reference is beyond ``leash_m``, as at its first period); drones that do not filter
