@@ -135,14 +135,19 @@ class BarrierParams:
     sensing_range: float = _p(
         4.0, "m", "a drone filters against the drones within this 3D distance (default: the scenario's)"
     )
-    leader_filters: bool = _p(True, "", "whether drone 0 takes its share (else the followers take all of it)", None)
+    leader_filters: bool = _p(
+        True, "", "drone 0's references pass the filter (its guarded approach; its share with leader_yields)", None
+    )
     nominal_kp: float = _p(4.0, "1/s²", "the nominal's PD towards the reference: position gain")
     nominal_kd: float = _p(4.0, "1/s", "the nominal's PD: velocity gain (critically damped at 2 rad/s with kp 4)")
     floor_m: float = _p(0.1, "m", "a pair of drones both below this altitude (on the ground) is not filtered", None)
     priority_share: float = _p(
         0.0, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
     )
-    leash_m: float = _p(0.25, "m", "a follower's reference is kept within this of the drone")
+    leash_m: float = _p(0.1, "m", "a guarded reference is kept within this of the drone")
+    leader_guard_m: float = _p(
+        0.25, "m", "with leader_filters: a leader farther than this from its trajectory's reference is guarded"
+    )
     accel_filter_s: float = _p(
         0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
     )
@@ -172,6 +177,9 @@ class BarrierParams:
     )
     gate_leader_way: bool = _p(
         False, "", "the take-off gate also holds a follower near the leader's way to its reference", None
+    )
+    leader_yields: bool = _p(
+        False, "", "with leader_filters: the leader takes half of each pair's room (else the followers take all)", None
     )
     assign_slots: bool = _p(
         True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
@@ -912,12 +920,14 @@ class BarrierRecord(NamedTuple):
     gate_rho: float
     gate_horizon_s: float  # s
     leash_m: float  # m
+    leader_guard_m: float  # m
     release_m: float  # m
     release_mps: float  # m/s
     ground_band_m: float  # m
     gate_holds_start: bool
     leader_filters: bool  # drone 0 filters too (its trajectory's references are its nominal)
     gate_leader_way: bool  # the take-off gate also keeps off the leader's way to its reference
+    leader_yields: bool  # with leader_filters: the leader takes its share of each pair's constraint
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -945,9 +955,10 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         on, bp.radii(vehicle), _guard_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
         float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
         float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
-        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m), float(bp.release_m),
-        float(bp.release_mps), float(bp.ground_band_m), bool(bp.gate_holds_start), bool(bp.leader_filters),
-        bool(bp.gate_leader_way), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
+        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m),
+        float(bp.leader_guard_m), float(bp.release_m), float(bp.release_mps), float(bp.ground_band_m),
+        bool(bp.gate_holds_start), bool(bp.leader_filters), bool(bp.gate_leader_way), bool(bp.leader_yields),
+        np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
         np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
     )  # fmt: skip
@@ -1000,7 +1011,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             far2 = 0.0
             for c in range(3):
                 far2 += (pos_d[i, c] - positions[i, c]) ** 2
-            if far2 > rec.leash_m * rec.leash_m:  # a reference it cannot fly now (its trajectory's first):
+            if far2 > rec.leader_guard_m * rec.leader_guard_m:  # a reference it cannot fly now (its first):
                 g[i] = True  # guarded from where it is, its nominal the PD onto that reference
                 rec.ref[i] = positions[i]
                 rec.ref_vel[i] = vel[i]
@@ -1030,8 +1041,11 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         filters[i] = own[i] and not wait[i]
         if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
             a_down[i] = 0.0  # near the ground: not pushed down
+    pair_filters = filters.copy()  # the drones that take a share of the pairs' constraints
+    if n > 0 and not steer[0] and not rec.leader_yields:
+        pair_filters[0] = False  # the leader flies its nominal; the followers take all of each pair
     u, active, relaxed, _ = filter_accelerations(
-        ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, filters, rec.radii, rec.gain, a_h, a_up, a_down,
+        ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, rec.radii, rec.gain, a_h, a_up, a_down,
         rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states,
     )  # fmt: skip
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
@@ -1107,7 +1121,8 @@ class BarrierFilter:
     its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
     (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
-    trajectory's reference is beyond ``leash_m``, as at its first period); drones that do not filter
+    trajectory's reference is beyond ``leader_guard_m``, as at its first period; taking a share of
+    each pair only with ``leader_yields``); drones that do not filter
     (the leader without it) keep their references; their acceleration is estimated from the
     sensed velocities, low-passed (``accel_filter_s``).
 

@@ -493,26 +493,32 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
 def test_filter_flies_the_leader_with_leader_filters():
     """The leader (not steered) and a follower closing head-on. Without ``leader_filters`` the
     leader's row is its trajectory's, bit for bit, and the follower takes the whole constraint
-    (the leader's acceleration added); with it the leader is filtered too: its row changes and (B),
-    written out here, holds for its share of the pair (the lower index, ``priority_share`` of the
-    burden). A leader whose trajectory's reference is beyond ``leash_m`` (its first) is guarded
-    from where it is: its reference is its position, its velocity its sensed one
-    (docs/barrier.md, "the leader")."""
+    (the leader's acceleration added). With it and ``leader_yields`` (the leader takes its share) the
+    leader is filtered too: its row changes and (B), written out here, holds for its share of the
+    pair (the lower index, ``priority_share`` of the burden). With it and without ``leader_yields``
+    (the default) the leader's row is its nominal, bit for bit, and the follower's command holds (B)
+    for the whole pair, as when the leader does not filter. A leader whose trajectory's reference is
+    beyond ``leader_guard_m`` (its first) is guarded from where it is: its reference is its position, its
+    velocity its sensed one (docs/barrier.md, "the leader")."""
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
-    vel = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
+    vel = np.array([[0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]])  # a burden within the follower's limits
     a_d = np.array([[1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
     steer = np.array([False, True])
-    for on in (False, True):
-        bp = BarrierParams(leader_filters=on, tiebreak=0.0, both_states=False)
+    for on, yields in ((False, False), (True, True), (True, False)):
+        bp = BarrierParams(leader_filters=on, leader_yields=yields, tiebreak=0.0, both_states=False)
         f = BarrierFilter(bp)
         f.reset(2)
         o_p, o_v, o_a = f(_sensed(0.0, pos, vel, 0.0), pos, vel, a_d, steer)
         A, b = _by_hand_barrier(pos[0], vel[0], pos[1], vel[1], bp.radii(), bp.gain)
         assert b > 0.0  # a burden
-        if not on:
+        if not yields:
             for o, i in zip((o_p, o_v, o_a), (pos, vel, a_d)):
                 np.testing.assert_array_equal(o[0], i[0])
             assert not f.guarded[0]
+            # the follower takes all of it: A·(u_0 − u_1) ≥ b with the leader's estimate 0 at the first call
+            assert -A @ o_a[1] >= b - 1e-9
+            assert -A @ a_d[1] < b
+            assert f.relaxed_periods == 0
         else:
             assert f.guarded[0]
             assert A @ o_a[0] >= bp.priority_share * b - 1e-9
