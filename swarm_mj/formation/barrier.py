@@ -1037,13 +1037,13 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     a_h = np.full(n, rec.a_h)
     a_up = np.full(n, rec.accel_up)
     a_down = np.full(n, rec.accel_down)
+    pair_filters = np.empty(n, dtype=np.bool_)  # the drones that take a share of the pairs' constraints
     for i in range(n):
         filters[i] = own[i] and not wait[i]
+        # the leader (own, not steered) only with leader_yields: else it flies its nominal, the followers take all
+        pair_filters[i] = filters[i] and (steer[i] or rec.leader_yields)
         if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
             a_down[i] = 0.0  # near the ground: not pushed down
-    pair_filters = filters.copy()  # the drones that take a share of the pairs' constraints
-    if n > 0 and not steer[0] and not rec.leader_yields:
-        pair_filters[0] = False  # the leader flies its nominal; the followers take all of each pair
     u, active, relaxed, _ = filter_accelerations(
         ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, rec.radii, rec.gain, a_h, a_up, a_down,
         rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states,
