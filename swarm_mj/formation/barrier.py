@@ -62,6 +62,14 @@ only brings h back exponentially.
 filter's keep-out is the vehicle's inflated by twice ``tracking_margin_m`` (docs/barrier.md gives
 the measured error and why the margin is smaller).
 
+**Vertical jerk limit.** The reference of a guarded drone advances with the filtered command whose
+vertical component turns by at most ``vertical_jerk_limit``·dt from the last period's: the
+backstepping controller turns a vertical command that chatters into thrust and tilt swings it
+cannot follow (its attitude saturates and the drone runs off its reference, docs/barrier.md,
+"jerk limit"). Where the limit cuts a command the barrier changed, (B) holds for the flown
+reference only as far as the limit allowed; those drone-periods are counted
+(:attr:`BarrierFilter.rate_limited_periods`), and the measured keep-out time is what tells.
+
 **The separation filter** (:class:`BarrierFilter`, a :class:`~.separation.SeparationFilter`): the
 filter guarding any planner's references; ``anti_collision = "barrier"`` (:class:`BarrierPlannerRule`)
 is the jet-aware planner with it. **The lane rule** (:class:`BarrierRule`, ``"barrier-lanes"``, the
@@ -180,6 +188,13 @@ class BarrierParams:
     )
     leader_yields: bool = _p(
         False, "", "with leader_filters: the leader takes half of each pair's room (else the followers take all)", None
+    )
+    vertical_jerk_limit: float = _p(
+        60.0,
+        "m/s³",
+        "`barrier`: a guarded drone's vertical acceleration reference turns ≤ this·dt a period (0: off)",
+        0.0,
+        open_lo=False,
     )
     assign_slots: bool = _p(
         True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
@@ -928,15 +943,17 @@ class BarrierRecord(NamedTuple):
     leader_filters: bool  # drone 0 filters too (its trajectory's references are its nominal)
     gate_leader_way: bool  # the take-off gate also keeps off the leader's way to its reference
     leader_yields: bool  # with leader_filters: the leader takes its share of each pair's constraint
+    vertical_jerk_limit: float  # m/s³ (0: off)
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
     sensed_acc: np.ndarray  # (n, 3) low-passed accelerations from the sensed velocities
+    prev_acc: np.ndarray  # (n, 3) the acceleration references returned by the last call
     prev_vel: np.ndarray  # (n, 3) the sensed velocities of the last call
     start: np.ndarray  # (n, 3) where each drone stood on the ground (the first call's positions)
     was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
     flags: np.ndarray  # (2,) bool: start taken, prev_vel taken
-    counts: np.ndarray  # (3,) int64: active, relaxed, guarded drone-periods
+    counts: np.ndarray  # (4,) int64: active, relaxed, guarded, rate-limited drone-periods
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
     ev_count: np.ndarray  # (1,) int64 events held
@@ -958,8 +975,9 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m),
         float(bp.leader_guard_m), float(bp.release_m), float(bp.release_mps), float(bp.ground_band_m),
         bool(bp.gate_holds_start), bool(bp.leader_filters), bool(bp.gate_leader_way), bool(bp.leader_yields),
-        np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
-        np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(3, dtype=np.int64), np.zeros(cap),
+        float(bp.vertical_jerk_limit), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
+        z3.copy(),
+        np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(4, dtype=np.int64), np.zeros(cap),
         np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
     )  # fmt: skip
 
@@ -1071,6 +1089,13 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             rec.ref_vel[i] = 0.0
         if g[i]:  # (r, ṙ) advance with the filtered command, never below the ground, on the leash
             rec.counts[2] += 1
+            if rec.vertical_jerk_limit > 0.0 and dt > 0.0:  # a vertical command the drone can follow
+                step = rec.vertical_jerk_limit * dt
+                lim = min(max(u[i, 2], rec.prev_acc[i, 2] - step), rec.prev_acc[i, 2] + step)
+                cut = lim != u[i, 2]
+                u[i, 2] = lim
+                if cut and active[i]:  # a command the barrier changed, turned slower than it asked
+                    rec.counts[3] += 1
             far2 = 0.0
             for c in range(3):
                 rec.ref_vel[i, c] = ref_vel[i, c] + u[i, c] * dt
@@ -1100,6 +1125,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                 dv += (rec.ref_vel[i, c] - vel_d[i, c]) ** 2
             back = np.sqrt(dp) <= rec.release_m and np.sqrt(dv) <= rec.release_mps
         rec.guarded[i] = (g[i] and not back) or wait[i]
+    rec.prev_acc[:] = out_a
     return out_p, out_v, out_a
 
 
@@ -1117,7 +1143,8 @@ class BarrierFilter:
     sensed drone, on (r, ṙ) (= the planner's (pos_d, vel_d) for a free drone) and on the drone's
     sensed state. A free drone whose nominal the filter changed becomes guarded; (r, ṙ) of a
     guarded drone advance with the filtered command (semi-implicit Euler over ``sensed.dt``, never
-    below the ground, within ``leash_m`` of the drone); it becomes free again when the filter leaves
+    below the ground, within ``leash_m`` of the drone, its vertical command within
+    ``vertical_jerk_limit``·dt of the last period's); it becomes free again when the filter leaves
     its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
     (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
@@ -1178,6 +1205,12 @@ class BarrierFilter:
     def guarded_periods(self) -> int:
         """Drone-periods flown on the filter's own reference."""
         return int(self._rec.counts[2])
+
+    @property
+    def rate_limited_periods(self) -> int:
+        """Drone-periods in which the vertical jerk limit turned a command the barrier had changed
+        slower than it asked (there (B) holds for the flown reference only as far as the limit let it)."""
+        return int(self._rec.counts[3])
 
     def __call__(
         self, sensed: Sensed, pos_d: np.ndarray, vel_d: np.ndarray, acc_d: np.ndarray, steer: np.ndarray

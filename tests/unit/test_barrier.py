@@ -554,3 +554,35 @@ def test_take_off_gate_keeps_off_the_leaders_way():
                             goal, use)  # fmt: skip
         assert wait[1] == use
         assert not wait[2]
+
+
+def test_vertical_jerk_limit_bounds_a_guarded_drones_command():
+    """Two followers closing head-on, flown on their references, their planner's vertical
+    acceleration chattering (±1.5 m/s² every period): with ``vertical_jerk_limit`` J, a guarded
+    drone's vertical acceleration reference moves by at most J·dt from one period to the next, and
+    the periods where the limit cut a command the barrier had changed are counted; without the limit
+    (0) the same start passes the chatter on (so the bound is not vacuous) and nothing is counted
+    (docs/barrier.md, "jerk limit")."""
+    dt = 0.01
+    jumps, counted = {}, {}
+    for J in (10.0, 0.0):
+        f = BarrierFilter(BarrierParams(vertical_jerk_limit=J, priority_share=0.5))
+        f.reset(3)
+        pos = np.array([[20.0, 0.0, 2.0], [-3.0, 0.0, 2.0], [3.0, 0.0, 2.0]])
+        vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+        steer = np.array([False, True, True])
+        prev, worst = None, 0.0
+        for k in range(250):
+            a_d = np.zeros((3, 3))
+            a_d[1:, 2] = 1.5 * (-1.0) ** k
+            out = f(_sensed(k * dt, pos, vel, dt if k else 0.0), pos + vel * dt, vel, a_d, steer)
+            flown = f.guarded.copy()  # still guarded after this call: this period's row is the filter's
+            flown[0] = False
+            if prev is not None and flown.any():
+                worst = max(worst, float(np.abs(out[2][flown, 2] - prev[flown, 2]).max()))
+            prev = out[2].copy()
+            pos, vel = out[0].copy(), out[1].copy()
+        jumps[J], counted[J] = worst, f.rate_limited_periods
+    assert jumps[10.0] <= 10.0 * dt + 1e-12
+    assert jumps[0.0] > 10.0 * dt
+    assert counted[10.0] > 0 and counted[0.0] == 0
