@@ -965,21 +965,37 @@ EVENTS_PER_DRONE = 8
 
 
 def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> BarrierRecord:
-    """A fresh record of n drones (every drone free, no state taken yet)."""
-    z3 = np.zeros((n, 3))
+    """A fresh record of n drones (every drone free, no state taken yet). Its scalar parameters are
+    the fields of ``bp`` of the same name (as float or bool, their declared types), but ``lanes``:
+    the record's is ``bp.guard_lanes`` (``bp.lanes`` is the lane rule's own)."""
+    cast = {"float": float, "bool": bool}
+    kw: dict[str, Any] = {
+        f.name: cast[str(f.type)](getattr(bp, f.name))
+        for f in fields(bp)
+        if f.name in BarrierRecord._fields and f.name != "lanes"
+    }
     cap = EVENTS_PER_DRONE * max(n, 1)
     return BarrierRecord(
-        on, bp.radii(vehicle), _guard_gains(bp), bp.horizontal_limit(vehicle.g), float(bp.accel_up),
-        float(bp.accel_down), float(bp.gain), float(bp.tiebreak), float(bp.relax_weight), float(bp.sensing_range),
-        float(bp.floor_m), float(bp.priority_share), bool(bp.both_states), bool(bp.guard_lanes),
-        float(bp.accel_filter_s), float(bp.gate_rho), float(bp.gate_horizon_s), float(bp.leash_m),
-        float(bp.leader_guard_m), float(bp.release_m), float(bp.release_mps), float(bp.ground_band_m),
-        bool(bp.gate_holds_start), bool(bp.leader_filters), bool(bp.gate_leader_way), bool(bp.leader_yields),
-        float(bp.vertical_jerk_limit), np.zeros(n, dtype=np.bool_), z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(),
-        z3.copy(),
-        np.zeros(n, dtype=np.bool_), np.zeros(2, dtype=np.bool_), np.zeros(4, dtype=np.int64), np.zeros(cap),
-        np.zeros(cap, dtype=np.int64), np.zeros(1, dtype=np.int64),
-    )  # fmt: skip
+        on=on,
+        radii=bp.radii(vehicle),
+        lane_gains=_guard_gains(bp),
+        a_h=bp.horizontal_limit(vehicle.g),
+        lanes=bool(bp.guard_lanes),
+        guarded=np.zeros(n, dtype=np.bool_),
+        ref=np.zeros((n, 3)),
+        ref_vel=np.zeros((n, 3)),
+        sensed_acc=np.zeros((n, 3)),
+        prev_acc=np.zeros((n, 3)),
+        prev_vel=np.zeros((n, 3)),
+        start=np.zeros((n, 3)),
+        was_relaxed=np.zeros(n, dtype=np.bool_),
+        flags=np.zeros(2, dtype=np.bool_),
+        counts=np.zeros(4, dtype=np.int64),
+        ev_t=np.zeros(cap),
+        ev_drone=np.zeros(cap, dtype=np.int64),
+        ev_count=np.zeros(1, dtype=np.int64),
+        **kw,
+    )
 
 
 def barrier_off(n: int) -> BarrierRecord:
