@@ -79,7 +79,7 @@ first version): the filter on its own nominal that goes round the leader on two 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -1247,8 +1247,9 @@ class BarrierFilter:
 
 
 class BarrierPlannerRule(JetAwareRule):
-    """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset, its
-    altitude separation) with :class:`BarrierFilter` as its separation step, its followers flying to
+    """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset with the
+    descents at half the speed, ``PRESETS["barrier"]``; its altitude separation) with
+    :class:`BarrierFilter` as its separation step, its followers flying to
     slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
     no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
     among ``overrides`` set them)."""
@@ -1289,7 +1290,10 @@ class BarrierPlannerRule(JetAwareRule):
 
 
 ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule  # the registration (docs/barrier.md)
-PRESETS["barrier"] = PRESETS["jet-aware"]  # the planner's record (the filter's own are BarrierParams)
+#: the planner's record (the filter's own are BarrierParams): jet-aware's, its descents at 0.75 m/s, not
+#: 1.5 (docs/barrier.md, "the planner's descent": a follower descending from its crossing layer past
+#: its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes)
+PRESETS["barrier"] = replace(PRESETS["jet-aware"], descent_speed=0.75)
 ANTI_COLLISION_RULES["barrier-lanes"] = BarrierRule
 PRESETS["barrier-lanes"] = RuleParams()
 

@@ -114,3 +114,15 @@ def test_the_table_must_be_a_table_and_is_refused_for_a_rule_without_a_filter():
 def test_a_record_built_in_code_is_checked_the_same_way():
     with pytest.raises(UserError, match="formation.barrier.relax_weight: must be positive"):
         BarrierParams(relax_weight=0.0)
+
+
+def test_the_barrier_planner_is_jet_awares_with_slower_descents_and_a_scenario_still_sets_them():
+    """docs/barrier.md, "the planner's descent": the `barrier` preset is `jet-aware`'s record but for
+    `descent_speed` (0.75 m/s against 1.5), and a scenario's ``[formation] descent_speed`` overrides it."""
+    jet = BacksteppingPolicy(parse_scenario(_scenario("jet-aware"))).rule.params
+    bar = BacksteppingPolicy(parse_scenario(_scenario())).rule.params
+    assert bar.descent_speed == 0.75 and jet.descent_speed == 1.5
+    assert replace(bar, descent_speed=jet.descent_speed) == jet
+    own = _scenario()
+    own["formation"]["descent_speed"] = 1.5
+    assert BacksteppingPolicy(parse_scenario(own)).rule.params == jet
