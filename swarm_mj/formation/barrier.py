@@ -79,7 +79,7 @@ first version): the filter on its own nominal that goes round the leader on two 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, fields
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -1289,13 +1289,9 @@ class BarrierPlannerRule(JetAwareRule):
         return super().update(t, positions, pos_d, formation_alt)
 
 
-ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule  # the registration (docs/barrier.md)
-#: the planner's record (the filter's own are BarrierParams): jet-aware's, its descents at 0.75 m/s, not
-#: 1.5 (docs/barrier.md, "the planner's descent": a follower descending from its crossing layer past
-#: its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes)
-PRESETS["barrier"] = replace(PRESETS["jet-aware"], descent_speed=0.75)
+# the registration (docs/barrier.md); their planner records are rule_params.PRESETS["barrier"], ["barrier-lanes"]
+ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule
 ANTI_COLLISION_RULES["barrier-lanes"] = BarrierRule
-PRESETS["barrier-lanes"] = RuleParams()
 
 __all__ = [
     "DOWNWASH_MULTIPLE",

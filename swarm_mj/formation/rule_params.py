@@ -201,10 +201,16 @@ def check_overrides(overrides: dict[str, Any], where: str = "formation", record:
 #: The named rules as presets of the record (``off`` reads nothing). The layered rule with the
 #: downwash feedforward, once the ``compensated`` rule, is ``layers`` with ``[controller]
 #: downwash_feedforward = true``.
+_JET_AWARE = RuleParams(max_speed=3.0, max_accel=4.0, formed_descent_accel=3.0, downwash_feedforward=True)
 PRESETS: dict[str, RuleParams] = {
     "paper": RuleParams(),
     "layers": RuleParams(),
-    "jet-aware": RuleParams(max_speed=3.0, max_accel=4.0, formed_descent_accel=3.0, downwash_feedforward=True),
+    "jet-aware": _JET_AWARE,
+    # the barrier filter's planner (its own parameters are barrier.BarrierParams): jet-aware's, its
+    # descents at 0.75 m/s, not 1.5 (docs/barrier.md, "the planner's descent": a follower descending
+    # past its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes)
+    "barrier": replace(_JET_AWARE, descent_speed=0.75),
+    "barrier-lanes": RuleParams(),
     "off": RuleParams(),
 }
 
