@@ -29,8 +29,9 @@ leader filters too (``leader_filters``); against a drone that does not filter (t
 off, which flies its trajectory) a follower takes all of it, A·u_i ≥ b + A·â_j, â_j the leader's
 acceleration estimated from its positions (low-passed).
 
-**Filter (per drone, each period).** u_i = argmin ‖u − u_nom,i‖² subject to every neighbour's
-constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
+**Filter (per drone, each period).** u_i = argmin ‖W_i·(u − u_nom,i)‖² subject to every neighbour's
+constraint and the vehicle's limits (W_i = I, or diag(√c, √c, 1) for a follower its planner descends:
+``descent_horizontal_cost`` c) (the horizontal acceleration within an octagon inscribed in the
 tilt-limit disc of radius (g − a_down)·tan θ_max, the vertical one within [−a_down, a_up]). It
 acts only when the nominal command violates a barrier constraint (otherwise u_i = u_nom,i exactly,
 the controller saturating as before). The QP is solved exactly: its solution is the projection of
@@ -196,6 +197,14 @@ class BarrierParams:
         0.0,
         open_lo=False,
     )
+    descent_horizontal_cost: float = _p(
+        16.0,
+        "–",
+        "`barrier`: a descending follower's cost of a horizontal change of its command over a vertical one",
+        1.0,
+        open_lo=False,
+    )
+    descent_vz: float = _p(0.1, "m/s", "`barrier`: a follower whose planner's reference sinks faster descends")
     assign_slots: bool = _p(
         True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
     )
@@ -426,6 +435,7 @@ def _filter_samples():
             0.1,
             0.5,
             True,
+            np.ones(2),
         )
     ]
 
@@ -450,6 +460,7 @@ def filter_accelerations(
     floor: float,
     priority_share: float,
     both_states: bool,
+    hcost: np.ndarray,
 ):
     """The decentralised barrier filter of the module docstring, for n drones at once.
 
@@ -466,7 +477,9 @@ def filter_accelerations(
     constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
     (on the ground, sensed_pos) is not filtered. ``both_states``: each neighbour's constraint is
     also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a drone that
-    lags its reference is kept out too (docs/barrier.md, "tracking")."""
+    lags its reference is kept out too (docs/barrier.md, "tracking"). hcost (n,) ≥ 1: each drone's
+    cost of a horizontal change of its command relative to a vertical one, the QP's metric
+    ‖diag(√c, √c, 1)·(u − u_nom)‖² (1: the plain projection; docs/barrier.md, "the descent's metric")."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
@@ -537,6 +550,13 @@ def filter_accelerations(
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
         ml = _limit_rows(A[m:], b[m:], a_h[i], a_up[i], a_down[i])
+        sh = np.sqrt(hcost[i])  # the metric diag(sh, sh, 1): w = (sh·u_x, sh·u_y, u_z)
+        if sh != 1.0:
+            for k in range(m + ml):
+                A[k, 0] /= sh
+                A[k, 1] /= sh
+            un[0] *= sh
+            un[1] *= sh
         w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
         if not ok:
             # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
@@ -548,6 +568,9 @@ def filter_accelerations(
                 A4[k, 3] = nrm / sw
                 b4[k] = b[k]
             _limit_rows(A4[m:], b4[m:], a_h[i], a_up[i], a_down[i])
+            for k in range(m, m + ml):
+                A4[k, 0] /= sh
+                A4[k, 1] /= sh
             A4[m + ml, :] = 0.0
             A4[m + ml, 3] = 1.0
             b4[m + ml] = 0.0
@@ -558,8 +581,9 @@ def filter_accelerations(
             relaxed[i] = True
             for c in range(3):
                 w[c] = w4[c]
-        for c in range(3):
-            u[i, c] = w[c]
+        u[i, 0] = w[0] / sh
+        u[i, 1] = w[1] / sh
+        u[i, 2] = w[2]
     return u, active, relaxed, kept
 
 
@@ -572,12 +596,14 @@ def apply_filter(
     sensed: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
     vehicle: QuadParams = DEFAULT_PARAMS,
     limits: np.ndarray | None = None,
+    hcost: np.ndarray | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
     the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
-    (default: ``bp``'s for every drone). Returns (u, active, relaxed, n_constraints)."""
+    (default: ``bp``'s for every drone); hcost (n,): each drone's cost of a horizontal change
+    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
     if limits is None:
@@ -602,6 +628,7 @@ def apply_filter(
         bp.floor_m,
         bp.priority_share,
         bp.both_states,
+        np.ones(pos.shape[0]) if hcost is None else c(hcost, dtype=np.float64),
     )
 
 
@@ -944,6 +971,8 @@ class BarrierRecord(NamedTuple):
     gate_leader_way: bool  # the take-off gate also keeps off the leader's way to its reference
     leader_yields: bool  # with leader_filters: the leader takes its share of each pair's constraint
     vertical_jerk_limit: float  # m/s³ (0: off)
+    descent_horizontal_cost: float  # a descending follower's QP metric, horizontal / vertical
+    descent_vz: float  # m/s: the planner's sink rate above which a follower descends
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -952,6 +981,7 @@ class BarrierRecord(NamedTuple):
     prev_vel: np.ndarray  # (n, 3) the sensed velocities of the last call
     start: np.ndarray  # (n, 3) where each drone stood on the ground (the first call's positions)
     was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
+    active: np.ndarray  # (n,) bool: a barrier constraint changed the drone's command at the last call
     flags: np.ndarray  # (2,) bool: start taken, prev_vel taken
     counts: np.ndarray  # (4,) int64: active, relaxed, guarded, rate-limited drone-periods
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
@@ -989,6 +1019,7 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         prev_vel=np.zeros((n, 3)),
         start=np.zeros((n, 3)),
         was_relaxed=np.zeros(n, dtype=np.bool_),
+        active=np.zeros(n, dtype=np.bool_),
         flags=np.zeros(2, dtype=np.bool_),
         counts=np.zeros(4, dtype=np.int64),
         ev_t=np.zeros(cap),
@@ -1072,7 +1103,10 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     a_up = np.full(n, rec.accel_up)
     a_down = np.full(n, rec.accel_down)
     pair_filters = np.empty(n, dtype=np.bool_)  # the drones that take a share of the pairs' constraints
+    hcost = np.ones(n)  # the QP's metric: a follower the planner descends is changed vertically first
     for i in range(n):
+        if steer[i] and vel_d[i, 2] < -rec.descent_vz:
+            hcost[i] = rec.descent_horizontal_cost
         filters[i] = own[i] and not wait[i]
         # the leader (own, not steered) only with leader_yields: else it flies its nominal, the followers take all
         pair_filters[i] = filters[i] and (steer[i] or rec.leader_yields)
@@ -1080,7 +1114,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             a_down[i] = 0.0  # near the ground: not pushed down
     u, active, relaxed, _ = filter_accelerations(
         ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, rec.radii, rec.gain, a_h, a_up, a_down,
-        rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states,
+        rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states, hcost,
     )  # fmt: skip
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
     for i in range(n):
@@ -1095,6 +1129,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                     rec.ev_drone[k] = i
                     rec.ev_count[0] = k + 1
         rec.was_relaxed[i] = relaxed[i]
+        rec.active[i] = active[i]
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
             rec.ref[i] = positions[i]
@@ -1206,6 +1241,12 @@ class BarrierFilter:
     def guarded(self) -> np.ndarray:
         """(n,) bool: the drones whose reference the filter flies."""
         return self._rec.guarded
+
+    @property
+    def active(self) -> np.ndarray:
+        """(n,) bool: the drones whose command a barrier constraint changed at the last period (a
+        per-period trace of where the filter acts; :attr:`active_periods` counts them)."""
+        return self._rec.active
 
     @property
     def active_periods(self) -> int:

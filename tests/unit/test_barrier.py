@@ -212,8 +212,13 @@ vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
     spread=st.floats(0.3, 3.0),
     prio=st.floats(0.0, 1.0),
     track=st.sampled_from([0.0, 0.05, 0.2]),
+    cost=st.sampled_from([1.0, 4.0, 16.0, 100.0]),
 )
-def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
+def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, cost):
+    """docs/barrier.md, "Tests": every constraint reported feasible holds, the limits hold, the nominal
+    exactly when no constraint is active, and nothing within the constraints is closer to the nominal
+    in the drone's metric (diag(√c, √c, 1) for the drones given a horizontal cost c, else I) than the
+    filter's answer, by a reference QP solver."""
     rng = np.random.default_rng(seed)
     pos = rng.normal(scale=spread, size=(n, 3)) + np.array([0, 0, 3.0])
     vel = rng.normal(scale=1.5, size=(n, 3))
@@ -232,7 +237,8 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
     radii, a_h = bp.radii(), bp.horizontal_limit()
     # what the others sense: each drone off its own (reference) state by a tracking error
     sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
-    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))))
+    hcost = np.where(rng.random(n) < 0.5, cost, 1.0)  # the descent's metric on some of the drones
+    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
     for i in range(n):
         rows = [
             _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
@@ -257,8 +263,10 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track):
             lim_b = np.concatenate([np.full(8, -a_h * np.cos(np.pi / 8)), [-up, -down]])
             A_all = np.vstack([np.array([r[0] for r in rows]), lim_A])
             b_all = np.concatenate([[r[1] for r in rows], lim_b])
-            ref = _reference_projection(u_nom[i], A_all, b_all)
-            assert np.sum((u[i] - u_nom[i]) ** 2) <= np.sum((ref - u_nom[i]) ** 2) + 1e-6
+            # in w = W·u the weighted QP is a projection: A·u ≥ b is (A·W⁻¹)·w ≥ b
+            W = np.array([np.sqrt(hcost[i]), np.sqrt(hcost[i]), 1.0])
+            ref = _reference_projection(W * u_nom[i], A_all / W, b_all) / W
+            assert np.sum((W * (u[i] - u_nom[i])) ** 2) <= np.sum((W * (ref - u_nom[i])) ** 2) + 1e-6
 
 
 def test_relaxation_is_used_and_flagged():
@@ -359,7 +367,7 @@ def test_filter_passes_the_planner_through_when_nothing_is_near():
         for o, i in zip(out, (p_d, v_d, a_d)):
             np.testing.assert_array_equal(o, i)
             assert o is not i
-    assert not f.guarded.any()
+    assert not f.guarded.any() and not f.active.any()
 
 
 def test_filter_guards_a_violating_reference_and_satisfies_the_barrier():
@@ -385,6 +393,7 @@ def test_filter_guards_a_violating_reference_and_satisfies_the_barrier():
         pd[3, 0] = far
         outs.append(f(_sensed(0.0, pp, vel, 0.0), pd, v_d, a_d, steer))
         assert f.guarded[1] and f.guarded[2] and not f.guarded[0] and not f.guarded[3]
+        np.testing.assert_array_equal(f.active, [False, True, True, False])  # where it acted this period
     (o_p, o_v, o_a), (o_p2, _, o_a2) = outs
     np.testing.assert_array_equal(o_a[:3], o_a2[:3])  # rows 0-2 do not depend on the unseen drone
     np.testing.assert_array_equal(o_a[0], a_d[0])
@@ -586,3 +595,41 @@ def test_vertical_jerk_limit_bounds_a_guarded_drones_command():
     assert jumps[10.0] <= 10.0 * dt + 1e-12
     assert jumps[0.0] > 10.0 * dt
     assert counted[10.0] > 0 and counted[0.0] == 0
+
+
+def test_a_descending_follower_is_changed_vertically_first():
+    """docs/barrier.md, "the descent's metric": follower 2, which its planner descends onto ring
+    neighbour 1 (0.74 m beside it, 0.5 m above, sinking at 1.5 m/s and asked to sink faster),
+    must take its pair's burden (by hand: b > 0, the nominal violates (B)). With the plain projection
+    the change is mostly sideways (the tall keep-out's normal is horizontal there); with the descent's
+    metric (``descent_horizontal_cost`` 16) it is mostly a slower descent. Each is the projection
+    computed here in its metric (one active row), and (B) holds. A follower its planner does not
+    descend (pushed sideways into its neighbour instead) is projected plainly, whatever the cost."""
+    pos = np.array([[20.0, 0.0, 2.0], [0.0, 3.0, 2.4], [0.74, 3.0, 2.9]])
+    steer = np.array([False, True, True])
+    cases = {  # name: (descent_horizontal_cost, the planner's vertical velocity, acc_d of follower 2, the metric)
+        "plain": (1.0, -1.5, (0.0, 0.0, -2.0), 1.0),
+        "descent": (16.0, -1.5, (0.0, 0.0, -2.0), 16.0),
+        "level": (16.0, 0.0, (-2.0, 0.0, 0.0), 1.0),
+    }
+    change = {}
+    for name, (cost, sink, acc, metric) in cases.items():
+        bp = BarrierParams(descent_horizontal_cost=cost, tiebreak=0.0, both_states=False)
+        f = BarrierFilter(bp)
+        f.reset(3)
+        v_d = np.zeros((3, 3))
+        v_d[2, 2] = sink
+        a_d = np.zeros((3, 3))
+        a_d[2] = acc
+        A, b = _by_hand_barrier(pos[2], v_d[2], pos[1], v_d[1], bp.radii(), bp.gain)
+        share = 1.0 if b > 0 else 0.5  # a burden all the higher index's (priority_share 0); room in halves
+        assert A @ a_d[2] < share * b  # the nominal violates (B)
+        _, _, o_a = f(_sensed(0.0, pos, v_d, 0.0), pos, v_d, a_d, steer)
+        np.testing.assert_array_equal(f.active, [False, False, True])
+        assert A @ o_a[2] >= share * b - 1e-9 * (1 + abs(b))
+        Wi2 = np.array([1.0 / metric, 1.0 / metric, 1.0])  # Δu = λ·W⁻²·A, λ = (s·b − A·u_nom) / (A·W⁻²·A)
+        expect = (share * b - A @ a_d[2]) / (A @ (Wi2 * A)) * Wi2 * A
+        change[name] = o_a[2] - a_d[2]
+        np.testing.assert_allclose(change[name], expect, rtol=1e-9, atol=1e-12)
+    assert np.linalg.norm(change["plain"][:2]) > 5.0 * abs(change["plain"][2])  # sideways
+    assert abs(change["descent"][2]) > np.linalg.norm(change["descent"][:2])  # mostly a slower descent
