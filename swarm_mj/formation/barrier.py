@@ -30,9 +30,9 @@ off, which flies its trajectory) a follower takes all of it, A·u_i ≥ b + A·�
 acceleration estimated from its positions (low-passed).
 
 **Filter (per drone, each period).** u_i = argmin ‖W_i·(u − u_nom,i)‖² subject to every neighbour's
-constraint and the vehicle's limits (W_i = I, or diag(√c, √c, 1) for a follower its planner descends:
-``descent_horizontal_cost`` c) (the horizontal acceleration within an octagon inscribed in the
-tilt-limit disc of radius (g − a_down)·tan θ_max, the vertical one within [−a_down, a_up]). It
+constraint and the vehicle's limits (the horizontal acceleration within an octagon inscribed in the
+tilt-limit disc of radius (g − a_down)·tan θ_max, the vertical one within [−a_down, a_up]); W_i = I,
+or diag(√c, √c, 1) for a follower its planner descends (c = ``descent_horizontal_cost``). It
 acts only when the nominal command violates a barrier constraint (otherwise u_i = u_nom,i exactly,
 the controller saturating as before). The QP is solved exactly: its solution is the projection of
 u_nom onto the affine hull of a linearly independent subset (at most 3) of its active constraints
