@@ -559,18 +559,14 @@ def filter_accelerations(
             un[1] *= sh
         w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
         if not ok:
-            # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ)
+            # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ); the rows
+            # are those just tried (in the drone's metric), the limits' (after row m) without δ
             sw = np.sqrt(relax_weight)
-            for k in range(m):
-                nrm = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2)
+            for k in range(m + ml):
                 for c in range(3):
                     A4[k, c] = A[k, c]
-                A4[k, 3] = nrm / sw
+                A4[k, 3] = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2) / sw if k < m else 0.0
                 b4[k] = b[k]
-            _limit_rows(A4[m:], b4[m:], a_h[i], a_up[i], a_down[i])
-            for k in range(m, m + ml):
-                A4[k, 0] /= sh
-                A4[k, 1] /= sh
             A4[m + ml, :] = 0.0
             A4[m + ml, 3] = 1.0
             b4[m + ml] = 0.0
