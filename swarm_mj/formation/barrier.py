@@ -415,33 +415,14 @@ def _min_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> f
 def _filter_samples():
     z = np.zeros((2, 3))
     pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
-    return [
-        (
-            pos,
-            z,
-            pos,
-            z,
-            z,
-            z,
-            np.ones(2, dtype=np.bool_),
-            np.ones(3),
-            3.0,
-            np.full(2, 3.9),
-            np.full(2, 5.0),
-            np.full(2, 3.0),
-            1.0,
-            100.0,
-            4.0,
-            0.1,
-            0.5,
-            True,
-            np.ones(2),
-        )
-    ]
+    rec = _record(BarrierParams(), DEFAULT_PARAMS, 2, True)
+    lim = np.tile([3.9, 5.0, 3.0], (2, 1))
+    return [(rec, pos, z, pos, z, z, z, np.ones(2, dtype=np.bool_), lim, np.ones(2))]
 
 
 @jit(on_demand=True, samples=_filter_samples)
 def filter_accelerations(
+    rec: BarrierRecord,
     pos: np.ndarray,
     vel: np.ndarray,
     sensed_pos: np.ndarray,
@@ -449,37 +430,32 @@ def filter_accelerations(
     sensed_acc: np.ndarray,
     u_nom: np.ndarray,
     filters: np.ndarray,
-    radii: np.ndarray,
-    gain: float,
-    a_h: np.ndarray,
-    a_up: np.ndarray,
-    a_down: np.ndarray,
-    tiebreak: float,
-    relax_weight: float,
-    sensing_range: float,
-    floor: float,
-    priority_share: float,
-    both_states: bool,
+    limits: np.ndarray,
     hcost: np.ndarray,
 ):
     """The decentralised barrier filter of the module docstring, for n drones at once.
 
+    rec: the filter's record (:class:`BarrierRecord`), of which it reads the parameters only:
+    ``radii`` (the filter's keep-out), ``gain`` (k), ``tiebreak``, ``relax_weight``,
+    ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``.
     pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
-    accelerations; a_h, a_up, a_down (n,): each drone's input limits (m/s²); filters (n,) bool:
-    which drones filter
-    (a drone that does not keeps u_nom and its neighbours take all of each pair's constraint);
-    priority_share: the share of a burden (b > 0) the lower index of a pair of filtering drones takes
-    (½: equal; room, b ≤ 0, is split in halves).
+    accelerations; filters (n,) bool: which drones filter (a drone that does not keeps u_nom and its
+    neighbours take all of each pair's constraint); limits (n, 3): each drone's input limits
+    (a_h, a_up, a_down) (m/s²); hcost (n,) ≥ 1: each drone's cost of a horizontal change of its
+    command relative to a vertical one, the QP's metric ‖diag(√c, √c, 1)·(u − u_nom)‖² (1: the
+    plain projection; docs/barrier.md, "the descent's metric").
+    ``priority_share``: the share of a burden (b > 0) the lower index of a pair of filtering drones
+    takes (½: equal; room, b ≤ 0, is split in halves). A pair whose two drones are both below
+    ``floor_m`` (on the ground, sensed_pos) is not filtered. ``both_states``: each neighbour's
+    constraint is also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a
+    drone that lags its reference is kept out too (docs/barrier.md, "tracking").
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
-    constraints kept after the exact pruning). A pair whose two drones are both below ``floor`` m
-    (on the ground, sensed_pos) is not filtered. ``both_states``: each neighbour's constraint is
-    also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a drone that
-    lags its reference is kept out too (docs/barrier.md, "tracking"). hcost (n,) ≥ 1: each drone's
-    cost of a horizontal change of its command relative to a vertical one, the QP's metric
-    ‖diag(√c, √c, 1)·(u − u_nom)‖² (1: the plain projection; docs/barrier.md, "the descent's metric")."""
+    constraints kept after the exact pruning)."""
+    radii, gain, tiebreak, relax_weight = rec.radii, rec.gain, rec.tiebreak, rec.relax_weight
+    floor, priority_share, both_states = rec.floor_m, rec.priority_share, rec.both_states
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
@@ -494,7 +470,7 @@ def filter_accelerations(
     v = np.empty(3)
     a = np.empty(3)
     un = np.empty(3)
-    r2 = sensing_range * sensing_range
+    r2 = rec.sensing_range * rec.sensing_range
     for i in range(n):
         if not filters[i]:
             continue
@@ -531,7 +507,7 @@ def filter_accelerations(
                 if not filters[j]:
                     bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
                 lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
-                if lhs >= bs and _min_over_limits(a, a_h[i], a_up[i], a_down[i]) >= bs:
+                if lhs >= bs and _min_over_limits(a, limits[i, 0], limits[i, 1], limits[i, 2]) >= bs:
                     continue  # no input within the limits can violate it, nor does the nominal: redundant
                 if lhs < bs:
                     violated = True
@@ -549,7 +525,7 @@ def filter_accelerations(
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
-        ml = _limit_rows(A[m:], b[m:], a_h[i], a_up[i], a_down[i])
+        ml = _limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
         sh = np.sqrt(hcost[i])  # the metric diag(sh, sh, 1): w = (sh·u_x, sh·u_y, u_z)
         if sh != 1.0:
             for k in range(m + ml):
@@ -602,29 +578,16 @@ def apply_filter(
     (default 1: the plain projection). Returns (u, active, relaxed, n_constraints)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
+    n = pos.shape[0]
     if limits is None:
-        limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (pos.shape[0], 1))
-    lim = c(limits, dtype=np.float64)
+        limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (n, 1))
+    f8 = np.float64
     return filter_accelerations(
-        c(pos, dtype=np.float64),
-        c(vel, dtype=np.float64),
-        c(sp, dtype=np.float64),
-        c(sv, dtype=np.float64),
-        c(sa, dtype=np.float64),
-        c(u_nom, dtype=np.float64),
+        _record(bp, vehicle, n, True),
+        *(c(x, dtype=f8) for x in (pos, vel, sp, sv, sa, u_nom)),
         c(filters, dtype=np.bool_),
-        bp.radii(vehicle),
-        bp.gain,
-        c(lim[:, 0]),
-        c(lim[:, 1]),
-        c(lim[:, 2]),
-        bp.tiebreak,
-        bp.relax_weight,
-        bp.sensing_range,
-        bp.floor_m,
-        bp.priority_share,
-        bp.both_states,
-        np.ones(pos.shape[0]) if hcost is None else c(hcost, dtype=np.float64),
+        c(limits, dtype=f8),
+        np.ones(n) if hcost is None else c(hcost, dtype=f8),
     )
 
 
@@ -1095,9 +1058,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     takeoff_wait_kernel(positions, rec.radii, steer, vel, rec.sensed_acc, True, rec.floor_m, rec.gate_rho,
                         rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way)  # fmt: skip
     filters = np.empty(n, dtype=np.bool_)
-    a_h = np.full(n, rec.a_h)
-    a_up = np.full(n, rec.accel_up)
-    a_down = np.full(n, rec.accel_down)
+    limits = np.empty((n, 3))  # each drone's (a_h, a_up, a_down)
     pair_filters = np.empty(n, dtype=np.bool_)  # the drones that take a share of the pairs' constraints
     hcost = np.ones(n)  # the QP's metric: a follower the planner descends is changed vertically first
     for i in range(n):
@@ -1106,12 +1067,14 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         filters[i] = own[i] and not wait[i]
         # the leader (own, not steered) only with leader_yields: else it flies its nominal, the followers take all
         pair_filters[i] = filters[i] and (steer[i] or rec.leader_yields)
+        limits[i, 0] = rec.a_h
+        limits[i, 1] = rec.accel_up
+        limits[i, 2] = rec.accel_down
         if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
-            a_down[i] = 0.0  # near the ground: not pushed down
+            limits[i, 2] = 0.0  # near the ground: not pushed down
     u, active, relaxed, _ = filter_accelerations(
-        ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, rec.radii, rec.gain, a_h, a_up, a_down,
-        rec.tiebreak, rec.relax_weight, rec.sensing_range, rec.floor_m, rec.priority_share, rec.both_states, hcost,
-    )  # fmt: skip
+        rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
+    )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
     for i in range(n):
         if active[i]:
