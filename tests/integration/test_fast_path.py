@@ -73,11 +73,15 @@ def test_one_drone_flies_fast_from_its_second_period():
 
 
 def test_contacts_inside_chunks_are_counted_as_on_the_per_period_path():
-    # no rule, slots 0.6 m from the leader: neighbours' rotors touch in formation, again and again
+    # no rule, slots 0.6 m from the leader: neighbours' rotors touch in formation
     sc = load_scenario("circle").with_overrides(diameter=0.6, anti_collision="off", duration=8.0)
     a, b = _both(sc)
-    late = [c for c in a.contact_log if c[0] > 3.0]
-    assert len(late) > 10  # the check can fail: contacts during formed flight
+    # the check can fail: physics steps in contact after 3 s (formed flight, in chunks), at least 0.5 s
+    # of them. Steps, not rising edges: since MuJoCo 4.0.1 (its fix of cylinder-edge multicontact) two
+    # rotors that touch stay in contact instead of flickering, and the rising edges after 3 s went
+    # from 86 to 0 on this run while the steps in contact stayed 1330 of 1600 (docs/libraries.md)
+    late_steps = a.summary["contact_steps"] - round(3.0 / sc.timestep)
+    assert late_steps > round(0.5 / sc.timestep)
     assert b.extra["fused_periods"] > 100
     _assert_same(a, b)
 
