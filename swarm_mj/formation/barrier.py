@@ -81,6 +81,7 @@ first version): the filter on its own nominal that goes round the leader on two 
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
+from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -559,6 +560,14 @@ def filter_accelerations(
     return u, active, relaxed, kept
 
 
+@lru_cache(maxsize=8)
+def _params_record(bp: BarrierParams, vehicle: QuadParams, n: int) -> BarrierRecord:
+    """The record :func:`apply_filter` hands :func:`filter_accelerations`, built once per (params,
+    vehicle, n): the filter reads only its parameters, never its state, so it is shared read-only (a
+    :class:`BarrierFilter` has a record of its own, which :func:`barrier_step` writes)."""
+    return _record(bp, vehicle, n, True)
+
+
 def apply_filter(
     bp: BarrierParams,
     pos: np.ndarray,
@@ -583,7 +592,7 @@ def apply_filter(
         limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (n, 1))
     f8 = np.float64
     return filter_accelerations(
-        _record(bp, vehicle, n, True),
+        _params_record(bp, vehicle, n),
         *(c(x, dtype=f8) for x in (pos, vel, sp, sv, sa, u_nom)),
         c(filters, dtype=np.bool_),
         c(limits, dtype=f8),
