@@ -74,13 +74,14 @@ reference only as far as the limit allowed; those drone-periods are counted
 **The separation filter** (:class:`BarrierFilter`, a :class:`~.separation.SeparationFilter`): the
 filter guarding any planner's references; ``anti_collision = "barrier"`` (:class:`BarrierPlannerRule`)
 is the jet-aware planner with it. **The lane rule** (:class:`BarrierRule`, ``"barrier-lanes"``, the
-first version): the filter on its own nominal that goes round the leader on two lanes
-(:func:`lane_nominal`), so that followers do not meet the leader or each other head-on.
+first version): the same filter with no planner, flying every follower from its start on a nominal
+that goes round the leader on two lanes (:func:`lane_nominal_kernel`), so that followers do not meet
+the leader or each other head-on.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from typing import Any, NamedTuple
 
@@ -91,9 +92,10 @@ from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .anticollision import ANTI_COLLISION_RULES, Rule
 from .jet_aware import JetAwareRule
+from .layered import estimate_velocities
 from .rule_params import PRESETS, RuleParams, check_overrides
 from .rule_params import param_field as _p
-from .separation import Sensed
+from .separation import Sensed, seen_within
 from .slots import capt_assignment
 
 #: Ratio of the keep-out's vertical to its horizontal radius: Preiss et al. (Crazyswarm, ICRA 2017)
@@ -614,10 +616,20 @@ def lane_nominal_kernel(
     rows: np.ndarray,
     u: np.ndarray,
 ) -> None:
-    """:func:`lane_nominal` for the drones flagged ``rows`` (n,) into ``u`` (n, 3) (other rows untouched).
+    """The guarded nominal accelerations of the drones flagged ``rows`` (n,) into ``u`` (n, 3) (other
+    rows untouched): the PD onto the reference, acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ), and, with
+    ``lanes``, a two-lane roundabout round the leader (docs/barrier.md, "The lane rule").
 
-    ``gains`` (7,): nominal_kp, nominal_kd, lane_speed, arrive_angle, lane_turn_gain, lane_inner,
-    lane_outer (:class:`BarrierParams`). Row 0 (the leader) never goes round on a lane."""
+    In the leader's frame (horizontal), a follower whose reference is more than ``arrive_angle``
+    round the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring
+    of radius D_k + ``lane_inner``·``radius`` (D_k the reference's distance from the leader),
+    clockwise on D_k + ``lane_outer``·``radius`` (``radius`` the keep-out's horizontal radius: the
+    formed ring and the two lanes are a keep-out apart, so traffic in opposite directions does not
+    meet head-on), at ``lane_speed`` (at most ``lane_turn_gain``·r·|angle left|, so that it stops on
+    its slot's ray), pulled onto its lane radially at k_p/k_d; the others fly the PD, radially in
+    from the lane (the formed ring is not crossed). The vertical is the PD in both. Row 0 (the
+    leader) never goes round on a lane. ``gains`` (7,): k_p, k_d, lane_speed, arrive_angle,
+    lane_turn_gain, lane_inner, lane_outer (:func:`_guard_gains`)."""
     kp, kd, speed, arrive, turn, inner, outer = gains[0], gains[1], gains[2], gains[3], gains[4], gains[5], gains[6]
     for i in range(ref.shape[0]):
         if not rows[i]:
@@ -642,51 +654,13 @@ def lane_nominal_kernel(
         u[i, 1] = acc_d[i, 1] + kd * (vel_d[i, 1] + v_t * ty + pull * ry - ref_vel[i, 1])
 
 
-def _lane_gains(bp: BarrierParams) -> np.ndarray:
-    """The (7,) gains of :func:`lane_nominal_kernel` from ``bp``."""
-    return np.array(
-        [bp.nominal_kp, bp.nominal_kd, bp.lane_speed, bp.arrive_angle, bp.lane_turn_gain, bp.lane_inner, bp.lane_outer]
-    )
-
-
 def _guard_gains(bp: BarrierParams) -> np.ndarray:
-    """The (7,) gains of :func:`lane_nominal_kernel` for :class:`BarrierFilter`'s guarded nominal: the
-    lane rule's with the PD gains ``guard_kp``, ``guard_kd``."""
-    gains = _lane_gains(bp)
-    gains[0], gains[1] = bp.guard_kp, bp.guard_kd
-    return gains
-
-
-def lane_nominal(
-    bp: BarrierParams,
-    ref: np.ndarray,
-    ref_vel: np.ndarray,
-    leader: np.ndarray,
-    pos_d: np.ndarray,
-    vel_d: np.ndarray,
-    acc_d: np.ndarray,
-    radius: float,
-) -> np.ndarray:
-    """The rule's nominal accelerations (n, 3): a two-lane roundabout round the leader (docs/barrier.md).
-
-    In the leader's frame (horizontal), a follower whose slot is more than ``arrive_angle`` round
-    the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring of
-    radius D_k + ``lane_inner``·``radius`` (D_k its slot's distance from the leader), clockwise on
-    D_k + ``lane_outer``·``radius`` (``radius`` the keep-out's horizontal radius: the formed ring and
-    the two lanes are a keep-out apart, so traffic in opposite directions does not meet head-on), at
-    ``lane_speed`` (at most ``lane_turn_gain``·r·|angle left|, so that it stops on its slot's ray),
-    pulled onto its lane radially at ``nominal_kp``/``nominal_kd``; the others fly the PD to their
-    slot, radially in from the lane (the formed ring is not crossed). The vertical is the PD to the
-    slot's altitude in both. Row 0 (the leader) is the PD too (:func:`lane_nominal_kernel`)."""
-    c = np.ascontiguousarray
-    n = ref.shape[0]
-    u = np.empty((n, 3))
-    args = (c(ref, dtype=float), c(ref_vel, dtype=float), c(leader, dtype=float), c(pos_d, dtype=float))
-    lane_nominal_kernel(
-        *args, c(vel_d, dtype=float), c(acc_d, dtype=float), float(radius), _lane_gains(bp), bp.lanes,
-        np.ones(n, dtype=np.bool_), u,
-    )  # fmt: skip
-    return u
+    """The (7,) gains of :func:`lane_nominal_kernel` for :class:`BarrierFilter`'s guarded nominal:
+    its PD ``guard_kp``, ``guard_kd`` and the lanes' ``lane_speed``, ``arrive_angle``,
+    ``lane_turn_gain``, ``lane_inner``, ``lane_outer``."""
+    return np.array(
+        [bp.guard_kp, bp.guard_kd, bp.lane_speed, bp.arrive_angle, bp.lane_turn_gain, bp.lane_inner, bp.lane_outer]
+    )
 
 
 @jit
@@ -704,8 +678,13 @@ def takeoff_wait_kernel(
     leader_goal: np.ndarray,
     use_goal: bool,
 ) -> None:
-    """:func:`takeoff_wait` into ``wait`` (n,) bool; ``predict`` False: the present positions only;
-    ``use_goal``: also the leader's way, the segment from drone 0 to its reference ``leader_goal`` (3,)."""
+    """The take-off gate (module docstring), into ``wait`` (n,) bool: a filtering drone on the ground
+    (below ``floor``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is
+    below ``gate_rho`` holds where it is (and does not filter this period). With ``predict``: also
+    when that airborne drone is predicted within ``gate_rho`` (at its ``velocities`` and
+    ``accelerations`` (n, 3), sampled every 0.25 s over ``horizon`` s; a grounded one is taken where
+    it stands). ``use_goal``: also inside the keep-out of the leader's way, the segment from drone 0
+    to its reference ``leader_goal`` (3,)."""
     n = positions.shape[0]
     for i in range(n):
         wait[i] = False
@@ -745,33 +724,6 @@ def takeoff_wait_kernel(
                 break
 
 
-def takeoff_wait(
-    bp: BarrierParams,
-    positions: np.ndarray,
-    radii: np.ndarray,
-    filters: np.ndarray,
-    velocities: np.ndarray | None = None,
-    accelerations: np.ndarray | None = None,
-) -> np.ndarray:
-    """The take-off gate (module docstring), (n,) bool: a filtering drone on the ground (below
-    ``floor_m``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is below
-    ``gate_rho`` holds where it is (and does not filter this period). With ``velocities`` (n, 3)
-    (and ``accelerations`` (n, 3)): also when that airborne drone is predicted within ``gate_rho`` (at
-    its velocity and acceleration, sampled every 0.25 s over ``gate_horizon_s``; a grounded one is
-    taken where it stands) (:func:`takeoff_wait_kernel`)."""
-    c = np.ascontiguousarray
-    pos = c(positions, dtype=float)
-    z = np.zeros_like(pos)
-    vel = z if velocities is None else c(velocities, dtype=float)
-    acc = z if accelerations is None else c(accelerations, dtype=float)
-    wait = np.zeros(pos.shape[0], dtype=np.bool_)
-    takeoff_wait_kernel(
-        pos, c(radii, dtype=float), c(filters, dtype=np.bool_), vel, acc, velocities is not None, bp.floor_m,
-        bp.gate_rho, bp.gate_horizon_s, wait, np.zeros(3), False,
-    )  # fmt: skip
-    return wait
-
-
 def _own_keys(overrides: dict[str, Any]) -> dict[str, Any]:
     """The keys of ``overrides`` that only :class:`BarrierParams` has (popped); the names it shares
     with :class:`RuleParams` (``max_tilt_deg``, ``sensing_range``) stay the planner's."""
@@ -788,22 +740,31 @@ def barrier_params(record: RuleParams, table: dict[str, Any]) -> BarrierParams:
     return BarrierParams(**values)
 
 
-class BarrierRule(Rule):
-    """``anti_collision = "barrier-lanes"`` (docs/barrier.md): the formation's references made safe by the
-    barrier filter, with no other separation logic.
+#: The lane rule's own defaults (docs/barrier.md, "The lane rule"): the filter as the lane rule flew it
+#: before it ran on :func:`barrier_step` (a leader that yields, the gate on present positions, no
+#: vertical jerk limit); a scenario's ``[formation.barrier]`` still sets them.
+LANE_RULE_DEFAULTS: dict[str, Any] = {
+    "leader_yields": True,
+    "gate_horizon_s": 0.0,
+    "gate_holds_start": False,
+    "vertical_jerk_limit": 0.0,
+}
 
-    Each follower keeps a reference state (r, ṙ) that its controller tracks (position, velocity and
-    acceleration references). Every period its nominal acceleration is :func:`lane_nominal` (round
-    the leader on a lane, then the PD of :class:`BarrierParams` to the slot; limited to the filter's
-    input limits); :func:`filter_accelerations` changes it as little as possible so that (B) holds,
-    on its reference and on its sensed state, against every drone within ``sensing_range`` (their
-    positions as sensed, their velocities and the leader's acceleration estimated from successive
-    positions), and (r, ṙ) advance with the result (semi-implicit Euler over the control period),
-    kept within ``leash_m`` of the drone. A follower on the ground waits under the take-off gate.
-    The leader filters or not by ``leader_filters``; when it does not, the followers take all of each constraint
-    with it. A relaxation is an event ``{t, drone, other: -1, action: "relax"}`` (the first period of
-    each stretch); ``active_periods`` and ``relaxed_periods`` count drone-periods.
-    """
+
+class BarrierRule(Rule):
+    """``anti_collision = "barrier-lanes"`` (docs/barrier.md, "The lane rule"): no planner; the
+    formation's slots are the references, and :class:`BarrierFilter` flies every follower from its
+    start on its own reference with the lane nominal.
+
+    The same filter as ``barrier``'s (:func:`barrier_step`, one compiled period), configured from
+    :class:`BarrierParams` as the lane rule: its nominal goes round the leader on the lanes
+    (``lanes``; :func:`lane_nominal_kernel`) with the PD ``nominal_kp``, ``nominal_kd``, and every
+    follower starts *guarded* (its reference (r, ṙ) where it stands), so that it goes to its slot
+    on that nominal, not on a step of the reference; its defaults differ from ``barrier``'s where
+    :data:`LANE_RULE_DEFAULTS` says. A follower whose reference reaches its slot
+    (within ``release_m``, ``release_mps``) flies the slot, and is guarded again when it would
+    violate a constraint, as under ``barrier``. The filter's relax events are this rule's events
+    (``{t, drone, other: -1, action: "relax"}``)."""
 
     name = "barrier-lanes"
     #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
@@ -817,31 +778,27 @@ class BarrierRule(Rule):
         ``overrides`` set the filter (:func:`barrier_params`)."""
         own = _own_keys(overrides)
         super().__init__(n, params, **overrides)
-        warm_module(__name__)  # the filter's kernels, before a run's clock starts (_jit.jit's on_demand)
-        self.barrier = barrier_params(self.params, {**own, **(barrier or {})})
+        self.barrier = barrier_params(self.params, {**LANE_RULE_DEFAULTS, **own, **(barrier or {})})
+        bp = self.barrier
+        lanes = replace(bp, guard_lanes=bp.lanes, guard_kp=bp.nominal_kp, guard_kd=bp.nominal_kd)
+        self.separation_filter = BarrierFilter(lanes, self.vehicle)
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
-        self.radii = self.barrier.radii(self.vehicle)
-        self.a_h = self.barrier.horizontal_limit(self.vehicle.g)
-        self.filters = np.ones(n, dtype=np.bool_)
-        self.filters[0] = bool(self.barrier.leader_filters)
-        self.relaxed_periods = 0
-        self.active_periods = 0
+        self._followers = np.arange(n) > 0  # (n,) the drones the filter steers (read-only)
+        self.footprint = float(self.params.keep_out(self.vehicle))  # (m) Sensed.keep_out, as the planner's
 
     def reset(self, positions: np.ndarray) -> None:
+        positions = np.asarray(positions, dtype=float)
         self.events = []
-        self.ref = np.array(positions, dtype=float)  # (n, 3) r
-        self._start_z = self.ref[:, 2].copy()  # (n,) where each drone stands on the ground
-        self.ref_vel = np.zeros((self.n, 3))  # (n, 3) ṙ
-        self.sensed_vel = np.zeros((self.n, 3))
-        self.sensed_acc = np.zeros((self.n, 3))
-        self._prev_dt = 0.0
-        self._prev_pos = np.array(positions, dtype=float)
-        self._prev_t: float | None = None
-        self._was_relaxed = np.zeros(self.n, dtype=bool)
-        self.relaxed_periods = 0
-        self.active_periods = 0
+        self.separation_filter.reset(self.n)
+        rec = self.separation_filter.record()
+        rec.guarded[1:] = True  # every follower on the filter's reference from where it stands
+        rec.ref[:] = positions
+        self.vel = np.zeros((self.n, 3))  # (n, 3) velocities estimated from successive positions
+        self._prev_pos = positions.copy()  # (n, 3)
+        self._prev_t = np.full(1, np.nan)  # (1,) s (NaN: no update yet)
+        self._dt = np.zeros(1)  # (1,) s
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
@@ -849,7 +806,7 @@ class BarrierRule(Rule):
         """With zero formation velocity and acceleration references (see :meth:`references`)."""
         z = np.zeros((self.n, 3))
         pos_out, _, _ = self.references(t, positions, pos_d, z, z, formation_alt)
-        return pos_out, self.filters.copy()
+        return pos_out, self._followers.copy()
 
     def references(
         self,
@@ -860,51 +817,19 @@ class BarrierRule(Rule):
         acc_d: np.ndarray,
         formation_alt: float,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(pos_d, vel_d, acc_d) (n, 3): the followers' filtered reference states, the leader's own."""
-        bp = self.barrier
-        positions = np.asarray(positions, dtype=float)
-        dt = 0.0 if self._prev_t is None else float(t - self._prev_t)
-        if dt > 0.0:
-            vel = (positions - self._prev_pos) / dt
-            if bp.accel_filter_s > 0.0 and self._prev_dt > 0.0:
-                raw = (vel - self.sensed_vel) / dt
-                self.sensed_acc += (raw - self.sensed_acc) * (dt / (bp.accel_filter_s + dt))
-            self.sensed_vel = vel
-        self._prev_dt = dt
-        self._prev_t = float(t)
-        self._prev_pos = positions.copy()
-        u_nom = lane_nominal(bp, self.ref, self.ref_vel, positions[0], pos_d, vel_d, acc_d, float(self.radii[0]))
-        nh = np.sqrt(u_nom[:, 0] ** 2 + u_nom[:, 1] ** 2)
-        u_nom[:, :2] *= np.minimum(1.0, self.a_h * np.cos(np.pi / 8.0) / np.maximum(nh, 1e-12))[:, None]
-        u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        wait = takeoff_wait(bp, positions, self.radii, self.filters)
-        filters = self.filters & ~wait
-        self.ref[wait] = positions[wait]
-        self.ref[wait, 2] = np.minimum(positions[wait, 2], self._start_z[wait])  # stays down
-        self.ref_vel[wait] = 0.0
-        u_nom[wait] = 0.0
-        sensed = (positions, self.sensed_vel, self.sensed_acc)  # zero unless accel_filter_s > 0
-        u, active, relaxed, _ = apply_filter(bp, self.ref, self.ref_vel, u_nom, filters, sensed)
-        self.active_periods += int(active.sum())
-        self.relaxed_periods += int(relaxed.sum())
-        for i in np.flatnonzero(relaxed & ~self._was_relaxed):
-            self.events.append({"t": float(t), "drone": int(i), "other": -1, "action": "relax"})
-        self._was_relaxed = relaxed
-        f = filters
-        self.ref_vel[f] += u[f] * dt
-        self.ref[f] += self.ref_vel[f] * dt
-        self.ref[f, 2] = np.maximum(self.ref[f, 2], 0.0)  # never below the ground
-        # the leash: a reference that a drone cannot follow (held by another, or by the ground) is
-        # kept within leash_m of it, so that the filter works on where the drone can be
-        gap = self.ref - positions
-        far = np.linalg.norm(gap, axis=1)
-        pull = f & (far > bp.leash_m)
-        self.ref[pull] = positions[pull] + gap[pull] * (bp.leash_m / far[pull])[:, None]
-        out_p, out_v, out_a = np.array(pos_d, dtype=float), np.array(vel_d, dtype=float), np.array(acc_d, dtype=float)
-        out_p[f], out_v[f], out_a[f] = self.ref[f], self.ref_vel[f], u[f]
-        out_p[wait], out_v[wait], out_a[wait] = self.ref[wait], 0.0, 0.0
-        self.vel_d, self.acc_d = out_v, out_a
-        return out_p, out_v, out_a
+        """(pos_d, vel_d, acc_d) (n, 3): the filter's references (:meth:`BarrierFilter.__call__`) from
+        the formation's, the velocities estimated from successive positions
+        (:func:`~.layered.estimate_velocities`, as the planner's)."""
+        pos = np.ascontiguousarray(positions, dtype=np.float64)
+        dt = float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
+        f = self.separation_filter
+        seen = seen_within(pos, self.params.sensing_range)
+        sensed = Sensed(float(t), pos, self.vel, seen, self.footprint, dt)
+        out = f(sensed, pos_d, vel_d, acc_d, self._followers)
+        self.events.extend(f.events)
+        f.events.clear()
+        self.vel_d, self.acc_d = out[1], out[2]
+        return out
 
 
 class BarrierRecord(NamedTuple):
@@ -1155,7 +1080,7 @@ class BarrierFilter:
     Each steered drone is either *free* (its references are the planner's, bit for bit) or
     *guarded* (the filter flies its own reference state (r, ṙ)). Every period the nominal
     acceleration is the planner's acc_d for a free drone, and for a guarded one
-    :func:`lane_nominal` towards the planner's reference (acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ),
+    :func:`lane_nominal_kernel` towards the planner's reference (acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ),
     ``guard_kp``, ``guard_kd``; round the leader on a lane first with ``guard_lanes``; within the
     input limits);
     :func:`filter_accelerations` changes it as little as possible so that (B) holds against every
@@ -1165,7 +1090,7 @@ class BarrierFilter:
     below the ground, within ``leash_m`` of the drone, its vertical command within
     ``vertical_jerk_limit``·dt of the last period's); it becomes free again when the filter leaves
     its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
-    (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait`).
+    (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait_kernel`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
     trajectory's reference is beyond ``leader_guard_m``, as at its first period; taking a share of
     each pair only with ``leader_yields``); drones that do not filter
@@ -1310,12 +1235,11 @@ __all__ = [
     "BarrierPlannerRule",
     "BarrierRecord",
     "BarrierRule",
+    "LANE_RULE_DEFAULTS",
     "barrier_off",
     "barrier_params",
     "barrier_step",
-    "takeoff_wait",
     "apply_filter",
-    "lane_nominal",
     "filter_accelerations",
     "keepout_radii",
     "pair_constraint",

@@ -23,7 +23,7 @@ from .layered import (
 )
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm
-from .separation import Sensed, SeparationFilter, closest_approach, descending_onto, hold_above
+from .separation import Sensed, SeparationFilter, closest_approach, descending_onto, hold_above, seen_within
 
 
 def _stoppable_speed(room: float, accel: float, lag: float, room_min: float, share: float) -> float:
@@ -227,7 +227,7 @@ class LayeredRule(PaperRule):
         f = self.separation_filter
         if f is None:
             return pos_d, vel_d, acc_d
-        seen = _seen(positions, self.sensing_range)
+        seen = seen_within(positions, self.sensing_range)
         sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, float(self._dt[0]))
         return f(sensed, pos_d, vel_d, acc_d, self._followers)
 
@@ -390,7 +390,7 @@ class LayeredRule(PaperRule):
         self.acc_d[:] = 0.0
         # (computed even when nobody is in transit, which cannot happen here: every step that reads
         # these then does nothing, as before)
-        seen = _seen(positions, self.sensing_range)  # (n, n)
+        seen = seen_within(positions, self.sensing_range)  # (n, n)
         soon = np.where(seen, self._approach(positions, self.horizon), np.inf)  # (n, n)
         return PlanStep(
             t=t,
@@ -542,16 +542,6 @@ class LayeredRule(PaperRule):
         self.acc_d[1:, 2] = self.za[1:]
         self._all_formed = bool((self.phase == FORMED).all())
         return pos_d, s.steer
-
-
-def _seen(positions: np.ndarray, sensing_range: float) -> np.ndarray:
-    """(n, n) drone i senses drone j: within ``sensing_range`` (3D); the leader (column 0) always
-    (the slots are built from its position); not itself."""
-    rel = positions[None, :, :] - positions[:, None, :]
-    seen = np.einsum("ijk,ijk->ij", rel, rel) < sensing_range**2  # (n, n)
-    seen[:, 0] = True
-    np.fill_diagonal(seen, False)
-    return seen
 
 
 #: The layered rule; the name stays for the chunk driver's rule check. What the ``compensated`` rule

@@ -205,6 +205,16 @@ class Sensed:
     dt: float  # s since the last call (0 at the first)
 
 
+def seen_within(positions: np.ndarray, sensing_range: float) -> np.ndarray:
+    """(n, n) drone i senses drone j: within ``sensing_range`` (3D); the leader (column 0) always
+    (the slots are built from its position); not itself."""
+    rel = positions[None, :, :] - positions[:, None, :]
+    seen = np.einsum("ijk,ijk->ij", rel, rel) < sensing_range**2  # (n, n)
+    seen[:, 0] = True
+    np.fill_diagonal(seen, False)
+    return seen
+
+
 class SeparationFilter(Protocol):
     """A separation step acting on the planner's references rather than its targets (e.g. a
     barrier certificate): each call gets the references the planner (and the altitude
