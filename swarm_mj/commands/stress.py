@@ -26,6 +26,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from ..experiments.parallel import machine_description
 from ..experiments.stress import (  # noqa: F401
     RULES,
     StressCase,
@@ -145,6 +146,8 @@ def main(args: argparse.Namespace) -> int:
         )
     doc = {
         "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")} | {"aero": case.aero},
+        # the versions the numbers came from: a contact count moves with MuJoCo's (docs/libraries.md)
+        "machine": machine_description(),
         "table": table,
         "starts": rows,
     }

@@ -129,3 +129,6 @@ def test_stress_tool_table_and_json(tmp_path):
     assert main(args) == 0
     data = json.loads(out.read_text())
     assert data["table"]["off"]["starts"] == 1 and len(data["starts"]) == 1
+    import mujoco
+
+    assert data["machine"]["mujoco"] == mujoco.__version__  # what a contact count depends on
