@@ -53,6 +53,14 @@ its nominal before filtering: each of the two sees the other on its own left, so
 each other (the roundabout rule); a follower pressed against the keep-out of a drone that does
 not give way (the leader) slides round it the same way.
 
+**Deadlock escape.** Pressed into the corner of two keep-outs, a drone is left only the line where
+the two constraints' planes meet (vertical beside two tall keep-outs at its altitude), along which
+neither its nominal nor the horizontal tie-break moves it. A guarded follower that the filter keeps
+changing and whose reference has not come ``escape_progress_m`` nearer the planner's (horizontally)
+for ``escape_after_s`` escapes: its nominal's altitude is raised by ``escape_height`` × the
+keep-out's vertical radius until it is within ``escape_done_m`` of the planner's reference. Only
+the nominal changes; the constraints and the limits filter it as any command.
+
 **Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while its ρ to a
 drone of lower index or to an airborne one is below ``gate_rho``: the barrier cannot push a drone on
 the ground sideways, and lifting off inside a keep-out would start the pair with h < 0, where (B)
@@ -211,6 +219,18 @@ class BarrierParams:
     assign_slots: bool = _p(
         True, "", "`barrier`'s planner gives each follower a slot so that no two straight paths cross (CAPT)", None
     )
+    escape_after_s: float = _p(
+        3.0, "s", "a guarded follower pressed this long without escape_progress_m escapes up (0: off)", 0.0,
+        open_lo=False,
+    )  # fmt: skip
+    escape_progress_m: float = _p(
+        0.05, "m", "… the progress towards the planner's reference (horizontal) that restarts that clock"
+    )
+    escape_min_m: float = _p(
+        0.3, "m", "… counted only while it is farther than this from the planner's reference", 0.0, open_lo=False
+    )
+    escape_height: float = _p(1.05, "–", "… its nominal's altitude raised by this × the keep-out's vertical radius")
+    escape_done_m: float = _p(0.1, "m", "… until it is within this of the planner's reference (horizontal)")
 
     def __post_init__(self) -> None:
         """Every field in its range (the metadata), and lane_outer > lane_inner; else one UserError."""
@@ -742,12 +762,13 @@ def barrier_params(record: RuleParams, table: dict[str, Any]) -> BarrierParams:
 
 #: The lane rule's own defaults (docs/barrier.md, "The lane rule"): the filter as the lane rule flew it
 #: before it ran on :func:`barrier_step` (a leader that yields, the gate on present positions, no
-#: vertical jerk limit); a scenario's ``[formation.barrier]`` still sets them.
+#: vertical jerk limit, no deadlock escape); a scenario's ``[formation.barrier]`` still sets them.
 LANE_RULE_DEFAULTS: dict[str, Any] = {
     "leader_yields": True,
     "gate_horizon_s": 0.0,
     "gate_holds_start": False,
     "vertical_jerk_limit": 0.0,
+    "escape_after_s": 0.0,
 }
 
 
@@ -866,6 +887,11 @@ class BarrierRecord(NamedTuple):
     vertical_jerk_limit: float  # m/s³ (0: off)
     descent_horizontal_cost: float  # a descending follower's QP metric, horizontal / vertical
     descent_vz: float  # m/s: the planner's sink rate above which a follower descends
+    escape_after_s: float  # s (0: no escape)
+    escape_progress_m: float  # m
+    escape_min_m: float  # m
+    escape_height: float  # × the keep-out's vertical radius
+    escape_done_m: float  # m
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -876,7 +902,10 @@ class BarrierRecord(NamedTuple):
     was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
     active: np.ndarray  # (n,) bool: a barrier constraint changed the drone's command at the last call
     flags: np.ndarray  # (2,) bool: start taken, prev_vel taken
-    counts: np.ndarray  # (4,) int64: active, relaxed, guarded, rate-limited drone-periods
+    escaping: np.ndarray  # (n,) bool: the drone escapes up (its nominal's altitude raised)
+    pressed_s: np.ndarray  # (n,) s the drone has been pressed without progress (0: not counting)
+    best_m: np.ndarray  # (n,) m its least horizontal distance to the planner's reference since then
+    counts: np.ndarray  # (5,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
     ev_count: np.ndarray  # (1,) int64 events held
@@ -914,7 +943,10 @@ def _record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barrier
         was_relaxed=np.zeros(n, dtype=np.bool_),
         active=np.zeros(n, dtype=np.bool_),
         flags=np.zeros(2, dtype=np.bool_),
-        counts=np.zeros(4, dtype=np.int64),
+        escaping=np.zeros(n, dtype=np.bool_),
+        pressed_s=np.zeros(n),
+        best_m=np.zeros(n),
+        counts=np.zeros(5, dtype=np.int64),
         ev_t=np.zeros(cap),
         ev_drone=np.zeros(cap, dtype=np.int64),
         ev_count=np.zeros(1, dtype=np.int64),
@@ -926,6 +958,36 @@ def barrier_off(n: int) -> BarrierRecord:
     """The stand-in record of a run without a barrier filter (``on`` False; the same types, so the
     chunk driver has one signature with or without the filter)."""
     return _record(BarrierParams(), DEFAULT_PARAMS, n, False)
+
+
+@jit(inline=True, on_demand=True)
+def _escape_update(rec, i, guarded, active, pos_d, dt):
+    """The deadlock escape of drone i, after its period (docs/barrier.md, "deadlock escape"): a
+    guarded drone whose command the filter changes and whose reference has not come
+    ``escape_progress_m`` nearer the planner's (horizontally) for ``escape_after_s`` s, farther than
+    ``escape_min_m`` from it, escapes: its nominal's altitude is raised by ``escape_height`` × the
+    keep-out's vertical radius until its reference is within ``escape_done_m`` of the planner's
+    (counted in ``counts[4]``). A free drone does not escape."""
+    if rec.escape_after_s <= 0.0 or not guarded:
+        rec.escaping[i] = False
+        rec.pressed_s[i] = 0.0
+        return
+    far = np.sqrt((pos_d[i, 0] - rec.ref[i, 0]) ** 2 + (pos_d[i, 1] - rec.ref[i, 1]) ** 2)
+    if rec.escaping[i]:
+        if far < rec.escape_done_m:
+            rec.escaping[i] = False
+            rec.pressed_s[i] = 0.0
+    elif active and far > rec.escape_min_m:
+        if rec.pressed_s[i] <= 0.0 or far < rec.best_m[i] - rec.escape_progress_m:
+            rec.best_m[i] = far  # progress: the clock starts again
+            rec.pressed_s[i] = 1e-9
+        else:
+            rec.pressed_s[i] += dt
+            if rec.pressed_s[i] > rec.escape_after_s:
+                rec.escaping[i] = True
+                rec.counts[4] += 1
+    else:
+        rec.pressed_s[i] = 0.0
 
 
 def _step_samples():
@@ -978,7 +1040,11 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             ref[i] = rec.ref[i]
             ref_vel[i] = rec.ref_vel[i]
     if any_g:  # a guarded drone's nominal: round the leader on a lane towards the planner's reference
-        lane_nominal_kernel(ref, ref_vel, positions[0], pos_d, vel_d, acc_d, rec.radii[0], rec.lane_gains,
+        goal = pos_d.copy()  # an escaping drone's, raised (the deadlock escape)
+        for i in range(n):
+            if rec.escaping[i]:
+                goal[i, 2] += rec.escape_height * rec.radii[2]
+        lane_nominal_kernel(ref, ref_vel, positions[0], goal, vel_d, acc_d, rec.radii[0], rec.lane_gains,
                             rec.lanes, g, u_nom)  # fmt: skip
         face = rec.a_h * np.cos(np.pi / 8.0)
         for i in range(n):
@@ -1069,6 +1135,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                 dv += (rec.ref_vel[i, c] - vel_d[i, c]) ** 2
             back = np.sqrt(dp) <= rec.release_m and np.sqrt(dv) <= rec.release_mps
         rec.guarded[i] = (g[i] and not back) or wait[i]
+        _escape_update(rec, i, rec.guarded[i] and not wait[i], active[i], pos_d, dt)
     rec.prev_acc[:] = out_a
     return out_p, out_v, out_a
 
@@ -1090,7 +1157,9 @@ class BarrierFilter:
     below the ground, within ``leash_m`` of the drone, its vertical command within
     ``vertical_jerk_limit``·dt of the last period's); it becomes free again when the filter leaves
     its nominal unchanged and (r, ṙ) are within ``release_m``, ``release_mps`` of the planner's
-    (pos_d, vel_d). A follower on the ground waits under the take-off gate (:func:`takeoff_wait_kernel`).
+    (pos_d, vel_d). A guarded follower pressed without progress for ``escape_after_s`` escapes up
+    (the deadlock escape, :func:`_escape_update`). A follower on the ground waits under the take-off
+    gate (:func:`takeoff_wait_kernel`).
     The leader filters with ``leader_filters`` (as a steered drone; guarded from where it is while its
     trajectory's reference is beyond ``leader_guard_m``, as at its first period; taking a share of
     each pair only with ``leader_yields``); drones that do not filter
@@ -1155,6 +1224,11 @@ class BarrierFilter:
     def guarded_periods(self) -> int:
         """Drone-periods flown on the filter's own reference."""
         return int(self._rec.counts[2])
+
+    @property
+    def escapes(self) -> int:
+        """Deadlock escapes started (docs/barrier.md, "deadlock escape")."""
+        return int(self._rec.counts[4])
 
     @property
     def rate_limited_periods(self) -> int:

@@ -633,3 +633,41 @@ def test_a_descending_follower_is_changed_vertically_first():
         np.testing.assert_allclose(change[name], expect, rtol=1e-9, atol=1e-12)
     assert np.linalg.norm(change["plain"][:2]) > 5.0 * abs(change["plain"][2])  # sideways
     assert abs(change["descent"][2]) > np.linalg.norm(change["descent"][:2])  # mostly a slower descent
+
+
+def test_deadlock_escape_takes_a_wedged_follower_out_of_the_corner():
+    """A follower wedged in the corner of two keep-outs (the leader's and a ring neighbour's, neither
+    of which moves), its planner's reference going straight through the leader to the far side: the
+    two constraints leave it only the vertical line where their planes meet, which its nominal does
+    not move along, and the horizontal keep-right tie-break cannot take it out. Flown as a double
+    integrator on the filter's references: without the escape (``escape_after_s`` 0) it is still
+    there after 20 s; with it, it climbs, passes over, and reaches its goal, never inside a keep-out
+    by more than the discretisation's 1 %, with the escape counted (docs/barrier.md, "deadlock
+    escape")."""
+    radii = BarrierParams().radii()
+    a = float(radii[0])
+    # the follower's way to its goal runs into the leader's keep-out beside the neighbour's
+    start = np.array([[0.0, 0.0, 2.0], [1.6, 0.0, 2.0], [a + 0.2, 0.75, 2.0]])
+    goal = np.array([-1.0, 0.0, 2.0])
+    steer = np.array([False, True, False])  # the leader and the neighbour keep their references
+    dt, speed = 0.01, 0.5
+    out_of_reach, escapes = {}, {}
+    for after in (0.0, BarrierParams().escape_after_s):
+        f = BarrierFilter(BarrierParams(leader_filters=False, escape_after_s=after))
+        f.reset(3)
+        pos, vel, rho = start.copy(), np.zeros((3, 3)), []
+        way = goal - start[1]
+        for k in range(int(20.0 / dt)):
+            t = k * dt
+            s = min(1.0, speed * t / float(np.linalg.norm(way)))
+            p_d, v_d = start.copy(), np.zeros((3, 3))
+            p_d[1] = start[1] + s * way
+            v_d[1] = (speed / np.linalg.norm(way)) * way if s < 1.0 else 0.0
+            out = f(_sensed(t, pos, vel, dt if k else 0.0), p_d, v_d, np.zeros((3, 3)), steer)
+            pos, vel = out[0].copy(), out[1].copy()  # the drones on their references
+            rho.append(min(keepout_distance(pos[1] - pos[j], radii) for j in (0, 2)))
+        assert min(rho) > 0.99
+        out_of_reach[after] = float(np.linalg.norm(pos[1, :2] - goal[:2]))
+        escapes[after] = f.escapes
+    assert out_of_reach[0.0] > 1.0 and escapes[0.0] == 0  # stuck without it: the test is not vacuous
+    assert out_of_reach[BarrierParams().escape_after_s] < 0.05 and escapes[BarrierParams().escape_after_s] >= 1
