@@ -967,7 +967,7 @@ def _escape_update(rec, i, guarded, active, pos_d, dt):
     ``escape_progress_m`` nearer the planner's (horizontally) for ``escape_after_s`` s, farther than
     ``escape_min_m`` from it, escapes: its nominal's altitude is raised by ``escape_height`` × the
     keep-out's vertical radius until its reference is within ``escape_done_m`` of the planner's
-    (counted in ``counts[4]``). A free drone does not escape."""
+    (counted in ``counts[4]``). A free drone, and the leader (not steered), do not escape."""
     if rec.escape_after_s <= 0.0 or not guarded:
         rec.escaping[i] = False
         rec.pressed_s[i] = 0.0
@@ -1135,7 +1135,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                 dv += (rec.ref_vel[i, c] - vel_d[i, c]) ** 2
             back = np.sqrt(dp) <= rec.release_m and np.sqrt(dv) <= rec.release_mps
         rec.guarded[i] = (g[i] and not back) or wait[i]
-        _escape_update(rec, i, rec.guarded[i] and not wait[i], active[i], pos_d, dt)
+        _escape_update(rec, i, rec.guarded[i] and steer[i] and not wait[i], active[i], pos_d, dt)  # followers
     rec.prev_acc[:] = out_a
     return out_p, out_v, out_a
 
