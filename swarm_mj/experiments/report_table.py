@@ -103,6 +103,13 @@ def format_summary(summary: dict, scenario) -> str:
         lines.append(
             f"drone-drone contact episodes (MuJoCo, a pair touching over consecutive steps once): {s['contacts']}"
         )
+        rho = s.get("keepout_min_distance")
+        if rho is not None:  # the keep-out invariant, every rule (docs/barrier.md, "the invariant measured")
+            closest = f"closest ρ {rho:.3f} (1 = on it)" if math.isfinite(rho) else "never two drones airborne"
+            lines.append(
+                f"downwash keep-out (the vehicle's ellipsoid, docs/barrier.md): {closest}, "
+                f"{s['keepout_time_s']:.2f} s with an airborne pair inside"
+            )
         dw = s.get("downwash_dip")
         if dw is not None:
             where = f" ({dw['drone']} under {dw['above']} at t = {dw['at_s']:.2f} s)" if dw["drone"] else ""
