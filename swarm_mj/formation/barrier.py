@@ -90,7 +90,6 @@ the leader or each other head-on.
 from __future__ import annotations
 
 from dataclasses import dataclass, fields, replace
-from functools import lru_cache
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -582,14 +581,6 @@ def filter_accelerations(
     return u, active, relaxed, kept
 
 
-@lru_cache(maxsize=8)
-def _params_record(bp: BarrierParams, vehicle: QuadParams, n: int) -> BarrierRecord:
-    """The record :func:`apply_filter` hands :func:`filter_accelerations`, built once per (params,
-    vehicle, n): the filter reads only its parameters, never its state, so it is shared read-only (a
-    :class:`BarrierFilter` has a record of its own, which :func:`barrier_step` writes)."""
-    return _record(bp, vehicle, n, True)
-
-
 def apply_filter(
     bp: BarrierParams,
     pos: np.ndarray,
@@ -614,7 +605,7 @@ def apply_filter(
         limits = np.tile([bp.horizontal_limit(vehicle.g), bp.accel_up, bp.accel_down], (n, 1))
     f8 = np.float64
     return filter_accelerations(
-        _params_record(bp, vehicle, n),
+        _record(bp, vehicle, n, True),  # the filter reads its parameters only
         *(c(x, dtype=f8) for x in (pos, vel, sp, sv, sa, u_nom)),
         c(filters, dtype=np.bool_),
         c(limits, dtype=f8),
@@ -1040,7 +1031,10 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             ref[i] = rec.ref[i]
             ref_vel[i] = rec.ref_vel[i]
     if any_g:  # a guarded drone's nominal: round the leader on a lane towards the planner's reference
-        goal = pos_d.copy()  # an escaping drone's, raised (the deadlock escape)
+        escaping = False
+        for i in range(n):
+            escaping = escaping or rec.escaping[i]
+        goal = pos_d.copy() if escaping else pos_d  # an escaping drone's raised (the deadlock escape)
         for i in range(n):
             if rec.escaping[i]:
                 goal[i, 2] += rec.escape_height * rec.radii[2]
