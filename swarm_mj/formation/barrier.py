@@ -1250,8 +1250,8 @@ class BarrierFilter:
 
 class BarrierPlannerRule(JetAwareRule):
     """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset with the
-    descents at half the speed, ``PRESETS["barrier"]``; its altitude separation) with
-    :class:`BarrierFilter` as its separation step, its followers flying to
+    descents at half the speed and no crossing brake, ``PRESETS["barrier"]``; its altitude
+    separation) with :class:`BarrierFilter` as its separation step, its followers flying to
     slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
     no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
     among ``overrides`` set them)."""

@@ -88,7 +88,8 @@ class LayeredRule(PaperRule):
     2. *cross* — within ``climb_tolerance`` of its layer, to its slot on the layer along a
        limited path. Invariant: it is asked to brake to rest while a drone it gives way to (the
        leader, a lower index, any drone not crossing) is predicted within D̄ before it could stop
-       (``reaction_time``), in an altitude band it sweeps (``clearance``).
+       (``reaction_time``), in an altitude band it sweeps (``clearance``); with ``crossing_brake``
+       off (``barrier``'s preset) it never brakes, and the separation filter separates.
     3. *drop* — within ``arrive`` of its slot (and its path too) it joins the formation, only
        when no drone in transit is (or will be) within D̄ under it; descending, it holds ``hop``
        above any drone in transit within D̄ below (:func:`~.separation.hold_above`).
@@ -469,7 +470,8 @@ class LayeredRule(PaperRule):
     def _cross(self, s: PlanStep) -> None:
         """2. *cross* (ours): the horizontal goals — its start while climbing, its slot (moving with
         the leader) after — and, crossing on the layer, braking to rest (``blocked``) while a drone
-        it gives way to (the leader, a lower index, any drone not crossing) is in conflict."""
+        it gives way to (the leader, a lower index, any drone not crossing) is in conflict; with
+        ``crossing_brake`` off it never brakes (a separation filter separates: docs/barrier.md)."""
         n = self.n
         positions = s.positions
         climbing = self.phase == CLIMB
@@ -479,10 +481,11 @@ class LayeredRule(PaperRule):
         s.goal[climbing] = self.start_xy[climbing]
         s.goal_vel[climbing] = 0.0
         self.blocked &= crossing
-        if not crossing.any():
+        p = self.params
+        if not crossing.any() or not p.crossing_brake:
+            self.blocked[:] = False
             return
         speed = rownorm(self.vel[:, :2])
-        p = self.params
         horizon_i = np.minimum(speed / self.a_max + p.reaction_time, p.conflict_horizon_max)  # (n,) stop + react
         gap = closest_approach(positions, self.vel, horizon_i[:, None])  # (n, n) over each one's horizon
         near = (gap < self.safety) & s.seen

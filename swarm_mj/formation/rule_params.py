@@ -101,6 +101,9 @@ class RuleParams:
     )
     reaction_time: float = _p(0.3, "s", "a crossing drone's conflict horizon: its time to stop plus this")
     conflict_horizon_max: float = _p(2.0, "s", "longest conflict horizon of a crossing drone")
+    crossing_brake: bool = _p(
+        True, "", "a crossing follower brakes for a drone it gives way to (off: a separation filter separates)", None
+    )
     # --- the vehicle's outline
     outline_margin: float = _p(
         0.01, "m", "keep-out radius = arm + rotor radius + this (a size)", 0.0, open_lo=False, size=True
@@ -208,8 +211,10 @@ PRESETS: dict[str, RuleParams] = {
     "jet-aware": _JET_AWARE,
     # the barrier filter's planner (its own parameters are barrier.BarrierParams): jet-aware's, its
     # descents at 0.75 m/s, not 1.5 (docs/barrier.md, "the planner's descent": a follower descending
-    # past its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes)
-    "barrier": replace(_JET_AWARE, descent_speed=0.75),
+    # past its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes),
+    # without the crossing brake (docs/barrier.md, "the planner's crossing brake": the filter
+    # separates, and the brake's on-off chatter drove the lagged drones' limit cycle)
+    "barrier": replace(_JET_AWARE, descent_speed=0.75, crossing_brake=False),
     "barrier-lanes": RuleParams(),
     "off": RuleParams(),
 }

@@ -25,6 +25,7 @@ from swarm_mj.formation.anticollision import (
     PaperRule,
     make_rule,
 )
+from swarm_mj.formation.rule_params import PRESETS
 from swarm_mj.formation.slots import DiameterSchedule, polygon_offsets, slot_positions
 from swarm_mj.scenario import (
     START_CLEARANCE_M,
@@ -319,21 +320,29 @@ def test_climb_is_slow_enough_to_stop_under_a_drone_first_seen_at_the_sensing_ra
         assert v * v / (1.6 * a) + v * lag <= sensing - rule.hop - 0.2 + 1e-9
 
 
-def test_crossing_follower_brakes_for_a_lower_index_drone_on_its_altitude():
-    # follower 2 crosses towards its slot; follower 1 hovers in its way at the same altitude
-    rule = LayeredRule(3)
+def _cross_past_a_hovering_follower(**overrides: object) -> tuple[LayeredRule, float, float, bool]:
+    """Follower 2 crosses towards its slot; follower 1 hovers in its way at the same altitude.
+    Returns the rule, the closest x-distance of the two, follower 2's final x, and whether its
+    path was ever blocked."""
+    rule = LayeredRule(3, **overrides)
     pos = np.array([[10.0, 0.0, 2.0], [0.0, 0.0, 2.8], [-3.0, 0.0, 2.8]])
     rule.reset(pos)
     rule.phase[1:] = CROSS
     rule.start_xy[:] = pos[:, :2]
     far = np.array([[10.0, 0.0, 2.0], [0.0, 0.0, 2.8], [3.0, 0.0, 2.8]])  # slot of 2 beyond follower 1
-    closest = np.inf
+    closest, blocked = np.inf, False
     for k in range(600):
         pos_d, _ = rule.update(k * T, pos, far.copy(), 2.0)
         pos[2] = pos_d[2]  # follower 2 flies; 1 stays put
         pos[2, 2] = 2.8  # (and both keep one altitude)
         rule.zp[2] = 2.8
         closest = min(closest, abs(pos[2, 0] - pos[1, 0]))
+        blocked |= bool(rule.blocked.any())
+    return rule, closest, float(pos[2, 0]), blocked
+
+
+def test_crossing_follower_brakes_for_a_lower_index_drone_on_its_altitude():
+    rule, closest, _, _ = _cross_past_a_hovering_follower()
     assert any(e["action"] == "hold" and e["drone"] == 2 and e["other"] == 1 for e in rule.events)
     assert closest > 0.6  # it stopped outside the rotors' reach
     assert np.linalg.norm(rule.path_v[2]) < 0.05  # and holds there
@@ -423,3 +432,12 @@ def test_random_start_request_is_refused_when_the_scenario_is_read():
         parse_scenario(_random_scenario(6, 1.0, 2.0), "bad.toml")
     msg = str(ei.value)
     assert "\n" not in msg and "bad.toml" in msg and "followers.random_start" in msg and "room" in msg
+
+
+def test_crossing_brake_off_leaves_the_separation_to_a_filter():
+    # with crossing_brake off (barrier's preset, docs/barrier.md "the planner's crossing brake") the
+    # same crossing is never blocked and flies on through follower 1's place
+    rule, _, x_final, blocked = _cross_past_a_hovering_follower(crossing_brake=False)
+    assert not blocked and not any(e["action"] == "hold" for e in rule.events)
+    assert x_final > 2.5  # nothing but a separation filter would stop it
+    assert PRESETS["barrier"].crossing_brake is False and PRESETS["jet-aware"].crossing_brake is True
