@@ -141,12 +141,15 @@ def test_a_record_built_in_code_is_checked_the_same_way():
 
 
 def test_the_barrier_planner_is_jet_awares_with_slower_descents_and_a_scenario_still_sets_them():
-    """docs/barrier.md, "the planner's descent": the `barrier` preset is `jet-aware`'s record but for
-    `descent_speed` (0.75 m/s against 1.5), and a scenario's ``[formation] descent_speed`` overrides it."""
+    """docs/barrier.md, "the planner's descent" and "the planner's crossing brake": the `barrier`
+    preset is `jet-aware`'s record but for `descent_speed` (0.75 m/s against 1.5) and
+    `crossing_brake` (off), and a scenario's ``[formation]`` keys override them."""
     jet = BacksteppingPolicy(parse_scenario(_scenario("jet-aware"))).rule.params
     bar = BacksteppingPolicy(parse_scenario(_scenario())).rule.params
     assert bar.descent_speed == 0.75 and jet.descent_speed == 1.5
-    assert replace(bar, descent_speed=jet.descent_speed) == jet
+    assert not bar.crossing_brake and jet.crossing_brake
+    assert replace(bar, descent_speed=jet.descent_speed, crossing_brake=True) == jet
     own = _scenario()
     own["formation"]["descent_speed"] = 1.5
+    own["formation"]["crossing_brake"] = True
     assert BacksteppingPolicy(parse_scenario(own)).rule.params == jet
