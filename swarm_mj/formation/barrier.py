@@ -188,6 +188,14 @@ class BarrierParams:
     )
     release_mps: float = _p(0.05, "m/s", "… and within this of the planner's velocity", 0.0, open_lo=False)
     ground_band_m: float = _p(0.5, "m", "no downward acceleration to a drone below this altitude", 0.0, open_lo=False)
+    ground_brake_share: float = _p(
+        0.8,
+        "",
+        "share of accel_up a descent counts on to stop above ground_band_m (0: no envelope)",
+        0.0,
+        1.0,
+        open_lo=False,
+    )
     gate_horizon_s: float = _p(
         1.5, "s", "the take-off gate predicts the other drones over this horizon", 0.0, open_lo=False
     )
@@ -871,6 +879,7 @@ class BarrierRecord(NamedTuple):
     release_m: float  # m
     release_mps: float  # m/s
     ground_band_m: float  # m
+    ground_brake_share: float  # share of accel_up the ground envelope counts on
     gate_holds_start: bool
     leader_filters: bool  # drone 0 filters too (its trajectory's references are its nominal)
     gate_leader_way: bool  # the take-off gate also keeps off the leader's way to its reference
@@ -1064,8 +1073,16 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         limits[i, 0] = rec.a_h
         limits[i, 1] = rec.accel_up
         limits[i, 2] = rec.accel_down
-        if min(ref[i, 2], positions[i, 2]) < rec.ground_band_m:
+        z_low = min(ref[i, 2], positions[i, 2])
+        if z_low < rec.ground_band_m:
             limits[i, 2] = 0.0  # near the ground: not pushed down
+        elif ref_vel[i, 2] < 0.0 and rec.ground_brake_share > 0.0:
+            # the ground envelope (docs/barrier.md, "near the ground"): h = z − band − v²/(2·a_b) ≥ 0
+            # (it can still stop above the band braking at a_b), kept by ḣ ≥ −k·h: u_z ≥ a_b·(1 − k·h/|v|)
+            a_b = rec.ground_brake_share * rec.accel_up
+            vz = ref_vel[i, 2]
+            h = z_low - rec.ground_band_m - vz * vz / (2.0 * a_b)
+            limits[i, 2] = min(limits[i, 2], -a_b * (1.0 + rec.gain * h / vz))
     u, active, relaxed, _ = filter_accelerations(
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )

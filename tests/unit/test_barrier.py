@@ -671,3 +671,41 @@ def test_deadlock_escape_takes_a_wedged_follower_out_of_the_corner():
         escapes[after] = f.escapes
     assert out_of_reach[0.0] > 1.0 and escapes[0.0] == 0  # stuck without it: the test is not vacuous
     assert out_of_reach[BarrierParams().escape_after_s] < 0.05 and escapes[BarrierParams().escape_after_s] >= 1
+
+
+def test_ground_envelope_stops_a_pushed_descent_above_the_band():
+    """The leader descends at 1.5 m/s straight onto a hovering follower (tie-break off, the pair
+    exactly aligned: the only way out is down). The filter pushes the follower down; with the
+    ground envelope (``ground_brake_share``) its reference never sinks below ``ground_band_m``
+    (within one period's step) and it is braking when it gets there, so the real drone can stop
+    above the ground; without it (0) the same push carries the reference into the ground band at a
+    speed it cannot brake from there, which is the crash the envelope is for (docs/barrier.md,
+    "near the ground")."""
+    dt = 0.01
+    lowest, speed_at_band = {}, {}
+    for share in (0.8, 0.0):
+        bp = BarrierParams(ground_brake_share=share, tiebreak=0.0, leader_filters=False)
+        f = BarrierFilter(bp)
+        f.reset(2)
+        pos = np.array([[0.0, 0.0, 4.6], [0.0, 0.0, 2.2]])
+        vel = np.array([[0.0, 0.0, -1.5], [0.0, 0.0, 0.0]])
+        steer = np.array([False, True])
+        zs, vz_band = [], None
+        for k in range(300):
+            p_d = np.array([pos[0], [0.0, 0.0, 2.2]])
+            v_d = np.array([vel[0], [0.0, 0.0, 0.0]])
+            out = f(_sensed(k * dt, pos, vel, dt if k else 0.0), p_d, v_d, np.zeros((2, 3)), steer)
+            pos, vel = out[0].copy(), out[1].copy()
+            if pos[0, 2] > 0.6:
+                pos[0, 2] -= 1.5 * dt  # the leader flies its trajectory down to 0.6 m
+            else:
+                vel[0, 2] = 0.0
+            zs.append(pos[1, 2])
+            if vz_band is None and pos[1, 2] < bp.ground_band_m + 0.05:
+                vz_band = vel[1, 2]
+        lowest[share], speed_at_band[share] = min(zs), vz_band
+    band, a_b = BarrierParams().ground_band_m, 0.8 * BarrierParams().accel_up
+    assert lowest[0.8] >= band - 0.05
+    # without the envelope: into the band faster than a_b could stop it in the 0.5 m left
+    assert speed_at_band[0.0] is not None and speed_at_band[0.0] ** 2 > 2.0 * a_b * band
+    assert lowest[0.0] < lowest[0.8]
