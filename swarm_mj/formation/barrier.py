@@ -1078,11 +1078,12 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             limits[i, 2] = 0.0  # near the ground: not pushed down
         elif ref_vel[i, 2] < 0.0 and rec.ground_brake_share > 0.0:
             # the ground envelope (docs/barrier.md, "near the ground"): h = z − band − v²/(2·a_b) ≥ 0
-            # (it can still stop above the band braking at a_b), kept by ḣ ≥ −k·h: u_z ≥ a_b·(1 − k·h/|v|)
+            # (it can still stop above the band braking at a_b), kept by ḣ ≥ −k·h: u_z ≥ a_b·(1 − k·h/|v|),
+            # at most accel_up (a drone already past its envelope brakes at its limit: the box stays feasible)
             a_b = rec.ground_brake_share * rec.accel_up
             vz = ref_vel[i, 2]
             h = z_low - rec.ground_band_m - vz * vz / (2.0 * a_b)
-            limits[i, 2] = min(limits[i, 2], -a_b * (1.0 + rec.gain * h / vz))
+            limits[i, 2] = max(min(limits[i, 2], -a_b * (1.0 + rec.gain * h / vz)), -rec.accel_up)
     u, active, relaxed, _ = filter_accelerations(
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )
