@@ -1040,12 +1040,13 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
             ref[i] = rec.ref[i]
             ref_vel[i] = rec.ref_vel[i]
     if any_g:  # a guarded drone's nominal: round the leader on a lane towards the planner's reference
-        escaping = False
-        for i in range(n):
-            escaping = escaping or rec.escaping[i]
-        goal = pos_d.copy() if escaping else pos_d  # an escaping drone's raised (the deadlock escape)
+        goal = pos_d  # an escaping drone's raised (the deadlock escape): a copy only then
+        copied = False
         for i in range(n):
             if rec.escaping[i]:
+                if not copied:
+                    goal = pos_d.copy()
+                    copied = True
                 goal[i, 2] += rec.escape_height * rec.radii[2]
         lane_nominal_kernel(ref, ref_vel, positions[0], goal, vel_d, acc_d, rec.radii[0], rec.lane_gains,
                             rec.lanes, g, u_nom)  # fmt: skip

@@ -480,11 +480,11 @@ class LayeredRule(PaperRule):
         s.goal_vel = np.broadcast_to(self.vel[0, :2], (n, 2)).copy()  # (n, 2) their velocity
         s.goal[climbing] = self.start_xy[climbing]
         s.goal_vel[climbing] = 0.0
-        self.blocked &= crossing
         p = self.params
         if not crossing.any() or not p.crossing_brake:
             self.blocked[:] = False
             return
+        self.blocked &= crossing
         speed = rownorm(self.vel[:, :2])
         horizon_i = np.minimum(speed / self.a_max + p.reaction_time, p.conflict_horizon_max)  # (n,) stop + react
         gap = closest_approach(positions, self.vel, horizon_i[:, None])  # (n, n) over each one's horizon

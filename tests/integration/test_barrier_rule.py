@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from swarm_mj.experiments.report_table import format_summary
 from swarm_mj.experiments.runner import run
 from swarm_mj.experiments.stress import StressCase, stress_scenario
 from swarm_mj.formation.barrier import BarrierParams, BarrierRule, keepout_radii
@@ -27,8 +28,6 @@ def test_barrier_flies_a_random_start(aero, rule):
     assert s["keepout_min_distance"] == pytest.approx(keepout_min_distance(log.pos, radii))
     assert s["keepout_time_s"] == pytest.approx(keepout_time_s(log.t, log.pos, radii))
     assert s["keepout_time_s"] == 0.0 and s["contacts"] == 0 and s["crashes"] == 0
-    from swarm_mj.experiments.report_table import format_summary
-
     # the text summary (what `swarm-mj run` prints) states the invariant too
     line = f"closest ρ {s['keepout_min_distance']:.3f} (1 = on it), 0.00 s with an airborne pair inside"
     assert line in format_summary(s, res.scenario)
