@@ -238,6 +238,10 @@ class BarrierParams:
     )
     escape_height: float = _p(1.05, "–", "… its nominal's altitude raised by this × the keep-out's vertical radius")
     escape_done_m: float = _p(0.1, "m", "… until it is within this of the planner's reference (horizontal)")
+    transit_hold: float = _p(
+        1.05, "–", "`barrier`: a formed follower holds this × the keep-out's height above a drone in transit", 0.0,
+        open_lo=False,
+    )  # fmt: skip
 
     def __post_init__(self) -> None:
         """Every field in its range (the metadata), and lane_outer > lane_inner; else one UserError."""
@@ -1270,7 +1274,8 @@ class BarrierFilter:
 class BarrierPlannerRule(JetAwareRule):
     """``anti_collision = "barrier"`` (docs/barrier.md): the jet-aware planner (its preset with the
     descents at half the speed and no crossing brake, ``PRESETS["barrier"]``; its altitude
-    separation) with :class:`BarrierFilter` as its separation step, its followers flying to
+    separation, a formed follower held ``transit_hold`` × the keep-out's height above a drone in
+    transit under it) with :class:`BarrierFilter` as its separation step, its followers flying to
     slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
     no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
     among ``overrides`` set them)."""
@@ -1291,6 +1296,9 @@ class BarrierPlannerRule(JetAwareRule):
         self.barrier_filter = BarrierFilter(barrier_params(record, {**own, **(barrier or {})}), vehicle)
         super().__init__(n, record, vehicle=vehicle)
         self.separation_filter = self.barrier_filter
+        bp = self.barrier_filter.barrier
+        # the hold over a drone in transit, out of the filter's keep-out (docs/barrier.md, "the planner's hold")
+        self.transit_hold_m = bp.transit_hold * float(bp.radii(vehicle)[2])
 
     def reset(self, positions: np.ndarray) -> None:
         super().reset(positions)

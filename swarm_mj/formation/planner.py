@@ -91,8 +91,9 @@ class LayeredRule(PaperRule):
        (``reaction_time``), in an altitude band it sweeps (``clearance``); with ``crossing_brake``
        off (``barrier``'s preset) it never brakes, and the separation filter separates.
     3. *drop* — within ``arrive`` of its slot (and its path too) it joins the formation, only
-       when no drone in transit is (or will be) within D̄ under it; descending, it holds ``hop``
-       above any drone in transit within D̄ below (:func:`~.separation.hold_above`).
+       when no drone in transit is (or will be) within D̄ under it; descending, it holds
+       ``transit_hold_m`` (``hop``; under ``barrier`` the filter's keep-out height) above any drone
+       in transit within D̄ below (:func:`~.separation.hold_above`).
     4. *formed* — the paper's reaction.
 
     **Limited paths**: every follower's references are the position, velocity and acceleration
@@ -123,6 +124,7 @@ class LayeredRule(PaperRule):
         self.k_v = p.velocity_gain
         self.tan_tilt = float(np.tan(np.radians(p.max_tilt_deg)))
         self.sensing_range = p.sensing_range
+        self.transit_hold_m = p.hop  # (m) a descending formed follower's least height over a drone in transit below
         self.footprint = p.keep_out(self.vehicle)  # (m) keep-out radius: rotor span + outline_margin
         self.overlap = p.overlap(self.vehicle)  # (m) keep-out discs overlap in plan view under this centre distance
         # No faster than it can stop within what it sees (``sensing_range``, 3D): climbing, hop +
@@ -518,7 +520,7 @@ class LayeredRule(PaperRule):
     def _formed(self, s: PlanStep) -> None:
         """4. *formed* (the paper's, Fig. 5): the reactive rule among formed drones and the leader
         sets the altitude offset of each formed follower; ours: one still descending never descends
-        onto a drone in transit within D̄ (now or soon) below it, it waits ``hop`` above it
+        onto a drone in transit within D̄ (now or soon) below it, it waits ``transit_hold_m`` above it
         (docs/interpretations.md §4's failure case)."""
         z = s.z
         formed = self.phase == FORMED
@@ -528,7 +530,7 @@ class LayeredRule(PaperRule):
         if not s.in_transit:
             return
         below = descending_onto(z, s.z_target, formed, self.phase != FORMED, s.soon < self.safety, self.clearance)
-        s.z_target = hold_above(z, s.z_target, below, self.hop)
+        s.z_target = hold_above(z, s.z_target, below, self.transit_hold_m)
 
     def _fly_paths(self, s: PlanStep) -> tuple[np.ndarray, np.ndarray]:
         """Every follower flies limited paths (ours): horizontal, to ``goal``, and vertical, to

@@ -366,6 +366,40 @@ def test_drop_waits_while_a_drone_in_transit_is_under_the_slot():
     assert rule.phase[1] == FORMED
 
 
+def _descend_over_a_climbing_follower(rule: LayeredRule) -> tuple[float, float]:
+    """Follower 1 has joined over its slot at 3.5 m and descends to the formation's 2 m; follower 2
+    climbs 0.3 m beside its column, at 1.8 m (within ``clearance`` under 1's target), and stays
+    there. Returns the least and the last height of 1 over 2 (follower 1 flies its references)."""
+    leader = np.array([0.0, 0.0, 2.0])
+    slot1 = leader + polygon_offsets(2, 1.0)[0]
+    pos = np.array([leader, slot1 + [0.0, 0.0, 1.5], slot1 + [0.3, 0.0, -0.2]])
+    rule.reset(pos)
+    rule.phase[1], rule.phase[2] = FORMED, CLIMB
+    rule.path_p[1] = slot1[:2]
+    pos_d = np.vstack([leader, leader + polygon_offsets(2, 1.0)])
+    gaps = []
+    for k in range(400):
+        out, _ = rule.update(k * T, pos, pos_d.copy(), 2.0)
+        pos[1] = out[1]  # follower 1 flies; 2 stays where it is
+        gaps.append(pos[1, 2] - pos[2, 2])
+    return min(gaps), gaps[-1]
+
+
+def test_a_descending_follower_holds_the_rules_height_over_a_drone_in_transit_under_it():
+    """docs/barrier.md, "the planner's hold": ``hop`` (0.4 m) over a drone in transit under it for the
+    layered rule; under ``barrier`` ``transit_hold`` × the filter's keep-out height (1.05 × 2.08 m),
+    so that the drone under it is outside the tall keep-out and not pushed down into the ground."""
+    from swarm_mj.formation.barrier import BarrierParams
+
+    lowest, last = _descend_over_a_climbing_follower(LayeredRule(3))
+    assert lowest >= 0.4 - 1e-6 and last == pytest.approx(0.4, abs=0.01)
+    rule = make_rule("barrier", 3, barrier={"assign_slots": False})
+    hold = 1.05 * float(BarrierParams().radii()[2])
+    assert rule.transit_hold_m == pytest.approx(hold)
+    lowest, last = _descend_over_a_climbing_follower(rule)
+    assert lowest >= 1.5 - 1e-6 and last == pytest.approx(hold, abs=0.01)  # it climbs from 1.7 m over 2 to the hold
+
+
 def test_climbing_follower_waits_under_a_hovering_leader_overhead():
     rule = LayeredRule(2)
     pos = np.array([[0.0, 0.0, 2.0], [0.3, 0.0, 0.0]])  # leader hovers 0.3 m off its column
