@@ -118,7 +118,8 @@ def format_summary(summary: dict, scenario) -> str:
                 f"time with a drone in a jet {dw['time_in_jet_s']:.2f} s"
             )
         a = s["anti_collision"]
-        lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields")
+        relaxed = f", {a['relaxations']} barrier relaxations (docs/barrier.md)" if a.get("relaxations") else ""
+        lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields{relaxed}")
         auto = s.get("anti_collision_auto")
         if auto is not None:
             lines.append(f"  (auto chose '{auto['rule']}': {auto['why']})")

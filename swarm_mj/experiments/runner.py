@@ -411,12 +411,14 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
             "rule": policy.rule.name,
             "events": len(ev),
             "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
+            # the barrier filter's relaxations: constraints infeasible within the limits (docs/barrier.md)
+            "relaxations": sum(1 for e in ev if e["action"] == "relax"),
         }
     else:  # the stable keys exist for one drone too
         out["min_separation_m"] = None
         out["formation"] = None
         out["downwash_dip_worst_m"] = 0.0
-        out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0}
+        out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0}
     return out
 
 

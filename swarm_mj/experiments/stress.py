@@ -88,6 +88,7 @@ def fly_case(case: StressCase) -> dict:
         "min_separation_airborne_m": float(s.get("min_separation_airborne_m", float("inf"))),
         "settling_s": float(settle),
         "yields": int(s["anti_collision"]["yields"]),
+        "relaxations": int(s["anti_collision"]["relaxations"]),
         "stopped": s.get("stopped"),
         "crashes": int(s.get("crashes", 0)),
         "ground_contacts": int(s.get("ground_contacts", 0)),
@@ -131,6 +132,9 @@ def summarize_rule(rows: list[dict]) -> dict:
         "keepout_time_worst_s": max((r["keepout_time_s"] for r in rows), default=0.0),
         "keepout_time_total_s": sum(r["keepout_time_s"] for r in rows),
         "starts_in_keepout": sum(r["keepout_time_s"] > 0 for r in rows),
+        # the barrier filter's relaxations (constraints infeasible within the limits, docs/barrier.md)
+        "relaxations": sum(r.get("relaxations", 0) for r in rows),
+        "seeds_relaxed": [r["seed"] for r in rows if r.get("relaxations", 0) > 0],
         "path_per_follower_median_m": float(np.median([r.get("path_per_follower_m", np.nan) for r in rows]))
         if rows
         else float("nan"),
@@ -218,6 +222,12 @@ def format_table(table: dict, followers: int) -> str:
             seeds = r["seeds_with_contact"]
             lines.append(
                 f"           seeds with contact: {', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}"
+            )
+        if r.get("relaxations"):
+            seeds = r["seeds_relaxed"]
+            lines.append(
+                f"           barrier relaxations: {r['relaxations']} in {len(seeds)} starts "
+                f"({', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}; docs/barrier.md)"
             )
     return "\n".join(lines)
 

@@ -232,7 +232,17 @@ class LayeredRule(PaperRule):
             return pos_d, vel_d, acc_d
         seen = seen_within(positions, self.sensing_range)
         sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, float(self._dt[0]))
-        return f(sensed, pos_d, vel_d, acc_d, self._followers)
+        out = f(sensed, pos_d, vel_d, acc_d, self._followers)
+        self.take_separation_events()
+        return out
+
+    def take_separation_events(self) -> None:
+        """Move the ``separation_filter``'s events (e.g. a barrier filter's relaxations) into this
+        rule's ``events``, so that a run's summary and recording count them with the planner's."""
+        f = self.separation_filter
+        if f is not None and f.events:
+            self.events.extend(f.events)
+            f.events.clear()
 
     # ------------------------------------------------------------------ helpers
     def _approach(self, positions: np.ndarray, horizon: float) -> np.ndarray:

@@ -226,7 +226,10 @@ class SeparationFilter(Protocol):
     leader's row 0 is its trajectory); row i may depend only on drone i's own references and on
     ``sensed`` rows j with ``sensed.seen[i, j]`` (decentralised); it returns new arrays (it does
     not write into its arguments); with nothing to separate it returns the references unchanged
-    (bit for bit). It holds its own state, cleared by ``reset``."""
+    (bit for bit). It holds its own state, cleared by ``reset``, and appends its decisions to
+    ``events`` as ``{t, drone, other, action}``, which the planner moves into its own."""
+
+    events: list[dict]
 
     def reset(self, n: int) -> None:
         """Start of a run of n drones."""

@@ -205,10 +205,13 @@ class FastLoop:
         return k
 
     def _take_filter_events(self) -> None:
-        """The barrier filter's relax events of the periods flown, into its ``events`` (as its Python call does)."""
-        f = getattr(self.policy.rule, "separation_filter", None) if self._layered else None
+        """The barrier filter's relax events of the periods flown, into the rule's ``events`` (as its
+        Python call and the planner's :meth:`~swarm_mj.formation.planner.LayeredRule.references` do)."""
+        rule = self.policy.rule
+        f = getattr(rule, "separation_filter", None) if self._layered else None
         if f is not None:
             f.take_events()
+            rule.take_separation_events()
 
     def _record(self, k: int) -> None:
         """The environment's record of the last period flown (as :meth:`SwarmEnv.step` leaves it)."""

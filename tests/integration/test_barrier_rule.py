@@ -8,11 +8,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from swarm_mj.experiments import stress
 from swarm_mj.experiments.report_table import format_summary
 from swarm_mj.experiments.runner import run
-from swarm_mj.experiments.stress import StressCase, stress_scenario
+from swarm_mj.experiments.stress import StressCase, stress_data, stress_scenario
 from swarm_mj.formation.barrier import BarrierParams, BarrierRule, keepout_radii
 from swarm_mj.metrics import keepout_min_distance, keepout_time_s
+from swarm_mj.scenario import parse_scenario
 
 pytestmark = pytest.mark.slow
 
@@ -73,3 +75,27 @@ def test_auto_says_which_rule_it_chose_and_why(aero, chosen):
     assert f"auto chose '{chosen}': {s['anti_collision_auto']['why']}" in format_summary(s, res.scenario)
     named = run("circle", aero=aero, duration=0.5, progress=False, anti_collision=chosen).summary
     assert "anti_collision_auto" not in named
+
+
+def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
+    # limits too small for the filter's constraints (6°, 0.6 m/s²): the filter relaxes them
+    # (docs/barrier.md, "infeasibility"), and the run says how often, on both drivers
+    data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
+    data["formation"]["barrier"] = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
+    sc = parse_scenario(data, "<test>")
+    runs = [run(sc, progress=False, fused=fused) for fused in (False, True)]
+    for res in runs:
+        relax = [e for e in res.events if e["action"] == "relax"]
+        assert res.summary["anti_collision"]["relaxations"] == len(relax) > 0
+        assert all(e["other"] == -1 and 1 <= e["drone"] <= 5 for e in relax)
+        assert f"{len(relax)} barrier relaxations" in format_summary(res.summary, res.scenario)
+    assert runs[0].events == runs[1].events
+    # the stress row carries the count (the same run: fly_case flies the case's scenario)
+    monkeypatch.setattr(stress, "stress_scenario", lambda case: sc)
+    row = stress.fly_case(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0))
+    assert row["relaxations"] == len(relax)
+    table = {"barrier": stress.summarize_rule([row])}
+    assert f"barrier relaxations: {len(relax)} in 1 starts (100033;" in stress.format_table(table, 5)
+    # a rule without the filter never relaxes
+    plain = run(stress_scenario(StressCase("jet-aware", 100033, 5, 3.0, 0.6, 6.0, aero="realistic")), progress=False)
+    assert plain.summary["anti_collision"]["relaxations"] == 0

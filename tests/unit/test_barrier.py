@@ -709,3 +709,23 @@ def test_ground_envelope_stops_a_pushed_descent_above_the_band():
     # without the envelope: into the band faster than a_b could stop it in the 0.5 m left
     assert speed_at_band[0.0] is not None and speed_at_band[0.0] ** 2 > 2.0 * a_b * band
     assert lowest[0.0] < lowest[0.8]
+
+
+def test_the_chunk_drivers_relax_events_become_the_rules_events():
+    # the chunk driver (swarm_mj/pipeline/fast.py) hands the compiled step's relax events to the
+    # rule after each chunk, as the Python period does, so that the summary counts them
+    from types import SimpleNamespace
+
+    from swarm_mj.formation.anticollision import make_rule
+    from swarm_mj.pipeline.fast import FastLoop
+
+    rule = make_rule("barrier", 3)
+    rule.reset(np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]))
+    rec = rule.separation_filter.record()
+    rec.ev_t[:2], rec.ev_drone[:2], rec.ev_count[0] = (1.25, 1.5), (2, 1), 2
+    FastLoop._take_filter_events(SimpleNamespace(policy=SimpleNamespace(rule=rule), _layered=True))
+    assert [e for e in rule.events if e["action"] == "relax"] == [
+        {"t": 1.25, "drone": 2, "other": -1, "action": "relax"},
+        {"t": 1.5, "drone": 1, "other": -1, "action": "relax"},
+    ]
+    assert rule.separation_filter.events == [] and rec.ev_count[0] == 0

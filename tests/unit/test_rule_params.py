@@ -191,9 +191,11 @@ class _ZeroAcc:
 
     def reset(self, n: int) -> None:
         self.calls = 0
+        self.events: list[dict] = []
 
     def __call__(self, sensed, pos_d, vel_d, acc_d, steer):
         self.calls += 1
+        self.events.append({"t": sensed.t, "drone": 1, "other": -1, "action": "zero"})
         assert sensed.positions.shape == (3, 3) and sensed.seen.shape == (3, 3)
         assert sensed.keep_out == pytest.approx(vehicle_outline() + RuleParams().outline_margin)
         acc = acc_d.copy()
@@ -220,4 +222,7 @@ def test_a_separation_filter_sees_the_planners_references_and_changes_only_steer
         np.testing.assert_array_equal(b[2][0], a[2][0])  # the leader's row untouched
         assert (b[2][1:] == 0.0).all()
     assert f.calls == 20 and np.abs(a[2][1:]).max() > 0.0  # the planner did ask for accelerations
+    # the filter's events become the rule's (a run's summary counts them), each once
+    assert [e["t"] for e in filt.events if e["action"] == "zero"] == [0.01 * k for k in range(20)]
+    assert f.events == [] and not any(e["action"] == "zero" for e in plain.events)
     assert (plain.phase != FORMED).any()
