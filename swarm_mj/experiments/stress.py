@@ -226,7 +226,7 @@ def format_table(table: dict, followers: int) -> str:
         if r.get("relaxations"):
             seeds = r["seeds_relaxed"]
             lines.append(
-                f"           barrier relaxations: {r['relaxations']} in {len(seeds)} starts "
+                f"           barrier relaxations: {r['relaxations']} in {len(seeds)} of {r['starts']} starts "
                 f"({', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}; docs/barrier.md)"
             )
     return "\n".join(lines)

@@ -79,7 +79,8 @@ def test_auto_says_which_rule_it_chose_and_why(aero, chosen):
 
 def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     # limits too small for the filter's constraints (6°, 0.6 m/s²): the filter relaxes them
-    # (docs/barrier.md, "infeasibility"), and the run says how often, on both drivers
+    # (docs/barrier.md, "Infeasible under the limits: relaxation"), and the run says how often, on
+    # both drivers
     data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
     data["formation"]["barrier"] = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
     sc = parse_scenario(data, "<test>")
@@ -95,7 +96,7 @@ def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     row = stress.fly_case(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0))
     assert row["relaxations"] == len(relax)
     table = {"barrier": stress.summarize_rule([row])}
-    assert f"barrier relaxations: {len(relax)} in 1 starts (100033;" in stress.format_table(table, 5)
+    assert f"barrier relaxations: {len(relax)} in 1 of 1 starts (100033;" in stress.format_table(table, 5)
     # a rule without the filter never relaxes
     plain = run(stress_scenario(StressCase("jet-aware", 100033, 5, 3.0, 0.6, 6.0, aero="realistic")), progress=False)
     assert plain.summary["anti_collision"]["relaxations"] == 0
