@@ -805,7 +805,8 @@ class BarrierRule(Rule):
         self.barrier = barrier_params(self.params, {**LANE_RULE_DEFAULTS, **own, **(barrier or {})})
         bp = self.barrier
         lanes = replace(bp, guard_lanes=bp.lanes, guard_kp=bp.nominal_kp, guard_kd=bp.nominal_kd)
-        self.separation_filter = BarrierFilter(lanes, self.vehicle)
+        self.barrier_filter = BarrierFilter(lanes, self.vehicle)
+        self.separation_filter = self.barrier_filter
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
@@ -815,8 +816,8 @@ class BarrierRule(Rule):
     def reset(self, positions: np.ndarray) -> None:
         positions = np.asarray(positions, dtype=float)
         self.events = []
-        self.separation_filter.reset(self.n)
-        rec = self.separation_filter.record()
+        self.barrier_filter.reset(self.n)
+        rec = self.barrier_filter.record()
         rec.guarded[1:] = True  # every follower on the filter's reference from where it stands
         rec.ref[:] = positions
         self.vel = np.zeros((self.n, 3))  # (n, 3) velocities estimated from successive positions
@@ -846,12 +847,11 @@ class BarrierRule(Rule):
         (:func:`~.layered.estimate_velocities`, as the planner's)."""
         pos = np.ascontiguousarray(positions, dtype=np.float64)
         dt = float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
-        f = self.separation_filter
+        f = self.barrier_filter
         seen = seen_within(pos, self.params.sensing_range)
         sensed = Sensed(float(t), pos, self.vel, seen, self.footprint, dt)
         out = f(sensed, pos_d, vel_d, acc_d, self._followers)
-        self.events.extend(f.events)
-        f.events.clear()
+        self.take_separation_events()
         self.vel_d, self.acc_d = out[1], out[2]
         return out
 

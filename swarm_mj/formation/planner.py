@@ -23,7 +23,7 @@ from .layered import (
 )
 from .rule_params import RuleParams
 from .rules import PaperRule, pair_distances, rownorm
-from .separation import Sensed, SeparationFilter, closest_approach, descending_onto, hold_above, seen_within
+from .separation import Sensed, closest_approach, descending_onto, hold_above, seen_within
 
 
 def _stoppable_speed(room: float, accel: float, lag: float, room_min: float, share: float) -> float:
@@ -213,9 +213,6 @@ class LayeredRule(PaperRule):
             )
         return self._record
 
-    #: a reference-level separation step (:class:`~.separation.SeparationFilter`), or None
-    separation_filter: SeparationFilter | None = None
-
     def references(
         self,
         t: float,
@@ -235,14 +232,6 @@ class LayeredRule(PaperRule):
         out = f(sensed, pos_d, vel_d, acc_d, self._followers)
         self.take_separation_events()
         return out
-
-    def take_separation_events(self) -> None:
-        """Move the ``separation_filter``'s events (e.g. a barrier filter's relaxations) into this
-        rule's ``events``, so that a run's summary and recording count them with the planner's."""
-        f = self.separation_filter
-        if f is not None and f.events:
-            self.events.extend(f.events)
-            f.events.clear()
 
     # ------------------------------------------------------------------ helpers
     def _approach(self, positions: np.ndarray, horizon: float) -> np.ndarray:

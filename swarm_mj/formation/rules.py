@@ -36,7 +36,7 @@ import numpy as np
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .layered import horizontal_distances, merge_rows
 from .rule_params import PRESETS, RuleParams
-from .separation import fig5_react
+from .separation import SeparationFilter, fig5_react
 
 
 class Rule:
@@ -52,6 +52,8 @@ class Rule:
     events: list[dict]
     vel_d: np.ndarray  # (n, 3) velocity reference of the steered drones
     acc_d: np.ndarray  # (n, 3) acceleration reference of the steered drones
+    #: a reference-level separation step (:class:`~.separation.SeparationFilter`), or None
+    separation_filter: SeparationFilter | None = None
 
     def __init__(
         self, n: int, params: RuleParams | None = None, *, vehicle: QuadParams = DEFAULT_PARAMS, **overrides: Any
@@ -74,6 +76,14 @@ class Rule:
     ) -> tuple[np.ndarray, np.ndarray]:
         """Adjusted setpoints pos_d (n, 3) and the drones it steers, steer (n,) bool."""
         raise NotImplementedError
+
+    def take_separation_events(self) -> None:
+        """Move the ``separation_filter``'s events (e.g. a barrier filter's relaxations) into this
+        rule's ``events``, so that a run's summary and recording count them with the rule's own."""
+        f = self.separation_filter
+        if f is not None and f.events:
+            self.events.extend(f.events)
+            f.events.clear()
 
     @property
     def downwash_feedforward(self) -> bool:

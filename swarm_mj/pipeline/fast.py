@@ -206,9 +206,9 @@ class FastLoop:
 
     def _take_filter_events(self) -> None:
         """The barrier filter's relax events of the periods flown, into the rule's ``events`` (as its
-        Python call and the planner's :meth:`~swarm_mj.formation.planner.LayeredRule.references` do)."""
+        Python call and the rule's ``references`` do: :meth:`~swarm_mj.formation.rules.Rule.take_separation_events`)."""
         rule = self.policy.rule
-        f = getattr(rule, "separation_filter", None) if self._layered else None
+        f = rule.separation_filter if self._layered else None
         if f is not None:
             f.take_events()
             rule.take_separation_events()
