@@ -220,16 +220,19 @@ def format_table(table: dict, followers: int) -> str:
         )
         if r["seeds_with_contact"]:
             seeds = r["seeds_with_contact"]
-            lines.append(
-                f"           seeds with contact: {', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}"
-            )
+            lines.append(f"           seeds with contact: {_seed_list(seeds)}")
         if r.get("relaxations"):
             seeds = r["seeds_relaxed"]
             lines.append(
                 f"           barrier relaxations: {r['relaxations']} in {len(seeds)} of {r['starts']} starts "
-                f"({', '.join(map(str, seeds[:20]))}{' ...' if len(seeds) > 20 else ''}; docs/barrier.md)"
+                f"({_seed_list(seeds)}; docs/barrier.md)"
             )
     return "\n".join(lines)
+
+
+def _seed_list(seeds: list[int]) -> str:
+    """The first 20 seeds, comma-separated, and " ..." when there are more."""
+    return ", ".join(map(str, seeds[:20])) + (" ..." if len(seeds) > 20 else "")
 
 
 def replay_lines(table: dict, rows: list[dict], scenario_file: str | None) -> list[str]:
