@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from .choices import choose_gains, resolve_vehicle
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
@@ -111,6 +112,8 @@ class Scenario:
     vehicle_mixer: str | None = None  # the vehicle file's ``mixer``: what mixer = "auto" becomes on it
     #: ``[formation.barrier]``: the barrier filter's parameters the scenario sets (docs/barrier.md)
     barrier_params: dict[str, Any] = field(default_factory=dict)
+    #: where ``gains`` came from: a key of :data:`swarm_mj.choices.GAINS_ORIGINS` (choices.choose_gains)
+    gains_origin: str = "scenario"
 
     @property
     def start_clearance(self) -> float:
@@ -199,7 +202,16 @@ class Scenario:
         the report): it seeds the wind turbulence **and** re-derives seeded random follower
         starts with seed s (unless ``random_start`` is given too). ``duration`` and ``seed``
         are checked as in a scenario file (:class:`UserError` naming the field).
+        ``vehicle=V`` (a bundled name, a vehicle file or a :class:`~swarm_mj.vehicles.Vehicle`) flies V:
+        its parameters, mixer, rotor lag and, unless chosen, its gains (:func:`swarm_mj.choices.vehicle_overrides`).
+        ``gains=`` without ``gains_origin`` are gains given for the run (they win over the vehicle's).
         """
+        if "vehicle" in kw:
+            from .choices import vehicle_overrides
+
+            kw = {**vehicle_overrides(self, kw.pop("vehicle")), **kw}
+        if "gains" in kw and "gains_origin" not in kw:
+            kw["gains_origin"] = "option"
         if "seed" in kw:
             kw["seed"] = check_seed(kw["seed"], "seed")
             if self.random_start is not None and "random_start" not in kw:
@@ -532,7 +544,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
         raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast", where=f"{w}integrator")
     seed = check_seed(data.get("seed", 0), f"{w}seed")
-    vehicle, params, vehicle_mixer = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
+    vehicle, params, vehicle_mixer, vehicle_gains = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
     clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
     steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
 
@@ -621,8 +633,10 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
 
     ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
     ac_params |= check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
-    g = ctl.get("gains", "table4")
-    if isinstance(g, str):
+    g = ctl.get("gains")
+    if g is None:  # the scenario names none: the vehicle's, else Table 4 (swarm_mj.choices.choose_gains)
+        gains, source = None, ""
+    elif isinstance(g, str):
         if g == "table4":
             gains, source = TABLE4_GAINS.copy(), "table4"
         else:
@@ -635,6 +649,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         if not _only_numbers(g):
             raise UserError(f'must be "table4", a gains file or 12 numbers, got {g!r}', where=f"{w}controller.gains")
         gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
+    chosen = choose_gains(scenario=(gains, source) if gains is not None else None, vehicle=vehicle_gains)
     ff = ctl.get("wind_feedforward", True)
     if not isinstance(ff, bool):
         raise UserError(f"must be true or false, got {ff!r}", where=f"{w}controller.wind_feedforward")
@@ -694,8 +709,9 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         anti_collision=rule,
         anti_collision_params=ac_params,
         sensing_range=sensing,
-        gains=gains,
-        gains_source=source,
+        gains=chosen.gains,
+        gains_source=chosen.source,
+        gains_origin=chosen.origin,
         wind_feedforward=ff,
         attitude_map=amap,
         mixer=mixer,
@@ -711,33 +727,18 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     )
 
 
-def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams, str | None]:
+def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams, str | None, Path | None]:
     """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
-        a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the
-        scenario's folder). Returns (the model as given, its :class:`~swarm_mj.physics.params.QuadParams`, the
-    vehicle file's ``mixer`` or None);
-        :class:`UserError` naming the field or the vehicle file and key otherwise (docs/vehicles.md)."""
-    from .vehicles import bundled, load_vehicle
-
+    a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the scenario's
+    folder; :func:`swarm_mj.choices.resolve_vehicle`). Returns (the model as given, its
+    :class:`~swarm_mj.physics.params.QuadParams`, the vehicle file's ``mixer`` or None, its ``gains``
+    file or None); :class:`UserError` naming the field or the vehicle file and key otherwise
+    (docs/vehicles.md)."""
     if table is None:
-        return "paper", DEFAULT_PARAMS, None
+        return "paper", DEFAULT_PARAMS, None, None
     t = _check_keys(table, _VEHICLE_KEYS, where)
-    model = t.get("model", "paper")
-    if not isinstance(model, str) or not model:
-        raise UserError(
-            f"must be a bundled vehicle ({', '.join(bundled())}) or a vehicle file, got {model!r}",
-            where=f"{where}.model",
-        )
-    arg: str | Path = model
-    if model not in bundled():
-        arg = Path(model) if Path(model).is_absolute() else base / model
-        if not arg.is_file():
-            raise UserError(
-                f"unknown vehicle {model!r}: neither a bundled vehicle ({', '.join(bundled())}) nor a file",
-                where=f"{where}.model",
-            )
-    vehicle = load_vehicle(arg)
-    return model, vehicle.params(), vehicle.mixer
+    model, vehicle, _ = resolve_vehicle(t.get("model", "paper"), base, f"{where}.model")
+    return model, vehicle.params(), vehicle.mixer, vehicle.gains_file
 
 
 def _missing(where: str):
