@@ -186,12 +186,16 @@ def display_path(path: str | Path) -> str:
     return str(path)
 
 
-def gains_label(source: str, origin: str) -> str:
-    """The gains as a summary names them: what they are and whose (:data:`GAINS_ORIGINS`), e.g.
-    ``scenarios/gains/crazyflie21_fpa_seed0.toml (the vehicle's)`` or ``Table 4 (Table 4, the default)``."""
-    what = "Table 4" if source == "table4" else source if source in ("inline", "given", "override") else None
-    if what is None:
-        what = display_path(source) if Path(source).is_file() else source
+def gains_name(source: str) -> str:
+    """The gains' source as a summary names it: ``Table 4``, ``inline``, or the file (:func:`display_path`)."""
+    if source == "table4":
+        return "Table 4"
+    return display_path(source) if Path(source).is_file() else source
+
+
+def gains_text(name: str, origin: str) -> str:
+    """The gains as the summary's text gives them: what they are and whose (:data:`GAINS_ORIGINS`), e.g.
+    ``scenarios/gains/crazyflie21_fpa_seed0.toml (the vehicle's)`` or ``Table 4 (the default)``."""
     if origin == "default":
         return "Table 4 (the default)"
-    return f"{what} ({GAINS_ORIGINS.get(origin, origin)})"
+    return f"{name} ({GAINS_ORIGINS.get(origin, origin)})"

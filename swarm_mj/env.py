@@ -71,13 +71,14 @@ import numpy as np
 from dm_env import specs
 
 from ._jit import jit
+from .choices import VehicleLike, flown
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .physics.sim import HEALTHY, ForceStage
 from .physics.wind import WindSeries
 from .pipeline.records import Obs
 from .pipeline.swarm import SwarmPhysics
-from .scenario import Scenario, load_scenario
+from .scenario import Scenario
 from .task import copy_outcome, copy_reward, observation_shapes
 
 
@@ -139,6 +140,11 @@ def all_finite(a: np.ndarray) -> bool:
 class SwarmEnv(dm_env.Environment):
     """A scenario as a dm_env environment. ``SwarmEnv("circle")`` or ``SwarmEnv(scenario)``.
 
+    ``vehicle``: the drones flown instead of the scenario's (a bundled vehicle's name, a vehicle file or a
+    :class:`~swarm_mj.vehicles.Vehicle`; with its own gains unless the scenario names some), ``aero``: the
+    physics preset (``"paper"`` or ``"realistic"``, docs/aero.md); None: the scenario's
+    (:func:`swarm_mj.choices.flown`).
+
     ``force_stages``: extra :class:`~swarm_mj.physics.sim.ForceStage` s of the simulator, applied after
     drag and wind (e.g. aerodynamic effects between drones)."""
 
@@ -151,8 +157,10 @@ class SwarmEnv(dm_env.Environment):
         raise_on_divergence: bool = False,
         seed: int | None = None,
         force_stages: Sequence[ForceStage] = (),
+        vehicle: VehicleLike | None = None,
+        aero: str | None = None,
     ) -> None:
-        self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        self.scenario = sc = flown(scenario, vehicle=vehicle, aero=aero)
         if action not in ("thrust", "setpoint"):
             raise UserError(f"action must be 'thrust' or 'setpoint', got {action!r}")
         self.action_mode = action

@@ -7,3 +7,47 @@
 RULE_NAMES = ("auto", "layers", "paper", "off", "jet-aware", "barrier", "barrier-lanes")
 #: The physics presets (``swarm_mj.physics.aero.presets.AERO_MODELS``, kept equal by a test).
 AERO_NAMES = ("paper", "realistic")
+
+#: Exit statuses of every command (README, "Exit status"; ``swarm-mj run --help``'s epilog).
+EXIT_OK = 0
+EXIT_ERROR = 1  # a run stopped early (diverged), an output or the renderer failed
+EXIT_USER = 2  # a user mistake: one line, before anything flies
+EXIT_FLIGHT_FAILED = 3  # flew to the end, but a drone never took off, crashed or was lost; or no tune candidate flew
+EXIT_INTERRUPTED = 130  # Ctrl-C
+
+#: The exit statuses as ``--help`` epilogs print them.
+EXIT_EPILOG = (
+    "exit status: 0 the flight did what was asked; 1 the run stopped early (diverged) or an output failed; "
+    "2 a user mistake (one line, nothing flown); 3 the run flew to its end but a drone never took off, "
+    "crashed or was lost (one line says which); 130 interrupted."
+)
+
+
+def add_vehicle_argument(p, *, default: str = "the scenario's") -> None:  # noqa: ANN001 - an argparse parser
+    """``--vehicle NAME|FILE`` and ``--gains FILE``, the same options in ``run``, ``video``, ``sweep`` and
+    ``stress`` (the rule is :mod:`swarm_mj.choices`); ``default``: the vehicle flown without ``--vehicle``."""
+    p.add_argument(
+        "--vehicle",
+        metavar="NAME|FILE",
+        help=f"the drones flown: a bundled vehicle (paper, crazyflie21) or a vehicle file (default: {default}; "
+        "docs/vehicles.md), with its own gains unless --gains or the scenario names some",
+    )
+    p.add_argument(
+        "--gains",
+        metavar="FILE",
+        help="gains file (as written by 'swarm-mj tune'; default: the scenario's, else the vehicle's, else Table 4)",
+    )
+
+
+def flown_scenario(args, scenario=None):  # noqa: ANN001, ANN201 - argparse args; a Scenario
+    """The scenario ``args.scenario`` (or ``scenario``) with ``--vehicle``, ``--aero`` and ``--gains``
+    applied by the one rule of :func:`swarm_mj.choices.flown` (errors name the options)."""
+    from ..choices import flown
+
+    return flown(
+        args.scenario if scenario is None else scenario,
+        vehicle=getattr(args, "vehicle", None),
+        aero=getattr(args, "aero", None),
+        gains=getattr(args, "gains", None),
+        where=("--vehicle", "--aero", "--gains"),
+    )

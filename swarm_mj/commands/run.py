@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..output.interrupt import CooperativeInterrupt
-from . import AERO_NAMES, RULE_NAMES
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -17,6 +17,7 @@ def add_parser(sub) -> None:
         help="fly a scenario and write a Rerun recording (.rrd)",
         description="Fly a bundled scenario (see 'swarm-mj list') or a scenario TOML file. "
         "Writes NAME.rrd (open it with: rerun NAME.rrd).",
+        epilog=EXIT_EPILOG,
     )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("-o", "--output", help="recording path (default: ./NAME.rrd)")
@@ -27,7 +28,7 @@ def add_parser(sub) -> None:
         help="also open the desktop Rerun viewer (without a display: a note, the recording kept)",
     )
     p.add_argument("--summary", metavar="PATH", help="write the summary as JSON")
-    p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
+    add_vehicle_argument(p)  # --vehicle and --gains
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
@@ -100,18 +101,14 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
-    from ..control.backstepping import check_gains, load_gains
     from ..errors import UserError
+    from ..experiments.outcome import failure_line
     from ..experiments.report_table import format_summary
     from ..experiments.runner import run
-    from ..scenario import load_scenario
+    from . import flown_scenario
 
-    sc = load_scenario(args.scenario)
+    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
     check_args(args, sc)
-    gains = load_gains(args.gains) if args.gains else None
-    if gains is not None:
-        gains = check_gains(gains, sc.n_drones, where=f"{args.gains}: gains")  # (12,) or one row per drone
-        sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
     if args.seed is not None:
         sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts, as sweep/stress call seed s
     if args.duration is not None:
@@ -130,7 +127,6 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
         sc,
         anti_collision=args.anti_collision,
         seed=args.seed,
-        aero=args.aero,
         progress=None if not args.quiet else False,
         duration=args.duration,
         interrupt=interrupt,
@@ -165,6 +161,10 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
         from ..video import render_outputs
 
         rc = render_outputs(result, args)
+    failed = failure_line(result.summary.get("flight"))
+    if failed:  # it flew to the end, but not as asked: say so, and never exit 0 (EXIT_EPILOG)
+        print(f"swarm-mj: {failed}", file=sys.stderr)
+        rc = rc or EXIT_FLIGHT_FAILED
     return _serve(args, out, rc)
 
 

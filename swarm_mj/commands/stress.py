@@ -38,7 +38,7 @@ from ..experiments.stress import (  # noqa: F401
     stress_scenario,
     summarize_rule,
 )
-from . import AERO_NAMES, RULE_NAMES
+from . import AERO_NAMES, RULE_NAMES, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -78,13 +78,7 @@ def add_parser(sub) -> None:
         "--workers", type=int, default=None, help="worker processes (default: the CPUs this process may use)"
     )
     p.add_argument("--aero", choices=AERO_NAMES, help="physics preset (default: paper; docs/aero.md)")
-    p.add_argument(
-        "--vehicle",
-        metavar="NAME|FILE",
-        help="the drones flown: a bundled vehicle (paper, crazyflie21) or a vehicle file (default: the "
-        "paper's drone; docs/vehicles.md), with the gains its file names unless --gains",
-    )
-    p.add_argument("--gains", metavar="FILE", help="gains file flown (default: the vehicle's, else Table 4)")
+    add_vehicle_argument(p, default="the paper's drone")  # --vehicle and --gains
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument(
         "--save-scenario",
@@ -108,14 +102,12 @@ def main(args: argparse.Namespace) -> int:
 
         check_output_path(save, "--save-scenario", (".toml",))
     vehicle, gains = args.vehicle, args.gains
-    if vehicle is not None:
-        from ..vehicles import load_vehicle
+    if vehicle is not None:  # its gains, unless --gains: the rule of swarm_mj/choices.py, as every start is parsed
+        from ..choices import resolve_vehicle
 
-        v = load_vehicle(vehicle)
+        _, v, model = resolve_vehicle(vehicle, Path.cwd(), "--vehicle")
         v.params()  # one clear line now if the file cannot fly
-        if gains is None and v.gains_file is not None:
-            gains = str(v.gains_file)
-        vehicle = str(Path(vehicle).resolve()) if Path(vehicle).is_file() else vehicle
+        vehicle = model or vehicle  # a file by its absolute path: the workers' folder may differ
     if gains is not None:
         from ..control.backstepping import load_gains
 

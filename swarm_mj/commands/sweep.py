@@ -8,7 +8,7 @@ import tomllib
 from typing import Any
 
 from ..errors import UserError
-from . import AERO_NAMES
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_ERROR, EXIT_FLIGHT_FAILED, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -22,7 +22,8 @@ def add_parser(sub) -> None:
         "formation settling and formation distance error. Results do not depend on --workers.",
         epilog="examples: swarm-mj sweep wind_lemniscate --seeds 20;  "
         "swarm-mj sweep wind_circle --seeds 10 --param wind.sigma=0.4,0.8,1.2;  "
-        "swarm-mj sweep circle --seeds 1 --param formation.diameter=1,1.5,2",
+        "swarm-mj sweep circle --seeds 1 --param formation.diameter=1,1.5,2.  "
+        + EXIT_EPILOG.replace("the run", "a run"),
     )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("--seeds", type=int, default=20, metavar="N", help="seeds 0..N-1 (default 20)")
@@ -40,7 +41,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--json", metavar="PATH", help="write every run and the statistics as JSON")
     p.add_argument("--duration", type=float, metavar="S", help="override the scenario's duration (s)")
-    p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
+    add_vehicle_argument(p)  # --vehicle and --gains
     p.add_argument(
         "--aero",
         choices=AERO_NAMES,
@@ -108,14 +109,14 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
 def main(args: argparse.Namespace) -> int:
     from ..experiments.sweep import format_sweep, sweep
     from ..output.atomic import write_json_atomic
-    from ..scenario import load_scenario
+    from . import flown_scenario
 
     if args.seeds < 1:
         raise UserError(f"--seeds must be >= 1, got {args.seeds}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     param, values = parse_param(args.param) if args.param else (None, None)
-    sc = load_scenario(args.scenario)
+    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
     if args.duration is not None:
         from ..scenario import check_duration
 
@@ -124,14 +125,6 @@ def main(args: argparse.Namespace) -> int:
         from ..output.atomic import check_output_path
 
         check_output_path(args.json, "--json", allow_stdout=True)
-    if args.gains:
-        from ..control.backstepping import load_gains
-
-        sc = sc.with_overrides(gains=load_gains(args.gains), gains_source=str(args.gains))
-    if args.aero:
-        from ..physics.aero import with_aero
-
-        sc = with_aero(sc, args.aero)
     res = sweep(
         sc,
         args.seeds,
@@ -147,7 +140,13 @@ def main(args: argparse.Namespace) -> int:
     print(format_sweep(res))
     print(replay_line(args, res))
     sys.stdout.flush()
-    return 1 if any(r["stopped"] for r in res.runs) else 0
+    failed = [r for r in res.runs if r.get("flight_failed")]
+    if failed:  # flew to the end, but not as asked (EXIT_EPILOG)
+        r = failed[0]
+        print(f"swarm-mj: {len(failed)} of {len(res.runs)} runs failed; seed {r['seed']}: {r['flight_failed']}")
+    if any(r["stopped"] for r in res.runs):
+        return EXIT_ERROR
+    return EXIT_FLIGHT_FAILED if failed else 0
 
 
 def replay_line(args: argparse.Namespace, res) -> str:
@@ -175,8 +174,9 @@ def replay_line(args: argparse.Namespace, res) -> str:
     cmd = ["swarm-mj", "run", args.scenario, "--seed", str(seed)]
     if args.duration is not None:
         cmd += ["--duration", repr(float(args.duration))]
-    if args.gains:
-        cmd += ["--gains", args.gains]
+    for opt in ("vehicle", "aero", "gains"):  # what the sweep flew
+        if getattr(args, opt, None):
+            cmd += [f"--{opt}", str(getattr(args, opt))]
     note = ""
     if res.param == "formation.anti_collision":
         cmd += ["--anti-collision", str(value)]

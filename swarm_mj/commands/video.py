@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..video.style import DEFAULT_FPS, DEFAULT_SNAPSHOT_TIME, MAX_SIZE, VideoStyle
-from . import AERO_NAMES, RULE_NAMES
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_vehicle_argument
 
 # --------------------------------------------------------------------------- option checks (before simulating)
 
@@ -105,6 +105,7 @@ def add_parser(sub) -> None:
         "then replay it from its log into an H.264 MP4 (MuJoCo's renderer through "
         "EGL; no display needed). The camera keeps the whole swarm in view; the "
         "leader's reference path and the last 10 s of each drone's trail are drawn.",
+        epilog=EXIT_EPILOG,
     )
     p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
     p.add_argument("-o", "--output", metavar="MP4", help="video path (default: ./NAME.mp4)")
@@ -121,7 +122,7 @@ def add_parser(sub) -> None:
     p.add_argument("--snapshot", metavar="PNG", help="also write a still image")
     p.add_argument("--snapshot-time", type=float, default=20.0, help="time of the still (s, default 20)")
     p.add_argument("--record", metavar="RRD", help="also write the Rerun recording of the run")
-    p.add_argument("--gains", metavar="FILE", help="gains TOML file (as written by 'swarm-mj tune')")
+    add_vehicle_argument(p)  # --vehicle and --gains
     p.add_argument("--seed", type=int, help="override the scenario's seed")
     p.add_argument("--duration", type=float, help="override the scenario's duration (s)")
     p.add_argument("--anti-collision", choices=RULE_NAMES, help="override the rule")
@@ -135,12 +136,12 @@ def add_parser(sub) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..control.backstepping import load_gains
+    from ..experiments.outcome import failure_line
     from ..experiments.runner import run
-    from ..scenario import load_scenario
-
-    sc = load_scenario(args.scenario)
     from ..scenario import check_duration, check_seed
+    from . import flown_scenario
+
+    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
 
     if args.duration is not None:
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")
@@ -152,16 +153,12 @@ def main(args: argparse.Namespace) -> int:
     check_video_args(args)
     if args.record:
         check_output_path(args.record, (".rrd",), "--record")
-    gains = load_gains(args.gains) if args.gains else None
-    if gains is not None:
-        sc = sc.with_overrides(gains=gains, gains_source=str(args.gains))
     if args.seed is not None:
         sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts (as in 'swarm-mj run')
     result = run(
         sc,
         anti_collision=args.anti_collision,
         seed=args.seed,
-        aero=args.aero,
         progress=None if not args.quiet else False,
         duration=args.duration,
     )
@@ -187,6 +184,10 @@ def main(args: argparse.Namespace) -> int:
     if result.error is not None:
         print(f"swarm-mj: error: {result.error} (the video shows what ran)", file=sys.stderr)
         return 1
+    failed = failure_line(result.summary.get("flight"))
+    if failed:  # filmed to the end, but not as asked (EXIT_EPILOG)
+        print(f"swarm-mj: {failed} (the video shows it)", file=sys.stderr)
+        return rc or EXIT_FLIGHT_FAILED
     return rc
 
 

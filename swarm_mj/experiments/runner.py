@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._jit import python_body, warm_up
+from ..choices import gains_name
 from ..control.policy import BacksteppingPolicy
 from ..env import Command, StepRecord, SwarmEnv
 from ..errors import SimulationDiverged, UserError
@@ -46,6 +47,7 @@ from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
 from ..pipeline.period import log_inputs
 from ..pipeline.records import LogRows, Obs
 from ..scenario import Scenario, load_scenario
+from .outcome import flight_outcome
 
 __all__ = [
     "Progress",
@@ -314,6 +316,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         "n_drones": sc.n_drones,
         "seed": env.seed,
         "gains_source": sc.gains_source,
+        **flown_choices(sc),
         "anti_collision_rule": policy.rule.name,
         "wind": bool(sc.wind.enabled),
         "wind_feedforward": bool(sc.wind_feedforward),
@@ -370,6 +373,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["anti_collision_auto"] = {"rule": policy.rule.name, "why": AUTO_CHOICE[bool(sc.aero.downwash)][1]}
     out["ground_contacts"] = int(ground.ground_contacts) if ground is not None else 0
     out["crashes"] = int(ground.crashes) if ground is not None else 0
+    out["flight"] = flight = _flight(log, ref, ground)
     vehicle = policy.controller.params  # the run's vehicle: the keep-out and the jets are its sizes
     radii = keepout_radii(vehicle, rotor_radius=vehicle.rotor_radius)
     dist, rho = pair_measures(log.pos, radii)  # (k, pairs) distances, (k,) keep-out: one pass over the pairs
@@ -390,6 +394,8 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         changes = env.scenario.diameter_schedule().change_times
         changes = changes[changes <= sim_time]
         settling, max_err = formation_settling(t, lead, log.D, changes)
+        if flight["never_took_off"]:  # a formation on the ground is no formation (experiments/outcome.py)
+            settling = [float("inf")] * len(settling)
         out["formation"] = {
             "settling_s": settling,
             "change_times_s": changes.tolist(),
@@ -420,6 +426,23 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["downwash_dip_worst_m"] = 0.0
         out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0}
     return out
+
+
+def flown_choices(sc: Scenario) -> dict:
+    """What the run flew, by name (swarm_mj/choices.py): the vehicle, the physics preset and the gains with
+    where they came from (``origin``: a key of :data:`~swarm_mj.choices.GAINS_ORIGINS`)."""
+    return {
+        "vehicle": sc.vehicle,
+        "physics": sc.aero.model,
+        "gains": {"source": gains_name(sc.gains_source), "origin": sc.gains_origin},
+    }
+
+
+def _flight(log: RunLog, ref: np.ndarray, ground: object | None) -> dict:
+    """Whether every drone took off, none crashed and none was lost (:func:`~.outcome.flight_outcome`)
+    from the log, the references ref (k, n, 3) and the ground monitor's contacts (None: no ground)."""
+    crashed = [int(c[1]) for c in getattr(ground, "log", []) if c[4]]
+    return flight_outcome(log.t, log.pos[:, :, 2], ref[:, :, 2], log.names, crashed)
 
 
 def _rmse_dicts(e: np.ndarray, att_e: np.ndarray) -> list[dict]:

@@ -43,7 +43,7 @@ class StressCase:
     diameter: float = 1.0
     aero: str = "paper"  # physics preset (docs/aero.md)
     vehicle: str | None = None  # [vehicle] model (docs/vehicles.md); None: the paper's drone
-    gains: str | None = None  # a gains file; None: Table 4
+    gains: str | None = None  # a gains file; None: the vehicle's, else Table 4 (swarm_mj/choices.py)
 
 
 def stress_scenario(case: StressCase):

@@ -40,6 +40,7 @@ import numpy as np
 from ..errors import UserError
 from ..output.progress import Progress
 from ..scenario import Scenario, load_scenario, parse_scenario
+from .outcome import failure_line
 from .parallel import backend_name, map_ordered, resolve_workers
 
 #: (key, label, worst, swarm only). ``worst`` is "max" (an error: bigger is worse) or "min".
@@ -213,6 +214,7 @@ def run_task(task: SweepTask) -> dict[str, Any]:
         "wall_s": float(res.summary["wall_time_s"]),
         "sim_time_s": float(res.summary["sim_time_s"]),
         "stopped": res.summary.get("stopped"),
+        "flight_failed": failure_line(res.summary.get("flight")),  # experiments/outcome.py
     }
 
 
@@ -249,6 +251,7 @@ class SweepResult:
                     "metrics": r["metrics"],
                     "wall_s": r["wall_s"],
                     "stopped": r["stopped"],
+                    "flight_failed": r.get("flight_failed"),
                 }
                 for r in self.runs
             ],

@@ -39,6 +39,7 @@ import numpy as np
 from dm_env import specs
 from gymnasium import spaces
 
+from ..choices import VehicleLike
 from ..env import SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..scenario import Scenario
@@ -70,10 +71,27 @@ def action_space(env: SwarmEnv) -> spaces.Box:
     return _box(env.action_spec())
 
 
-def as_swarm_env(scenario: Scenario | str | SwarmEnv, action: str, terminate_on_contact: bool) -> SwarmEnv:
+def as_swarm_env(
+    scenario: Scenario | str | SwarmEnv,
+    action: str,
+    terminate_on_contact: bool,
+    vehicle: VehicleLike | None = None,
+    aero: str | None = None,
+) -> SwarmEnv:
+    """The wrapped :class:`SwarmEnv`: ``scenario`` itself when it is one (then ``vehicle`` and ``aero`` are
+    its own: giving them too is a :class:`UserError`), else one built with these settings."""
     if isinstance(scenario, SwarmEnv):
+        if vehicle is not None or aero is not None:
+            raise UserError("vehicle= and aero= go to the SwarmEnv itself when a ready SwarmEnv is wrapped")
         return scenario
-    return SwarmEnv(scenario, action=action, terminate_on_contact=terminate_on_contact, raise_on_divergence=False)
+    return SwarmEnv(
+        scenario,
+        action=action,
+        terminate_on_contact=terminate_on_contact,
+        raise_on_divergence=False,
+        vehicle=vehicle,
+        aero=aero,
+    )
 
 
 def fresh_observation(obs: dict) -> dict[str, np.ndarray]:
@@ -110,7 +128,8 @@ class SwarmGymEnv(gymnasium.Env):
     """A scenario as a ``gymnasium.Env`` (the whole swarm is one agent).
 
     ``scenario`` is a scenario name or path, a :class:`Scenario`, or a ready
-    :class:`SwarmEnv` (then ``action`` and ``terminate_on_contact`` are its own).
+    :class:`SwarmEnv` (then ``action`` and ``terminate_on_contact`` are its own). ``vehicle`` and ``aero``:
+    the drones and the physics flown instead of the scenario's (:class:`SwarmEnv`'s).
     """
 
     metadata = {"render_modes": []}
@@ -123,11 +142,13 @@ class SwarmGymEnv(gymnasium.Env):
         flatten: bool = False,
         terminate_on_contact: bool = True,
         render_mode: str | None = None,
+        vehicle: VehicleLike | None = None,
+        aero: str | None = None,
     ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
-        self.env = as_swarm_env(scenario, action, terminate_on_contact)
+        self.env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero)
         self.flatten = bool(flatten)
         self.dict_observation_space = observation_space(self.env)
         self.observation_space = (

@@ -53,6 +53,7 @@ import numpy as np
 from gymnasium import spaces
 from pettingzoo import ParallelEnv
 
+from ..choices import VehicleLike
 from ..env import SwarmEnv
 from ..errors import UserError
 from ..scenario import Scenario
@@ -86,6 +87,7 @@ class SwarmParallelEnv(ParallelEnv):
     """A scenario as a PettingZoo ``ParallelEnv`` with one agent per drone.
 
     ``scenario`` is a scenario name or path, a :class:`Scenario`, or a ready :class:`SwarmEnv`.
+    ``vehicle`` and ``aero``: the drones and the physics flown instead of the scenario's (:class:`SwarmEnv`'s).
     """
 
     metadata = {"name": "swarm_mj_v0", "render_modes": [], "is_parallelizable": True}
@@ -97,11 +99,13 @@ class SwarmParallelEnv(ParallelEnv):
         action: str = "thrust",
         terminate_on_contact: bool = True,
         render_mode: str | None = None,
+        vehicle: VehicleLike | None = None,
+        aero: str | None = None,
     ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
-        self.env = env = as_swarm_env(scenario, action, terminate_on_contact)
+        self.env = env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero)
         self.possible_agents = list(env.names)
         self.agents: list[str] = []
         self._index = {name: i for i, name in enumerate(self.possible_agents)}

@@ -90,12 +90,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .._jit import warm_module
+from ..choices import VehicleLike, flown
 from ..env import SwarmEnv, all_finite
 from ..errors import UserError
 from ..experiments.parallel import check_count, default_workers
 from ..physics.sim import HEALTH_NAMES, HEALTHY
 from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
-from ..scenario import Scenario, load_scenario
+from ..scenario import Scenario
 from ..task import OBS_KEYS, outcomes
 from .gymnasium import observation_space, seed_from
 
@@ -122,6 +123,8 @@ class SwarmVectorEnv(VectorEnv):
     per copy instead of the Dict. ``block``: copies per MuJoCo model (default: ``BLOCK_DRONES``
     drones' worth). ``autoreset_mode``: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP``.
     ``threads``: the threads that step the blocks (default: the usable CPUs; results do not depend on it).
+    ``vehicle``: the drones flown instead of the scenario's (:class:`~swarm_mj.env.SwarmEnv`'s); ``aero``: the
+    physics preset, ``"paper"`` only (module docstring).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
@@ -137,6 +140,8 @@ class SwarmVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
         render_mode: str | None = None,
         threads: int | None = None,
+        vehicle: VehicleLike | None = None,
+        aero: str | None = None,
     ) -> None:
         threads = default_workers() if threads is None else check_count("threads", threads)
         if render_mode is not None:
@@ -152,7 +157,7 @@ class SwarmVectorEnv(VectorEnv):
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.render_mode = None
-        self.scenario = sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+        self.scenario = sc = flown(scenario, vehicle=vehicle, aero=aero)
         warm_module("swarm_mj.task")  # the copies' observation kernel (_jit.jit's on_demand), compiled once
         self.num_envs = m = int(num_envs)
         self.n = n = sc.n_drones
