@@ -171,6 +171,18 @@ def flown(
     return sc
 
 
+def trajectory_args(sc: Scenario) -> dict[str, Any]:
+    """Every parameter of the leader's trajectory: the scenario's, and the trajectory's defaults for the
+    rest (lists as tuples), e.g. to tell the paper's experiment or the tune's step by their data."""
+    import inspect
+
+    from .trajectories import TRAJECTORIES
+
+    tup = lambda v: tuple(tup(x) for x in v) if isinstance(v, (list, tuple)) else v  # noqa: E731
+    sig = inspect.signature(TRAJECTORIES[sc.trajectory]).parameters
+    return {k: tup(sc.trajectory_params.get(k, p.default)) for k, p in sig.items()}
+
+
 def display_path(path: str | Path) -> str:
     """A file as a summary names it: ``scenarios/...`` for a bundled one, relative to the working folder
     where it lies inside it, else as it is."""

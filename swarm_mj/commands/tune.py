@@ -145,9 +145,12 @@ def _toml_value(v: Any) -> str:
     raise TypeError(f"cannot write {type(v).__name__} to TOML")
 
 
-def gains_toml(outcome, created: datetime | None = None, vehicle: str = "paper") -> str:
+def gains_toml(
+    outcome, created: datetime | None = None, vehicle: str = "paper", use: str = "swarm-mj run step --gains FILE"
+) -> str:
     """The gains file for a :class:`~swarm_mj.tuning.cost.TuneOutcome` (read by ``load_gains``);
-    ``vehicle``: the name of the vehicle flown (``--vehicle``), recorded in ``[settings]``."""
+    ``vehicle``: the name of the vehicle flown (``--vehicle``), recorded in ``[settings]``; ``use``: the
+    command that flies them (:func:`run_hint`)."""
     from .. import __version__
 
     o, s = outcome.options, outcome.settings
@@ -159,7 +162,7 @@ def gains_toml(outcome, created: datetime | None = None, vehicle: str = "paper")
             "# tuned by 'swarm-mj tune': Flower Pollination Algorithm (paper §3.2, Table 2) minimising",
             "# the ISE of eq. (25) over the step x = y = z = 1 m, ψ = 25° (docs/interpretations.md §3, §6)"
             + (", subject to the step bars [bars]." if s.bars is not None else "."),
-            '# Use: swarm-mj run step --gains FILE, or [controller] gains = "FILE" in a scenario.',
+            f'# Use: {use}, or [controller] gains = "FILE" in a scenario of this vehicle.',
             "# nan: no candidate met the bars (yet).",
             f"gains = {_toml_value([float(g) for g in outcome.best_x])}",
             f"ise = {_toml_value(outcome.best_ise)}",
@@ -222,9 +225,39 @@ def write_text_atomic(path: str | Path, text: str) -> None:
     _write(path, text)
 
 
-def write_gains_file(path: str | Path, outcome, vehicle: str = "paper") -> None:
+def write_gains_file(path: str | Path, outcome, vehicle: str = "paper", use: str | None = None) -> None:
     """Atomically write the gains file of ``outcome`` (see :func:`gains_toml`)."""
-    write_text_atomic(path, gains_toml(outcome, vehicle=vehicle))
+    write_text_atomic(path, gains_toml(outcome, vehicle=vehicle, **({"use": use} if use else {})))
+
+
+def run_hint(vehicle_arg: str, params, target, yaw_deg: float, gains: str | Path) -> str:  # noqa: ANN001
+    """The command that flies ``gains`` through the tune's step on the vehicle they were tuned for, chosen
+    by the data of the bundled scenarios (never their names): one drone flying the step to ``target``
+    and ``yaw_deg``, with the vehicle's parameters ``params`` (``swarm-mj run crazyflie_step --gains F``);
+    where none flies this vehicle, such a step with ``--vehicle`` (``swarm-mj run step --vehicle V --gains F``)."""
+    import shlex
+
+    from ..choices import trajectory_args
+    from ..errors import UserError
+    from ..scenario import bundled_scenarios, load_scenario
+
+    steps: list[str] = []
+    for name, path in bundled_scenarios().items():
+        try:
+            sc = load_scenario(path)
+        except UserError:
+            continue
+        args = trajectory_args(sc)
+        if sc.n_followers or sc.trajectory != "step":
+            continue
+        if tuple(args["target"]) != tuple(target) or float(args["yaw_deg"]) != float(yaw_deg):
+            continue
+        if sc.params == params:
+            return shlex.join(["swarm-mj", "run", name, "--gains", str(gains)])
+        steps.append(name)
+    if steps:
+        return shlex.join(["swarm-mj", "run", steps[0], "--vehicle", vehicle_arg, "--gains", str(gains)])
+    return f"[controller] gains = {str(gains)!r} in a scenario flying vehicle {vehicle_arg}"
 
 
 # --------------------------------------------------------------------------- the command
@@ -317,9 +350,13 @@ def main(args: argparse.Namespace) -> int:
     bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
     bar.note("evaluating the initial population")
 
+    use = run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, "FILE")
+
     def on_iteration(o) -> None:
+        if not math.isfinite(o.best_cost):  # every candidate so far diverged: nothing worth a file
+            return
         last[:] = [o]
-        write_gains_file(out, o, vehicle.name)
+        write_gains_file(out, o, vehicle.name, use)
         it = len(o.history) - 1
         best = (
             f"best ISE {o.best_ise:10.5f}"
@@ -350,13 +387,21 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         raise
-    write_gains_file(out, res, vehicle.name)
+    if not math.isfinite(res.best_cost):
+        from ..experiments.outcome import FlightFailed
+
+        kept = f"; {out} left as it was" if out.exists() else ""
+        raise FlightFailed(
+            f"no candidate flew the step: every one of the {opts.population} flowers diverged in every "
+            f"iteration (cost inf/nan) on vehicle {vehicle.name}; no gains file written{kept}"
+        )
+    write_gains_file(out, res, vehicle.name, use)
     if not quiet:
-        print(format_outcome(res, out))
+        print(format_outcome(res, out, run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, out)))
     return 0
 
 
-def format_outcome(res, out: Path | str) -> str:
+def format_outcome(res, out: Path | str, use: str | None = None) -> str:
     """The end-of-tune table: initial and final ISE, improvement, Table 4 under the same cost,
     and the tuned gains' step response against the bars."""
     lo, hi = PAPER_IMPROVEMENT_PCT
@@ -404,5 +449,5 @@ def format_outcome(res, out: Path | str) -> str:
             f"{b.settling_psi_s:g} s, tilt ≤ {b.max_tilt_deg:g}°)"
             + ("" if bars is not None else "; not constraints of this tune (--constraints none)")
         )
-    rows.append(f"written: {out}   (try: swarm-mj run step --gains {out})")
+    rows.append(f"written: {out}   (try: {use or f'swarm-mj run step --gains {out}'})")
     return "\n".join(rows)

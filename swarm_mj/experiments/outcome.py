@@ -21,7 +21,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..errors import SwarmError
 from ..physics.aero.ground import TAKEOFF_CLEARANCE
+
+
+class FlightFailed(SwarmError):
+    """Nothing flew as asked (e.g. no candidate of a tune flew the step): one line, exit status 3
+    (:data:`~swarm_mj.commands.EXIT_FLIGHT_FAILED`)."""
+
+    exit_code = 3
+
 
 #: A drone is judged on its take-off only when its reference asked for the climb at least this long
 #: before the end of the run (s): time to lift off even for a drone with a thrust-to-weight ratio near 1.

@@ -2,10 +2,10 @@
 
 from __future__ import annotations
 
-import inspect
 import math
+from dataclasses import replace
 
-from ..choices import gains_text
+from ..choices import gains_text, trajectory_args
 from ..paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..physics.params import DEFAULT_PARAMS
 from ..trajectories import TRAJECTORIES
@@ -55,13 +55,11 @@ def paper_comparable(scenario) -> bool:
     paper's parameters (its defaults, docs/interpretations.md §3). Decided from the data, never a name."""
     if getattr(scenario, "params", DEFAULT_PARAMS) != DEFAULT_PARAMS:
         return False
-    traj = getattr(scenario, "trajectory", None)
-    if traj not in TRAJECTORIES:
+    if getattr(scenario, "trajectory", None) not in TRAJECTORIES:
         return False
-    sig = inspect.signature(TRAJECTORIES[traj]).parameters
-    given = getattr(scenario, "trajectory_params", {}) or {}
-    as_tuple = lambda v: tuple(as_tuple(x) for x in v) if isinstance(v, (list, tuple)) else v  # noqa: E731
-    return all(k in sig and as_tuple(v) == as_tuple(sig[k].default) for k, v in given.items())
+    given = trajectory_args(scenario)
+    defaults = trajectory_args(replace(scenario, trajectory_params={}))
+    return given == defaults
 
 
 def _step_lines(leader: dict, paper: bool) -> list[str]:
