@@ -56,8 +56,9 @@ class DownwashFeedforward:
         self._call: Callable[..., None] | None = None  # feedforward_force bound to the record (_jit.bind)
         z3 = np.zeros((n, 3))
         self._record = Feedforward(
-            True, n, float(params.L), st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, np.zeros((n, 3)),
-            np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 4)), self.force, z3, z3.copy(), z3.copy(),
+            True, n, float(params.L), params.rotor_dirs, st.rho, st.rotor_radius, st.half_cda, st.half_cda_body,
+            np.zeros((n, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 4)), self.force, z3, z3.copy(),
+            z3.copy(),
         )  # fmt: skip
 
     def record(self) -> Feedforward:

@@ -1,6 +1,12 @@
-"""Rotor mixing of paper eqs. (26)–(29) with per-rotor saturation (docs/interpretations.md §1).
+"""Rotor mixing of paper eqs. (26)–(29) with per-rotor saturation (docs/interpretations.md §1), and the
+rotor layouts ("+" the paper's, "x" the Crazyflie's; docs/vehicles.md, "Rotor layout").
 
-U1 = F1 + F2 + F3 + F4, U2 = F3 − F1, U3 = F4 − F2, U4 = F1 − F2 + F3 − F4.
+"+" (the paper): U1 = F1 + F2 + F3 + F4, U2 = F3 − F1, U3 = F4 − F2, U4 = F1 − F2 + F3 − F4.
+
+"x" (rotors at 45° to the body axes, numbered as crazyflie-firmware's power_distribution_quadrotor.c:
+1 front right, 2 back right, 3 back left, 4 front left), with c = 1/√2 (per-axis moment arm c·L):
+U2 = c·(−F1 − F2 + F3 + F4), U3 = c·(−F1 + F2 + F3 − F4), U4 = −F1 + F2 − F3 + F4. U2, U3 stay "roll,
+pitch torque / L" and U4 "yaw torque / L" (eq. 1), so the controller is the same for both layouts.
 """
 
 from __future__ import annotations
@@ -23,6 +29,26 @@ UNMIX = np.linalg.inv(MIX)
 UNMIX_T = np.ascontiguousarray(UNMIX.T)
 #: (4, 4) MIX.T, C-contiguous: U = F @ MIX_T
 MIX_T = np.ascontiguousarray(MIX.T)
+
+#: The rotor layouts a vehicle may have (``QuadParams.layout``).
+LAYOUTS = ("+", "x")
+_C = 1.0 / np.sqrt(2.0)
+#: "x" mixing (module docstring): U = F @ MIX_X.T; the firmware's per-axis arm 0.707·ARM_LENGTH is c·L.
+MIX_X = np.array(
+    [
+        [1.0, 1.0, 1.0, 1.0],
+        [-_C, -_C, _C, _C],
+        [-_C, _C, _C, -_C],
+        [-1.0, 1.0, -1.0, 1.0],
+    ]
+)
+#: Rotor centres F1..F4 in the body frame divided by the arm length L, per layout, (4, 2) each:
+#: "+" rotor 1 at (0, −L), 2 at (+L, 0), 3 at (0, +L), 4 at (−L, 0) (assets/quadrotor.xml);
+#: "x" rotor 1 at (c, −c)·L, 2 at (−c, −c)·L, 3 at (−c, c)·L, 4 at (c, c)·L.
+ROTOR_DIRS = {
+    "+": np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]]),
+    "x": np.array([[_C, -_C], [-_C, -_C], [-_C, _C], [_C, _C]]),
+}
 
 
 #: The controller's ``[controller] mixer`` choices (:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
@@ -130,7 +156,10 @@ def attitude_priority(
     clipped at f_min the other three are raised with it, when one would pass f_max all four are
     lowered. Ours (docs/interpretations.md §1; the "air mode" / desaturation of flight
     controllers such as PX4 and Betaflight); the paper clips each rotor on its own (eqs. 26–29),
-    which at low thrust also clips the torque the attitude loop asked for. Rotors are still
+    which at low thrust also clips the torque the attitude loop asked for. At the top of the range
+    it is what crazyflie-firmware's ``powerDistributionCap`` does (all four lowered by the excess of
+    the highest); at the bottom the firmware raises nothing (it clips each motor at its idle thrust),
+    so this is not the firmware's power distribution (docs/vehicles.md). Rotors are still
     clipped afterwards by the simulator (:func:`saturate`). The arithmetic is
     :func:`attitude_priority_kernel`; ``unmix_t``/``mix_t`` are a vehicle's
     (:attr:`swarm_mj.physics.params.QuadParams.unmix_t`), the paper's by default."""

@@ -184,7 +184,7 @@ def _drone_mjcf(
     # The drawn parts, the contact disc and the rotor plane scale with the arm (docs/vehicles.md):
     # s = L / 0.25 is 1.0 for the paper's drone, whose asset sizes are kept as written.
     s = params.size_scale
-    for k, (x, y) in enumerate([(0, -L), (L, 0), (0, L), (-L, 0)], start=1):
+    for k, (x, y) in enumerate((params.rotor_dirs * L).tolist(), start=1):  # the vehicle's layout ("+", "x")
         rotor = _drawn_part(drone, f"rotor{k}")
         if rotor is not None:
             rotor.pos = [x, y, s * rotor.pos[2] if rotor.pos is not None else 0.0]
@@ -192,9 +192,7 @@ def _drone_mjcf(
                 rotor.size = [params.rotor_radius, s * rotor.dclass.site.size[1]]
     plane = drone.find("geom", "rotor_plane")
     if plane is not None:
-        plane.size = [params.contact_radius, s * plane.size[1]]
-        if plane.pos is not None:
-            plane.pos = [p * s for p in plane.pos]
+        _collision_body(plane, params)
     for part in ("hub", "nose"):
         el = _drawn_part(drone, part)
         if el is not None and s != 1.0:
@@ -260,7 +258,27 @@ def _drone_mjcf(
         g = drone.find("geom", arm)
         if g is not None:
             g.size = [L if arm == "arm_x" else s * g.size[0], L if arm == "arm_y" else s * g.size[1], s * g.size[2]]
+            if params.layout == "x":  # the arms from rotor to rotor: turned 45° about z
+                g.euler = [0, 0, 45]
     return drone
+
+
+def _collision_body(plane, params: QuadParams) -> None:  # noqa: ANN001 - plane: a PyMJCF geom
+    """The colliding disc (``rotor_plane``) of radius ``contact_radius``: without ``height`` the asset's
+    thickness and height above the centre of mass scaled by ``size_scale`` (the paper drone's disc, bit for
+    bit); with ``height`` h (m) a cylinder h tall whose bottom is the plane the drone rests on, the foot
+    of its landing gear (``REST_HEIGHT`` × ``size_scale`` below the centre of mass; docs/vehicles.md)."""
+    s = params.size_scale
+    if params.height is None:
+        plane.size = [params.contact_radius, s * plane.size[1]]
+        if plane.pos is not None:
+            plane.pos = [p * s for p in plane.pos]
+        return
+    from .aero.ground import REST_HEIGHT
+
+    h = float(params.height)
+    plane.size = [params.contact_radius, h / 2]
+    plane.pos = [0.0, 0.0, h / 2 - REST_HEIGHT * s]
 
 
 def _take_colliders(drone: mjcf.RootElement) -> list[str]:

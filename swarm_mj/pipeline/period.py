@@ -95,8 +95,8 @@ def feedforward_force(ff, pos, quat, thrust) -> None:
     ff.sum_force[:] = 0.0
     ff.sum_torque[:] = 0.0
     _downwash.downwash_kernel(
-        ff.pos, ff.quat, ff.rotor, ff.n, ff.L, ff.rho, ff.r, ff.half_cda, ff.half_cda_body, ff.r, ff.force,
-        ff.torque, ff.sum_force, ff.sum_torque,
+        ff.pos, ff.quat, ff.rotor, ff.n, ff.L, ff.dirs, ff.rho, ff.r, ff.half_cda, ff.half_cda_body, ff.r,
+        ff.force, ff.torque, ff.sum_force, ff.sum_torque,
     )  # fmt: skip
 
 

@@ -191,6 +191,7 @@ class Feedforward(NamedTuple):
     on: bool
     n: int
     L: float
+    dirs: np.ndarray  # (4, 2) rotor centres / L in the body frame (the vehicle's layout)
     rho: float
     r: float
     half_cda: float
@@ -207,7 +208,7 @@ class Feedforward(NamedTuple):
     def off(cls, n: int) -> Feedforward:
         """No feedforward for n drones (``on`` False): the stand-in a command without one passes."""
         z3, z4 = np.zeros((n, 3)), np.zeros((n, 4))
-        return cls(False, n, 0.0, 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)
+        return cls(False, n, 0.0, np.zeros((4, 2)), 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)
 
 
 class Predictor(NamedTuple):

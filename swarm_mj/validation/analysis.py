@@ -19,8 +19,8 @@ from ..physics.aero.constants import AIR_DENSITY
 from ..physics.aero.downwash import hover_induced_velocity
 from ..physics.aero.wake import emitted_state, transport_time, wake_offset
 from ..vehicles import Vehicle, load_vehicle
-from .flight import MAX_GAP, Flight, find_flights, load_flight, rotation_z_axis
-from .params import CALIBRATION, DATASET_MASS_G, DEFAULT_VEHICLE, ValidationParams
+from .flight import DT, MAX_GAP, Flight, find_flights, load_flight, rotation_z_axis
+from .params import CALIBRATION, DATASET_MASS_G, DEFAULT_VEHICLE, ValidationParams, delay_alpha
 from .passes import Pass, find_passes
 from .predict import gym_force, jet_force
 from .sysid import (
@@ -101,18 +101,6 @@ def drone_setup(flight: Flight, drone: str, setup: Setup) -> DroneSetup:
     return DroneSetup(vehicle, thrust, float(mass))
 
 
-def plates(vehicle: Vehicle, p: ValidationParams) -> tuple[float, str]:
-    """(hub area m², rotor layout) of a lower drone: its vehicle file's optional ``hub_area`` and
-    ``rotor_layout`` ("x" or "+") keys, else the validation's Crazyflie values (params)."""
-    hub = vehicle.extra.get("hub_area", p.hub_area)
-    layout = vehicle.extra.get("rotor_layout", p.rotor_layout)
-    if isinstance(hub, bool) or not isinstance(hub, int | float) or not hub >= 0:
-        raise UserError(f"vehicle {vehicle.name}: hub_area must be a number >= 0 (m²), got {hub!r}")
-    if layout not in ("x", "+"):
-        raise UserError(f'vehicle {vehicle.name}: rotor_layout must be "x" or "+", got {layout!r}')
-    return float(hub), str(layout)
-
-
 def split_of(flight: Flight) -> str:
     return "calibration" if (flight.session.name, flight.experiment) in CALIBRATION else "held_out"
 
@@ -127,16 +115,10 @@ def _jet(flight: Flight, setups: list[DroneSetup], thrust: list[np.ndarray], d: 
     f = np.zeros((len(flight.t), 3))
     for j, up in enumerate(logs):
         if j != d:
-            f += setups[j].vehicle.downwash_gain * jet_force(
-                up.pos,
-                rotation_z_axis(up.quat),
-                thrust[j] * G / 1000.0,
-                setups[j].vehicle,
-                lo.pos,
-                lo.quat,
+            f += jet_force(
+                up.pos, rotation_z_axis(up.quat), thrust[j] * G / 1000.0, setups[j].vehicle, lo.pos, lo.quat,
                 setups[d].vehicle,
-                *plates(setups[d].vehicle, p),
-            )
+            )  # fmt: skip
     return f
 
 
@@ -170,34 +152,86 @@ def _wake(
             tau = transport_time(s, u_h, 2.0 * src.arm_length)
             now = emitted_state(t, tau, t, state)
         pos = now[:, :3] + wake_offset(t, tau, np.asarray(p.wind))
-        f += src.downwash_gain * jet_force(
-            pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle, *plates(setups[d].vehicle, p)
-        )
+        f += jet_force(pos, now[:, 3:6], now[:, 6], src, lo.pos, lo.quat, setups[d].vehicle)
     return f
 
 
 MODEL_FNS: dict[str, ModelFn] = {"jet": _jet, "wake": _wake, "gym": _gym}
 
 
+#: Fewest free-air samples (1 s) for a log's own offset; a log with fewer takes its flight's.
+MIN_FREE_AIR = 100
+
+
+def free_air(pos: np.ndarray, d: int, valid: np.ndarray, p: ValidationParams) -> np.ndarray:
+    """(k,) True where drone d of pos (n, k, 3) is in free air: higher than ``free_air_z_min``, no other
+    drone over it (at least ``dz_min`` higher within ``r_window`` horizontally: the passes' "over"), and
+    the sample valid."""
+    over = np.zeros(pos.shape[1], bool)
+    for j in range(pos.shape[0]):
+        if j != d:
+            rxy = np.linalg.norm(pos[j, :, :2] - pos[d, :, :2], axis=1)
+            over |= (pos[j, :, 2] - pos[d, :, 2] >= p.dz_min) & (rxy < p.r_window)
+    return (pos[d, :, 2] > p.free_air_z_min) & ~over & valid
+
+
+def measured(
+    flight: Flight, setups: list[DroneSetup], alphas: list[float], p: ValidationParams, offsets: dict | None = None
+) -> list[np.ndarray]:
+    """Each drone's measured Fa_z (gf, smoothed) less its log's free-air offset (docs/validation.md, "The
+    free-air offset"): the median of its Fa_z over its free-air samples (:func:`free_air`); a log with
+    fewer than :data:`MIN_FREE_AIR` of them (a drone under another the whole flight) takes the median
+    over its flight's other drones' free-air samples, and 0 where there is none. Each log's offset is
+    written to ``offsets`` (``"flight/drone"`` → offset, samples, source)."""
+    logs = list(flight.drones.values())
+    pos = np.stack([g.pos for g in logs])
+    meas = [
+        smooth(residual_force_g(g, s.thrust, s.mass_g, a)[:, 2], p.smooth_window)
+        for g, s, a in zip(logs, setups, alphas, strict=True)
+    ]
+    if not p.free_air_offset:
+        return meas
+    air = [free_air(pos, d, flight.valid, p) for d in range(len(logs))]
+    out = []
+    for d, (name, m) in enumerate(zip(flight.drones, meas, strict=True)):
+        n = int(air[d].sum())
+        if n >= MIN_FREE_AIR:
+            off, src = float(np.median(m[air[d]])), "own"
+        else:
+            pool = [meas[j][air[j]] for j in range(len(logs)) if j != d and air[j].sum() >= MIN_FREE_AIR]
+            off, src = (float(np.median(np.concatenate(pool))), "flight") if pool else (0.0, "none")
+        if offsets is not None:
+            offsets[f"{flight.name}/{name}"] = {"offset_g": off, "free_air_samples": n, "from": src}
+        out.append(m - off)
+    return out
+
+
 def analyse_flight(
-    flight: Flight, setup: Setup, extra: dict[str, ModelFn] | None = None, left_out: list[dict] | None = None
+    flight: Flight,
+    setup: Setup,
+    extra: dict[str, ModelFn] | None = None,
+    left_out: list[dict] | None = None,
+    offsets: dict | None = None,
 ) -> list[PassResult]:
     """Every pass of one flight with the measured and predicted Fa_z (gf) over it; the events cut by
-    the log's ends are described in ``left_out``."""
+    the log's ends are described in ``left_out``, each log's free-air offset in ``offsets``."""
     p = setup.params
     names = list(flight.drones)
     logs = list(flight.drones.values())
     setups = [drone_setup(flight, d, setup) for d in names]
-    thrust = [motor_delay(thrust_g(s.thrust, g), p.delay_alpha) for s, g in zip(setups, logs, strict=True)]
+    where = f"{flight.session / flight.experiment}"
+    alphas = [delay_alpha(p, s.vehicle.motor_tau, DT, f"{where}: {s.vehicle.path}") for s in setups]
+    thrust = [motor_delay(thrust_g(s.thrust, g), a) for s, g, a in zip(setups, logs, alphas, strict=True)]
+    meas_all = measured(flight, setups, alphas, p, offsets)
     pos = np.stack([g.pos for g in logs])
     fns = dict(MODEL_FNS, **(extra or {}))
     out = []
-    for d, lo in enumerate(logs):
+    for d in range(len(logs)):
         cut: list[tuple[int, int]] = []
         passes = find_passes(pos, d, p.r_pass, p.r_window, p.dz_min, cut)
         if not passes and not cut:
             continue
-        meas = smooth(residual_force_g(lo, setups[d].thrust, setups[d].mass_g, p.delay_alpha)[:, 2], p.smooth_window)
+        meas = meas_all[d]
         pred = {
             m: smooth(fn(flight, setups, thrust, d, p)[:, 2] / G * 1000.0, p.smooth_window) for m, fn in fns.items()
         }

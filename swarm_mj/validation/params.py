@@ -19,8 +19,10 @@ CALIBRATION = (("datacollection19_12_11_2019", "swap_small_small"), ("datacollec
 class ValidationParams:
     """Tuned or chosen constants of the downwash validation (docs/validation.md gives each reason)."""
 
-    #: The dataset's motor delay (learning/utils.py ``Fa``: α = 0.16 per 10-ms sample, τ ≈ 57 ms).
-    delay_alpha: float = 0.16
+    #: The motor delay per 10-ms sample of the thrust (a drone's and its jet's): None, the one of its
+    #: vehicle, α = DT / ``motor_tau`` (:func:`delay_alpha`: 0.16 for the Crazyflie's 62.5 ms, the
+    #: dataset's own α in learning/utils.py ``Fa``); a number: that α for every drone.
+    delay_alpha: float | None = None
     #: Centred moving average (samples) over the measured and every predicted Fa: the dataset's
     #: ``acc_smooth`` window (5 samples = 50 ms), against the accelerometer's vibration noise.
     smooth_window: int = 5
@@ -33,14 +35,28 @@ class ValidationParams:
     dz_min: float = 0.10
     #: Vertical-separation bins (m) of the tables.
     dz_bins: tuple[float, ...] = (0.10, 0.25, 0.35, 0.45, 0.60, 0.80)
-    #: Hub (m²) of a lower Crazyflie that meets the jet: the 33 mm × 33 mm main board with the
-    #: battery under it (the arms are thin and lie under the rotor discs).
-    hub_area: float = 0.033 * 0.033
-    #: Rotor layout of the Neural-Swarm drones: Crazyflies fly "x" (rotors at 45° to the body axes).
-    rotor_layout: str = "x"
+    #: Remove each log's free-air offset from its measured Fa_z (docs/validation.md, "The free-air offset").
+    free_air_offset: bool = True
+    #: Free air: the drone higher than this (m) and no other drone over it (within r_window
+    #: horizontally and dz_min higher, the passes' "over").
+    free_air_z_min: float = 0.2
     #: gym-pybullet-drones' empirical downwash (BaseAviary._downwash, cf2x.urdf): dw_coeff_1..3.
     gym_coeffs: tuple[float, float, float] = (2267.18, 0.16, -0.11)
     #: Wind (m/s, world frame) that carries the wake sideways: none in the lab.
     wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
     #: Split names, in output order.
     splits: tuple[str, ...] = field(default=("calibration", "held_out"))
+
+
+def delay_alpha(p: ValidationParams, motor_tau: float | None, dt: float, where: str) -> float:
+    """The per-sample motor delay α of a drone (:attr:`ValidationParams.delay_alpha`): the fixed one, else
+    dt / its vehicle's ``motor_tau`` (the Euler step of u' = (u_des − u)/τ, as the dataset identifies and
+    applies it: systemid/plotMotorDelay.py integrates u' = λ (u_des − u) with Euler steps, λ = 16/s, and
+    learning/utils.py filters with α = 0.16 per 10 ms); the simulator integrates the same τ exactly."""
+    if p.delay_alpha is not None:
+        return float(p.delay_alpha)
+    if motor_tau is None:
+        from ..errors import UserError
+
+        raise UserError(f"{where}: the vehicle gives no motor_tau (s): the residual's motor delay is its rotor lag")
+    return min(dt / motor_tau, 1.0)

@@ -1,8 +1,11 @@
 """Predicted downwash force on a lower drone from the logged states (docs/validation.md, "Models").
 
-* ``jet``: swarm_mj.physics.aero.downwash's turbulent round jet (Bauersfeld et al. 2024) with its five-plate
-  drag force (docs/aero.md), evaluated with the module's pure functions from the upper drone's
-  position, thrust axis and produced thrust, on the lower drone's four rotor discs and hub;
+* ``jet``: the simulator's own downwash, :func:`swarm_mj.physics.aero.downwash.jet_on_drone` (the
+  arithmetic :class:`~swarm_mj.physics.aero.downwash.DownwashStage` applies), called through
+  :func:`~swarm_mj.physics.aero.downwash.jet_on_samples`: the turbulent round jet (Bauersfeld et al.
+  2024) of the upper drone from its position, thrust axis and produced thrust, on the lower drone's
+  plates as the simulator builds them from its vehicle file (four rotor discs at its layout's rotor
+  centres, its hub ``QuadParams.body_area``), × the upper vehicle's ``downwash_gain``;
 * ``gym``: gym-pybullet-drones' empirical downwash (BaseAviary._downwash):
   F_z = −α exp(−½ (Δxy / β)²), α = c1 (R / (4 Δz))², β = c2 Δz + c3, for Δz > 0 (and Δxy < 10 m);
 * ``none``: Fa = 0.
@@ -15,26 +18,23 @@ from __future__ import annotations
 import numpy as np
 
 from ..physics.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
-from ..physics.aero.downwash import hover_induced_velocity, jet_speed, plate_force
+from ..physics.aero.downwash import jet_on_samples, plate_coefficients
+from ..physics.params import QuadParams
 from ..vehicles import Vehicle
-from .flight import rotation_z_axis
 
 
-def body_axes(q: np.ndarray) -> np.ndarray:
-    """(k, 3, 3) rows = body x, y, z axes in the world frame, for quaternions q (k, 4) = (x, y, z, w)."""
-    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    ex = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y + w * z), 2 * (x * z - w * y)], axis=1)
-    ey = np.stack([2 * (x * y - w * z), 1 - 2 * (x * x + z * z), 2 * (y * z + w * x)], axis=1)
-    return np.stack([ex, ey, rotation_z_axis(q)], axis=1)
-
-
-def rotor_offsets(q: np.ndarray, arm: float, layout: str) -> np.ndarray:
-    """(k, 4, 3) world-frame offsets from the centre of mass to the four rotor centres: "+" puts them
-    on the body axes (docs/aero.md's drone), "x" at 45° between them (the Crazyflie)."""
-    ang = np.deg2rad([45.0, 135.0, 225.0, 315.0] if layout == "x" else [0.0, 90.0, 180.0, 270.0])
-    ax = body_axes(q)
-    dirs = np.cos(ang)[None, :, None] * ax[:, None, 0, :] + np.sin(ang)[None, :, None] * ax[:, None, 1, :]
-    return arm * dirs
+def plates(vehicle: Vehicle) -> QuadParams:
+    """The parameters of the plates the simulator gives a drone of ``vehicle`` (its arm, rotor radius,
+    ``layout``, ``hub_area`` and ``downwash_gain``; ``QuadParams.rotor_dirs`` and ``body_area`` read them
+    as the simulator does). Only these fields are the vehicle's: a vehicle file of the validation needs no
+    inertia, drag or thrust (the other fields are left at the paper drone's)."""
+    return QuadParams(
+        L=vehicle.arm_length,
+        rotor_radius=vehicle.rotor_radius,
+        layout=vehicle.layout,
+        hub_area=vehicle.hub_area,
+        downwash_gain=vehicle.downwash_gain,
+    )
 
 
 def jet_force(
@@ -45,26 +45,23 @@ def jet_force(
     dst_pos: np.ndarray,
     dst_quat: np.ndarray,
     dst: Vehicle,
-    hub_area: float,
-    layout: str = "x",
 ) -> np.ndarray:
-    """(k, 3) push (N) of the jet of a source drone on a lower drone (docs/aero.md, "Downwash"):
-    Σ over the lower drone's plates (four rotor discs π R², the hub) of ½ ρ C_D A U(s, r)² along the
-    jet's direction −src_axis, U the jet speed at the plate's depth s below the source and distance r
-    from its axis, U_H from the source's thrust and rotors, l = 2 × its arm."""
-    d = -src_axis / np.linalg.norm(src_axis, axis=1, keepdims=True)
-    u_h = hover_induced_velocity(src_thrust_n, AIR_DENSITY, src.rotor_radius)
-    l = 2.0 * src.arm_length
-    offs = rotor_offsets(dst_quat, dst.arm_length, layout)
-    plates = np.concatenate([offs, np.zeros((len(dst_pos), 1, 3))], axis=1)  # (k, 5, 3)
-    areas = np.array([np.pi * dst.rotor_radius**2] * 4 + [hub_area])
-    rel = dst_pos[:, None, :] + plates - src_pos[:, None, :]
-    s = np.einsum("kpc,kc->kp", rel, d)
-    perp = rel - s[..., None] * d[:, None, :]
-    r = np.linalg.norm(perp, axis=2)
-    u = jet_speed(s, r, u_h[:, None], l, ramp=src.rotor_radius)
-    f = (plate_force(u, 1.0, AIR_DENSITY, DISC_DRAG_COEFFICIENT) * areas[None, :]).sum(axis=1)
-    return f[:, None] * d
+    """(k, 3) push (N) of the jet of a source drone (vehicle ``src``) on a lower drone (vehicle ``dst``) at
+    k samples: src_pos (k, 3), src_axis (k, 3) its thrust axis, src_thrust_n (k,) its produced thrust (N);
+    dst_pos (k, 3), dst_quat (k, 4) (x, y, z, w, the logs' order). The simulator's force (module
+    docstring): the lower drone's plates of :func:`plates`, ½ ρ C_D A each, × the source's ``downwash_gain``."""
+    up, lo = plates(src), plates(dst)
+    half_cda, half_cda_body = plate_coefficients(
+        AIR_DENSITY, DISC_DRAG_COEFFICIENT, lo.rotor_radius, lo.body_area, up.downwash_gain
+    )
+    c = np.ascontiguousarray
+    out = np.empty((len(dst_pos), 3))
+    jet_on_samples(
+        c(src_pos, dtype=float), c(src_axis, dtype=float), c(src_thrust_n, dtype=float), up.L, up.rotor_radius,
+        AIR_DENSITY, c(dst_pos, dtype=float), c(np.asarray(dst_quat, float)[:, [3, 0, 1, 2]]), lo.rotor_dirs, lo.L,
+        half_cda, half_cda_body, out,
+    )  # fmt: skip
+    return out
 
 
 def gym_force(

@@ -97,6 +97,9 @@ class Vehicle:
                 yaw_coefficient=self._number("yaw_torque_coefficient", "m"),
                 motor_tau=self.motor_tau,
                 downwash_gain=self.downwash_gain,
+                layout=self.layout,
+                hub_area=self.hub_area,
+                height=self._number("height", "m"),
             )
         except UserError as e:
             raise UserError(f"{self.path}: {e}") from None
@@ -134,6 +137,29 @@ class Vehicle:
         g = self._number("downwash_gain", "dimensionless", 1.0)
         assert g is not None
         return g
+
+    @property
+    def layout(self) -> str:
+        """The rotor layout (the file's ``layout``): ``"+"`` (default: rotors on the body axes, the
+        paper's) or ``"x"`` (rotors at 45°, the Crazyflie's; docs/vehicles.md)."""
+        from ..physics.mixing import LAYOUTS
+
+        v = self.extra.get("layout", "+")
+        if v not in LAYOUTS:
+            choices = ", ".join(map(repr, LAYOUTS))
+            raise UserError(f"{self.path}: vehicle key 'layout' must be one of {choices}, got {v!r}")
+        return str(v)
+
+    @property
+    def hub_area(self) -> float | None:
+        """The hub plate a jet from above meets (the file's ``hub_area``, m², >= 0), or None: the paper
+        drone's hub scaled to the arm (``QuadParams.body_area``)."""
+        v = self.extra.get("hub_area")
+        if v is None:
+            return None
+        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+            raise UserError(f"{self.path}: vehicle key 'hub_area' must be a number >= 0 (m²), got {v!r}")
+        return float(v)
 
     @property
     def rotor_span(self) -> float:

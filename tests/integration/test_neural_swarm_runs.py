@@ -29,10 +29,16 @@ def test_the_command_writes_the_tables(tmp_path, capsys):
 
 @needs_data
 def test_a_vehicle_file_sets_the_lower_drones_plates(tmp_path, capsys):
-    """--vehicle maps a drone to a vehicle file; its optional hub_area / rotor_layout keys are used,
-    and a bad one is one line, exit 2."""
+    """--vehicle maps a drone to a vehicle file; its hub_area / layout keys are used (here the Crazyflie's
+    file without its hub plate), and a bad one is one line, exit 2."""
+    from swarm_mj.vehicles import load_vehicle
+
+    cf = load_vehicle("crazyflie21")
     good = tmp_path / "cf_nohub.toml"
-    good.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nhub_area = 0.0\nrotor_layout = "x"\n')
+    good.write_text(
+        f"mass = 0.032\narm_length = {cf.arm_length}\nrotor_radius = {cf.rotor_radius}\nhub_area = 0.0\n"
+        f'layout = "x"\nmotor_tau = {cf.motor_tau}\ndownwash_gain = {cf.downwash_gain}\n'
+    )
     base = ["validate", "downwash", "--data", str(DATA / SMALL), "--quiet"]
     out = tmp_path / "a.json"
     assert cli_main([*base, "--json", str(out)]) == 0
@@ -46,8 +52,8 @@ def test_a_vehicle_file_sets_the_lower_drones_plates(tmp_path, capsys):
     assert b["mean_peak_error_g"] > a["mean_peak_error_g"]  # no hub plate: a weaker push predicted
     assert json.loads((tmp_path / "b.json").read_text())["drones"]["cf50"]["vehicle"] == "cf_nohub"
     bad = tmp_path / "bad.toml"
-    bad.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nrotor_layout = "h"\n')
+    bad.write_text('mass = 0.032\narm_length = 0.046\nrotor_radius = 0.0235\nlayout = "h"\nmotor_tau = 0.06\n')
     capsys.readouterr()
     assert cli_main([*base, "--vehicle", f"cf50={bad}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "rotor_layout" in err[0]
+    assert len(err) == 1 and "'layout'" in err[0]

@@ -490,6 +490,7 @@ def test_compiled_kernels_equal_their_numpy_source():
     """The Numba-compiled stages compute what their plain-Python source computes (SWARM_MJ_NO_JIT=1)."""
     from swarm_mj.physics.aero.downwash import downwash_kernel
     from swarm_mj.physics.aero.ground_effect import ground_effect_kernel
+    from swarm_mj.physics.mixing import ROTOR_DIRS
 
     if not hasattr(downwash_kernel, "py_func"):
         pytest.skip("numba not in use")
@@ -500,8 +501,8 @@ def test_compiled_kernels_equal_their_numpy_source():
     quat /= np.linalg.norm(quat, axis=1, keepdims=True)
     thrust = rng.uniform(0, 2, (N, 4))
     for fn, args in (
-        (downwash_kernel, (pos, quat, thrust, 4, 0.25, 1.225, 0.09, 0.018, 0.01, 0.09)),
-        (ground_effect_kernel, (pos, quat, thrust, 0.25, 0.02, 0.09, 0.045)),
+        (downwash_kernel, (pos, quat, thrust, 4, 0.25, ROTOR_DIRS["x"], 1.225, 0.09, 0.018, 0.01, 0.09)),
+        (ground_effect_kernel, (pos, quat, thrust, 0.25, ROTOR_DIRS["x"], 0.02, 0.09, 0.045)),
     ):
         a = [np.zeros((N, 3)) for _ in range(4)]
         b = [np.zeros((N, 3)) for _ in range(4)]

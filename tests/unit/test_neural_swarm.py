@@ -18,14 +18,13 @@ import pytest
 from helpers import DATA, SMALL, needs_data
 
 from swarm_mj.cli import main as cli_main
-from swarm_mj.physics.aero.downwash import BD, S0, downwash_kernel, hover_induced_velocity
+from swarm_mj.physics.aero.downwash import BD, S0, hover_induced_velocity
 from swarm_mj.physics.aero.wake import emitted_state, transport_time
 from swarm_mj.validation.decode import decode, decode_bytes
 from swarm_mj.validation.flight import find_flights, load_flight, quat_decompress
 from swarm_mj.validation.passes import find_passes
 from swarm_mj.validation.predict import gym_force, jet_force
 from swarm_mj.validation.sysid import G, read_thrust_model, readme_assignments, residual_force_g
-from swarm_mj.vehicles import Vehicle
 
 
 def small_flight():
@@ -211,42 +210,48 @@ def test_gym_pybullet_drones_formula_by_hand():
     assert np.all(f[1:] == 0.0) and np.all(f[:, :2] == 0.0)  # nothing from below or level
 
 
-def test_jet_force_matches_the_simulators_kernel():
-    """jet_force (numpy, the validation's) against downwash_kernel (compiled, the simulator's) on a
-    '+' drone with the kernel's hub area: two implementations of docs/aero.md's force."""
-    rng = np.random.default_rng(7)
+@pytest.mark.parametrize("layout", ["+", "x"])
+def test_jet_force_against_the_formula_by_hand(layout, tmp_path):
+    """jet_force (the simulator's compiled jet_on_drone) against docs/aero.md's force written out here with
+    numpy: the lower drone's four rotor discs at its layout's rotor centres (typed in) and its hub, each
+    ½ ρ C_D A U(s, r)² along the jet, U from the module's pure jet_speed, × the upper vehicle's gain."""
     from swarm_mj.physics.aero.constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT
-    from swarm_mj.physics.aero.downwash import BODY_AREA
+    from swarm_mj.physics.aero.downwash import jet_speed
+    from swarm_mj.vehicles import load_vehicle
 
-    veh = Vehicle("t", 0.5, 0.25, 0.09)
-    for _ in range(5):
-        pos = np.array([[0.0, 0.0, 2.0], [*rng.uniform(-0.4, 0.4, 2), rng.uniform(0.5, 1.8)]])
-        quat = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, *rng.uniform(-0.1, 0.1, 3)]])
-        quat /= np.linalg.norm(quat, axis=1, keepdims=True)
-        thrust = np.array([[1.2] * 4, [1.2] * 4])
-        f, t = np.zeros((2, 3)), np.zeros((2, 3))
-        half = 0.5 * AIR_DENSITY * DISC_DRAG_COEFFICIENT
-        downwash_kernel(
-            pos,
-            quat,
-            thrust,
-            2,
-            0.25,
-            AIR_DENSITY,
-            0.09,
-            half * math.pi * 0.09**2,
-            half * BODY_AREA,
-            0.09,
-            f,
-            t,
-            np.zeros((2, 3)),
-            np.zeros((2, 3)),
+    f = tmp_path / "v.toml"
+    f.write_text(f'mass = 0.5\narm_length = 0.2\nrotor_radius = 0.07\nlayout = "{layout}"\nhub_area = 0.01\n'
+                 "downwash_gain = 1.3\n")  # fmt: skip
+    veh = load_vehicle(f)
+    c = 1 / math.sqrt(2)
+    dirs = [(0, -1), (1, 0), (0, 1), (-1, 0)] if layout == "+" else [(c, -c), (-c, -c), (-c, c), (c, c)]
+    rng = np.random.default_rng(7)
+    for _ in range(6):
+        src = np.array([0.0, 0.0, 2.0])
+        axis = np.array([*rng.uniform(-0.1, 0.1, 2), 1.0])
+        dst = np.array([*rng.uniform(-0.3, 0.3, 2), rng.uniform(0.8, 1.8)])
+        q = np.array([*rng.uniform(-0.1, 0.1, 3), 1.0])  # x, y, z, w
+        q /= np.linalg.norm(q)
+        x, y, z, w = q
+        R = np.array(
+            [
+                [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+            ]
         )
-        q_xyzw = quat[1:, [1, 2, 3, 0]]
-        mine = jet_force(
-            pos[:1], np.array([[0.0, 0.0, 1.0]]), np.array([4.8]), veh, pos[1:], q_xyzw, veh, BODY_AREA, "+"
-        )
-        assert mine[0] == pytest.approx(f[1], rel=1e-9, abs=1e-12)
+        d = -axis / np.linalg.norm(axis)
+        u_h = math.sqrt(4.8 / (2 * AIR_DENSITY * 4 * math.pi * 0.07**2))
+        want = np.zeros(3)
+        plates = [(R @ np.array([0.2 * a, 0.2 * b, 0.0]), math.pi * 0.07**2) for a, b in dirs] + [(np.zeros(3), 0.01)]
+        for off, area in plates:
+            rel = dst + off - src
+            s = rel @ d
+            r = np.linalg.norm(rel - s * d)
+            u = float(jet_speed(s, r, u_h, 0.4, ramp=0.07))
+            want += 1.3 * 0.5 * AIR_DENSITY * DISC_DRAG_COEFFICIENT * area * u * u * d
+        got = jet_force(src[None], axis[None], np.array([4.8]), veh, dst[None], q[None], veh)
+        assert got[0] == pytest.approx(want, rel=1e-9, abs=1e-12)
 
 
 def test_transport_time_is_the_integral_of_the_centreline_speed():

@@ -81,8 +81,8 @@ def _jet_on_lower(gain: float) -> np.ndarray:
     thrust = np.full((2, 4), CFP.m * CFP.g / 4)
     f, tq, af, at = (np.zeros((2, 3)) for _ in range(4))
     downwash_kernel(
-        pos, quat, thrust, 2, CFP.L, st.rho, st.rotor_radius, st.half_cda, st.half_cda_body, st.rotor_radius,
-        f, tq, af, at,
+        pos, quat, thrust, 2, CFP.L, CFP.rotor_dirs, st.rho, st.rotor_radius, st.half_cda, st.half_cda_body,
+        st.rotor_radius, f, tq, af, at,
     )  # fmt: skip
     return f[1]
 

@@ -58,7 +58,6 @@ import numpy as np  # noqa: E402
 
 from swarm_mj.physics.aero.ground import REST_HEIGHT, SKID_HALF  # noqa: E402
 from swarm_mj.physics.mixing import MIX_T, UNMIX_T  # noqa: E402
-from swarm_mj.physics.params import QuadParams  # noqa: E402
 from swarm_mj.physics.sim import Sim  # noqa: E402
 from swarm_mj.physics.world import build_world  # noqa: E402
 from swarm_mj.scenario import START_CLEARANCE_M, load_scenario, parse_scenario  # noqa: E402
@@ -87,65 +86,7 @@ def test_crazyflie_params_follow_its_file() -> None:
     assert 4 * CFP.f_max > CFP.m * CFP.g
 
 
-def _mix(F: np.ndarray, L: float, kappa: float) -> np.ndarray:
-    """U1..U4 of rotor thrusts F (…, 4) for a '+' quad (rotors 1..4 at −y, +x, +y, −x), written out:
-    U1 = ΣF, L·U2 = L·(F3 − F1), L·U3 = L·(F4 − F2), L·U4 = yaw torque = κ·(F1 − F2 + F3 − F4)."""
-    F1, F2, F3, F4 = np.moveaxis(F, -1, 0)
-    return np.stack([F1 + F2 + F3 + F4, F3 - F1, F4 - F2, kappa * (F1 - F2 + F3 - F4) / L], axis=-1)
-
-
-def test_crazyflie_mixing_is_the_rotor_model() -> None:
-    rng = np.random.default_rng(0)
-    F = rng.uniform(0.0, CFP.f_max, (50, 4))
-    U = _mix(F, CFP.L, CFP.yaw_coefficient)
-    np.testing.assert_allclose(F @ CFP.mix_t, U, rtol=1e-13, atol=1e-15)
-    np.testing.assert_allclose(U @ CFP.unmix_t, F, rtol=1e-12, atol=1e-15)
-
-
-def test_crazyflie_hover_thrust_is_its_weight() -> None:
-    """U1 = m·g, nothing else, holds a Crazyflie still, each rotor giving m·g/4."""
-    p0 = np.array([[0.2, -0.1, 1.0]])
-    sim = Sim(build_world(1, positions=p0, params=CFP))
-    U = np.array([[CFP.m * 9.81, 0.0, 0.0, 0.0]])
-    for _ in range(200):  # 2 s
-        sim.step(U)
-    assert np.abs(sim.pos - p0).max() < 1e-9 and np.abs(sim.vel).max() < 1e-9
-    np.testing.assert_allclose(sim.rotor_thrust, 0.027 * 9.81 / 4, rtol=1e-12)
-
-
-def _alpha(params: QuadParams, U: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Body angular acceleration (3,) from rest and the rotor thrusts (4,) of one Sim step with command U."""
-    sim = Sim(build_world(1, positions=[[0.0, 0.0, 2.0]], params=params))
-    sim.step(U[None, :])
-    d = sim.data
-    mujoco.mj_forward(sim.model, d)
-    return d.qacc[3:6].copy(), sim.rotor_thrust[0].copy()
-
-
-def test_crazyflie_yaw_torque_comes_from_the_drag_torque_coefficient() -> None:
-    """A yaw command whose rotor thrusts fit: α_z = κ·(F1 − F2 + F3 − F4)/Iz (not L·(…)/Iz)."""
-    hover, dF = CFP.m * 9.81 / 4, 0.01
-    F = np.array([hover + dF, hover - dF, hover + dF, hover - dF])
-    U = _mix(F, CFP.L, 0.005964552)
-    alpha, rotors = _alpha(CFP, U)
-    np.testing.assert_allclose(rotors, F, rtol=1e-12)
-    assert alpha[2] == pytest.approx(0.005964552 * 4 * dF / 2.173e-5, rel=1e-9)
-    np.testing.assert_allclose(alpha[:2], 0.0, atol=1e-9)
-
-
-def test_crazyflie_yaw_authority_is_limited_by_the_rotors() -> None:
-    """A yaw command beyond the rotors: F1 = F3 = f_max, F2 = F4 = 0, α_z = 2κ·f_max/Iz."""
-    U = np.array([CFP.m * 9.81, 0.0, 0.0, 10.0])
-    alpha, rotors = _alpha(CFP, U)
-    np.testing.assert_allclose(rotors, [0.1125, 0.0, 0.1125, 0.0], atol=1e-15)
-    assert alpha[2] == pytest.approx(2 * 0.005964552 * 0.1125 / 2.173e-5, rel=1e-9)
-
-
-def test_crazyflie_roll_torque_is_arm_times_thrust_difference() -> None:
-    hover, dF = CFP.m * 9.81 / 4, 0.02
-    F = np.array([hover - dF, hover, hover + dF, hover])
-    alpha, _ = _alpha(CFP, _mix(F, CFP.L, CFP.yaw_coefficient))
-    assert alpha[0] == pytest.approx(0.046 * 2 * dF / 1.395e-5, rel=1e-9)
+# The Crazyflie's mixing, rotor torques and airframe values: tests/unit/test_crazyflie_airframe.py.
 
 
 def _geom(world, name: str) -> int:  # noqa: ANN001
@@ -163,7 +104,9 @@ def test_geometry_scales_with_the_arm(vehicle: str) -> None:
     s = v.arm_length / 0.25
     w = build_world(1, params=p, ground=True)
     m = w.model
-    for k, (x, y) in enumerate([(0, -1), (1, 0), (0, 1), (-1, 0)], start=1):
+    c = 0.5**0.5  # the rotor centres / L of each layout, typed in (docs/vehicles.md, "Rotor layout")
+    dirs = {"+": [(0, -1), (1, 0), (0, 1), (-1, 0)], "x": [(c, -c), (-c, -c), (-c, c), (c, c)]}
+    for k, (x, y) in enumerate(dirs[v.extra.get("layout", "+")], start=1):
         sid = _site(w, f"leader/rotor{k}")
         np.testing.assert_allclose(m.site_pos[sid][:2], [x * v.arm_length, y * v.arm_length], atol=1e-15)
         assert m.site_size[sid][0] == pytest.approx(v.rotor_radius)

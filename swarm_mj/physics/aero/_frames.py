@@ -24,15 +24,12 @@ def body_axes(q: np.ndarray, i: int, out: np.ndarray) -> None:
     out[2, 2] = 1.0 - s * (x * x + y * y)
 
 
-#: Rotor centres F1..F4 in the body frame divided by the arm length L ("+" configuration,
-#: assets/quadrotor.xml): rotor 1 at (0, −L), 2 at (+L, 0), 3 at (0, +L), 4 at (−L, 0).
-ROTOR_DIRS = np.array([[0.0, -1.0], [1.0, 0.0], [0.0, 1.0], [-1.0, 0.0]])  # (4, 2)
-
-
 @jit
-def rotor_offset(axes: np.ndarray, k: int, arm: float, rotor_z: float, out: np.ndarray) -> None:
-    """out (3,) = world-frame offset from the centre of mass to the centre of rotor k (0..3)."""
-    dx = (0.0, 1.0, 0.0, -1.0)[k] * arm
-    dy = (-1.0, 0.0, 1.0, 0.0)[k] * arm
+def rotor_offset(axes: np.ndarray, k: int, dirs: np.ndarray, arm: float, rotor_z: float, out: np.ndarray) -> None:
+    """out (3,) = world-frame offset from the centre of mass to the centre of rotor k (0..3): dirs (4, 2)
+    the rotor centres in the body frame divided by the arm (``QuadParams.rotor_dirs``: the layout,
+    :data:`swarm_mj.physics.mixing.ROTOR_DIRS`), arm L (m), rotor_z the rotor plane's height (m)."""
+    dx = dirs[k, 0] * arm
+    dy = dirs[k, 1] * arm
     for c in range(3):
         out[c] = dx * axes[0, c] + dy * axes[1, c] + rotor_z * axes[2, c]

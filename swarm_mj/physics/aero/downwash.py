@@ -39,7 +39,7 @@ import numpy as np
 from ..._jit import jit
 from ...pipeline.records import Kinematics, force_kernel
 from ._frames import body_axes, rotor_offset
-from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
+from .constants import AIR_DENSITY, BODY_AREA, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
 
 if TYPE_CHECKING:
     from ..params import QuadParams
@@ -50,9 +50,6 @@ SPREAD = 0.07668
 S0 = -5.817
 PROFILE_A = math.sqrt(2.0) - 1.0
 N_ROTORS = 4
-#: Area (m²) of the hub the jet meets at the centre of a lower drone: the 0.12 m × 0.12 m hub box of
-#: assets/quadrotor.xml.
-BODY_AREA = 0.12 * 0.12
 
 
 def hover_induced_velocity(
@@ -90,12 +87,76 @@ def plate_force(u, area: float = np.pi * ROTOR_RADIUS**2, rho: float = AIR_DENSI
 
 
 @jit
+def induced_velocity(thrust: float, rho: float, rotor_r: float) -> float:
+    """U_H (m/s) of a drone of total thrust T (N) > 0 and four rotors of radius rotor_r (m): √(T / (2 ρ A))."""
+    area = N_ROTORS * math.pi * rotor_r * rotor_r
+    return math.sqrt(thrust / (2.0 * rho * area))
+
+
+@jit
+def jet_on_drone(
+    src: np.ndarray,
+    dx: float,
+    dy: float,
+    dz: float,
+    u_h: float,
+    l: float,
+    ramp: float,
+    dst: np.ndarray,
+    dst_axes: np.ndarray,
+    dirs: np.ndarray,
+    arm: float,
+    half_cda: float,
+    half_cda_body: float,
+    off: np.ndarray,
+    force: np.ndarray,
+    torque: np.ndarray,
+) -> None:
+    """Add to force, torque (3,) the push of one jet on one drone (module docstring): the jet leaves a
+    drone at src (3,) along the unit direction (dx, dy, dz), with hover-induced velocity u_h (m/s),
+    motor distance l (m) and switch-on depth ramp (m); the drone below is at dst (3,), its body axes
+    dst_axes (3, 3) (rows), its rotors at dirs (4, 2) × arm (its layout), its plates' ½ ρ C_D A
+    half_cda (a rotor disc) and half_cda_body (the hub). off (3,) is scratch. The one implementation of
+    the force: the simulator's stage (:func:`downwash_kernel`) and the validation
+    (:func:`jet_on_samples`, ``swarm-mj validate downwash``) both call it."""
+    for k in range(N_ROTORS + 1):  # the four rotor discs, then the hub
+        if k < N_ROTORS:
+            rotor_offset(dst_axes, k, dirs, arm, 0.0, off)
+        else:
+            off[0] = off[1] = off[2] = 0.0
+        rx = dst[0] + off[0] - src[0]
+        ry = dst[1] + off[1] - src[1]
+        rz = dst[2] + off[2] - src[2]
+        s = rx * dx + ry * dy + rz * dz
+        if s <= 0.0:
+            continue
+        px, py, pz = rx - s * dx, ry - s * dy, rz - s * dz
+        r2 = px * px + py * py + pz * pz
+        a = s / l - S0
+        hw = l * SPREAD * a
+        q = 1.0 + PROFILE_A * r2 / (hw * hw)
+        u = u_h * BD / a / (q * q)
+        x = s / ramp
+        if x < 1.0:
+            u *= x * x * (3.0 - 2.0 * x)
+        f = (half_cda if k < N_ROTORS else half_cda_body) * u * u
+        fx, fy, fz = f * dx, f * dy, f * dz
+        force[0] += fx
+        force[1] += fy
+        force[2] += fz
+        torque[0] += off[1] * fz - off[2] * fy
+        torque[1] += off[2] * fx - off[0] * fz
+        torque[2] += off[0] * fy - off[1] * fx
+
+
+@jit
 def downwash_kernel(
     pos: np.ndarray,
     quat: np.ndarray,
     rotor_thrust: np.ndarray,
     n_per_copy: int,
     arm: float,
+    dirs: np.ndarray,
     rho: float,
     rotor_r: float,
     half_cda: float,
@@ -111,11 +172,12 @@ def downwash_kernel(
 
     pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) the produced rotor thrusts; drones
     i and j interact only when i // n_per_copy == j // n_per_copy. The motor distance l = 2·arm;
-    half_cda = ½ ρ C_D π R² of a rotor disc, half_cda_body = ½ ρ C_D A of the hub.
+    dirs (4, 2) the rotors' layout (``QuadParams.rotor_dirs``); half_cda = ½ ρ C_D π R² of a rotor
+    disc, half_cda_body = ½ ρ C_D A of the hub (each × the vehicle's downwash gain). Each pair is
+    :func:`jet_on_drone`.
     """
     N = pos.shape[0]
     l = 2.0 * arm
-    area = N_ROTORS * math.pi * rotor_r * rotor_r
     axes = np.empty((N, 3, 3))
     for i in range(N):
         body_axes(quat, i, axes[i])
@@ -127,44 +189,71 @@ def downwash_kernel(
         T = rotor_thrust[i, 0] + rotor_thrust[i, 1] + rotor_thrust[i, 2] + rotor_thrust[i, 3]
         if T <= 0.0:
             continue
-        u_h = math.sqrt(T / (2.0 * rho * area))
+        u_h = induced_velocity(T, rho, rotor_r)
         dx, dy, dz = -axes[i, 2, 0], -axes[i, 2, 1], -axes[i, 2, 2]  # jet direction: −z of drone i
         c0 = (i // n_per_copy) * n_per_copy
         for j in range(c0, min(c0 + n_per_copy, N)):
             if j == i:
                 continue
-            for k in range(N_ROTORS + 1):  # the four rotor discs, then the hub
-                if k < N_ROTORS:
-                    rotor_offset(axes[j], k, arm, 0.0, off)
-                else:
-                    off[0] = off[1] = off[2] = 0.0
-                rx = pos[j, 0] + off[0] - pos[i, 0]
-                ry = pos[j, 1] + off[1] - pos[i, 1]
-                rz = pos[j, 2] + off[2] - pos[i, 2]
-                s = rx * dx + ry * dy + rz * dz
-                if s <= 0.0:
-                    continue
-                px, py, pz = rx - s * dx, ry - s * dy, rz - s * dz
-                r2 = px * px + py * py + pz * pz
-                a = s / l - S0
-                hw = l * SPREAD * a
-                q = 1.0 + PROFILE_A * r2 / (hw * hw)
-                u = u_h * BD / a / (q * q)
-                x = s / ramp
-                if x < 1.0:
-                    u *= x * x * (3.0 - 2.0 * x)
-                f = (half_cda if k < N_ROTORS else half_cda_body) * u * u
-                fx, fy, fz = f * dx, f * dy, f * dz
-                force[j, 0] += fx
-                force[j, 1] += fy
-                force[j, 2] += fz
-                torque[j, 0] += off[1] * fz - off[2] * fy
-                torque[j, 1] += off[2] * fx - off[0] * fz
-                torque[j, 2] += off[0] * fy - off[1] * fx
+            jet_on_drone(
+                pos[i], dx, dy, dz, u_h, l, ramp, pos[j], axes[j], dirs, arm, half_cda, half_cda_body, off, force[j],
+                torque[j],
+            )  # fmt: skip
     for j in range(N):
         for c in range(3):
             add_force[j, c] += force[j, c]
             add_torque[j, c] += torque[j, c]
+
+
+@jit
+def jet_on_samples(
+    src_pos: np.ndarray,
+    src_axis: np.ndarray,
+    thrust: np.ndarray,
+    src_arm: float,
+    src_rotor_r: float,
+    rho: float,
+    dst_pos: np.ndarray,
+    dst_quat: np.ndarray,
+    dirs: np.ndarray,
+    dst_arm: float,
+    half_cda: float,
+    half_cda_body: float,
+    force: np.ndarray,
+) -> None:
+    """force (k, 3) = the push of a source drone's jet on a drone below it at each of k samples, by
+    :func:`jet_on_drone` (the simulator's arithmetic), for ``swarm-mj validate downwash``: src_pos (k, 3),
+    src_axis (k, 3) its thrust axis (body z, any length), thrust (k,) its total thrust (N), src_arm and
+    src_rotor_r its arm and rotor radius (m: l = 2·src_arm, U_H from its rotors, the switch-on depth
+    its rotor radius, as in the simulator); dst_pos (k, 3), dst_quat (k, 4) (w, x, y, z) the lower
+    drone, dirs (4, 2) × dst_arm its rotors, half_cda, half_cda_body its plates (× the source's gain)."""
+    k = src_pos.shape[0]
+    axes = np.empty((k, 3, 3))
+    off = np.empty(3)
+    torque = np.empty(3)
+    for i in range(k):
+        body_axes(dst_quat, i, axes[i])
+        for c in range(3):
+            force[i, c] = 0.0
+        T = thrust[i]
+        if T <= 0.0:
+            continue
+        n = math.sqrt(src_axis[i, 0] ** 2 + src_axis[i, 1] ** 2 + src_axis[i, 2] ** 2)
+        jet_on_drone(
+            src_pos[i], -src_axis[i, 0] / n, -src_axis[i, 1] / n, -src_axis[i, 2] / n,
+            induced_velocity(T, rho, src_rotor_r), 2.0 * src_arm, src_rotor_r, dst_pos[i], axes[i], dirs, dst_arm,
+            half_cda, half_cda_body, off, force[i], torque,
+        )  # fmt: skip
+
+
+def plate_coefficients(
+    rho: float, drag_coefficient: float, rotor_radius: float, body_area: float, gain: float
+) -> tuple[float, float]:
+    """(half_cda, half_cda_body): ½ ρ C_D A of a rotor disc (A = π R²) and of the hub (A = body_area),
+    each × ``gain`` (x·1.0 == x: the paper's drone unchanged)."""
+    half_cda = 0.5 * rho * drag_coefficient * math.pi * rotor_radius**2 * gain
+    half_cda_body = 0.5 * rho * drag_coefficient * body_area * gain
+    return half_cda, half_cda_body
 
 
 class DownwashRecord(NamedTuple):
@@ -172,6 +261,7 @@ class DownwashRecord(NamedTuple):
 
     n_per_copy: int  # drones per copy: jets act within a copy only
     arm: float  # L (m)
+    dirs: np.ndarray  # (4, 2) rotor centres / L in the body frame (the vehicle's layout)
     rho: float  # air density (kg/m³)
     rotor_radius: float  # m
     half_cda: float  # ½·ρ·C_d·A of a rotor disc
@@ -185,8 +275,8 @@ class DownwashRecord(NamedTuple):
 def downwash_apply(rec: DownwashRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
     """The downwash stage's step: :func:`downwash_kernel` at the drones' state, added to force, torque (N, 3)."""
     downwash_kernel(
-        kin.pos, kin.quat, kin.rotor_thrust, rec.n_per_copy, rec.arm, rec.rho, rec.rotor_radius, rec.half_cda,
-        rec.half_cda_body, rec.rotor_radius, rec.force, rec.torque, force, torque,
+        kin.pos, kin.quat, kin.rotor_thrust, rec.n_per_copy, rec.arm, rec.dirs, rec.rho, rec.rotor_radius,
+        rec.half_cda, rec.half_cda_body, rec.rotor_radius, rec.force, rec.torque, force, torque,
     )  # fmt: skip
 
 
@@ -212,28 +302,30 @@ class DownwashStage:
         self.rho = float(rho)
         self.rotor_radius = float(rotor_radius)
         self.gain = float(gain)
-        self.half_cda = 0.5 * self.rho * float(drag_coefficient) * math.pi * self.rotor_radius**2 * self.gain
-        self.half_cda_body = 0.5 * self.rho * float(drag_coefficient) * float(body_area) * self.gain
+        self.half_cda, self.half_cda_body = plate_coefficients(
+            self.rho, float(drag_coefficient), self.rotor_radius, float(body_area), self.gain
+        )
         self.force = np.zeros((0, 3))
         self.torque = np.zeros((0, 3))
 
     @classmethod
     def for_vehicle(cls, params: QuadParams) -> DownwashStage:
-        """The stage for drones of parameters ``params``: their rotor radius, their body area (the
-        paper drone's ``BODY_AREA`` × ``size_scale``², docs/vehicles.md) and their
-        ``downwash_gain`` (docs/validation.md); the arm L is read from the simulator at :meth:`reset`."""
-        s = params.size_scale
-        return cls(rotor_radius=params.rotor_radius, body_area=BODY_AREA * s * s, gain=params.downwash_gain)
+        """The stage for drones of parameters ``params``: their rotor radius, their hub plate
+        (``QuadParams.body_area``: the vehicle file's ``hub_area``, else the paper drone's ``BODY_AREA`` ×
+        ``size_scale``², docs/vehicles.md) and their ``downwash_gain`` (docs/validation.md); the arm L and
+        the rotor layout are read from the simulator's vehicle at :meth:`reset`."""
+        return cls(rotor_radius=params.rotor_radius, body_area=params.body_area, gain=params.downwash_gain)
 
     def reset(self, sim) -> None:
         N = sim.pos.shape[0]
         self.n_per_copy = int(sim.n)
         self.arm = float(sim.params.L)
+        self.dirs = sim.params.rotor_dirs
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
         self._record = DownwashRecord(
-            self.n_per_copy, self.arm, self.rho, self.rotor_radius, self.half_cda, self.half_cda_body, self.force,
-            self.torque,
+            self.n_per_copy, self.arm, self.dirs, self.rho, self.rotor_radius, self.half_cda, self.half_cda_body,
+            self.force, self.torque,
         )  # fmt: skip
 
     def record(self) -> DownwashRecord:

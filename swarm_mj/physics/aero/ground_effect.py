@@ -40,6 +40,7 @@ def ground_effect_kernel(
     quat: np.ndarray,
     rotor_thrust: np.ndarray,
     arm: float,
+    dirs: np.ndarray,
     rotor_z: float,
     rotor_r: float,
     z_clip: float,
@@ -51,7 +52,8 @@ def ground_effect_kernel(
     """Set force, torque (N, 3) to the ground-effect gain of every rotor of every drone, and add the
     same to add_force, add_torque (N, 3) (the simulator's buffers of this physics step).
 
-    pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) produced rotor thrusts F1..F4.
+    pos (N, 3), quat (N, 4) (w, x, y, z), rotor_thrust (N, 4) produced rotor thrusts F1..F4, at
+    dirs (4, 2) × arm in the body frame (the vehicle's layout, ``QuadParams.rotor_dirs``).
     """
     N = pos.shape[0]
     axes = np.empty((3, 3))
@@ -60,7 +62,7 @@ def ground_effect_kernel(
         body_axes(quat, j, axes)
         fx = fy = fz = tx = ty = tz = 0.0
         for k in range(4):
-            rotor_offset(axes, k, arm, rotor_z, off)
+            rotor_offset(axes, k, dirs, arm, rotor_z, off)
             z = pos[j, 2] + off[2]
             z = max(z, z_clip)
             ratio = rotor_r / (4.0 * z)
@@ -90,6 +92,7 @@ class GroundEffectRecord(NamedTuple):
     """:class:`GroundEffectStage` for a compiled driver (swarm_mj.pipeline.records)."""
 
     arm: float  # L (m)
+    dirs: np.ndarray  # (4, 2) rotor centres / L in the body frame (the vehicle's layout)
     rotor_z: float  # rotor plane above the centre of mass (m)
     rotor_radius: float  # m
     z_clip: float  # smallest rotor height the factor is evaluated at (m)
@@ -102,7 +105,7 @@ class GroundEffectRecord(NamedTuple):
 def ground_effect_apply(rec: GroundEffectRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
     """The ground-effect stage's step: :func:`ground_effect_kernel` at the drones' state, added to force, torque."""
     ground_effect_kernel(
-        kin.pos, kin.quat, kin.rotor_thrust, rec.arm, rec.rotor_z, rec.rotor_radius, rec.z_clip, rec.force,
+        kin.pos, kin.quat, kin.rotor_thrust, rec.arm, rec.dirs, rec.rotor_z, rec.rotor_radius, rec.z_clip, rec.force,
         rec.torque, force, torque,
     )  # fmt: skip
 
@@ -127,10 +130,11 @@ class GroundEffectStage:
     def reset(self, sim) -> None:
         N = sim.pos.shape[0]
         self.arm = float(sim.params.L)
+        self.dirs = sim.params.rotor_dirs
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
         self._record = GroundEffectRecord(
-            self.arm, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque
+            self.arm, self.dirs, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque
         )
 
     def record(self) -> GroundEffectRecord:
