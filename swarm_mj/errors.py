@@ -6,6 +6,9 @@ The CLI turns :class:`UserError` into one line on stderr and exit status 2, and
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
+
 
 class SwarmError(Exception):
     """Base class of every error this package raises on purpose."""
@@ -24,6 +27,29 @@ class UserError(SwarmError, ValueError):
     def __init__(self, message: str, where: str | None = None) -> None:
         self.where = where
         super().__init__(f"{where}: {message}" if where else message)
+
+
+#: Longest list of allowed keys an unknown-key message spells out (longer ones point to the docs).
+_LIST_CHARS = 150
+
+
+def unknown_key(key: str, allowed: Iterable[str], where: str | None = None, see: str | None = None) -> UserError:
+    """The :class:`UserError` for an unknown key ``key`` of a table whose keys are ``allowed``: one short
+    line with a "did you mean" where a key is close (:func:`difflib.get_close_matches`), else the allowed
+    keys where they are few and ``see`` (where the docs list them, e.g. ``docs/vehicles.md``) otherwise."""
+    keys = sorted(allowed)
+    close = difflib.get_close_matches(key, keys, n=1)
+    msg = f"unknown key {key!r}"
+    if close:
+        msg += f"; did you mean {close[0]!r}?"
+    elif len(", ".join(keys)) <= _LIST_CHARS or see is None:
+        shown = ", ".join(keys)
+        if len(shown) > _LIST_CHARS:
+            shown = shown[: shown.rfind(", ", 0, _LIST_CHARS)] + f", … ({len(keys)} keys)"
+        msg += f"; allowed: {shown}"
+    else:
+        msg += f"; the {len(keys)} allowed keys are listed in {see}"
+    return UserError(msg, where=where)
 
 
 class SimulationDiverged(SwarmError, RuntimeError):

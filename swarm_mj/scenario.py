@@ -22,7 +22,7 @@ import numpy as np
 
 from .choices import choose_gains, resolve_vehicle
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
-from .errors import UserError
+from .errors import UserError, unknown_key
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.barrier import BarrierParams
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
@@ -64,6 +64,8 @@ _RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("form
 _FORMATION_KEYS = {"diameter", "anti_collision", "barrier", *_RULE_KEYS["formation"]}
 _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
 _VEHICLE_KEYS = {"model"}
+#: Where the docs list the ``[formation]`` keys (an unknown key's message points there: they are many).
+_FORMATION_DOCS = 'docs/anticollision.md, "Setting a parameter"'
 
 
 @dataclass(frozen=True)
@@ -475,14 +477,14 @@ def check_random_start_feasible(n: int, rs: RandomStart, where: str = "", cleara
         )
 
 
-def _check_keys(table: Any, allowed: set[str], where: str) -> dict:
+def _check_keys(table: Any, allowed: set[str], where: str, see: str | None = None) -> dict:
+    """``table`` is a table of keys among ``allowed``: the first unknown one is one short line with a "did
+    you mean" (:func:`~swarm_mj.errors.unknown_key`; ``see``: where the docs list a long table's keys)."""
     if not isinstance(table, dict):
         raise UserError("must be a table", where=where)
-    unknown = set(table) - allowed
-    if unknown:
-        raise UserError(
-            f"unknown key(s) {', '.join(sorted(unknown))}; allowed: {', '.join(sorted(allowed))}", where=where
-        )
+    for key in table:
+        if key not in allowed:
+            raise unknown_key(key, allowed, where=where, see=see)
     return table
 
 
@@ -607,7 +609,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         else:
             raise UserError("followers need start positions or random_start", where=f"{w}followers")
 
-    form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation")
+    form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation", see=_FORMATION_DOCS)
     diameter = form.get("diameter", 1.0)
     if not _only_numbers(diameter):
         raise UserError(

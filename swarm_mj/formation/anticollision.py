@@ -108,14 +108,13 @@ def make_rule(
     as written (a scenario's ``[formation]`` keys and ``[controller] downwash_feedforward``;
     :class:`UserError` naming ``where`` for an unknown one). ``barrier``: a scenario's
     ``[formation.barrier]`` table, for the rules with a barrier filter (``takes_barrier_params``:
-    ``barrier``, ``barrier-lanes``; docs/barrier.md); :class:`UserError` for another rule."""
+    ``barrier``, ``barrier-lanes``; docs/barrier.md); another rule has no use for it and flies without it
+    (a scenario with the table may fly ``--anti-collision jet-aware`` or a sweep over the rules)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
     table = where.rsplit(".", 1)[0]
     record = PRESETS[name].for_vehicle(vehicle).with_overrides(params, where=table)
     cls: Any = ANTI_COLLISION_RULES[name]
-    if not barrier:
+    if not barrier or not getattr(cls, "takes_barrier_params", False):
         return cls(n, record, vehicle=vehicle)
-    if not getattr(cls, "takes_barrier_params", False):
-        raise UserError(f"is set, but the rule flown, {name!r}, has no barrier filter", where=f"{table}.barrier")
     return cls(n, record, vehicle=vehicle, barrier=barrier)

@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import UserError
+from ..errors import UserError, unknown_key
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 
 
@@ -176,7 +176,8 @@ def check_overrides(overrides: dict[str, Any], where: str = "formation", record:
         w = f"{where}.{key}" if where else key
         f = by_name.get(key)
         if f is None:
-            raise UserError(f"unknown key {key!r}; allowed: {', '.join(by_name)}", where=where or None)
+            see = "docs/anticollision.md" if record is None else "docs/barrier.md"  # BarrierParams: the other record
+            raise unknown_key(key, by_name, where=where or None, see=see)
         m = f.metadata
         if f.type in ("bool", bool):
             if not isinstance(v, (bool, np.bool_)):

@@ -166,9 +166,56 @@ def test_mistakes_name_file_field_and_problem(tmp_path, data, field, problem):
         parse_scenario(data, path)
     msg = str(ei.value)
     assert "\n" not in msg
-    assert path in msg, msg
+    assert msg.count(path) == 1, msg  # the file named once (issue 47 item 9)
     assert field in msg, msg
     assert problem in msg, msg
+
+
+@pytest.mark.parametrize(
+    ("data", "expected"),
+    [
+        (_with(formaton={}), "unknown key 'formaton'; did you mean 'formation'?"),
+        (
+            _with(formation={"sensing_rnge": 3.0}),
+            "formation: unknown key 'sensing_rnge'; did you mean 'sensing_range'?",
+        ),
+        (
+            _with(formation={"zzz": 1}),
+            "formation: unknown key 'zzz'; the {n} allowed keys are listed in docs/anticollision.md, "
+            '"Setting a parameter"',
+        ),
+        (_with(controller={"gain": "x"}), "controller: unknown key 'gain'; did you mean 'gains'?"),
+        (
+            _with(controller={"qqq": 1}),
+            "controller: unknown key 'qqq'; allowed: attitude_map, downwash_feedforward, gains",
+        ),
+        (_with(formation={"barrier": {"gian": 2.0}}), "formation.barrier: unknown key 'gian'; did you mean 'gain'?"),
+        (_with(vehicle={"modle": "paper"}), "vehicle: unknown key 'modle'; did you mean 'model'?"),
+        (_with(colour=3), "unknown key 'colour'; allowed: aero, control_period, controller, description, duration,"),
+    ],
+)
+def test_an_unknown_key_is_one_short_line_with_a_did_you_mean(data, expected):
+    """Issue 47 item 9: an unknown key of a table of 45 was one 715-character line listing them all."""
+    from swarm_mj.scenario import _FORMATION_KEYS
+
+    with pytest.raises(UserError) as ei:
+        parse_scenario(data, "x.toml")
+    msg = str(ei.value)
+    assert msg.startswith("x.toml: " + expected.replace("{n}", str(len(_FORMATION_KEYS)))), msg
+    assert "\n" not in msg and len(msg) < 200, (len(msg), msg)
+
+
+def test_a_scenario_naming_a_vehicle_that_cannot_hover_is_refused(tmp_path):
+    """Issue 47 item 3 at load time: a scenario naming a copy of the Crazyflie's file with mass = 0.067 kg."""
+    from swarm_mj.vehicles import _HERE
+
+    text = (_HERE / "crazyflie21.toml").read_text()
+    heavy = tmp_path / "cf_heavy.toml"
+    heavy.write_text("\n".join("mass = 0.067" if ln.startswith("mass =") else ln for ln in text.splitlines()))
+    with pytest.raises(UserError) as ei:
+        parse_scenario(_with(vehicle={"model": "cf_heavy.toml"}), str(tmp_path / "s.toml"))
+    msg = str(ei.value)
+    assert msg.startswith(f"{heavy}: thrust-to-weight ") and "below the minimum 1.4" in msg and "\n" not in msg
 
 
 def test_gains_file_is_resolved_relative_to_the_scenario(tmp_path):
