@@ -1,19 +1,15 @@
-"""Vehicles as data: a vehicle is a TOML file (docs/vehicles.md).
+"""Vehicles as data: a vehicle is a TOML file (docs/vehicles.md, "The vehicle file").
 
-A vehicle file has at least ``mass`` (kg), ``arm_length`` (m, centre to motor) and ``rotor_radius``
-(m) under these names; the bundled vehicles (``paper``, ``crazyflie21``) are such files in this folder.
-:func:`load_vehicle` takes a bundled name or a path and returns a :class:`Vehicle`. To be flown, a
-vehicle also needs ``inertia`` ([Ix, Iy, Iz] kg·m²), ``drag`` ([Kx, Ky, Kz] N·s/m) and ``max_thrust``
-(N per rotor); it may give ``min_thrust`` (N, default 0), ``yaw_torque_coefficient`` (m: the
-rotors' drag-torque-to-thrust ratio; absent: the paper's yaw torque L·U4), ``collision_radius`` (m,
-default ``arm_length``) and ``motor_tau`` (s, the rotor time constant: the lag under ``--aero
-realistic`` and of ``swarm-mj tune --vehicle``; absent: the preset's 15 ms), ``downwash_gain`` (the
-gain on its jet's force, fitted by ``swarm-mj validate downwash``; absent: 1), ``gains`` (the gains
-file tuned for it, relative to the vehicle file; ``swarm-mj stress --vehicle`` flies them) and ``mixer``
-(what a scenario's ``mixer = "auto"`` resolves to on this vehicle: ``"clip"`` or ``"attitude_priority"``,
-e.g. where its own flight stack desaturates with attitude priority; absent: the rule of
-:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
-:meth:`Vehicle.params` gives the :class:`~swarm_mj.physics.params.QuadParams` the simulator and the controller use.
+:data:`KEYS` is every key a vehicle file may have, with its unit, its kind, whether it is needed and what
+it means (docs/vehicles.md's table lists the same keys; a test compares them). :func:`load_vehicle` takes
+a bundled name (``paper``, ``crazyflie21``: files in this folder) or a path and checks the whole file
+before anything flies, as a scenario is checked: an unknown key is refused with a "did you mean", a
+missing key is called missing, every value is checked against its kind, ``gains`` is resolved (a bundled
+gains name, or a path relative to the vehicle file) and a vehicle whose rotors cannot hold it up with
+margin (thrust-to-weight below :data:`MIN_THRUST_TO_WEIGHT`) is refused; each mistake is one
+:class:`~swarm_mj.errors.UserError` that names the file once. :meth:`Vehicle.params` gives the
+:class:`~swarm_mj.physics.params.QuadParams` the simulator and the controller use (it needs the keys
+marked "to fly").
 """
 
 from __future__ import annotations
@@ -24,14 +20,117 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..errors import UserError
-from ..physics.params import QuadParams
+from ..errors import UserError, unknown_key
+from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..resources import SCENARIOS_DIR
 
 _HERE = Path(__file__).resolve().parent
-#: The keys every vehicle file must have, with their units.
-REQUIRED = {"mass": "kg", "arm_length": "m", "rotor_radius": "m"}
+#: The bundled gains files a vehicle file's ``gains`` may name without a path (their file stems).
+GAINS_DIR = SCENARIOS_DIR / "gains"
 #: The mixers a vehicle file's ``mixer`` may name (what ``mixer = "auto"`` becomes on it).
 MIXERS = ("clip", "attitude_priority")
+#: Least thrust-to-weight ratio 4·max_thrust / (mass·g) a vehicle file may give: hovering takes at most
+#: 1/1.4 = 71 % of the rotors' thrust, so each rotor keeps 40 % of its hover thrust in hand to climb and to
+#: steer, and the drone holds its height tilted up to acos(1/1.4) = 44° (docs/vehicles.md, "Thrust to weight").
+MIN_THRUST_TO_WEIGHT = 1.4
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a vehicle file: a row of docs/vehicles.md's table, "The vehicle file"."""
+
+    unit: str  # SI unit, "" for none
+    kind: str | tuple[str, ...]  # a key of KINDS, or the strings the value may be
+    need: str  # "always" (load_vehicle), "to fly" (Vehicle.params) or "no" with the default where absent
+    doc: str  # what it means, one line
+
+
+#: What a value of each kind must be (the words of the error message).
+KINDS = {
+    "positive": "a positive number",
+    "nonnegative": "a number >= 0",
+    "3 positive": "3 positive numbers",
+    "3 nonnegative": "3 numbers >= 0",
+    "string": "a non-empty string",
+    "gains": "a bundled gains name or the path of a gains file",
+}
+
+#: Every key a vehicle file may have (one line each; docs/vehicles.md's table lists the same keys).
+KEYS: dict[str, Key] = {
+    "name": Key("", "string", "no (file stem)", "the vehicle's name"),
+    "mass": Key("kg", "positive", "always", "take-off mass"),
+    "arm_length": Key("m", "positive", "always", "centre of mass to motor axis (the paper's L)"),
+    "rotor_radius": Key("m", "positive", "always", "propeller radius"),
+    "inertia": Key("kg·m²", "3 positive", "to fly", "[Ix, Iy, Iz], principal"),
+    "drag": Key("N·s/m", "3 nonnegative", "to fly", "[Kx, Ky, Kz], the linear drag of eq. (1)"),
+    "max_thrust": Key("N", "positive", "to fly", "thrust of one rotor at full command"),
+    "min_thrust": Key("N", "nonnegative", "no (0)", "least thrust of one rotor, below max_thrust"),
+    "yaw_torque_coefficient": Key("m", "positive", "no", "κ = rotor drag torque / rotor thrust"),
+    "collision_radius": Key("m", "positive", "no (arm_length)", "radius of the disc that touches other drones"),
+    "motor_tau": Key("s", "positive", "no", "rotor time constant: the lag under --aero realistic"),
+    "downwash_gain": Key("", "positive", "no (1)", "gain on its jet's force on the drones below"),
+    "gains": Key("", "gains", "no", "the gains tuned for it, flown where a scenario names none"),
+    "mixer": Key("", MIXERS, "no", 'what a scenario\'s mixer = "auto" becomes on it'),
+    "layout": Key("", ("+", "x"), 'no ("+")', 'rotor layout: "+" (on the body axes) or "x" (at 45°)'),
+    "hub_area": Key("m²", "nonnegative", "no", "the hub plate a jet from above meets"),
+    "height": Key("m", "positive", "no", "height of the colliding body"),
+}
+
+
+def thrust_to_weight(mass: float, max_thrust: float) -> float:
+    """4·max_thrust / (mass·g): the rotors' full thrust over the weight (g of Table 1, 9.81 m/s²)."""
+    return 4.0 * max_thrust / (mass * DEFAULT_PARAMS.g)
+
+
+def bundled_gains() -> list[str]:
+    """The names of the bundled gains files (what a vehicle file's ``gains`` may give without a path)."""
+    return sorted(p.stem for p in GAINS_DIR.glob("*.toml"))
+
+
+def resolve_gains(value: str, vehicle_file: str | Path) -> Path:
+    """The gains file a vehicle file's ``gains`` names: a bundled gains name (no folder, no suffix:
+    :func:`bundled_gains`), an absolute path, or a path relative to the vehicle file's own folder (so
+    that the file and its gains move together). :class:`UserError` naming the path looked at otherwise."""
+    names = ", ".join(bundled_gains())
+    p = Path(value)
+    if len(p.parts) == 1 and not p.suffix:
+        f = GAINS_DIR / f"{value}.toml"
+        if not f.is_file():
+            raise UserError(
+                f"vehicle key 'gains': no bundled gains named {value!r} (bundled: {names})",
+                where=str(vehicle_file),
+            )
+        return f.resolve()
+    f = p if p.is_absolute() else Path(vehicle_file).parent / p
+    if not f.is_file():
+        raise UserError(
+            f"vehicle key 'gains': no gains file at {f.resolve()} (a relative path is read from the vehicle "
+            f"file's folder); give its path or a bundled name ({names})",
+            where=str(vehicle_file),
+        )
+    return f.resolve()
+
+
+def _is_number(v: Any) -> bool:
+    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+
+
+def check_value(key: str, v: Any, where: str) -> None:
+    """``v`` is what :data:`KEYS` asks of ``key``; :class:`UserError` naming ``where`` (the file) otherwise."""
+    spec = KEYS[key]
+    kind = spec.kind
+    if isinstance(kind, tuple):
+        ok, want = isinstance(v, str) and v in kind, "one of " + ", ".join(map(repr, kind))
+    elif kind in ("string", "gains"):
+        ok, want = isinstance(v, str) and bool(v), KINDS[kind]
+    elif kind in ("positive", "nonnegative"):
+        ok, want = _is_number(v) and (v > 0 if kind == "positive" else v >= 0), KINDS[kind]
+    else:
+        nums = isinstance(v, list) and len(v) == 3 and all(_is_number(x) for x in v)
+        ok, want = nums and all(x > 0 if kind == "3 positive" else x >= 0 for x in v), KINDS[kind]
+    if not ok:
+        unit = f" ({spec.unit})" if spec.unit else ""
+        raise UserError(f"vehicle key {key!r} must be {want}{unit}, got {v!r}", where=where)
 
 
 @dataclass(frozen=True)
@@ -50,36 +149,29 @@ class Vehicle:
         if v is None:
             return None
         if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
-            raise UserError(f"{self.path}: vehicle key {key!r} must be a positive number ({unit}), got {v!r}")
+            raise UserError(f"vehicle key {key!r} must be a positive number ({unit}), got {v!r}", where=self.path)
         return float(v)
 
-    def _triple(self, key: str, unit: str, positive: bool) -> list[float]:
+    def _triple(self, key: str, unit: str) -> list[float]:
         v = self.extra.get(key)
         if v is None:
-            raise UserError(f"{self.path}: vehicle key {key!r} is needed to fly it: 3 numbers ({unit})")
-        ok = (
-            isinstance(v, list)
-            and len(v) == 3
-            and all(not isinstance(x, bool) and isinstance(x, int | float) and math.isfinite(x) for x in v)
-        )
-        if not ok or any((x <= 0) if positive else (x < 0) for x in v):
-            need = "positive" if positive else ">= 0"
-            raise UserError(f"{self.path}: vehicle key {key!r} must be 3 {need} numbers ({unit}), got {v!r}")
+            raise UserError(f"missing key {key!r} ({unit}): needed to fly it", where=self.path)
+        check_value(key, v, self.path)
         return [float(x) for x in v]
 
     def params(self) -> QuadParams:
         """The :class:`~swarm_mj.physics.params.QuadParams` of this vehicle (module docstring for the keys).
 
         Raises :class:`~swarm_mj.errors.UserError` naming the file and the key when a key needed to
-        fly is missing or out of range."""
-        Ix, Iy, Iz = self._triple("inertia", "kg·m²", True)
-        Kx, Ky, Kz = self._triple("drag", "N·s/m", False)
+        fly is missing (:data:`KEYS`, "to fly") or out of range."""
+        Ix, Iy, Iz = self._triple("inertia", "kg·m²")
+        Kx, Ky, Kz = self._triple("drag", "N·s/m")
         f_max = self._number("max_thrust", "N per rotor")
         if f_max is None:
-            raise UserError(f"{self.path}: vehicle key 'max_thrust' is needed to fly it (N per rotor)")
+            raise UserError("missing key 'max_thrust' (N): needed to fly it", where=self.path)
         f_min = self.extra.get("min_thrust", 0.0)
         if isinstance(f_min, bool) or not isinstance(f_min, int | float) or not 0 <= f_min < f_max:
-            raise UserError(f"{self.path}: vehicle key 'min_thrust' must be >= 0 and < max_thrust, got {f_min!r}")
+            raise UserError(f"vehicle key 'min_thrust' must be >= 0 and < max_thrust, got {f_min!r}", where=self.path)
         try:
             return QuadParams(
                 m=self.mass,
@@ -102,26 +194,26 @@ class Vehicle:
                 height=self._number("height", "m"),
             )
         except UserError as e:
-            raise UserError(f"{self.path}: {e}") from None
+            if e.where:  # already names the file
+                raise
+            raise UserError(str(e), where=self.path) from None
 
     @property
     def gains_file(self) -> Path | None:
-        """The gains tuned for this vehicle (the file's ``gains``, a gains file written by ``swarm-mj tune
-        --vehicle``, relative to the vehicle file), or None; ``swarm-mj stress --vehicle`` flies them."""
+        """The gains tuned for this vehicle (the file's ``gains``: a gains file written by ``swarm-mj tune
+        --vehicle``, by bundled name or by path, :func:`resolve_gains`), or None."""
         g = self.extra.get("gains")
         if g is None:
             return None
-        p = Path(self.path).parent / g if isinstance(g, str) else None
-        if p is None or not p.is_file():
-            raise UserError(f"{self.path}: vehicle key 'gains' must name a gains file, got {g!r}")
-        return p.resolve()
+        check_value("gains", g, self.path)
+        return resolve_gains(g, self.path)
 
     @property
     def mixer(self) -> str | None:
         """The mixer ``mixer = "auto"`` resolves to on this vehicle (the file's ``mixer``), or None."""
         v = self.extra.get("mixer")
-        if v is not None and v not in MIXERS:
-            raise UserError(f"{self.path}: vehicle key 'mixer' must be one of {', '.join(MIXERS)}, got {v!r}")
+        if v is not None:
+            check_value("mixer", v, self.path)
         return v
 
     @property
@@ -173,24 +265,50 @@ def bundled() -> list[str]:
 
 
 def load_vehicle(name_or_path: str | Path) -> Vehicle:
-    """The vehicle named ``name_or_path`` (a bundled name, or a path to a vehicle TOML file).
+    """The vehicle named ``name_or_path`` (a bundled name, or a path to a vehicle TOML file), its whole
+    file checked (module docstring).
 
-    Raises :class:`~swarm_mj.errors.UserError` naming the file and the key for a missing file, a
-    TOML syntax error, a missing key or a non-positive value."""
+    Raises :class:`~swarm_mj.errors.UserError` naming the file for a missing file, a TOML syntax error,
+    an unknown key, a missing key, a value of the wrong kind, a ``gains`` file that is not there, or a
+    thrust-to-weight below :data:`MIN_THRUST_TO_WEIGHT`."""
     s = str(name_or_path)
     path = _HERE / f"{s}.toml" if s in bundled() else Path(s)
     if not path.is_file():
         raise UserError(f"unknown vehicle {s!r}: not a file; bundled vehicles: {', '.join(bundled())}")
+    where = str(path)
     try:
         data = tomllib.loads(path.read_text())
     except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError) as e:
-        raise UserError(f"{path}: cannot read the vehicle file: {e}") from None
-    for key, unit in REQUIRED.items():
-        v = data.get(key)
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
-            raise UserError(f"{path}: vehicle key {key!r} must be a positive number ({unit}), got {v!r}")
-    name = data.get("name", path.stem)
-    if not isinstance(name, str):
-        raise UserError(f"{path}: vehicle key 'name' must be a string, got {name!r}")
-    extra = {k: v for k, v in data.items() if k not in REQUIRED and k != "name"}
-    return Vehicle(name, float(data["mass"]), float(data["arm_length"]), float(data["rotor_radius"]), extra, str(path))
+        raise UserError(f"cannot read the vehicle file: {e}", where=where) from None
+    for key in data:
+        if key not in KEYS:
+            raise unknown_key(key, KEYS, where=where, see='docs/vehicles.md, "The vehicle file"')
+    for key, spec in KEYS.items():
+        if spec.need == "always" and key not in data:
+            raise UserError(f"missing key {key!r} ({spec.unit}): {spec.doc}", where=where)
+    for key, v in data.items():
+        check_value(key, v, where)
+    if "max_thrust" in data:
+        f_max, f_min = data["max_thrust"], data.get("min_thrust", 0.0)
+        if f_min >= f_max:
+            raise UserError(
+                f"vehicle key 'min_thrust' must be below max_thrust ({f_max:g} N), got {f_min!r}", where=where
+            )
+        tw = thrust_to_weight(data["mass"], f_max)
+        if tw < MIN_THRUST_TO_WEIGHT:
+            shown = f"{tw:.2f}" if round(tw, 2) < MIN_THRUST_TO_WEIGHT else f"{tw:.4f}"
+            raise UserError(
+                f"thrust-to-weight {shown} (4 × max_thrust {f_max:g} N over mass {data['mass']:g} kg × g) is below "
+                f"the minimum {MIN_THRUST_TO_WEIGHT:g}: the drone cannot hover with margin",
+                where=where,
+            )
+    if "gains" in data:
+        resolve_gains(data["gains"], path)
+    return Vehicle(
+        name=data.get("name", path.stem),
+        mass=float(data["mass"]),
+        arm_length=float(data["arm_length"]),
+        rotor_radius=float(data["rotor_radius"]),
+        extra={k: v for k, v in data.items() if k not in ("name", "mass", "arm_length", "rotor_radius")},
+        path=where,
+    )
