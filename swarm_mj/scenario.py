@@ -32,6 +32,7 @@ from .physics.mixing import MIXERS
 from .physics.params import DEFAULT_PARAMS, QuadParams
 from .physics.wind import WindConfig
 from .resources import SCENARIOS_DIR
+from .scenario_toml import scenario_toml as scenario_toml  # re-exported: the stress command writes with it
 from .trajectories import TRAJECTORIES, make_trajectory
 
 #: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
@@ -781,40 +782,3 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"TOML syntax error: {exc}", where=str(path)) from None
     return parse_scenario(data, str(path), name=path.stem)
-
-
-def _toml_scalar(v: Any) -> str:
-    import json
-    import math
-
-    if isinstance(v, bool):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        f = float(v)
-        return ("inf" if f > 0 else "-inf") if math.isinf(f) else ("nan" if math.isnan(f) else repr(f))
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple, np.ndarray)):
-        return "[" + ", ".join(_toml_scalar(x) for x in v) + "]"
-    raise TypeError(f"cannot write {type(v).__name__} to TOML")
-
-
-def scenario_toml(data: dict) -> str:
-    """A scenario table (as :func:`parse_scenario` reads it) as TOML text: scalars and lists at the
-    top, then one ``[section]`` per sub-table (one level of nesting inside a section, written as
-    an inline table). ``load_scenario`` of the text gives the same scenario."""
-    top = [f"{k} = {_toml_scalar(v)}" for k, v in data.items() if not isinstance(v, dict)]
-    out = top + [""]
-    for k, v in data.items():
-        if isinstance(v, dict):
-            out.append(f"[{k}]")
-            for kk, vv in v.items():
-                if isinstance(vv, dict):
-                    inner = ", ".join(f"{a} = {_toml_scalar(b)}" for a, b in vv.items())
-                    out.append(f"{kk} = {{ {inner} }}")
-                else:
-                    out.append(f"{kk} = {_toml_scalar(vv)}")
-            out.append("")
-    return "\n".join(out)
