@@ -181,6 +181,48 @@ def has_overload(fn: Callable[..., Any], sig: tuple) -> bool:
         return False
 
 
+class CompileClock:
+    """The seconds Numba spends compiling between :meth:`start` and :meth:`stop` (a cache miss; a load from
+    the on-disk cache is not compiling), nested compiles counted once: what a run leaves out of its speed
+    figure. Numba's compile events (``numba.core.event``, "numba:compile"); 0 without Numba."""
+
+    def __init__(self) -> None:
+        self.seconds = 0.0
+        self._depth = 0
+        self._t0 = 0.0
+        self._listener: Any = None
+
+    def start(self) -> CompileClock:
+        if AVAILABLE and self._listener is None:
+            from numba.core import event
+
+            clock = self
+
+            class _Listener(event.Listener):
+                def on_start(self, ev: Any) -> None:  # noqa: ARG002
+                    if clock._depth == 0:
+                        clock._t0 = time.perf_counter()
+                    clock._depth += 1
+
+                def on_end(self, ev: Any) -> None:  # noqa: ARG002
+                    clock._depth -= 1
+                    if clock._depth == 0:
+                        clock.seconds += time.perf_counter() - clock._t0
+
+            self._listener = _Listener()
+            event.register("numba:compile", self._listener)
+        return self
+
+    def stop(self) -> float:
+        """Stop listening; returns :attr:`seconds`."""
+        if self._listener is not None:
+            from numba.core import event
+
+            event.unregister("numba:compile", self._listener)
+            self._listener = None
+        return self.seconds
+
+
 class Bound:
     """``fn`` called through :func:`bind`, for a caller that does not own the records it passes: rebound
     whenever one of the first ``records`` arguments is not the object it was bound with (compared by

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._jit import python_body, warm_up
+from .._jit import CompileClock, python_body, warm_up
 from ..choices import gains_name
 from ..control.policy import BacksteppingPolicy
 from ..env import Command, StepRecord, SwarmEnv
@@ -232,6 +232,7 @@ def run(
         bar = Progress(K, sc.name, progress)
         error: BaseException | None = None
         wall0 = _time.perf_counter()
+        compiling = CompileClock().start()  # what Numba compiles in the run is left out of its speed figure
         ts = env.reset()
         obs = ts.observation
         k = 0
@@ -276,7 +277,10 @@ def run(
             error = exc
         finally:
             bar.close()
-    wall = _time.perf_counter() - wall0
+            compiling.stop()
+    wall = _time.perf_counter() - wall0 - compiling.seconds
+    if compiling.seconds >= 0.5 and progress is not False:
+        print(f"compiled for {compiling.seconds:.1f} s during the run (not counted in its speed)", file=sys.stderr)
     n_samples = k + 1 if error is None else k
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)

@@ -1,22 +1,18 @@
-"""Formation layer (paper §4, docs/interpretations.md §4): polygon slots around the leader and anti-collision."""
+"""Formation layer (paper §4, docs/interpretations.md §4): polygon slots around the leader and anti-collision.
 
-from .anticollision import (
-    ANTI_COLLISION_RULES,
-    AntiCollision,
-    LayeredRule,
-    NoRule,
-    PaperRule,
-    Rule,
-    make_rule,
-)
-from .barrier import BarrierFilter, BarrierRule  # registers "barrier" and "barrier-lanes" in ANTI_COLLISION_RULES
+The named rules and :func:`~.anticollision.make_rule` are in :mod:`.anticollision` (the table itself in
+:mod:`swarm_mj.pipeline.registry`, which imports the rules' modules: this package's init imports neither,
+so that either can be imported first).
+"""
+
+from .barrier import BarrierFilter, BarrierRule
+from .planner import LayeredRule
 from .rule_params import PRESETS, RuleParams
+from .rules import NoRule, PaperRule, Rule
 from .separation import Sensed, SeparationFilter
 from .slots import DiameterSchedule, polygon_offsets, slot_positions
 
 __all__ = [
-    "ANTI_COLLISION_RULES",
-    "AntiCollision",
     "BarrierFilter",
     "BarrierRule",
     "LayeredRule",
@@ -27,7 +23,6 @@ __all__ = [
     "RuleParams",
     "Sensed",
     "SeparationFilter",
-    "make_rule",
     "DiameterSchedule",
     "polygon_offsets",
     "slot_positions",

@@ -1,5 +1,6 @@
 """Anti-collision by altitude changes (paper Fig. 5, §4, §5.3; docs/interpretations.md §4,
-docs/anticollision.md): the registry of the named rules, ``"auto"`` and :func:`make_rule`.
+docs/anticollision.md): ``"auto"`` and :func:`make_rule` (the named rules are
+:data:`swarm_mj.pipeline.registry.ANTI_COLLISION_RULES`, re-exported here).
 
 The parts: one parameter record (:mod:`.rule_params`, :class:`RuleParams`, whose presets the
 named rules are), the rules' interface and the paper's rule (:mod:`.rules`), the planner's phase
@@ -15,6 +16,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..pipeline.registry import ANTI_COLLISION_RULES
 from .jet_aware import JetAwareRule
 from .layered import any_below, horizontal_distances, idle_record, merge_rows, react_needed
 from .planner import CLIMB, CROSS, FORMED, CompensatedRule, G, LayeredRule
@@ -25,12 +27,6 @@ from .rules import NoRule, PaperRule, Rule
 #: default record: :meth:`RuleParams.overlap`): a stand-in only; a rule's own is ``rule.overlap``.
 OVERLAP_M = RuleParams().overlap(DEFAULT_PARAMS)
 
-ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
-    "layers": LayeredRule,
-    "paper": PaperRule,
-    "off": NoRule,
-    "jet-aware": JetAwareRule,
-}
 AntiCollision = LayeredRule | PaperRule | NoRule | JetAwareRule
 
 

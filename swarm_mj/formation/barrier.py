@@ -97,11 +97,11 @@ import numpy as np
 from .._jit import jit, warm_module
 from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
-from .anticollision import ANTI_COLLISION_RULES, Rule
 from .jet_aware import JetAwareRule
 from .layered import estimate_velocities
 from .rule_params import PRESETS, RuleParams, check_overrides
 from .rule_params import param_field as _p
+from .rules import Rule
 from .separation import Sensed, seen_within
 from .slots import capt_assignment
 
@@ -1317,10 +1317,6 @@ class BarrierPlannerRule(JetAwareRule):
             self.slot_of[1:] = 1 + sigma
         return super().update(t, positions, pos_d, formation_alt)
 
-
-# the registration (docs/barrier.md); their planner records are rule_params.PRESETS["barrier"], ["barrier-lanes"]
-ANTI_COLLISION_RULES["barrier"] = BarrierPlannerRule
-ANTI_COLLISION_RULES["barrier-lanes"] = BarrierRule
 
 __all__ = [
     "DOWNWASH_MULTIPLE",

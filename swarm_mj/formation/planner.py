@@ -15,6 +15,7 @@ from ..pipeline.records import Rule as FormedRecord
 from .layered import (
     advance_altitude_kernel,
     advance_paths_kernel,
+    any_below,
     estimate_velocities,
     formed_paths,
     formed_update,
@@ -212,6 +213,16 @@ class LayeredRule(PaperRule):
                 slot_of=self.slot_of,
             )
         return self._record
+
+    def compiled_ready(self) -> bool:
+        """Its compiled formed step (:func:`~.layered.formed_update`, the chunk driver's) is all it would
+        do now: every follower formed, a first update behind it, and (``jet_aware_checks``) no two slots
+        within D̄ horizontally."""
+        return (
+            self._all_formed
+            and not np.isnan(self._prev_t[0])
+            and not (self.jet_aware_checks and any_below(self._slot_h, self.safety))
+        )
 
     def references(
         self,

@@ -34,7 +34,8 @@ from typing import Any
 import numpy as np
 
 from ..physics.params import DEFAULT_PARAMS, QuadParams
-from .layered import horizontal_distances, merge_rows
+from ..pipeline.records import Rule as FormedRecord
+from .layered import horizontal_distances, idle_record, merge_rows
 from .rule_params import PRESETS, RuleParams
 from .separation import SeparationFilter, fig5_react
 
@@ -115,6 +116,7 @@ class NoRule(Rule):
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
         self.acc_d = np.zeros((n, 3))
+        self._record: FormedRecord | None = None
 
     def reset(self, positions: np.ndarray) -> None:
         self.events = []
@@ -124,6 +126,17 @@ class NoRule(Rule):
     ) -> tuple[np.ndarray, np.ndarray]:
         """Pass the formation setpoints (n, 3) through; steer nobody."""
         return pos_d, np.zeros(self.n, dtype=bool)
+
+    def record(self) -> FormedRecord:
+        """Its compiled step for the chunk driver: the formed step's record, ``on`` False (the driver
+        passes the setpoints through), built once."""
+        if self._record is None:
+            self._record = idle_record(self.n)
+        return self._record
+
+    def compiled_ready(self) -> bool:
+        """Its compiled step is all it does: always."""
+        return True
 
 
 def _merged(

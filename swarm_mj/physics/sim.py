@@ -48,10 +48,10 @@ from typing import Protocol
 import mujoco
 import numpy as np
 
-from .. import _jit
 from .._jit import AVAILABLE, bind, compiled, jit
 from ..errors import SimulationDiverged, UserError
-from ..pipeline.records import FORCE_KERNELS, MONITOR_KERNELS, Kinematics, Physics
+from ..pipeline import registry
+from ..pipeline.records import Kinematics, Physics
 from . import _mjstep
 from ._mjstep import timer_pause, timer_resume
 from .mixing import saturate_kernel
@@ -263,12 +263,12 @@ def floor_gate(world: World) -> tuple[int, int, float] | None:
 def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by the overload when compiled
     """Each compiled stage of the tuple ``stages`` (records) adds its force and torque (N, 3)."""
     for rec in stages:
-        FORCE_KERNELS[type(rec)](rec, kin, force, torque)
+        registry.FORCE_KERNELS[type(rec)](rec, kin, force, torque)
 
 
 def _apply_stages_compiled(stages, kin, force, torque):
     """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
-    kernels = [FORCE_KERNELS[t.instance_class] for t in stages.types]
+    kernels = [registry.FORCE_KERNELS[t.instance_class] for t in stages.types]
     body = "".join(f"    k{i}(stages[{i}], kin, force, torque)\n" for i in range(len(kernels)))
     src = "def impl(stages, kin, force, torque):\n" + body + "    return None\n"
     scope = {f"k{i}": k for i, k in enumerate(kernels)}
@@ -292,12 +292,12 @@ def _log_stages_compiled(stages, rows, k):
 
 def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overload when compiled
     for rec in monitors:
-        MONITOR_KERNELS[type(rec)](rec, kin)
+        registry.MONITOR_KERNELS[type(rec)](rec, kin)
 
 
 def _track_monitors_compiled(monitors, kin):
     """The monitor tuple unrolled at compile time: each record's registered step in turn."""
-    kernels = [MONITOR_KERNELS[t.instance_class] for t in monitors.types]
+    kernels = [registry.MONITOR_KERNELS[t.instance_class] for t in monitors.types]
     body = "".join(f"    k{i}(monitors[{i}], kin)\n" for i in range(len(kernels)))
     scope = {f"k{i}": k for i, k in enumerate(kernels)}
     exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
@@ -314,7 +314,7 @@ if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above r
 
 @jit(inline=True)
 def track_monitors(monitors, kin) -> None:
-    """Each compiled monitor's step after a physics step without any contact (records.MONITOR_KERNELS)."""
+    """Each compiled monitor's step after a physics step without any contact (registry.MONITOR_KERNELS)."""
     _track_monitors(monitors, kin)
 
 
@@ -442,21 +442,6 @@ class WindStage:
 
 
 # --------------------------------------------------------------------------- the pipeline
-
-
-def _why_not_registered(part, registry: dict, kind: str, what: str) -> str | None:  # noqa: ANN001
-    """Why a force stage or monitor cannot fly in a compiled driver (None: it can): it has no
-    ``record()`` whose type has a registered compiled kernel, or that kernel's module is not in
-    :data:`swarm_mj._jit.KERNEL_MODULES` (then a change to it would not invalidate the driver's cache)."""
-    name = getattr(part, "name", type(part).__name__)
-    make = getattr(part, "record", None)
-    kernel = registry.get(type(make())) if make is not None else None
-    if kernel is None:
-        return f"the {kind} {name!r} has no compiled {what}"
-    module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
-    if module not in _jit.KERNEL_MODULES:
-        return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
-    return None
 
 
 def _index(ids: np.ndarray) -> slice | np.ndarray:
@@ -628,20 +613,20 @@ class Sim:
     def not_compiled(self) -> str | None:
         """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
         not drag, wind or a stage with a registered compiled kernel (``record()`` returning a record of
-        :data:`swarm_mj.pipeline.records.FORCE_KERNELS`), named."""
+        :data:`swarm_mj.pipeline.registry.FORCE_KERNELS`), named."""
         if not self._fused:
             return "force stages other than drag and wind first"
         for st in self._extra:
-            why = _why_not_registered(st, FORCE_KERNELS, "force stage", "kernel")
+            why = registry.why_not_compiled(st, registry.FORCE_KERNELS, "force stage", "kernel")
             if why is not None:
                 return why
         return None
 
     def monitors_not_compiled(self) -> str | None:
         """Why the monitors cannot fly in a compiled driver (None: they can), naming the first one
-        without a registered compiled step (:data:`swarm_mj.pipeline.records.MONITOR_KERNELS`)."""
+        without a registered compiled step (:data:`swarm_mj.pipeline.registry.MONITOR_KERNELS`)."""
         for mon in self.monitors:
-            why = _why_not_registered(mon, MONITOR_KERNELS, "monitor", "step")
+            why = registry.why_not_compiled(mon, registry.MONITOR_KERNELS, "monitor", "step")
             if why is not None:
                 return why
         return None

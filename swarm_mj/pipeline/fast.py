@@ -6,11 +6,10 @@ period, written once").
 numbers bit for bit either way (``tests/integration/test_fast_path.py``). This module decides
 whether a run can use it and gathers the records from the run's objects:
 
-* **Whether a run flies fast is one question** (:func:`why_not`): is every stage, monitor and the
-  rule of this run compilable? A force stage or monitor is when its ``record()`` returns a record
-  with a registered compiled kernel (:data:`swarm_mj.pipeline.records.FORCE_KERNELS`, ``MONITOR_KERNELS``);
-  the rule when it is the layered family (with no separation filter, or the barrier filter) or
-  none. Otherwise the run flies step by step and
+* **Whether a run flies fast is one question** (:func:`why_not`): has every stage, monitor, the
+  rule and its separation filter of this run a compiled step? Each has when its ``record()`` returns
+  a record type the registry holds (:mod:`swarm_mj.pipeline.registry`: ``FORCE_KERNELS``,
+  ``MONITOR_KERNELS``, ``RULE_KERNELS``, ``FILTER_KERNELS``). Otherwise the run flies step by step and
   ``RunResult.extra["fast_path"]`` names what refused it (the run also says so on stderr).
 * **Compiling.** The driver's signature comes from the records themselves (Numba types them), one
   per set of force stages and monitors. Compiling it takes Numba 10–20 s, more than a run saves,
@@ -40,9 +39,10 @@ import numpy as np
 
 from .. import _jit
 from ..errors import UserError
-from ..formation.anticollision import JetAwareRule, LayeredRule, NoRule, any_below, idle_record
-from ..formation.barrier import BarrierFilter, BarrierPlannerRule, barrier_off
+from ..formation.barrier import barrier_off
+from ..formation.layered import idle_record
 from ..physics import _mjstep
+from . import registry
 from .records import Obs
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
@@ -77,10 +77,13 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
     if len(ids) > 1 and not (np.diff(ids) == ids[1] - ids[0]).all():
         return "drone bodies not evenly spaced in the model"
     rule = policy.rule
-    if env.n > 1 and type(rule) not in (LayeredRule, JetAwareRule, BarrierPlannerRule, NoRule):
+    if env.n == 1:  # command() applies no rule to one drone
+        return None
+    if registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") is not None:
         return f"the {rule.name!r} rule has no compiled step"
-    if env.n > 1 and type(getattr(rule, "separation_filter", None)) not in (type(None), BarrierFilter):
-        return "a separation filter other than the barrier filter has no compiled step"
+    filt = getattr(rule, "separation_filter", None)
+    if filt is not None and registry.why_not_compiled(filt, registry.FILTER_KERNELS, "filter", "step") is not None:
+        return f"the {rule.name!r} rule's separation filter has no compiled step"
     return None
 
 
@@ -99,12 +102,12 @@ class FastLoop:
         self._cool = 0
         self._obs = Obs.empty(n)
         self._handed: dict | None = None  # the observation the last chunk handed back (its buffers hold it)
-        self._layered = isinstance(policy.rule, LayeredRule) and n > 1  # command() applies no rule to one drone
+        self._ruled = n > 1  # command() applies no rule to one drone (why_not: the rule has a compiled step)
         self._refs = env._refs
         self._log = log.rows
-        # the stand-ins of a run without the layered rule or without the barrier filter, built once: the
-        # driver reads neither (``on`` False) and writes neither, so every chunk can pass the same ones
-        self._filtered = self._layered and getattr(policy.rule, "separation_filter", None) is not None
+        # the stand-ins of a run of one drone or without a separation filter, built once: the driver
+        # reads neither (``on`` False) and writes neither, so every chunk can pass the same ones
+        self._filtered = self._ruled and getattr(policy.rule, "separation_filter", None) is not None
         self._idle_rule = idle_record(n)
         self._no_filter = barrier_off(n)
 
@@ -132,7 +135,7 @@ class FastLoop:
         env, policy = self.env, self.policy
         sim = env.sim
         # the rule's and its filter's own records (over their arrays), or the run's stand-ins
-        rule = policy.rule.record() if self._layered else self._idle_rule
+        rule = policy.rule.record() if self._ruled else self._idle_rule
         filt = policy.rule.separation_filter.record() if self._filtered else self._no_filter
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
@@ -145,7 +148,7 @@ class FastLoop:
     def ready(self) -> bool:
         """The run is where a chunk can start: past its first period, every follower formed and every
         drone in the air, no contact pending, the controller's memories started, every monitor's
-        compiled step all it would do, and Fig. 5 idle for a while."""
+        compiled step all it would do, the rule's too, and Fig. 5 idle for a while."""
         if self._cool > 0:
             self._cool -= 1
             return False
@@ -154,12 +157,7 @@ class FastLoop:
             return False
         if not all(mon.compiled_ready() for mon in env.sim.monitors):
             return False
-        rule = policy.rule
-        return not self._layered or (
-            rule._all_formed
-            and not np.isnan(rule._prev_t[0])
-            and not (rule.jet_aware_checks and any_below(rule._slot_h, rule.safety))
-        )
+        return not self._ruled or policy.rule.compiled_ready()
 
     # ------------------------------------------------------------------ one chunk
     def run(self, k_end: int) -> int:
@@ -208,7 +206,7 @@ class FastLoop:
         """The barrier filter's relax events of the periods flown, into the rule's ``events`` (as its
         Python call and the rule's ``references`` do: :meth:`~swarm_mj.formation.rules.Rule.take_separation_events`)."""
         rule = self.policy.rule
-        f = rule.separation_filter if self._layered else None
+        f = rule.separation_filter if self._ruled else None
         if f is not None:
             f.take_events()
             rule.take_separation_events()
@@ -271,10 +269,16 @@ def _period(sig: tuple) -> tuple[Any, tuple]:
 
 def _sources_hash() -> str:
     """A hash of the sources the driver is compiled from: every module of ``_jit.KERNEL_MODULES``, the
-    records and the compiler switch itself."""
+    records, the registry and the compiler switch itself."""
     h = hashlib.sha1(usedforsecurity=False)
     for name in sorted(
-        {*_jit.KERNEL_MODULES, "swarm_mj._jit", "swarm_mj.physics._mjstep", "swarm_mj.pipeline.records"}
+        {
+            *_jit.KERNEL_MODULES,
+            "swarm_mj._jit",
+            "swarm_mj.physics._mjstep",
+            "swarm_mj.pipeline.records",
+            "swarm_mj.pipeline.registry",
+        }
     ):
         spec = importlib.util.find_spec(name)
         if spec is not None and spec.origin:

@@ -32,7 +32,7 @@ log rows                   :func:`log_inputs`, :func:`log_outputs`
 saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
 physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
-                           :data:`swarm_mj.pipeline.records.FORCE_KERNELS`, in the simulator's order)
+                           :data:`swarm_mj.pipeline.registry.FORCE_KERNELS`, in the simulator's order)
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
 monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
 health check               :func:`~swarm_mj.physics.sim.unhealthy`

@@ -19,8 +19,7 @@ This module imports no other module of the package (the records are plain data).
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 import numpy as np
 
@@ -251,38 +250,3 @@ class LogRows(NamedTuple):
     D: np.ndarray  # (K+1,)
     forces: np.ndarray  # (S, K+1, n, 3) each force stage's force, in the simulator's stage order
 
-
-# --------------------------------------------------------------------------- compiled force stages
-
-#: record class → the compiled ``apply(record, kinematics, force, torque)`` of the force stages
-#: whose ``record()`` returns that class (:func:`force_kernel`).
-FORCE_KERNELS: dict[type, Callable[..., Any]] = {}
-
-
-def force_kernel(record: type) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a compiled force stage: ``@force_kernel(MyRecord)`` above ``@jit def apply(rec, kin,
-    force, torque)``, which ADDS the stage's world-frame force and torque (N, 3) for the coming
-    physics step and writes its own into ``rec.force`` (N, 3). A stage whose ``record()`` returns a
-    ``MyRecord`` then flies in compiled drivers (docs/design.md, "A new force stage")."""
-
-    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
-        FORCE_KERNELS[record] = kernel
-        return kernel
-
-    return register
-
-
-#: record class → the compiled ``after_step(record, kinematics)`` of the monitors whose ``record()``
-#: returns that class: what the monitor does after a physics step WITHOUT any contact, when its
-#: ``compiled_ready()`` is True (a contact always goes back to the monitor's Python ``after_step``).
-MONITOR_KERNELS: dict[type, Callable[..., Any]] = {}
-
-
-def monitor_kernel(record: type) -> Callable[[Callable[..., Any]], Callable[..., Any]]:
-    """Register a compiled monitor step: ``@monitor_kernel(MyRecord)`` above ``@jit def after_step(rec, kin)``."""
-
-    def register(kernel: Callable[..., Any]) -> Callable[..., Any]:
-        MONITOR_KERNELS[record] = kernel
-        return kernel
-
-    return register

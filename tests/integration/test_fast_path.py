@@ -21,7 +21,7 @@ from swarm_mj.experiments.runner import _SERIES, preset_signatures, run
 from swarm_mj.experiments.stress import StressCase, stress_scenario
 from swarm_mj.physics import _mjstep
 from swarm_mj.physics.aero.updraft import UpdraftStage
-from swarm_mj.pipeline import fast
+from swarm_mj.pipeline import fast, registry
 from swarm_mj.scenario import load_scenario
 
 pytestmark = [
@@ -294,12 +294,16 @@ def test_the_design_docs_force_stage_runs_as_written(tmp_path, monkeypatch):
     monkeypatch.syspath_prepend(str(tmp_path))
     mod = importlib.import_module("doc_updraft")
     res = run("circle", duration=2.0, progress=False, fused=True, force_stages=[mod.UpdraftStage(lift=0.3)])
-    # not registered in _jit.KERNEL_MODULES: refused by name, flown step by step, still applied and logged
-    assert "doc_updraft is not in _jit.KERNEL_MODULES" in res.extra["fast_path"], res.extra
+    # its kernel not registered: refused by name, flown step by step, still applied and logged
+    assert res.extra["fast_path"] == "the force stage 'updraft' has no compiled kernel", res.extra
     assert res.extra["fused_periods"] == 0
     f = res.log.forces["updraft"][:, :, 2]
     inside = np.hypot(res.log.pos[:, :, 0], res.log.pos[:, :, 1]) <= 1.0
     assert (f[inside[:, :]] == 0.3).mean() > 0.9 and (f[~inside] == 0.0).mean() > 0.9
+    # the registration line (swarm_mj/pipeline/registry.py), still refused while its module is not in KERNEL_MODULES
+    monkeypatch.setitem(registry.FORCE_KERNELS, mod.UpdraftRecord, mod.updraft_apply)
+    why = SwarmEnv("circle", force_stages=[mod.UpdraftStage()]).sim.not_compiled()
+    assert why is not None and "doc_updraft is not in _jit.KERNEL_MODULES" in why, why
     monkeypatch.setattr(_jit, "KERNEL_MODULES", (*_jit.KERNEL_MODULES, "doc_updraft"))
     env = SwarmEnv("circle", force_stages=[mod.UpdraftStage()])
-    assert env.sim.not_compiled() is None  # with its registration line, it is compilable
+    assert env.sim.not_compiled() is None  # with both lines, it is compilable

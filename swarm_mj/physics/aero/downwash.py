@@ -37,7 +37,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 
 from ..._jit import jit
-from ...pipeline.records import Kinematics, force_kernel
+from ...pipeline.records import Kinematics
 from ._frames import body_axes, rotor_offset
 from .constants import AIR_DENSITY, BODY_AREA, DISC_DRAG_COEFFICIENT, ROTOR_RADIUS
 
@@ -270,7 +270,6 @@ class DownwashRecord(NamedTuple):
     torque: np.ndarray  # (N, 3)
 
 
-@force_kernel(DownwashRecord)
 @jit
 def downwash_apply(rec: DownwashRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
     """The downwash stage's step: :func:`downwash_kernel` at the drones' state, added to force, torque (N, 3)."""

@@ -26,7 +26,7 @@ import mujoco
 import numpy as np
 
 from ..._jit import jit
-from ...pipeline.records import GroundTrack, Kinematics, monitor_kernel
+from ...pipeline.records import GroundTrack, Kinematics
 
 #: Landing gear: a strut (a capsule site, drawn only, radius STRUT_RADIUS) under the hub down to a thin square skid
 #: plate turned 45° about z, corners 0.12 m from the centre under the arms, half-sizes
@@ -52,7 +52,6 @@ def rest_positions(positions: np.ndarray, rest_height: float = REST_HEIGHT) -> n
     return p
 
 
-@monitor_kernel(GroundTrack)
 @jit
 def ground_track(rec: GroundTrack, kin: Kinematics) -> None:
     """The touchdown speed's bookkeeping after every physics step: the velocity (N, 3) at the start of

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._jit import jit
-from ...pipeline.records import Kinematics, force_kernel
+from ...pipeline.records import Kinematics
 from ._frames import body_axes, rotor_offset
 from .constants import ROTOR_PLANE_Z, ROTOR_RADIUS
 
@@ -100,7 +100,6 @@ class GroundEffectRecord(NamedTuple):
     torque: np.ndarray  # (N, 3)
 
 
-@force_kernel(GroundEffectRecord)
 @jit
 def ground_effect_apply(rec: GroundEffectRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
     """The ground-effect stage's step: :func:`ground_effect_kernel` at the drones' state, added to force, torque."""

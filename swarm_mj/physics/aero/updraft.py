@@ -3,7 +3,7 @@
 Every drone whose centre of mass is over the disc of ``radius`` around ``centre`` (x, y) is pushed
 up by ``lift`` newtons (world frame), whatever its height; outside, nothing. It is a toy (a thermal
 over a sunny field), kept to show the three parts a compiled force stage has: its record, its
-kernel registered for that record, and the stage object the simulator holds.
+kernel (registered for that record in swarm_mj/pipeline/registry.py), and the stage object the simulator holds.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from ..._jit import jit
-from ...pipeline.records import Kinematics, force_kernel
+from ...pipeline.records import Kinematics
 
 
 class UpdraftRecord(NamedTuple):
@@ -25,7 +25,6 @@ class UpdraftRecord(NamedTuple):
     force: np.ndarray  # (N, 3) this stage's force over the last physics step (N)
 
 
-@force_kernel(UpdraftRecord)
 @jit
 def updraft_apply(rec: UpdraftRecord, kin: Kinematics, force: np.ndarray, torque: np.ndarray) -> None:
     """force[i] += (0, 0, lift) for each drone i with |(x, y) − centre| ≤ radius; rec.force the same alone."""

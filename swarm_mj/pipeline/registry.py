@@ -1,0 +1,100 @@
+"""Every stage of a control period that has a compiled step, and every named anti-collision rule: the one
+registry (docs/design.md, "The control period, written once").
+
+Registration is one line here, never a side effect of importing a stage's module: whoever looks a kernel
+up (the simulator's unrolled stage and monitor tuples, the chunk driver's check, the background compile
+process started by :func:`swarm_mj.pipeline.fast.compile_in_background`) imports this module, and this
+module imports every module it names, so a fresh interpreter sees every kernel whichever module it
+imported first.
+
+* :data:`FORCE_KERNELS`: a force stage's record type (what its ``record()`` returns) → its compiled
+  ``apply(record, kinematics, force, torque)``, which ADDS the stage's world-frame force and torque (N, 3)
+  for the coming physics step and writes its own into ``record.force``;
+* :data:`MONITOR_KERNELS`: a monitor's record type → its compiled ``after_step(record, kinematics)``, what
+  it does after a physics step without any contact (a contact always goes back to its Python);
+* :data:`RULE_KERNELS`: a rule's record type → the chunk driver's compiled formed step over it;
+* :data:`FILTER_KERNELS`: a separation filter's record type → its compiled period;
+* :data:`ANTI_COLLISION_RULES`: a rule's name (a scenario's ``formation.anti_collision``) → its class.
+
+Whether a run flies on the chunk driver is decided by capability: every force stage, monitor, the rule
+and its separation filter return from ``record()`` a record type this registry holds
+(:func:`why_not_compiled`). A stage outside the package registers the same way, one line where its user
+builds it (``registry.FORCE_KERNELS[MyRecord] = my_apply``); its kernel's module must also be in
+:data:`swarm_mj._jit.KERNEL_MODULES` (the chunk driver's cache is checked against those sources).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+from .. import _jit
+from ..formation.barrier import BarrierPlannerRule, BarrierRecord, BarrierRule, barrier_step
+from ..formation.jet_aware import JetAwareRule
+from ..formation.layered import formed_update
+from ..formation.planner import LayeredRule
+from ..formation.rules import NoRule, PaperRule, Rule
+from ..physics.aero.downwash import DownwashRecord, downwash_apply
+from ..physics.aero.ground import ground_track
+from ..physics.aero.ground_effect import GroundEffectRecord, ground_effect_apply
+from ..physics.aero.updraft import UpdraftRecord, updraft_apply
+from .records import GroundTrack
+from .records import Rule as FormedRecord
+
+#: force stage record → compiled ``apply(record, kinematics, force, torque)``
+FORCE_KERNELS: dict[type, Callable[..., Any]] = {
+    DownwashRecord: downwash_apply,
+    GroundEffectRecord: ground_effect_apply,
+    UpdraftRecord: updraft_apply,
+}
+
+#: monitor record → compiled ``after_step(record, kinematics)`` (a physics step without any contact)
+MONITOR_KERNELS: dict[type, Callable[..., Any]] = {
+    GroundTrack: ground_track,
+}
+
+#: rule record → the chunk driver's compiled formed step over it (swarm_mj.pipeline.period.rule_formed_step)
+RULE_KERNELS: dict[type, Callable[..., Any]] = {
+    FormedRecord: formed_update,
+}
+
+#: separation filter record → its compiled period (swarm_mj.pipeline.period.fly_chunk calls it after the rule)
+FILTER_KERNELS: dict[type, Callable[..., Any]] = {
+    BarrierRecord: barrier_step,
+}
+
+#: the named anti-collision rules, in the order the CLI lists them (``"auto"`` picks one: anticollision.AUTO)
+ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
+    "layers": LayeredRule,
+    "paper": PaperRule,
+    "off": NoRule,
+    "jet-aware": JetAwareRule,
+    "barrier": BarrierPlannerRule,
+    "barrier-lanes": BarrierRule,
+}
+
+
+def why_not_compiled(part: Any, table: dict[type, Callable[..., Any]], kind: str, what: str) -> str | None:
+    """Why ``part`` (a force stage, monitor, rule or separation filter) cannot fly in a compiled driver
+    (None: it can): it has no ``record()`` whose type ``table`` holds, or that kernel's module is not in
+    :data:`swarm_mj._jit.KERNEL_MODULES` (then a change to it would not invalidate the driver's cache).
+    ``kind``, ``what``: the words of the reason (``"force stage"``, ``"kernel"``)."""
+    name = getattr(part, "name", type(part).__name__)
+    make = getattr(part, "record", None)
+    kernel = table.get(type(make())) if callable(make) else None
+    if kernel is None:
+        return f"the {kind} {name!r} has no compiled {what}"
+    module = getattr(getattr(kernel, "py_func", kernel), "__module__", "")
+    if module not in _jit.KERNEL_MODULES:
+        return f"the {kind} {name!r}: its compiled {what}'s module {module} is not in _jit.KERNEL_MODULES"
+    return None
+
+
+__all__ = [
+    "ANTI_COLLISION_RULES",
+    "FILTER_KERNELS",
+    "FORCE_KERNELS",
+    "MONITOR_KERNELS",
+    "RULE_KERNELS",
+    "why_not_compiled",
+]
