@@ -142,3 +142,12 @@ def test_tune_hint_flies_the_tuned_vehicle(tmp_path, capsys) -> None:  # noqa: A
         f'# Use: swarm-mj run {m.group(1)} --gains FILE, or [controller] gains = "FILE" in a scenario of this vehicle.'
     ]
     assert tomllib.loads(out.read_text())["settings"]["vehicle"] == "crazyflie21"
+
+
+@pytest.mark.egl
+def test_a_video_of_a_failed_flight_exits_3(tmp_path, monkeypatch, capsys, held_down) -> None:  # noqa: ANN001
+    monkeypatch.chdir(tmp_path)
+    argv = ["video", "crazyflie_hover", "--vehicle", "weak", "--aero", "realistic", "--duration", "2"]
+    rc = cli_main([*argv, "--size", "64x48", "--fps", "5", "--quality", "fast", "-o", "v.mp4", "--quiet"])
+    assert rc == 3 and Path("v.mp4").stat().st_size > 0
+    assert _one_line(capsys.readouterr().err) == "swarm-mj: flight failed: leader never took off (the video shows it)"

@@ -242,3 +242,12 @@ def test_the_hint_for_a_vehicle_no_scenario_flies_names_it() -> None:
     m = re.fullmatch(r"swarm-mj run (\S+) --vehicle 'my v.toml' --gains g\.toml", hint)
     assert m, hint
     assert load_scenario(m.group(1)).trajectory == "step"
+
+
+def test_stress_starts_fly_the_vehicles_gains_unless_given() -> None:
+    """`stress --vehicle` flew the vehicle's gains by its own code; now by the one rule, as every scenario."""
+    from swarm_mj.experiments.stress import StressCase, stress_scenario
+
+    sc = stress_scenario(StressCase("layers", 3, 2, 3.0, 0.6, 1.0, vehicle="crazyflie21"))
+    assert sc.gains_origin == "vehicle" and np.array_equal(sc.gains, load_gains(_cf_gains_file()))
+    assert stress_scenario(StressCase("layers", 3, 2, 3.0, 0.6, 1.0)).gains_origin == "default"
