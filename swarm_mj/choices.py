@@ -178,9 +178,13 @@ def trajectory_args(sc: Scenario) -> dict[str, Any]:
 
     from .trajectories import TRAJECTORIES
 
-    tup = lambda v: tuple(tup(x) for x in v) if isinstance(v, (list, tuple)) else v  # noqa: E731
     sig = inspect.signature(TRAJECTORIES[sc.trajectory]).parameters
-    return {k: tup(sc.trajectory_params.get(k, p.default)) for k, p in sig.items()}
+    return {k: _as_tuples(sc.trajectory_params.get(k, p.default)) for k, p in sig.items()}
+
+
+def _as_tuples(v: Any) -> Any:
+    """``v`` with every list or tuple in it a tuple (a TOML list equals a default tuple)."""
+    return tuple(_as_tuples(x) for x in v) if isinstance(v, (list, tuple)) else v
 
 
 def display_path(path: str | Path) -> str:

@@ -227,7 +227,8 @@ def write_text_atomic(path: str | Path, text: str) -> None:
 
 def write_gains_file(path: str | Path, outcome, vehicle: str = "paper", use: str | None = None) -> None:
     """Atomically write the gains file of ``outcome`` (see :func:`gains_toml`)."""
-    write_text_atomic(path, gains_toml(outcome, vehicle=vehicle, **({"use": use} if use else {})))
+    text = gains_toml(outcome, vehicle=vehicle, use=use) if use else gains_toml(outcome, vehicle=vehicle)
+    write_text_atomic(path, text)
 
 
 def run_hint(vehicle_arg: str, params, target, yaw_deg: float, gains: str | Path) -> str:  # noqa: ANN001
@@ -273,7 +274,7 @@ def main(args: argparse.Namespace) -> int:
     from ..errors import UserError
     from ..output.progress import Progress
     from ..tuning.constraints import INFEASIBLE
-    from ..tuning.cost import StepCostSettings, TuneOptions, default_workers, tune_gains
+    from ..tuning.cost import StepCostSettings, TuneOptions, tune_gains
 
     # Validate everything before any worker starts.
     opts = TuneOptions(
@@ -302,49 +303,12 @@ def main(args: argparse.Namespace) -> int:
         params=vehicle.params(),
         motor_tau=float(tau),
     )
-    if args.workers is not None and args.workers < 1:
-        raise UserError(f"--workers must be >= 1, got {args.workers}")
-    if args.threads is not None and args.threads < 1:
-        raise UserError(f"--threads must be >= 1, got {args.threads}")
-    if args.ray is not None:
-        if not args.ray.strip():
-            raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
-        from ..experiments.parallel import import_ray
-
-        import_ray()  # one clear line if Ray is missing
+    _check_backend(args)
     out = Path(args.output)
     _check_output(out)
     quiet = args.quiet
-
-    def say(msg: str) -> None:
-        if not quiet:
-            print(msg, file=sys.stderr, flush=True)
-
-    if args.ray is not None:
-        where = f"Ray at {args.ray}" + (f", {args.workers} actors" if args.workers else "")
-    else:
-        w = (default_workers() if args.threads is None else 1) if args.workers is None else args.workers
-        t = (default_workers() if w == 1 else 1) if args.threads is None else args.threads
-        where = (f"in this process, {t} thread(s)" if w == 1 else f"{w} worker processes") + (
-            f", {t} thread(s) each" if w > 1 and t > 1 else ""
-        )
-    say(
-        f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
-        f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; {where}"
-    )
-    say(
-        f"  vehicle: {vehicle.name} ({vehicle.mass:g} kg, arm {vehicle.arm_length:g} m); rotor lag "
-        + (f"{1000 * settings.motor_tau:g} ms" if settings.motor_tau > 0 else "none (ideal rotors)")
-    )
-    say(
-        "  cost: ISE of eq. (25)"
-        + (", subject to the step bars (Deb's rules)" if settings.bars else "")
-        + (
-            f"; initial population: Table 4 gains + {opts.population - 1} uniform"
-            if opts.init == "table4"
-            else "; initial population: uniform"
-        )
-    )
+    if not quiet:
+        print(_announcement(args, opts, settings, vehicle), file=sys.stderr, flush=True)
     t0 = time.perf_counter()
     last: list = []
     bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
@@ -353,10 +317,9 @@ def main(args: argparse.Namespace) -> int:
     use = run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, "FILE")
 
     def on_iteration(o) -> None:
-        if not math.isfinite(o.best_cost):  # every candidate so far diverged: nothing worth a file
-            return
-        last[:] = [o]
-        write_gains_file(out, o, vehicle.name, use)
+        if math.isfinite(o.best_cost):  # else every candidate so far diverged: nothing worth a file
+            last[:] = [o]
+            write_gains_file(out, o, vehicle.name, use)
         it = len(o.history) - 1
         best = (
             f"best ISE {o.best_ise:10.5f}"
@@ -399,6 +362,51 @@ def main(args: argparse.Namespace) -> int:
     if not quiet:
         print(format_outcome(res, out, run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, out)))
     return 0
+
+
+def _check_backend(args: argparse.Namespace) -> None:
+    """--workers, --threads and --ray, before any worker starts (:class:`UserError`)."""
+    from ..errors import UserError
+
+    if args.workers is not None and args.workers < 1:
+        raise UserError(f"--workers must be >= 1, got {args.workers}")
+    if args.threads is not None and args.threads < 1:
+        raise UserError(f"--threads must be >= 1, got {args.threads}")
+    if args.ray is not None:
+        if not args.ray.strip():
+            raise UserError("--ray needs an address: 'local', 'auto' or ray://HOST:PORT")
+        from ..experiments.parallel import import_ray
+
+        import_ray()  # one clear line if Ray is missing
+
+
+def _announcement(args: argparse.Namespace, opts, settings, vehicle) -> str:  # noqa: ANN001
+    """The tune's first lines: the FPA settings and where it runs, the vehicle and its lag, the cost."""
+    from ..tuning.cost import default_workers
+
+    if args.ray is not None:
+        where = f"Ray at {args.ray}" + (f", {args.workers} actors" if args.workers else "")
+    else:
+        w = (default_workers() if args.threads is None else 1) if args.workers is None else args.workers
+        t = (default_workers() if w == 1 else 1) if args.threads is None else args.threads
+        where = (f"in this process, {t} thread(s)" if w == 1 else f"{w} worker processes") + (
+            f", {t} thread(s) each" if w > 1 and t > 1 else ""
+        )
+    init = (
+        f"; initial population: Table 4 gains + {opts.population - 1} uniform"
+        if opts.init == "table4"
+        else "; initial population: uniform"
+    )
+    return "\n".join(
+        [
+            f"FPA tune: N = {opts.population}, {opts.iterations} iterations, p = {opts.p:g}, γ = {opts.gamma:g}, "
+            f"gains in [{opts.lower:g}, {opts.upper:g}], step t_sim = {settings.t_sim:g} s, seed {opts.seed}; "
+            f"{where}",
+            f"  vehicle: {vehicle.name} ({vehicle.mass:g} kg, arm {vehicle.arm_length:g} m); rotor lag "
+            + (f"{1000 * settings.motor_tau:g} ms" if settings.motor_tau > 0 else "none (ideal rotors)"),
+            "  cost: ISE of eq. (25)" + (", subject to the step bars (Deb's rules)" if settings.bars else "") + init,
+        ]
+    )
 
 
 def format_outcome(res, out: Path | str, use: str | None = None) -> str:

@@ -42,6 +42,7 @@ from ..metrics import (
 from ..output.interrupt import CooperativeInterrupt
 from ..output.progress import Progress
 from ..physics.aero.presets import with_aero
+from ..physics.params import QuadParams
 from ..physics.sim import ForceStage
 from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
 from ..pipeline.period import log_inputs
@@ -394,42 +395,60 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
         if airborne.any():
             out["min_separation_airborne_m"] = min_separation(log.pos[airborne], dist[airborne])[0]
-        lead = leader_distances(log.pos)
         changes = env.scenario.diameter_schedule().change_times
-        changes = changes[changes <= sim_time]
-        settling, max_err = formation_settling(t, lead, log.D, changes)
-        if flight["never_took_off"]:  # a formation on the ground is no formation (experiments/outcome.py)
-            settling = [float("inf")] * len(settling)
-        out["formation"] = {
-            "settling_s": settling,
-            "change_times_s": changes.tolist(),
-            "max_distance_error_m": max_err,
-            "final_distance_error_m": float(np.abs(lead[-1] - log.D[-1]).max()),
-        }
-        dip = downwash_dip(t, log.pos, log.pos_d, log.quat, **jet_geometry(vehicle))
+        out["formation"] = _formation(log, changes[changes <= sim_time], on_ground=bool(flight["never_took_off"]))
+        dip = _dip(log, vehicle)
         out["downwash_dip_worst_m"] = dip["worst_m"]
-        named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
-        out["downwash_dip"] = {
-            "worst_m": dip["worst_m"],
-            **named,
-            "at_s": dip["t_s"],
-            "time_in_jet_s": dip["time_in_jet_s"],
-            "below_ref_worst_m": dip["below_ref_worst_m"],
-        }
-        ev = policy.events
-        out["anti_collision"] = {
-            "rule": policy.rule.name,
-            "events": len(ev),
-            "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
-            # the barrier filter's relaxations: constraints infeasible within the limits (docs/barrier.md)
-            "relaxations": sum(1 for e in ev if e["action"] == "relax"),
-        }
+        out["downwash_dip"] = dip
+        out["anti_collision"] = _events(policy)
     else:  # the stable keys exist for one drone too
         out["min_separation_m"] = None
         out["formation"] = None
         out["downwash_dip_worst_m"] = 0.0
         out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0}
     return out
+
+
+def _formation(log: RunLog, changes: np.ndarray, on_ground: bool) -> dict:
+    """The formation's settling after each D change within the run (``changes``), its largest error once
+    settled and its final error; never settled (inf) where a drone never took off (``on_ground``: a
+    formation on the ground is no formation, experiments/outcome.py)."""
+    lead = leader_distances(log.pos)
+    settling, max_err = formation_settling(log.t, lead, log.D, changes)
+    if on_ground:
+        settling = [float("inf")] * len(settling)
+    return {
+        "settling_s": settling,
+        "change_times_s": changes.tolist(),
+        "max_distance_error_m": max_err,
+        "final_distance_error_m": float(np.abs(lead[-1] - log.D[-1]).max()),
+    }
+
+
+def _events(policy: BacksteppingPolicy) -> dict:
+    """The anti-collision rule's events: all, the altitude yields and the barrier filter's relaxations
+    (constraints infeasible within the limits, docs/barrier.md)."""
+    ev = policy.events
+    return {
+        "rule": policy.rule.name,
+        "events": len(ev),
+        "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
+        "relaxations": sum(1 for e in ev if e["action"] == "relax"),
+    }
+
+
+def _dip(log: RunLog, vehicle: QuadParams) -> dict:
+    """The worst altitude dip of a drone in another's jet (:func:`~swarm_mj.metrics.downwash_dip`, the
+    vehicle's jet), with the drones named."""
+    dip = downwash_dip(log.t, log.pos, log.pos_d, log.quat, **jet_geometry(vehicle))
+    named = {key: log.names[dip[key]] if dip[key] >= 0 else None for key in ("drone", "above")}
+    return {
+        "worst_m": dip["worst_m"],
+        **named,
+        "at_s": dip["t_s"],
+        "time_in_jet_s": dip["time_in_jet_s"],
+        "below_ref_worst_m": dip["below_ref_worst_m"],
+    }
 
 
 def flown_choices(sc: Scenario) -> dict:
