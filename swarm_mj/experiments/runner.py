@@ -14,7 +14,7 @@ from __future__ import annotations
 import functools
 import sys
 import time as _time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -191,6 +191,7 @@ def run(
     force_stages: Sequence[ForceStage] = (),
     interrupt: CooperativeInterrupt | None = None,
     fused: bool | None = None,
+    make_policy: Callable[..., BacksteppingPolicy] | None = None,
 ) -> RunResult:
     """Fly a scenario with the backstepping policy and return the log and summary.
 
@@ -204,6 +205,9 @@ def run(
     ``fused``: fly formed flight through the chunk driver where every stage of the run compiles
     (:mod:`swarm_mj.pipeline.fast`; the same results bit for bit): None when it is compiled (else it is
     compiled in the background for later runs), True compiling it first if needed, False never.
+    ``make_policy``: builds the policy from the scenario and the vehicle's parameters instead of
+    :class:`BacksteppingPolicy` (e.g. an exported set's, swarm_mj/export/flyback.py); one with a
+    ``not_compiled`` reason flies step by step.
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sc = with_aero(sc, aero)
@@ -226,7 +230,7 @@ def run(
         if announced:
             print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
         env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
-        policy = BacksteppingPolicy(sc, env.params)
+        policy = (make_policy or BacksteppingPolicy)(sc, env.params)
         check_keepout_fits(sc, policy.rule)
         K = env.n_steps
         log = RunLog.allocate(env.names, K + 1, [st.name for st in env.sim.force_stages])
@@ -239,7 +243,7 @@ def run(
         k = 0
         wind_speed = env.wind.speed
         # the chunk driver (swarm_mj/pipeline/fast.py) flies chunks of formed flight, when every stage compiles
-        reason = "fused=False" if fused is False else why_not(env, policy)
+        reason = "fused=False" if fused is False else (getattr(policy, "not_compiled", None) or why_not(env, policy))
         if reason is not None and fused is not False and progress is not False:
             announce(f"flying step by step: {reason}")
         fast = (
