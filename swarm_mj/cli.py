@@ -17,7 +17,7 @@ from collections.abc import Iterator
 from . import __version__
 from .errors import SwarmError
 
-COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report", "view", "warm-up", "validate"]
+COMMANDS = ["run", "list", "tune", "video", "sweep", "stress", "report", "view", "warm-up", "validate", "export"]
 
 
 def build_parser() -> argparse.ArgumentParser:

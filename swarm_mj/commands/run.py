@@ -19,7 +19,10 @@ def add_parser(sub) -> None:
         "Writes NAME.rrd (open it with: rerun NAME.rrd).",
         epilog=EXIT_EPILOG,
     )
-    p.add_argument("scenario", help="bundled scenario name or path to a .toml file")
+    p.add_argument(
+        "scenario",
+        help="bundled scenario name, path to a .toml file, or a folder of 'swarm-mj export' (docs/export.md)",
+    )
     p.add_argument("-o", "--output", help="recording path (default: ./NAME.rrd)")
     p.add_argument("--no-record", action="store_true", help="do not write a recording")
     p.add_argument(
@@ -105,9 +108,11 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     from ..experiments.outcome import failure_line
     from ..experiments.report_table import format_summary
     from ..experiments.runner import run
+    from ..export.flyback import is_export, load_export
     from . import flown_scenario
 
-    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
+    exported = load_export(args.scenario) if is_export(args.scenario) else None  # each drone flies its own pieces
+    sc = flown_scenario(args, exported.scenario if exported else None)  # --vehicle, --aero, --gains
     check_args(args, sc)
     if args.seed is not None:
         sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts, as sweep/stress call seed s
@@ -130,8 +135,11 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
         progress=None if not args.quiet else False,
         duration=args.duration,
         interrupt=interrupt,
+        make_policy=exported.policy if exported else None,
     )
     interrupt.__exit__()  # the run is over: Ctrl-C interrupts writing, serving and rendering as usual
+    if exported is not None:
+        result.summary["export"] = exported.tracking(result.log)
     rc = 0
     out = None
     if not args.no_record:
@@ -150,6 +158,8 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
         write_json_atomic(args.summary, result.summary)
     if not args.quiet:  # with --summary - the JSON alone goes to standard output
         print(format_summary(result.summary, result.scenario), file=sys.stderr if args.summary == "-" else sys.stdout)
+        if exported is not None:
+            print(exported.line(result.summary), file=sys.stderr if args.summary == "-" else sys.stdout)
     if result.error is not None:
         kept = "; the recording holds what ran" if not args.no_record else ""
         if isinstance(result.error, KeyboardInterrupt):
