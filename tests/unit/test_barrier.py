@@ -723,7 +723,7 @@ def test_the_chunk_drivers_relax_events_become_the_rules_events():
     rule.reset(np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]))
     rec = rule.separation_filter.record()
     rec.ev_t[:2], rec.ev_drone[:2], rec.ev_count[0] = (1.25, 1.5), (2, 1), 2
-    FastLoop._take_filter_events(SimpleNamespace(policy=SimpleNamespace(rule=rule), _layered=True))
+    FastLoop._take_filter_events(SimpleNamespace(policy=SimpleNamespace(rule=rule), _ruled=True))
     assert [e for e in rule.events if e["action"] == "relax"] == [
         {"t": 1.25, "drone": 2, "other": -1, "action": "relax"},
         {"t": 1.5, "drone": 1, "other": -1, "action": "relax"},
