@@ -78,7 +78,12 @@ def _drone_shape(vehicle: QuadParams, color: list[int]) -> tuple[rr.LineStrips3D
     """The drawn drone: arms of length L, rotor discs of the vehicle's rotor radius, a heading line;
     heights, thicknesses and the heading line are the paper drone's scaled by ``size_scale``."""
     L, r, k = vehicle.L, vehicle.rotor_radius, vehicle.size_scale
-    strips: list[list[list[float]]] = [[[-L, 0, 0], [L, 0, 0]], [[0, -L, 0], [0, L, 0]], [[0, 0, 0], [0.6 * L, 0, 0]]]
+    (x1, y1), (x2, y2), (x3, y3), (x4, y4) = (vehicle.rotor_dirs * L).tolist()  # its layout ("+", "x")
+    strips: list[list[list[float]]] = [
+        [[x4, y4, 0], [x2, y2, 0]],
+        [[x1, y1, 0], [x3, y3, 0]],
+        [[0, 0, 0], [0.6 * L, 0, 0]],
+    ]
     arms = rr.LineStrips3D(
         strips,
         colors=[color, color, [255, 140, 0]],
@@ -86,7 +91,7 @@ def _drone_shape(vehicle: QuadParams, color: list[int]) -> tuple[rr.LineStrips3D
     )
     h = 0.02 * k  # rotor plane above the centre
     rotors = rr.Ellipsoids3D(
-        centers=[[0, -L, h], [L, 0, h], [0, L, h], [-L, 0, h]],
+        centers=[[x1, y1, h], [x2, y2, h], [x3, y3, h], [x4, y4, h]],
         half_sizes=[[r, r, 0.006 * k]] * 4,
         colors=[color] * 4,
         fill_mode=rr.components.FillMode.Solid,
