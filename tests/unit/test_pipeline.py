@@ -214,7 +214,7 @@ def test_setpoint_actions_record_their_references_and_attitude():
 def test_warm_up_compiles_every_registered_kernel():
     _jit.warm_up(everything=True)  # what `swarm-mj warm-up` does
     assert len(_jit.REGISTRY) >= 15
-    assert {"swarm_mj.formation.barrier.barrier_step", "swarm_mj.task.observe_copies"} <= _jit.ON_DEMAND
+    assert {"swarm_mj.formation.barrier_filter.barrier_step", "swarm_mj.task.observe_copies"} <= _jit.ON_DEMAND
     if not _jit.AVAILABLE:
         pytest.skip("numba not in use: kernels run as numpy")
     for name, (kernel, samples) in _jit.REGISTRY.items():
