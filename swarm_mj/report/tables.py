@@ -81,12 +81,12 @@ def _fig(R: dict, name: str) -> str:
     return f"*(figure {name} not drawn)*\n"
 
 
-def render_markdown(R: dict) -> str:
-    """The report's README from results.json (``R`` as written there)."""
+def _header(R: dict) -> list[str]:
+    """The title and the run's provenance (machine, mode, time)."""
+    L: list[str] = []
     m = R["meta"]
     mach = m["machine"]
     plan = m["plan"]
-    L: list[str] = []
     L.append("# swarm-mj report: the paper's experiments beside ours\n")
     L.append(
         f"Generated {m['generated']} by `swarm-mj report` ({plan['name']} mode) in {m['wall_s']:.0f} s on "
@@ -100,13 +100,22 @@ def render_markdown(R: dict) -> str:
         )
         + "\n"
     )
+    return L
 
+
+def _interpretations(R: dict) -> list[str]:
+    """The interpretations the runs rest on (docs/interpretations.md)."""
+    L: list[str] = []
     L.append("## Interpretations (docs/interpretations.md)\n")
     for it in R["interpretations"]:
         L.append(f"- **{it['name']}.** {it['text']}")
     L.append("")
+    return L
 
-    # ---- step
+
+def _step_section(R: dict) -> list[str]:
+    """1. The step response beside the paper's Fig. 7, Fig. 8."""
+    L: list[str] = []
     st = R["step"]
     L.append("## 1. Step response (paper Fig. 7, Fig. 8)\n")
     L.append(
@@ -164,8 +173,12 @@ def render_markdown(R: dict) -> str:
     )
     L.append(_fig(R, "fig07_step.png"))
     L.append(_fig(R, "fig08_rotors.png"))
+    return L
 
-    # ---- gains
+
+def _gains_section(R: dict) -> list[str]:
+    """2. The gains: paper Table 4 beside the FPA-tuned ones."""
+    L: list[str] = []
     g = R["gains"]
     L.append("## 2. Gains: paper Table 4 beside FPA-tuned (Tables 2–4)\n")
     if g["fpa"] is None:
@@ -207,6 +220,32 @@ def render_markdown(R: dict) -> str:
         "paper does not say how its ISE is scaled (units, sampling), so compare the improvements, not "
         "the values.\n"
     )
+    return L
+
+
+def _settle(o: dict) -> str:
+    """A tune's step settling times x / y / z / ψ (s), or "–"."""
+    st = o.get("step")
+    if not st:
+        return "–"
+    return " / ".join(f"{st[a]['settling_s']:.2f}" for a in ("x", "y", "z", "psi"))
+
+
+def _verdict(o: dict) -> str:
+    """Whether a tune's gains meet the step bars, and which they miss."""
+    if o.get("meets_bars") is None or not o.get("step"):
+        return "–"
+    if o["meets_bars"]:
+        return "yes"
+    from ..tuning.constraints import StepBars, missed_bars
+
+    return "**no**: " + ", ".join(missed_bars(o["step"], o.get("max_tilt_deg", 0.0), StepBars()))
+
+
+def _table3_section(R: dict) -> list[str]:
+    """Table 3: the FPA's convergence, the paper's runs beside ours."""
+    L: list[str] = []
+    g = R["gains"]
     t3 = R["table3"]
     L.append(
         f"**Table 3 (FPA convergence, {t3['settings']['iterations']} iterations, population "
@@ -229,21 +268,6 @@ def render_markdown(R: dict) -> str:
             ]
         )
 
-    def settle(o):
-        st = o.get("step")
-        if not st:
-            return "–"
-        return " / ".join(f"{st[a]['settling_s']:.2f}" for a in ("x", "y", "z", "psi"))
-
-    def verdict(o):
-        if o.get("meets_bars") is None or not o.get("step"):
-            return "–"
-        if o["meets_bars"]:
-            return "yes"
-        from ..tuning.constraints import StepBars, missed_bars
-
-        return "**no**: " + ", ".join(missed_bars(o["step"], o.get("max_tilt_deg", 0.0), StepBars()))
-
     for label, key in (("ours", "ours"), ("ours, paper mode", "ours_paper_mode")):
         for o in t3.get(key) or []:
             rows.append(
@@ -252,8 +276,8 @@ def render_markdown(R: dict) -> str:
                     fmt_cell(o["initial_ise"], "{:.4f}"),
                     fmt_cell(o["final_ise"], "{:.4f}"),
                     f"{fmt_cell(o['improvement_pct'], '{:.2f}')} %",
-                    verdict(o),
-                    settle(o),
+                    _verdict(o),
+                    _settle(o),
                 ]
             )
     L.append(
@@ -277,8 +301,12 @@ def render_markdown(R: dict) -> str:
             "Paper's improvement range: 10.67–35.45 %.\n"
         )
     L.append(_fig(R, "fpa_convergence.png"))
+    return L
 
-    # ---- Table 5
+
+def _table5_section(R: dict) -> list[str]:
+    """3. Table 5: the single drone's RMSE, without and with wind."""
+    L: list[str] = []
     t5 = R["table5"]
     L.append("## 3. Table 5: RMSE of eq. (38), single drone, 180 s, without and with wind\n")
     L.append(
@@ -323,8 +351,12 @@ def render_markdown(R: dict) -> str:
     L.append("")
     L.append(_fig(R, "fig09_lemniscate.png"))
     L.append(_fig(R, "fig15_wind.png"))
+    return L
 
-    # ---- swarms
+
+def _swarm_section(R: dict) -> list[str]:
+    """4. The swarm scenarios (paper Figs. 10–13)."""
+    L: list[str] = []
     sw = R["swarms"]
     L.append("## 4. Swarm scenarios (paper Figs. 10–13)\n")
     L.append(
@@ -368,8 +400,12 @@ def render_markdown(R: dict) -> str:
     )
     L.append("")
     L.append(_fig(R, "swarm_paths_3d.png"))
+    return L
 
-    # ---- variable D
+
+def _variable_d_section(R: dict) -> list[str]:
+    """5. Variable D (eq. 34, paper Fig. 14)."""
+    L: list[str] = []
     vd = R["variable_d"]
     L.append("## 5. Variable D (eq. 34, paper Fig. 14)\n")
     rows = []
@@ -391,8 +427,12 @@ def render_markdown(R: dict) -> str:
         f"the take-off from the ground starts of eq. (31).\n"
     )
     L.append(_fig(R, "fig14_variable_d.png"))
+    return L
 
-    # ---- anti-collision
+
+def _anti_collision_section(R: dict) -> list[str]:
+    """6. Anti-collision: the rules on the fixed starts (paper Fig. 5, Fig. 16b)."""
+    L: list[str] = []
     ac = R["anti_collision"]
     L.append("## 6. Anti-collision (paper Fig. 5, Fig. 16b): our rule beside the paper's and none\n")
     L.append(
@@ -420,6 +460,12 @@ def render_markdown(R: dict) -> str:
             rows,
         )
     )
+    return L
+
+
+def _random_crossing_section(R: dict) -> list[str]:
+    """The rules over the seeded random crossing starts."""
+    L: list[str] = []
     rc = R["sweeps"]["random_crossing"]
     L.append(
         f"\n**Seeded random crossing starts** (hovering leader, 5 followers on the ground within 3 m, "
@@ -456,8 +502,12 @@ def render_markdown(R: dict) -> str:
     )
     L.append("")
     L.append(_fig(R, "fig16_anticollision.png"))
+    return L
 
-    # ---- wind robustness
+
+def _wind_section(R: dict) -> list[str]:
+    """7. Wind robustness over seeds (Table 5 under wind, Fig. 15)."""
+    L: list[str] = []
     L.append("## 7. Wind robustness over seeds (Table 5 under wind, Fig. 15)\n")
     L.append("Each seed draws a different OU turbulence (eq. 36). mean ± std (worst over the seeds); paper: one run.\n")
     rows = []
@@ -479,6 +529,12 @@ def render_markdown(R: dict) -> str:
                 ]
             )
     L.append(_table(["case", "RMSE", "paper", "ours whole run", "ours t ≥ 10 s", "seeds"], rows))
+    return L
+
+
+def _wind_swarm_section(R: dict) -> list[str]:
+    """The swarm under wind and the turbulence intensity sweep."""
+    L: list[str] = []
     ws = R["sweeps"]["wind_swarm"]
     s = ws["results"][0]["stats"]
     L.append(
@@ -514,6 +570,13 @@ def render_markdown(R: dict) -> str:
     L.append("")
     L.append(_fig(R, "wind_robustness.png"))
     L.append(_fig(R, "wind_sigma.png"))
+    return L
+
+
+def _figures_section(R: dict) -> list[str]:
+    """The MuJoCo view, the list of figures and the jobs' cost."""
+    L: list[str] = []
+    m = R["meta"]
     if any(f["file"] == "snapshot_scenario1.png" for f in R.get("figures", [])):
         L.append("## MuJoCo view\n")
         L.append(_fig(R, "snapshot_scenario1.png"))
@@ -522,6 +585,32 @@ def render_markdown(R: dict) -> str:
         L.append(f"- [`{f['file']}`]({f['file']}): {f['caption']}")
     L.append("")
     L.append(f"*Jobs: {m['jobs']}, CPU time in the runs {m.get('cpu_s_in_runs', 0):.0f} s, wall {m['wall_s']:.0f} s.*")
+    return L
+
+
+#: The report's sections, in order: each takes results.json (``R``) and returns its Markdown lines.
+SECTIONS = (
+    _header,
+    _interpretations,
+    _step_section,
+    _gains_section,
+    _table3_section,
+    _table5_section,
+    _swarm_section,
+    _variable_d_section,
+    _anti_collision_section,
+    _random_crossing_section,
+    _wind_section,
+    _wind_swarm_section,
+    _figures_section,
+)
+
+
+def render_markdown(R: dict) -> str:
+    """The report's README from results.json (``R`` as written there): :data:`SECTIONS` in turn."""
+    L: list[str] = []
+    for section in SECTIONS:
+        L += section(R)
     return "\n".join(L) + "\n"
 
 
