@@ -174,6 +174,62 @@ def _pick_partners(rng: np.random.Generator, n: int) -> tuple[np.ndarray, np.nda
     return j, k
 
 
+def _check_steps(p: float, gamma: float) -> tuple[float, float]:
+    """The switch probability ``p`` in [0, 1] and the step size ``gamma`` > 0, as floats (else UserError)."""
+    if not (isinstance(p, (int, float, np.floating, np.integer)) and 0.0 <= float(p) <= 1.0):
+        raise UserError(f"switch probability p must be in [0, 1], got {p!r}")
+    if not (
+        isinstance(gamma, (int, float, np.floating, np.integer)) and math.isfinite(float(gamma)) and float(gamma) > 0.0
+    ):
+        raise UserError(f"step size gamma must be a finite number > 0, got {gamma!r}")
+    return float(p), float(gamma)
+
+
+def _initial_population(
+    rng: np.random.Generator, lower: np.ndarray, upper: np.ndarray, n: int, x0: np.ndarray | None
+) -> np.ndarray:
+    """The initial population (n, d) (Fig. 3, "initialise"): uniform in the box, its first rows the
+    points of ``x0`` (checked: shape (k, d) or (d,), k <= n, finite, inside the box)."""
+    d = lower.size
+    X = lower + rng.random((n, d)) * (upper - lower)
+    if x0 is not None:
+        seeds = np.asarray(x0, dtype=float)
+        if seeds.ndim == 1:
+            seeds = seeds[None, :]
+        if seeds.ndim != 2 or seeds.shape[1] != d:
+            raise UserError(f"x0 must have shape (k, {d}), got {np.shape(x0)}")
+        if seeds.shape[0] > n:
+            raise UserError(f"x0 has {seeds.shape[0]} rows, more than population={n}")
+        if not np.all(np.isfinite(seeds)):
+            raise UserError("x0 must be finite")
+        if np.any(seeds < lower) or np.any(seeds > upper):
+            raise UserError("x0 must lie inside bounds")
+        X[: seeds.shape[0]] = seeds
+    return X
+
+
+def _candidates(
+    rng: np.random.Generator,
+    X: np.ndarray,
+    best_x: np.ndarray,
+    p: float,
+    gamma: float,
+    lower: np.ndarray,
+    upper: np.ndarray,
+) -> np.ndarray:
+    """One iteration's candidate moves (n, d), clipped to the box: global pollination towards the best with
+    probability ``p``, else local (steps 1 and 2 of :func:`fpa`; the draws in the same order every call)."""
+    n, d = X.shape
+    is_global = rng.random(n) < p
+    levy = levy_steps(rng, (n, d))
+    eps = rng.random((n, 1))
+    j, k = _pick_partners(rng, n)
+    glob = X + gamma * levy * (best_x - X)  # docs/interpretations.md §6: towards g_best
+    loc = X + eps * (X[j] - X[k])
+    cand = np.where(is_global[:, None], glob, loc)
+    return np.clip(cand, lower, upper)
+
+
 # --------------------------------------------------------------------------- FPA
 
 
@@ -224,35 +280,12 @@ def fpa(
         UserError: on a bad setting (message names it) or a cost of wrong shape.
     """
     lower, upper = validate_bounds(bounds)
-    d = lower.size
     n = _check_int("population", population, 4)
     iterations = _check_int("iterations", iterations, 1)
-    if not (isinstance(p, (int, float, np.floating, np.integer)) and 0.0 <= float(p) <= 1.0):
-        raise UserError(f"switch probability p must be in [0, 1], got {p!r}")
-    if not (
-        isinstance(gamma, (int, float, np.floating, np.integer)) and math.isfinite(float(gamma)) and float(gamma) > 0.0
-    ):
-        raise UserError(f"step size gamma must be a finite number > 0, got {gamma!r}")
-    p, gamma = float(p), float(gamma)
+    p, gamma = _check_steps(p, gamma)
 
     rng = np.random.default_rng(seed)
-
-    # Initial population: x0 rows first, the rest uniform in the box (Fig. 3, "initialise").
-    X = lower + rng.random((n, d)) * (upper - lower)
-    if x0 is not None:
-        seeds = np.asarray(x0, dtype=float)
-        if seeds.ndim == 1:
-            seeds = seeds[None, :]
-        if seeds.ndim != 2 or seeds.shape[1] != d:
-            raise UserError(f"x0 must have shape (k, {d}), got {np.shape(x0)}")
-        if seeds.shape[0] > n:
-            raise UserError(f"x0 has {seeds.shape[0]} rows, more than population={n}")
-        if not np.all(np.isfinite(seeds)):
-            raise UserError("x0 must be finite")
-        if np.any(seeds < lower) or np.any(seeds > upper):
-            raise UserError("x0 must lie inside bounds")
-        X[: seeds.shape[0]] = seeds
-
+    X = _initial_population(rng, lower, upper, n, x0)
     F = _evaluate(cost, X)
     n_eval = n
     best = int(np.argmin(F))
@@ -264,16 +297,8 @@ def fpa(
         callback(0, best_x.copy(), best_cost, history[:1].copy())
 
     for it in range(1, iterations + 1):
-        # 1. Candidate moves, all generated from the population at the start of the iteration.
-        is_global = rng.random(n) < p
-        levy = levy_steps(rng, (n, d))
-        eps = rng.random((n, 1))
-        j, k = _pick_partners(rng, n)
-        glob = X + gamma * levy * (best_x - X)  # docs/interpretations.md §6: towards g_best
-        loc = X + eps * (X[j] - X[k])
-        cand = np.where(is_global[:, None], glob, loc)
-        # 2. Clip and evaluate in one batched call.
-        cand = np.clip(cand, lower, upper)
+        # 1.-2. Candidate moves from the population at the start of the iteration, clipped; one batched call.
+        cand = _candidates(rng, X, best_x, p, gamma, lower, upper)
         Fc = _evaluate(cost, cand)
         n_eval += n
         # 3. Greedy replacement.
