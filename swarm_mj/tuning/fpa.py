@@ -220,7 +220,7 @@ def _candidates(
     """One iteration's candidate moves (n, d), clipped to the box: global pollination towards the best with
     probability ``p``, else local (steps 1 and 2 of :func:`fpa`; the draws in the same order every call)."""
     n, d = X.shape
-    is_global = rng.random(n) < p
+    is_global = np.asarray(rng.random(n) < p)  # (n,) bool
     levy = levy_steps(rng, (n, d))
     eps = rng.random((n, 1))
     j, k = _pick_partners(rng, n)
