@@ -239,6 +239,20 @@ def test_the_keepout_check(axis, share, passes):
     assert take.passed is (axis == 0 and share >= 1)  # straight up from the floor: only the distance across counts
 
 
+def test_starts_a_keepout_width_apart_across_take_off_clear_of_it():
+    # docs/export.md, "takeoff": two drones rising straight up at once, their heights anything, stay out of
+    # the ellipsoid when their starts are at least its width apart across
+    from swarm_mj.formation.barrier import keepout_radii
+    from swarm_mj.metrics import keepout_distance
+
+    radii = keepout_radii(_vehicle())
+    rng = np.random.default_rng(2)
+    across = rng.normal(size=(1000, 2))
+    across *= (radii[0] * rng.uniform(1.0, 1.5, 1000) / np.linalg.norm(across, axis=1))[:, None]
+    up = rng.uniform(-3.0, 3.0, 1000)  # any difference of heights
+    assert keepout_distance(np.column_stack([across, up]), radii).min() >= 1.0 - 1e-12
+
+
 def test_the_keepout_counts_airborne_pairs_only():
     v = _vehicle()
     keep, take = ck.keepout_checks(pieces_const([[0.0, 0.0, 0.05], [0.05, 0.0, 0.05]]), ["a", "b"], np.zeros(3), v)
