@@ -91,6 +91,13 @@ def dense_times(duration: float, period: float) -> np.ndarray:
     return np.unique(np.r_[np.arange(0.0, duration, step), duration])
 
 
+def _at_most(name: str, value: float, limit: float, unit: str, text: str, *, drone: str | None = None,
+             t: float | None = None, figures: dict | None = None) -> Check:  # fmt: skip
+    """A check that passes when ``value`` is at most ``limit``."""
+    return Check(name=name, passed=bool(value <= limit), value=float(value), limit=float(limit), unit=unit, text=text,
+                 drone=drone, t=t, figures=figures or {})  # fmt: skip
+
+
 def fit_checks(pieces: list[Pieces], names: list[str], t: np.ndarray, pos: np.ndarray, yaw: np.ndarray,
                limits: Limits) -> list[Check]:  # fmt: skip
     """Tolerance (position, yaw; float32 arithmetic at the path's samples t (k,), pos (k, n, 3), yaw (k, n)),
@@ -104,39 +111,20 @@ def fit_checks(pieces: list[Pieces], names: list[str], t: np.ndarray, pos: np.nd
     ky, iy = _argmax2(yerr)
     n_p = np.array([p.n_pieces for p in pieces])
     j = int(np.argmax(n_p))
-    tol = Check(
-        "tolerance", bool(err.max() <= limits.tolerance_m), float(err.max()), limits.tolerance_m, "m",
-        f"{names[i]}'s pieces lie {err.max() * 100:.2f} cm from its path at t = {t[k]:.2f} s "
-        f"(limit {limits.tolerance_m * 100:g} cm)", names[i], float(t[k]),
-    )  # fmt: skip
-    ytol = Check(
-        "yaw tolerance", bool(yerr.max() <= limits.yaw_tolerance_rad), float(yerr.max()), limits.yaw_tolerance_rad,
-        "rad", f"{names[iy]}'s yaw {np.rad2deg(yerr.max()):.2f} deg from its path at t = {t[ky]:.2f} s "
-        f"(limit {np.rad2deg(limits.yaw_tolerance_rad):g} deg)", names[iy], float(t[ky]),
-    )  # fmt: skip
     mem = int(n_p.max()) * BYTES_PER_PIECE
+    yaw_deg, yaw_lim = np.rad2deg(yerr.max()), np.rad2deg(limits.yaw_tolerance_rad)
     return [
-        tol,
-        ytol,
-        Check(
-            "pieces",
-            bool(n_p.max() <= limits.max_pieces),
-            float(n_p.max()),
-            float(limits.max_pieces),
-            "",
-            f"{names[j]} has {n_p.max()} pieces (limit {limits.max_pieces})",
-            names[j],
-        ),  # fmt: skip
-        Check(
-            "memory",
-            bool(mem <= limits.memory_bytes),
-            float(mem),
-            float(limits.memory_bytes),
-            "bytes",
-            f"{names[j]}'s pieces take {mem} bytes (limit {limits.memory_bytes})",
-            names[j],
-        ),  # fmt: skip
-    ]
+        _at_most("tolerance", err.max(), limits.tolerance_m, "m",
+                 f"{names[i]}'s pieces lie {err.max() * 100:.2f} cm from its path at t = {t[k]:.2f} s "
+                 f"(limit {limits.tolerance_m * 100:g} cm)", drone=names[i], t=float(t[k])),
+        _at_most("yaw tolerance", yerr.max(), limits.yaw_tolerance_rad, "rad",
+                 f"{names[iy]}'s yaw {yaw_deg:.2f} deg from its path at t = {t[ky]:.2f} s (limit {yaw_lim:g} deg)",
+                 drone=names[iy], t=float(t[ky])),
+        _at_most("pieces", n_p.max(), limits.max_pieces, "",
+                 f"{names[j]} has {n_p.max()} pieces (limit {limits.max_pieces})", drone=names[j]),
+        _at_most("memory", mem, limits.memory_bytes, "bytes",
+                 f"{names[j]}'s pieces take {mem} bytes (limit {limits.memory_bytes})", drone=names[j]),
+    ]  # fmt: skip
 
 
 def thrust_checks(pieces: list[Pieces], names: list[str], td: np.ndarray, params: QuadParams,
@@ -160,30 +148,17 @@ def thrust_checks(pieces: list[Pieces], names: list[str], td: np.ndarray, params
     figures = {"max_speed_m_s": float(speed.max()), "max_acceleration_m_s2": float(acc.max()),
                "rotors_total_n": 4.0 * float(params.f_max)}  # fmt: skip
     return [
-        Check(
-            "thrust",
-            bool(frac.max() <= limits.thrust_margin),
-            float(frac.max()),
-            limits.thrust_margin,
-            "of 4 f_max",
-            f"{names[i]} asks {frac.max():.0%} of its rotors' {4 * params.f_max:.3g} N at "
-            f"t = {td[k]:.2f} s (limit {limits.thrust_margin:.0%})",
-            names[i],
-            float(td[k]),
-            figures,
-        ),  # fmt: skip
-        Check(
-            "tilt",
-            bool(tilt.max() <= limits.max_tilt_rad),
-            float(tilt.max()),
-            limits.max_tilt_rad,
-            "rad",
-            f"{names[it]} asks a tilt of {np.rad2deg(tilt.max()):.0f} deg at t = {td[kt]:.2f} s "
-            f"(limit {np.rad2deg(limits.max_tilt_rad):.0f} deg)",
-            names[it],
-            float(td[kt]),
-        ),  # fmt: skip
-    ]
+        _at_most("thrust", frac.max(), limits.thrust_margin, "of 4 f_max",
+                 f"{names[i]} asks {frac.max():.0%} of its rotors' {4 * params.f_max:.3g} N at t = {td[k]:.2f} s "
+                 f"(limit {limits.thrust_margin:.0%})", drone=names[i], t=float(td[k]), figures=figures),
+        _at_most("tilt", tilt.max(), limits.max_tilt_rad, "rad",
+                 f"{names[it]} asks a tilt of {np.rad2deg(tilt.max()):.0f} deg at t = {td[kt]:.2f} s "
+                 f"(limit {np.rad2deg(limits.max_tilt_rad):.0f} deg)", drone=names[it], t=float(td[kt])),
+    ]  # fmt: skip
+
+
+def _no_pair(name: str, why: str) -> Check:
+    return Check(name=name, passed=True, value=float("inf"), limit=1.0, unit="", text=why)
 
 
 def keepout_checks(pieces: list[Pieces], names: list[str], td: np.ndarray, params: QuadParams) -> list[Check]:
@@ -194,35 +169,34 @@ def keepout_checks(pieces: list[Pieces], names: list[str], td: np.ndarray, param
     radii = keepout_radii(params, rotor_radius=params.rotor_radius)
     pos = np.stack([p.evaluate(td)[:, :3] for p in pieces], axis=1)  # (k, n, 3)
     if len(names) < 2:
-        one = "one drone: no pair"
-        return [Check("keepout", True, float("inf"), 1.0, "", one), Check("takeoff", True, float("inf"), 1.0, "", one)]
+        return [_no_pair("keepout", "one drone: no pair"), _no_pair("takeoff", "one drone: no pair")]
     summ = keepout_summary(td, pos, radii)
     rho = keepout_per_sample(pos, radii)
     k = int(np.argmin(rho))
     d = (pos[k, :, None, :] - pos[k, None, :, :]) / radii  # (n, n, 3)
-    r = np.linalg.norm(d, axis=-1) + np.where(np.eye(len(names)) > 0, np.inf, 0.0)
-    i, j = sorted(np.unravel_index(int(np.argmin(r)), r.shape))
+    i, j = sorted(_argmax2(-(np.linalg.norm(d, axis=-1) + np.where(np.eye(len(names)) > 0, np.inf, 0.0))))
     inside = float(summ["keepout_time_s"])
     keep = Check(
-        "keepout", bool(inside == 0.0), float(summ["keepout_min_distance"]), 1.0, "keep-out radii",
-        f"closest: {names[i]} and {names[j]} at {rho[k]:.2f} x the keep-out's radii ({radii[0]:.3g}, "
-        f"{radii[2]:.3g} m) at t = {td[k]:.2f} s; {inside:.2f} s inside it", f"{names[i]}, {names[j]}",
-        float(td[k]), {"time_inside_s": inside, "radii_m": radii.tolist()},
+        name="keepout", passed=inside == 0.0, value=float(summ["keepout_min_distance"]), limit=1.0,
+        unit="keep-out radii", drone=f"{names[i]}, {names[j]}", t=float(td[k]),
+        text=f"closest: {names[i]} and {names[j]} at {rho[k]:.2f} x the keep-out's radii ({radii[0]:.3g}, "
+        f"{radii[2]:.3g} m) at t = {td[k]:.2f} s; {inside:.2f} s inside it",
+        figures={"time_inside_s": inside, "radii_m": radii.tolist()},
     )  # fmt: skip
     starts = pos[0]
     up = np.flatnonzero(starts[:, 2] > AIRBORNE_M)
     if len(up) < 2:
-        return [keep, Check("takeoff", True, float("inf"), 1.0, "", "at most one start in the air: no take-off pair")]
+        return [keep, _no_pair("takeoff", "at most one start in the air: no take-off pair")]
     h = np.linalg.norm(starts[up, None, :2] - starts[None, up, :2], axis=-1) / radii[0]
     h[np.diag_indices(len(up))] = np.inf
-    a, b = sorted(np.unravel_index(int(np.argmin(h)), h.shape))
+    a, b = sorted(_argmax2(-h))
     ok = bool(h.min() >= 1.0)
     take = Check(
-        "takeoff", ok, float(h.min()), 1.0, "keep-out widths",
-        f"{names[up[a]]} and {names[up[b]]} start {h.min() * radii[0]:.3f} m apart across, "
+        name="takeoff", passed=ok, value=float(h.min()), limit=1.0, unit="keep-out widths",
+        drone=f"{names[up[a]]}, {names[up[b]]}",
+        text=f"{names[up[a]]} and {names[up[b]]} start {h.min() * radii[0]:.3f} m apart across, "
         + (f"at least the keep-out's width {radii[0]:.3g} m" if ok else
            f"less than the keep-out's width {radii[0]:.3g} m: their take-offs would cross it"),
-        f"{names[up[a]]}, {names[up[b]]}",
     )  # fmt: skip
     return [keep, take]
 

@@ -126,9 +126,9 @@ def fit_drones(path: Sampled, limits: Limits) -> tuple[list[Pieces], Check | Non
         p = fit_adaptive(path.t, y, path.v0[i], path.v1[i], tol, groups, limits.max_pieces, FIT_TARGET)
         if p is None:
             return out, Check(
-                "pieces", False, float("inf"), float(limits.max_pieces), "",
-                f"{name} needs more than {limits.max_pieces} pieces ({limits.memory_bytes} bytes) to stay within "
-                f"{limits.tolerance_m * 100:g} cm of its {path.t[-1]:.1f}-s path: shorten it (--from, --to)", name,
+                name="pieces", passed=False, value=float("inf"), limit=float(limits.max_pieces), unit="", drone=name,
+                text=f"{name} needs more than {limits.max_pieces} pieces ({limits.memory_bytes} bytes) to stay within "
+                f"{limits.tolerance_m * 100:g} cm of its {path.t[-1]:.1f}-s path: shorten it (--from, --to)",
             )  # fmt: skip
         out.append(p)
     return out, None
@@ -347,7 +347,7 @@ def export_crazyflie(sc: Scenario, out: Path, t_from: float | None, t_to: float,
     if not flight.get("ok", True):
         from ..experiments.outcome import failure_line
 
-        checks.append(Check("flight", False, 0.0, 0.0, "", str(failure_line(flight))))
+        checks.append(Check(name="flight", passed=False, value=0.0, limit=0.0, unit="", text=str(failure_line(flight))))
     line = failures(checks)
     if line is not None:
         raise UserError(f"export refused, nothing written: {line}")
