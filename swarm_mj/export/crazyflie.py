@@ -20,6 +20,7 @@ import os
 import shutil
 import struct
 import tempfile
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -27,7 +28,7 @@ import numpy as np
 
 from ..errors import SimulationDiverged, UserError
 from ..output.atomic import dumps_strict
-from ..scenario import Scenario, scenario_toml
+from ..scenario import Scenario, parse_scenario, scenario_toml
 from . import upload as upload_template
 from .checks import BYTES_PER_PIECE, Check, Limits, failures, run_checks
 from .poly import Pieces, fit_adaptive
@@ -356,5 +357,9 @@ def export_crazyflie(sc: Scenario, out: Path, t_from: float | None, t_to: float,
     files = {f"{n}.csv": csv_text(p) for n, p in zip(path.names, pieces)}
     files |= {PATH_CSV: path_csv(path), MANIFEST: dumps_strict(man) + "\n", SCENARIO: flyback_toml(sc, path),
               UPLOAD: Path(upload_template.__file__).read_text()}  # fmt: skip
+    try:  # what `swarm-mj run DIR` will read (e.g. starts closer than the vehicle's clearance) is refused now
+        parse_scenario(tomllib.loads(files[SCENARIO]), str(out / SCENARIO))
+    except UserError as exc:
+        raise UserError(f"export refused, nothing written: flight back: {exc}") from None
     write_set(out, files)
     return man, checks
