@@ -4,10 +4,10 @@
 **The vehicle** is a scenario's ``[vehicle] model``, replaced by ``--vehicle NAME|FILE`` (``run``,
 ``video``, ``sweep``, ``stress``), by ``SwarmEnv(..., vehicle=)`` and the wrappers, or by
 ``Scenario.with_overrides(vehicle=...)``: a bundled vehicle's name, a vehicle file or a
-:class:`~swarm_mj.vehicles.Vehicle`. Replacing it replaces the drone flown (:func:`vehicle_overrides`):
-its parameters, its mixer, its rotor lag where the physics has lag and the scenario does not set its
-own, the start clearance its size asks for and, unless the gains were chosen for the run or by the
-scenario, its gains.
+:class:`~swarm_mj.vehicles.Vehicle`. Replacing it replaces the drone flown
+(:func:`swarm_mj.scenario.vehicle_overrides`): its parameters, its mixer, its rotor lag where the
+physics has lag and the scenario does not set its own, the start clearance its size asks for and,
+unless the gains were chosen for the run or by the scenario, its gains.
 
 **The gains** (:func:`choose_gains`): the ones given for the run (``--gains``, ``gains=``) > the
 scenario's ``[controller] gains`` > the vehicle file's ``gains`` > Table 4. The summary names where
@@ -18,19 +18,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
-from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
+from .control.backstepping import TABLE4_GAINS, load_gains
 from .errors import UserError
-from .physics.aero.presets import AeroConfig, preset, vehicle_lag, with_aero
+from .physics.aero.presets import AeroConfig, preset, vehicle_lag
 from .physics.params import QuadParams
 from .resources import SCENARIOS_DIR
 from .vehicles import Vehicle, bundled, load_vehicle
-
-if TYPE_CHECKING:
-    from .scenario import Scenario
 
 #: Where the gains flown came from (a run summary's ``gains.origin``), in the order of the rule:
 #: the first that gives gains wins.
@@ -109,82 +106,6 @@ def relag(aero: AeroConfig, old: QuadParams, new: QuadParams) -> AeroConfig:
     if aero.motor_tau != _lag_on(aero, old):
         return aero
     return replace(aero, motor_tau=_lag_on(aero, new))
-
-
-def vehicle_overrides(sc: Scenario, vehicle: VehicleLike, where: str = "vehicle") -> dict[str, Any]:
-    """The fields of ``sc`` that change when it flies ``vehicle`` (module docstring); a path is relative
-    to the working folder. Refuses (:class:`UserError`) starts closer than the new vehicle's clearance."""
-    from .scenario import DEFAULT_PARAMS, START_CLEARANCE_M, check_random_start_feasible, check_start_spacing
-
-    label, v, doc_model = resolve_vehicle(vehicle, Path.cwd(), where)
-    params = v.params()
-    clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
-    at = f"{sc.path or sc.name}: followers.start (flown with vehicle {label})"
-    if sc.random_start is not None and sc.follower_starts is None and sc.n_followers > 0:
-        check_random_start_feasible(sc.n_followers, sc.random_start, at, clearance)
-    else:
-        check_start_spacing(sc.initial_positions(), sc.names, at, clearance)
-    out: dict[str, Any] = {
-        "vehicle": label,
-        "params": params,
-        "vehicle_mixer": v.mixer,
-        "aero": relag(sc.aero, sc.params, params),
-    }
-    if sc.gains_origin in ("vehicle", "default"):  # not chosen for this run or by the scenario: the vehicle's
-        g = choose_gains(vehicle=v.gains_file)
-        out |= {"gains": g.gains, "gains_source": g.source, "gains_origin": g.origin}
-    if doc_model is not None and isinstance(sc.raw, dict):
-        out["raw"] = {**sc.raw, "vehicle": {"model": doc_model}}  # what a sweep's --param re-reads
-    return out
-
-
-def flown(
-    scenario: Scenario | str,
-    *,
-    vehicle: VehicleLike | None = None,
-    aero: str | None = None,
-    gains: str | Path | np.ndarray | None = None,
-    where: tuple[str, str, str] = ("vehicle", "aero", "gains"),
-) -> Scenario:
-    """``scenario`` (a name, a path or a :class:`~swarm_mj.scenario.Scenario`) with the vehicle, the
-    physics preset and the gains asked for (None: the scenario's). What ``--vehicle``, ``--aero`` and
-    ``--gains`` do in every command, and ``vehicle=``/``aero=`` in the environments. ``gains``: a gains
-    file or an array; ``where``: the names the errors give these three (e.g. the options)."""
-    from .scenario import Scenario, load_scenario
-
-    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
-    if vehicle is not None:
-        sc = replace(sc, **vehicle_overrides(sc, vehicle, where[0]))
-    if aero is not None:
-        if not isinstance(aero, str):
-            raise UserError(f"must be a physics preset's name ('paper' or 'realistic'), got {aero!r}", where=where[1])
-        preset(aero, where=where[1])
-        sc = with_aero(sc, aero)
-    if gains is not None:
-        if isinstance(gains, (str, Path)):
-            g, source = load_gains(gains), str(gains)
-        else:
-            g, source = np.asarray(gains, dtype=float), "given"
-        g = check_gains(g, sc.n_drones, where=f"{where[2]} {source}" if source != "given" else where[2])
-        c = choose_gains(option=(g, source))
-        sc = sc.with_overrides(gains=c.gains, gains_source=c.source, gains_origin=c.origin)
-    return sc
-
-
-def trajectory_args(sc: Scenario) -> dict[str, Any]:
-    """Every parameter of the leader's trajectory: the scenario's, and the trajectory's defaults for the
-    rest (lists as tuples), e.g. to tell the paper's experiment or the tune's step by their data."""
-    import inspect
-
-    from .trajectories import TRAJECTORIES
-
-    sig = inspect.signature(TRAJECTORIES[sc.trajectory]).parameters
-    return {k: _as_tuples(sc.trajectory_params.get(k, p.default)) for k, p in sig.items()}
-
-
-def _as_tuples(v: Any) -> Any:
-    """``v`` with every list or tuple in it a tuple (a TOML list equals a default tuple)."""
-    return tuple(_as_tuples(x) for x in v) if isinstance(v, (list, tuple)) else v
 
 
 def display_path(path: str | Path) -> str:

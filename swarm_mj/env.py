@@ -71,14 +71,14 @@ import numpy as np
 from dm_env import specs
 
 from ._jit import jit
-from .choices import VehicleLike, flown
+from .choices import VehicleLike
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .physics.sim import HEALTHY, ForceStage
 from .physics.wind import WindSeries
 from .pipeline.records import Obs
 from .pipeline.swarm import SwarmPhysics
-from .scenario import Scenario
+from .scenario import Scenario, flown
 from .task import copy_outcome, copy_reward, observation_shapes
 
 
@@ -143,7 +143,7 @@ class SwarmEnv(dm_env.Environment):
     ``vehicle``: the drones flown instead of the scenario's (a bundled vehicle's name, a vehicle file or a
     :class:`~swarm_mj.vehicles.Vehicle`; with its own gains unless the scenario names some), ``aero``: the
     physics preset (``"paper"`` or ``"realistic"``, docs/aero.md); None: the scenario's
-    (:func:`swarm_mj.choices.flown`).
+    (:func:`swarm_mj.scenario.flown`).
 
     ``force_stages``: extra :class:`~swarm_mj.physics.sim.ForceStage` s of the simulator, applied after
     drag and wind (e.g. aerodynamic effects between drones)."""

@@ -12,6 +12,7 @@ period and against the memory its log would take, and seeds in [0, 2**32 − 1].
 
 from __future__ import annotations
 
+import inspect
 import os
 import tomllib
 from dataclasses import dataclass, field, replace
@@ -20,19 +21,37 @@ from typing import Any
 
 import numpy as np
 
-from .choices import choose_gains, resolve_vehicle
+from .choices import VehicleLike, choose_gains, relag, resolve_vehicle
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError, unknown_key
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.barrier import BarrierParams
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
 from .formation.slots import DiameterSchedule
-from .physics.aero.presets import PAPER, AeroConfig, parse_aero, vehicle_lag
+from .physics.aero.presets import PAPER, AeroConfig, parse_aero, preset, vehicle_lag, with_aero
 from .physics.mixing import MIXERS
 from .physics.params import DEFAULT_PARAMS, QuadParams
 from .physics.wind import WindConfig
 from .resources import SCENARIOS_DIR
 from .scenario_toml import scenario_toml as scenario_toml  # re-exported: the stress command writes with it
+from .starts import (  # re-exported: the checks of where drones start live in swarm_mj.starts
+    MAX_RANGE_M as MAX_RANGE_M,
+)
+from .starts import (
+    START_CLEARANCE_M as START_CLEARANCE_M,
+)
+from .starts import (
+    RandomStart as RandomStart,
+)
+from .starts import (
+    check_random_start_feasible as check_random_start_feasible,
+)
+from .starts import (
+    check_start_spacing as check_start_spacing,
+)
+from .starts import (
+    random_follower_starts as random_follower_starts,
+)
 from .trajectories import TRAJECTORIES, make_trajectory
 
 #: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
@@ -67,16 +86,6 @@ _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_c
 _VEHICLE_KEYS = {"model"}
 #: Where the docs list the ``[formation]`` keys (an unknown key's message points there: they are many).
 _FORMATION_DOCS = 'docs/anticollision.md, "Setting a parameter"'
-
-
-@dataclass(frozen=True)
-class RandomStart:
-    """Seeded random follower starts on the ground around the leader (issue: random crossing starts)."""
-
-    radius: float = 3.0
-    min_spacing: float = 0.6
-    seed: int = 0
-    max_tries: int = 20000
 
 
 @dataclass(frozen=True)
@@ -206,12 +215,10 @@ class Scenario:
         starts with seed s (unless ``random_start`` is given too). ``duration`` and ``seed``
         are checked as in a scenario file (:class:`UserError` naming the field).
         ``vehicle=V`` (a bundled name, a vehicle file or a :class:`~swarm_mj.vehicles.Vehicle`) flies V:
-        its parameters, mixer, rotor lag and, unless chosen, its gains (:func:`swarm_mj.choices.vehicle_overrides`).
+        its parameters, mixer, rotor lag and, unless chosen, its gains (:func:`vehicle_overrides`).
         ``gains=`` without ``gains_origin`` are gains given for the run (they win over the vehicle's).
         """
         if "vehicle" in kw:
-            from .choices import vehicle_overrides
-
             kw = {**vehicle_overrides(self, kw.pop("vehicle")), **kw}
         if "gains" in kw and "gains_origin" not in kw:
             kw["gains_origin"] = "option"
@@ -227,20 +234,8 @@ class Scenario:
         return replace(self, **kw)
 
 
-#: Centre distance below which two level drones may already touch on the ground: rotor tip
-#: to rotor tip is 2·(L + rotor radius) = 2·(0.25 + 0.09) = 0.68 m along a body axis (the
-#: drone's geometry, ``assets/quadrotor.xml``), plus 2 cm. Measured in MuJoCo: two followers
-#: 0.60 m or 0.65 m apart along x are in contact from the first physics step; 0.70 m apart
-#: they are not. Random starts keep at least this spacing; explicit starts closer than this
-#: (3D centre distance, whatever the heights) are refused (docs/interpretations.md, "starts").
-START_CLEARANCE_M = 0.70
-
 #: Largest seed: numpy's legacy and most external generators take 32-bit seeds; one range everywhere.
 MAX_SEED = 2**32 - 1
-
-#: Largest distance a scenario may ask for (random start radius, spacing): the simulator stops
-#: a run when a drone is farther than 1 km from the origin (``sim.Sim(max_distance=1e3)``).
-MAX_RANGE_M = 1000.0
 
 #: Most followers a scenario may hold: the neighbour arrays grow as n², and the model compiles
 #: and the random starts are drawn in Python (the paper flies 5).
@@ -379,103 +374,6 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
     if (z < 0).any():
         i = int(np.argmax(z < 0))
         raise UserError(f"the reference goes below the ground (z = {z[i]:g} m at t = {t[i]:g} s)", where=where)
-
-
-def check_start_spacing(starts: np.ndarray, names: list[str], where: str, clearance: float = START_CLEARANCE_M) -> None:
-    """Explicit starts: on or above the ground (z >= 0), within :data:`MAX_RANGE_M` of the origin
-    and every two drones at least ``clearance`` (the vehicle's :attr:`Scenario.start_clearance`,
-    :data:`START_CLEARANCE_M` for the paper's drone) apart (3D centre distance), as random
-    starts are."""
-    below = np.flatnonzero(starts[:, 2] < 0)
-    if len(below):
-        i = int(below[0])
-        raise UserError(f"{names[i]} starts below the ground (z = {starts[i, 2]:g} m); z must be >= 0", where=where)
-    far = np.flatnonzero(np.linalg.norm(starts, axis=1) > MAX_RANGE_M)
-    if len(far):
-        raise UserError(
-            f"{names[int(far[0])]} starts farther than {MAX_RANGE_M:g} m from the origin, where the "
-            f"simulator stops the run",
-            where=where,
-        )
-    d = np.linalg.norm(starts[:, None, :] - starts[None, :, :], axis=-1)  # (n, n)
-    d[np.diag_indices(len(starts))] = np.inf
-    i, j = map(int, np.unravel_index(np.argmin(d), d.shape))
-    if d[i, j] < clearance:
-        i, j = sorted((i, j))
-        raise UserError(
-            f"{names[i]} and {names[j]} start {d[i, j]:.3g} m apart; starts must be at least "
-            f"{clearance:g} m apart (rotor tips touch below two rotor spans)",
-            where=where,
-        )
-
-
-def random_follower_starts(
-    leader: np.ndarray, n: int, rs: RandomStart, where: str = "", clearance: float = START_CLEARANCE_M
-) -> np.ndarray:
-    """n follower starts (n, 3) on the ground within ``rs.radius`` of the leader (seeded
-    random crossing starts; docs/interpretations.md, "starts"), every two drones (leader included) at least
-    max(``rs.min_spacing``, ``clearance``) apart (``clearance``: the vehicle's, :data:`START_CLEARANCE_M`
-    for the paper's drone); rejection sampling, seeded.
-
-    The floor of 0.70 m keeps a start from being a contact before anything flies: with a
-    smaller spacing two drones lined up along x or y would overlap their rotors at t = 0,
-    and MuJoCo would count that against whatever rule is flown.
-    """
-    check_random_start_feasible(n, rs, where, clearance)
-    spacing = max(rs.min_spacing, clearance)
-    rng = np.random.default_rng(rs.seed)
-    pts = np.empty((n + 1, 2))  # (n + 1, 2) leader first
-    pts[0] = np.asarray(leader[:2], float)
-    placed, tries = 1, 0
-    while placed < n + 1:
-        tries += 1
-        if tries > rs.max_tries:
-            raise UserError(
-                f"could not place {n} followers at least {spacing:g} m apart within "
-                f"{rs.radius:g} m of the leader after {rs.max_tries} tries; lower min_spacing "
-                f"or raise radius",
-                where=f"{where}: followers.random_start",
-            )
-        r = rs.radius * np.sqrt(rng.uniform())
-        a = rng.uniform(0, 2 * np.pi)
-        p = pts[0] + r * np.array([np.cos(a), np.sin(a)])
-        if np.hypot(*(pts[:placed] - p).T).min() >= spacing:
-            pts[placed] = p
-            placed += 1
-    return np.column_stack([pts[1:], np.full(n, float(leader[2]))])
-
-
-def check_random_start_feasible(n: int, rs: RandomStart, where: str = "", clearance: float = START_CLEARANCE_M) -> None:
-    """Refuse, before anything is simulated, a request no placement can meet.
-
-    Disks of radius s/2 around n + 1 points (the leader and n followers, s the effective
-    spacing max(min_spacing, ``clearance``)) that lie within r of the leader
-    fit in a disk of radius r + s/2 without overlapping, so (n + 1)·(s/2)² ≤
-    0.9069·(r + s/2)² is necessary (0.9069 = π/√12, the densest packing of equal disks in
-    the plane). Requests that pass may still be too tight for rejection sampling; those
-    are refused after ``max_tries`` draws, still before anything flies.
-    """
-    s, r = rs.min_spacing, rs.radius
-    wr = f"{where}: followers.random_start"
-    if not (np.isfinite(r) and np.isfinite(s)) or r <= 0 or s <= 0:
-        raise UserError("radius and min_spacing must be positive", where=wr)
-    if r > MAX_RANGE_M or s > MAX_RANGE_M:
-        raise UserError(
-            f"radius and min_spacing must be at most {MAX_RANGE_M:g} m (a drone farther than that "
-            f"from the origin stops the run)",
-            where=wr,
-        )
-    if n < 0:
-        raise UserError(f"follower count must be >= 0, got {n}", where=wr)
-    se = max(s, clearance)
-    if (n + 1) * (se / 2) ** 2 > 0.9069 * (r + se / 2) ** 2:
-        raise UserError(
-            f"cannot place {n} followers {se:g} m apart (and from the leader) within "
-            f"{r:g} m of the leader: not enough room (the packing bound allows at most "
-            f"{max(int(0.9069 * (r + se / 2) ** 2 / (se / 2) ** 2) - 1, 0)} followers); lower min_spacing "
-            f"or raise radius",
-            where=wr,
-        )
 
 
 def _check_keys(table: Any, allowed: set[str], where: str, see: str | None = None) -> dict:
@@ -782,3 +680,72 @@ def load_scenario(name_or_path: str | Path) -> Scenario:
     except tomllib.TOMLDecodeError as exc:
         raise UserError(f"TOML syntax error: {exc}", where=str(path)) from None
     return parse_scenario(data, str(path), name=path.stem)
+
+
+# --------------------------------------------------------------------------- a scenario as flown
+def vehicle_overrides(sc: Scenario, vehicle: VehicleLike, where: str = "vehicle") -> dict[str, Any]:
+    """The fields of ``sc`` that change when it flies ``vehicle`` (module docstring); a path is relative
+    to the working folder. Refuses (:class:`UserError`) starts closer than the new vehicle's clearance."""
+    label, v, doc_model = resolve_vehicle(vehicle, Path.cwd(), where)
+    params = v.params()
+    clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
+    at = f"{sc.path or sc.name}: followers.start (flown with vehicle {label})"
+    if sc.random_start is not None and sc.follower_starts is None and sc.n_followers > 0:
+        check_random_start_feasible(sc.n_followers, sc.random_start, at, clearance)
+    else:
+        check_start_spacing(sc.initial_positions(), sc.names, at, clearance)
+    out: dict[str, Any] = {
+        "vehicle": label,
+        "params": params,
+        "vehicle_mixer": v.mixer,
+        "aero": relag(sc.aero, sc.params, params),
+    }
+    if sc.gains_origin in ("vehicle", "default"):  # not chosen for this run or by the scenario: the vehicle's
+        g = choose_gains(vehicle=v.gains_file)
+        out |= {"gains": g.gains, "gains_source": g.source, "gains_origin": g.origin}
+    if doc_model is not None and isinstance(sc.raw, dict):
+        out["raw"] = {**sc.raw, "vehicle": {"model": doc_model}}  # what a sweep's --param re-reads
+    return out
+
+
+def flown(
+    scenario: Scenario | str,
+    *,
+    vehicle: VehicleLike | None = None,
+    aero: str | None = None,
+    gains: str | Path | np.ndarray | None = None,
+    where: tuple[str, str, str] = ("vehicle", "aero", "gains"),
+) -> Scenario:
+    """``scenario`` (a name, a path or a :class:`~swarm_mj.scenario.Scenario`) with the vehicle, the
+    physics preset and the gains asked for (None: the scenario's). What ``--vehicle``, ``--aero`` and
+    ``--gains`` do in every command, and ``vehicle=``/``aero=`` in the environments. ``gains``: a gains
+    file or an array; ``where``: the names the errors give these three (e.g. the options)."""
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if vehicle is not None:
+        sc = replace(sc, **vehicle_overrides(sc, vehicle, where[0]))
+    if aero is not None:
+        if not isinstance(aero, str):
+            raise UserError(f"must be a physics preset's name ('paper' or 'realistic'), got {aero!r}", where=where[1])
+        preset(aero, where=where[1])
+        sc = with_aero(sc, aero)
+    if gains is not None:
+        if isinstance(gains, (str, Path)):
+            g, source = load_gains(gains), str(gains)
+        else:
+            g, source = np.asarray(gains, dtype=float), "given"
+        g = check_gains(g, sc.n_drones, where=f"{where[2]} {source}" if source != "given" else where[2])
+        c = choose_gains(option=(g, source))
+        sc = sc.with_overrides(gains=c.gains, gains_source=c.source, gains_origin=c.origin)
+    return sc
+
+
+def trajectory_args(sc: Scenario) -> dict[str, Any]:
+    """Every parameter of the leader's trajectory: the scenario's, and the trajectory's defaults for the
+    rest (lists as tuples), e.g. to tell the paper's experiment or the tune's step by their data."""
+    sig = inspect.signature(TRAJECTORIES[sc.trajectory]).parameters
+    return {k: _as_tuples(sc.trajectory_params.get(k, p.default)) for k, p in sig.items()}
+
+
+def _as_tuples(v: Any) -> Any:
+    """``v`` with every list or tuple in it a tuple (a TOML list equals a default tuple)."""
+    return tuple(_as_tuples(x) for x in v) if isinstance(v, (list, tuple)) else v

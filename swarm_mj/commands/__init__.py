@@ -41,8 +41,8 @@ def add_vehicle_argument(p, *, default: str = "the scenario's") -> None:  # noqa
 
 def flown_scenario(args, scenario=None):  # noqa: ANN001, ANN201 - argparse args; a Scenario
     """The scenario ``args.scenario`` (or ``scenario``) with ``--vehicle``, ``--aero`` and ``--gains``
-    applied by the one rule of :func:`swarm_mj.choices.flown` (errors name the options)."""
-    from ..choices import flown
+    applied by the one rule of :func:`swarm_mj.scenario.flown` (errors name the options)."""
+    from ..scenario import flown
 
     return flown(
         args.scenario if scenario is None else scenario,

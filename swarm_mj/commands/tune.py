@@ -238,9 +238,8 @@ def run_hint(vehicle_arg: str, params, target, yaw_deg: float, gains: str | Path
     where none flies this vehicle, such a step with ``--vehicle`` (``swarm-mj run step --vehicle V --gains F``)."""
     import shlex
 
-    from ..choices import trajectory_args
     from ..errors import UserError
-    from ..scenario import bundled_scenarios, load_scenario
+    from ..scenario import bundled_scenarios, load_scenario, trajectory_args
 
     steps: list[str] = []
     for name, path in bundled_scenarios().items():

@@ -5,9 +5,10 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from ..choices import gains_text, trajectory_args
+from ..choices import gains_text
 from ..paper import PAPER_FORMATION_SETTLING_S, PAPER_STEP, PAPER_TABLE5
 from ..physics.params import DEFAULT_PARAMS
+from ..scenario import trajectory_args
 from ..trajectories import TRAJECTORIES
 from .outcome import failure_line
 

@@ -90,13 +90,13 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from .._jit import warm_module
-from ..choices import VehicleLike, flown
+from ..choices import VehicleLike
 from ..env import SwarmEnv, all_finite
 from ..errors import UserError
 from ..experiments.parallel import check_count, default_workers
 from ..physics.sim import HEALTH_NAMES, HEALTHY
 from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
-from ..scenario import Scenario
+from ..scenario import Scenario, flown
 from ..task import OBS_KEYS, outcomes
 from .gymnasium import observation_space, seed_from
 

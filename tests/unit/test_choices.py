@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from swarm_mj.choices import GAINS_ORIGINS, choose_gains, flown, gains_name, gains_text
+from swarm_mj.choices import GAINS_ORIGINS, choose_gains, gains_name, gains_text
 from swarm_mj.cli import build_parser
 from swarm_mj.commands import EXIT_EPILOG, EXIT_FLIGHT_FAILED
 from swarm_mj.commands.tune import run_hint
@@ -24,7 +24,7 @@ from swarm_mj.experiments.report_table import paper_comparable
 from swarm_mj.physics.aero.ground import TAKEOFF_CLEARANCE
 from swarm_mj.physics.aero.presets import REALISTIC_MOTOR_TAU, parse_aero, with_aero
 from swarm_mj.physics.params import DEFAULT_PARAMS
-from swarm_mj.scenario import load_scenario, parse_scenario
+from swarm_mj.scenario import flown, load_scenario, parse_scenario
 from swarm_mj.vehicles import load_vehicle
 
 REPO = Path(__file__).resolve().parents[2]
