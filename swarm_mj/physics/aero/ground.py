@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import math
 
-import mujoco
 import numpy as np
 
 from ..._jit import jit
@@ -73,6 +72,8 @@ class GroundContacts:
         self._cos_tilt = math.cos(math.radians(self.crash_tilt_deg))
 
     def reset(self, sim) -> None:
+        import mujoco  # here, not at the top: the CLI's parser reaches this module through the registry
+
         m = sim.model
         self.floor = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
         self.geom_drone = sim.world.geom_drone
