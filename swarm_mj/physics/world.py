@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+import logging
 import os
 import threading
 from collections import OrderedDict
@@ -38,6 +39,26 @@ finally:
 from ..errors import UserError
 from ..resources import QUADROTOR_XML
 from .params import DEFAULT_PARAMS, QuadParams
+
+#: Where MuJoCo's warnings go (:func:`route_mujoco_warnings`).
+MUJOCO_LOG = logging.getLogger("swarm_mj.mujoco")
+
+
+def _mujoco_warning(message: str) -> None:
+    MUJOCO_LOG.warning("MuJoCo: %s", message)
+
+
+def route_mujoco_warnings() -> None:
+    """Send MuJoCo's warnings to :data:`MUJOCO_LOG`. Without a handler MuJoCo appends each to
+    ``MUJOCO_LOG.TXT`` in the working directory (the test that makes MuJoCo diverge on purpose left
+    one in the checkout), and whether dm_control's import installs one depends on its version. The
+    divergence warnings are also counted in ``MjData.warning``, which ``Sim.check`` turns into
+    :class:`~swarm_mj.errors.SimulationDiverged` naming them. Done once, here, after dm_control's
+    import (every simulator is built by this module)."""
+    mujoco.set_mju_user_warning(_mujoco_warning)
+
+
+route_mujoco_warnings()
 
 LEADER_RGBA = (0.85, 0.15, 0.15, 1.0)
 FOLLOWER_RGBA = (0.15, 0.45, 0.85, 1.0)
