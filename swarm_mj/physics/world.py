@@ -50,8 +50,8 @@ def _mujoco_warning(message: str) -> None:
 
 def route_mujoco_warnings() -> None:
     """Send MuJoCo's warnings to :data:`MUJOCO_LOG`. Without a handler MuJoCo appends each to
-    ``MUJOCO_LOG.TXT`` in the working directory (the test that makes MuJoCo diverge on purpose left
-    one in the checkout), and whether dm_control's import installs one depends on its version. The
+    ``MUJOCO_LOG.TXT`` in the working directory (a test run left one in the checkout), and whether
+    dm_control's import installs one is dm_control's choice, not ours to rely on. The
     divergence warnings are also counted in ``MjData.warning``, which ``Sim.check`` turns into
     :class:`~swarm_mj.errors.SimulationDiverged` naming them. Done once, here, after dm_control's
     import (every simulator is built by this module)."""
