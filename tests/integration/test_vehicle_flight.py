@@ -88,7 +88,8 @@ def test_shipped_crazyflie_gains_are_what_the_code_computes() -> None:
     its ISEs must be the current cost of its gains, and they meet the lag-scaled bars."""
     data = tomllib.loads(CF_GAINS.read_text())
     s = data["settings"]
-    assert (s["vehicle"], s["population"], s["iterations"], s["t_sim"]) == ("crazyflie21", 50, 14, 10.0)
+    assert (s["vehicle"], s["population"], s["iterations"], s["t_sim"]) == ("crazyflie21", 50, 100, 10.0)
+    assert s["motor_tau"] == CF.motor_tau  # tuned under the vehicle's own rotor lag
     settings = StepCostSettings(params=CF.params(), motor_tau=s["motor_tau"], bars=lagged_bars(s["motor_tau"]))
     gains = load_gains(CF_GAINS)
     assert step_ise(gains, settings) == pytest.approx(data["ise"], rel=1e-9)
