@@ -19,14 +19,16 @@ the same height feel nothing and no force jumps.
 
 Force (ours; the paper gives the flow, not its effect): the lower drone meets the jet with
 five flat plates normal to it, drag coefficient C_D = 1.17 (Hoerner's flat disc): its four
-rotor discs (area π·R² each, at the rotor centres p_k) and its hub (area
-:data:`BODY_AREA`, at the centre of mass p):
+rotor discs (area π·R² each, at the rotor centres p_k of its layout, ``QuadParams.rotor_dirs``) and its
+hub (area ``QuadParams.body_area``: :data:`BODY_AREA` for the paper's drone, at the centre of mass p):
 
     F_k = ½ ρ C_D A_k · U(s_k, r_k)² · d        d = the upper drone's −z axis (jet direction)
 
 added over every upper drone, applied where the plate is (so a drone half in a jet is also
 tilted): force Σ F_k and torque Σ (p_k − p) × F_k at the centre of mass, world frame. The
-lower drone's own motion through the air is the paper's linear drag, left as it is.
+lower drone's own motion through the air is the paper's linear drag, left as it is. One function,
+:func:`jet_on_drone`, computes one jet's push on one drone: the stage and ``swarm-mj validate downwash``
+(:func:`jet_on_samples`) both call it (docs/validation.md).
 """
 
 from __future__ import annotations
