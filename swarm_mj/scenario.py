@@ -17,13 +17,13 @@ import os
 import tomllib
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from .choices import VehicleLike, choose_gains, relag, resolve_vehicle
+from .choices import GainsChoice, VehicleLike, choose_gains, relag, resolve_vehicle
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
-from .errors import UserError, unknown_key
+from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
 from .formation.barrier import BarrierParams
 from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
@@ -52,10 +52,14 @@ from .starts import (
 from .starts import (
     random_follower_starts as random_follower_starts,
 )
+from .table_fields import check_keys, choice, flag, number, only_numbers, subtable, vec
 from .trajectories import TRAJECTORIES, make_trajectory
 
 #: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
 LAG_COMPENSATION = ("auto", "on", "off")
+
+#: The top level's ``integrator`` choices (MuJoCo's integrators, swarm_mj/physics/world.py).
+INTEGRATORS = ("RK4", "Euler", "implicitfast")
 
 _TOP_KEYS = {
     "name",
@@ -316,8 +320,6 @@ def check_trajectory_params(name: str, params: dict, where: str) -> None:
     """Every trajectory parameter by type before the trajectory is built: scalars finite
     numbers, points (``target``, ``position``, ``center``) lists of finite numbers of the
     right length. ``where`` is e.g. ``file: leader.params``."""
-    import inspect
-
     sig = inspect.signature(TRAJECTORIES[name])
     for key, v in params.items():
         if key not in sig.parameters:
@@ -376,274 +378,305 @@ def check_reference(traj, duration: float, control_period: float, where: str) ->
         raise UserError(f"the reference goes below the ground (z = {z[i]:g} m at t = {t[i]:g} s)", where=where)
 
 
-def _check_keys(table: Any, allowed: set[str], where: str, see: str | None = None) -> dict:
-    """``table`` is a table of keys among ``allowed``: the first unknown one is one short line with a "did
-    you mean" (:func:`~swarm_mj.errors.unknown_key`; ``see``: where the docs list a long table's keys)."""
-    if not isinstance(table, dict):
-        raise UserError("must be a table", where=where)
-    for key in table:
-        if key not in allowed:
-            raise unknown_key(key, allowed, where=where, see=see)
-    return table
+# --------------------------------------------------------------------------- one table, one record
+class _Clock(NamedTuple):
+    """The top level's timing: the run's duration, control period (T), physics timestep and integrator, and its seed."""
+
+    duration: float
+    control_period: float
+    timestep: float
+    integrator: str
+    seed: int
 
 
-def _number(table: dict, key: str, default, where: str, *, positive: bool = False, minimum=None, integer: bool = False):
-    if key not in table:
-        if default is None:
-            raise UserError("missing field", where=f"{where}{key}")
-        return default
-    v = table[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
-        raise UserError(f"must be {'an integer' if integer else 'a number'}, got {v!r}", where=f"{where}{key}")
-    if not np.isfinite(v):
-        raise UserError(f"must be finite, got {v!r}", where=f"{where}{key}")
-    if positive and v <= 0:
-        raise UserError(f"must be positive, got {v!r}", where=f"{where}{key}")
-    if minimum is not None and v < minimum:
-        raise UserError(f"must be >= {minimum}, got {v!r}", where=f"{where}{key}")
-    return v
+class _Vehicle(NamedTuple):
+    """``[vehicle]``: the model as given, its parameters, its file's ``mixer`` and ``gains`` file (or None)."""
+
+    model: str
+    params: QuadParams
+    mixer: str | None
+    gains_file: Path | None
 
 
-def _only_numbers(v) -> bool:
-    """A number or (nested) lists of numbers, no booleans or strings."""
-    if isinstance(v, list):
-        return all(_only_numbers(x) for x in v)
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+class _Leader(NamedTuple):
+    """``[leader]``: the trajectory, its parameters, the start and the yaw."""
+
+    trajectory: str
+    params: dict[str, Any]
+    start: np.ndarray  # (3,)
+    yaw_deg: float
 
 
-def _vec(v, n: int | None, where: str) -> np.ndarray:
-    if not _only_numbers(v):
-        raise UserError(f"must be numbers, got {v!r}", where=where)
-    try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        raise UserError(f"must be numbers, got {v!r}", where=where) from None
-    if not np.isfinite(a).all():
-        raise UserError("must be finite numbers", where=where)
-    if n is not None and a.shape != (n,):
-        raise UserError(f"must be a list of {n} numbers, got {v!r}", where=where)
-    return a
+class _Followers(NamedTuple):
+    """``[followers]``: how many, and their starts or the rule that draws them (None for none)."""
+
+    n: int
+    starts: np.ndarray | None  # (count, 3)
+    random_start: RandomStart | None
 
 
-def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None) -> Scenario:
-    """Validate a parsed TOML document into a :class:`Scenario`."""
-    base = Path(path).parent if path and not path.startswith("<") else Path.cwd()
-    _check_keys(data, _TOP_KEYS, path)
-    w = f"{path}: "
-    duration = float(_number(data, "duration", None, w, positive=True))
-    T = float(_number(data, "control_period", 0.01, w, positive=True))
+class _Formation(NamedTuple):
+    """``[formation]``: the D schedule, the rule, its parameter record's fields, the sensing range and
+    ``[formation.barrier]``."""
+
+    diameter: Any
+    anti_collision: str
+    rule_params: dict[str, Any]
+    sensing_range: float
+    barrier: dict[str, Any]
+
+
+class _Controller(NamedTuple):
+    """``[controller]``: the rule's fields asked of the controller, the gains chosen and the switches."""
+
+    rule_params: dict[str, Any]
+    gains: GainsChoice
+    wind_feedforward: bool
+    attitude_map: str
+    mixer: str
+    lag_compensation: str
+
+
+def _parse_clock(data: dict, w: str) -> _Clock:
+    """The top level's ``duration``, ``control_period`` (at most the duration), ``timestep`` (dividing it),
+    ``integrator`` and ``seed``."""
+    duration = float(number(data, "duration", None, w, positive=True))
+    T = float(number(data, "control_period", 0.01, w, positive=True))
     if T > duration:
         raise UserError(
             f"{T:g} s is longer than the duration ({duration:g} s): nothing would be simulated",
             where=f"{w}control_period",
         )
-    dt = float(_number(data, "timestep", 0.005, w, positive=True))
+    dt = float(number(data, "timestep", 0.005, w, positive=True))
     nsub = round(T / dt)
     if nsub < 1 or abs(nsub * dt - T) > 1e-9:
         raise UserError(f"must divide control_period = {T} s (got {dt} s)", where=f"{w}timestep")
-    integrator = data.get("integrator", "RK4")
-    if not isinstance(integrator, str) or integrator not in ("RK4", "Euler", "implicitfast"):
-        raise UserError(f"unknown integrator {integrator!r}; choose RK4, Euler or implicitfast", where=f"{w}integrator")
-    seed = check_seed(data.get("seed", 0), f"{w}seed")
-    vehicle, params, vehicle_mixer, vehicle_gains = parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
-    clearance = START_CLEARANCE_M * (params.rotor_span / DEFAULT_PARAMS.rotor_span)
-    steady_after = float(_number(data, "steady_after", 10.0, w, minimum=0))
-
-    leader = _check_keys(
-        data.get("leader", None) if "leader" in data else _missing(w + "leader"), _LEADER_KEYS, w + "leader"
+    integrator = choice(
+        data, "integrator", "RK4", INTEGRATORS, w, "unknown integrator {v!r}; choose RK4, Euler or implicitfast"
     )
-    if "trajectory" not in leader:
-        raise UserError("missing field", where=f"{w}leader.trajectory")
-    traj = leader["trajectory"]
-    if not isinstance(traj, str) or traj not in TRAJECTORIES:
-        raise UserError(
-            f"unknown trajectory {traj!r}; choose one of {', '.join(sorted(TRAJECTORIES))}",
-            where=f"{w}leader.trajectory",
-        )
-    tparams = leader.get("params", {})
-    if not isinstance(tparams, dict):
-        raise UserError("must be a table", where=f"{w}leader.params")
-    check_trajectory_params(traj, tparams, f"{w}leader.params")
-    make_trajectory(traj, tparams, where=f"{w}leader.params")  # validates the parameters
-    leader_start = _vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{w}leader.start")
-    yaw_deg = float(_number(leader, "yaw_deg", 0.0, f"{w}leader."))
+    seed = check_seed(data.get("seed", 0), f"{w}seed")
+    return _Clock(duration=duration, control_period=T, timestep=dt, integrator=integrator, seed=seed)
 
-    fol = _check_keys(data.get("followers", {"count": 0}), _FOLLOWER_KEYS, w + "followers")
+
+def _parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> _Vehicle:
+    """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
+    a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the scenario's
+    folder; :func:`swarm_mj.choices.resolve_vehicle`); :class:`UserError` naming the field or the
+    vehicle file and key otherwise (docs/vehicles.md)."""
+    if table is None:
+        return _Vehicle(model="paper", params=DEFAULT_PARAMS, mixer=None, gains_file=None)
+    t = check_keys(table, _VEHICLE_KEYS, where)
+    model, vehicle, _ = resolve_vehicle(t.get("model", "paper"), base, f"{where}.model")
+    return _Vehicle(model=model, params=vehicle.params(), mixer=vehicle.mixer, gains_file=vehicle.gains_file)
+
+
+def _parse_leader(data: dict, w: str) -> _Leader:
+    """``[leader]`` (required): a known trajectory whose parameters give a trajectory, the start, the yaw."""
+    if "leader" not in data:
+        raise UserError("missing table", where=w + "leader")
+    leader = check_keys(data["leader"], _LEADER_KEYS, w + "leader")
+    wl = f"{w}leader."
+    traj = choice(
+        leader, "trajectory", None, sorted(TRAJECTORIES), wl, "unknown trajectory {v!r}; choose one of {choices}"
+    )
+    tparams = subtable(leader, "params", {}, wl)
+    check_trajectory_params(traj, tparams, f"{wl}params")
+    make_trajectory(traj, tparams, where=f"{wl}params")  # validates the parameters
+    start = vec(leader.get("start", [0.0, 0.0, 0.0]), 3, f"{wl}start")
+    return _Leader(trajectory=traj, params=tparams, start=start, yaw_deg=float(number(leader, "yaw_deg", 0.0, wl)))
+
+
+def _parse_followers(data: dict, w: str, seed: int, path: str, clearance: float) -> _Followers:
+    """``[followers]`` (none by default): ``count`` (at most :data:`MAX_FOLLOWERS`; the number of starts by
+    default) and either ``start`` (count × [x, y, z]) or ``random_start`` (drawn with ``seed`` unless it
+    gives its own, and feasible at ``clearance``)."""
+    fol = check_keys(data.get("followers", {"count": 0}), _FOLLOWER_KEYS, w + "followers")
     if "start" in fol and "random_start" in fol:
         raise UserError("give either start or random_start, not both", where=f"{w}followers")
     default_count = len(fol["start"]) if isinstance(fol.get("start"), list) else None
-    n_f = int(
-        _number(
-            fol,
-            "count",
-            default_count if default_count is not None else None,
-            f"{w}followers.",
-            integer=True,
-            minimum=0,
-        )
-    )
+    n_f = int(number(fol, "count", default_count, f"{w}followers.", integer=True, minimum=0))
     if n_f > MAX_FOLLOWERS:
         raise UserError(f"at most {MAX_FOLLOWERS} followers, got {n_f}", where=f"{w}followers.count")
-    starts = None
-    rstart = None
-    if n_f > 0:
-        if "start" in fol:
-            starts = _vec(fol["start"], None, f"{w}followers.start")
-            if starts.shape != (n_f, 3):
-                raise UserError(
-                    f"must be {n_f} [x, y, z] positions, got shape {starts.shape}", where=f"{w}followers.start"
-                )
-        elif "random_start" in fol:
-            r = _check_keys(fol["random_start"], _RANDOM_KEYS, f"{w}followers.random_start")
-            wr = f"{w}followers.random_start."
-            rstart = RandomStart(
-                radius=float(_number(r, "radius", 3.0, wr, positive=True)),
-                min_spacing=float(_number(r, "min_spacing", 0.6, wr, positive=True)),
-                seed=check_seed(r.get("seed", seed), f"{wr}seed"),
-                max_tries=int(_number(r, "max_tries", 20000, wr, integer=True, minimum=1)),
-            )
-            if rstart.max_tries > MAX_TRIES:
-                raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
-            check_random_start_feasible(n_f, rstart, path, clearance)
-        else:
-            raise UserError("followers need start positions or random_start", where=f"{w}followers")
+    if n_f == 0:
+        return _Followers(n=0, starts=None, random_start=None)
+    if "start" in fol:
+        starts = vec(fol["start"], None, f"{w}followers.start")
+        if starts.shape != (n_f, 3):
+            raise UserError(f"must be {n_f} [x, y, z] positions, got shape {starts.shape}", where=f"{w}followers.start")
+        return _Followers(n=n_f, starts=starts, random_start=None)
+    if "random_start" not in fol:
+        raise UserError("followers need start positions or random_start", where=f"{w}followers")
+    r = check_keys(fol["random_start"], _RANDOM_KEYS, f"{w}followers.random_start")
+    wr = f"{w}followers.random_start."
+    rstart = RandomStart(
+        radius=float(number(r, "radius", 3.0, wr, positive=True)),
+        min_spacing=float(number(r, "min_spacing", 0.6, wr, positive=True)),
+        seed=check_seed(r.get("seed", seed), f"{wr}seed"),
+        max_tries=int(number(r, "max_tries", 20000, wr, integer=True, minimum=1)),
+    )
+    if rstart.max_tries > MAX_TRIES:
+        raise UserError(f"at most {MAX_TRIES}, got {rstart.max_tries}", where=f"{wr}max_tries")
+    check_random_start_feasible(n_f, rstart, path, clearance)
+    return _Followers(n=n_f, starts=None, random_start=rstart)
 
-    form = _check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation", see=_FORMATION_DOCS)
+
+def _parse_formation(data: dict, w: str, path: str) -> _Formation:
+    """``[formation]``: the D schedule, the rule (:data:`AUTO` by default), the rule's parameters
+    (:func:`~swarm_mj.formation.rule_params.check_overrides`) and ``[formation.barrier]``
+    (:class:`~swarm_mj.formation.barrier.BarrierParams`, its checks across fields included)."""
+    form = check_keys(data.get("formation", {}), _FORMATION_KEYS, w + "formation", see=_FORMATION_DOCS)
+    wf = f"{w}formation."
     diameter = form.get("diameter", 1.0)
-    if not _only_numbers(diameter):
-        raise UserError(
-            f"must be a number or a list of [time, D] pairs, got {diameter!r}", where=f"{w}formation.diameter"
-        )
-    DiameterSchedule(diameter, where=f"{w}formation.diameter")
-    rule = form.get("anti_collision", AUTO)
-    if not isinstance(rule, str) or (rule not in ANTI_COLLISION_RULES and rule != AUTO):
-        raise UserError(
-            f"unknown rule {rule!r}; choose one of {AUTO}, {', '.join(ANTI_COLLISION_RULES)}",
-            where=f"{w}formation.anti_collision",
-        )
-    ac_params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
-    sensing = float(ac_params.pop("sensing_range", RuleParams().sensing_range))
-    barrier = form.get("barrier", {})
-    if not isinstance(barrier, dict):
-        raise UserError("must be a table of the barrier filter's parameters", where=f"{w}formation.barrier")
-    barrier = check_overrides(barrier, where=f"{w}formation.barrier", record=BarrierParams)
+    if not only_numbers(diameter):
+        raise UserError(f"must be a number or a list of [time, D] pairs, got {diameter!r}", where=f"{wf}diameter")
+    DiameterSchedule(diameter, where=f"{wf}diameter")
+    rules = (AUTO, *ANTI_COLLISION_RULES)
+    rule = choice(form, "anti_collision", AUTO, rules, wf, "unknown rule {v!r}; choose one of {choices}")
+    params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
+    sensing = float(params.pop("sensing_range", RuleParams().sensing_range))
+    barrier = subtable(form, "barrier", {}, wf, "must be a table of the barrier filter's parameters")
+    barrier = check_overrides(barrier, where=f"{wf}barrier", record=BarrierParams)
     try:
         BarrierParams(**barrier)  # the checks across its fields
     except UserError as exc:
         raise UserError(str(exc), where=path or None) from None
+    return _Formation(
+        diameter=diameter, anti_collision=rule, rule_params=params, sensing_range=sensing, barrier=barrier
+    )
 
-    ctl = _check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
-    ac_params |= check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
-    g = ctl.get("gains")
+
+def _parse_gains(g: Any, base: Path, n_drones: int, where: str) -> tuple[np.ndarray, str] | None:
+    """``[controller] gains`` (None where absent): ``"table4"``, a gains file (relative to ``base``) or
+    12 numbers (or one row of 12 per drone); with their source."""
     if g is None:  # the scenario names none: the vehicle's, else Table 4 (swarm_mj.choices.choose_gains)
-        gains, source = None, ""
-    elif isinstance(g, str):
+        return None
+    if isinstance(g, str):
         if g == "table4":
-            gains, source = TABLE4_GAINS.copy(), "table4"
-        else:
-            gpath = (base / g) if not Path(g).is_absolute() else Path(g)
-            try:
-                gains, source = load_gains(gpath), str(gpath)
-            except UserError as exc:
-                raise UserError(str(exc), where=f"{w}controller.gains") from None
-    else:
-        if not _only_numbers(g):
-            raise UserError(f'must be "table4", a gains file or 12 numbers, got {g!r}', where=f"{w}controller.gains")
-        gains, source = check_gains(g, 1 + n_f, where=f"{w}controller.gains"), "inline"
-    chosen = choose_gains(scenario=(gains, source) if gains is not None else None, vehicle=vehicle_gains)
-    ff = ctl.get("wind_feedforward", True)
-    if not isinstance(ff, bool):
-        raise UserError(f"must be true or false, got {ff!r}", where=f"{w}controller.wind_feedforward")
-    amap = ctl.get("attitude_map", "exact")
-    if not isinstance(amap, str) or amap not in ("exact", "paper"):
-        raise UserError(f"must be 'exact' or 'paper', got {amap!r}", where=f"{w}controller.attitude_map")
-    mixer = ctl.get("mixer", "auto")
-    if not isinstance(mixer, str) or mixer not in MIXERS:
-        raise UserError(f"must be one of {', '.join(MIXERS)}, got {mixer!r}", where=f"{w}controller.mixer")
-    lagc = ctl.get("lag_compensation", "auto")
-    if not isinstance(lagc, str) or lagc not in LAG_COMPENSATION:
-        raise UserError(
-            f"must be one of {', '.join(LAG_COMPENSATION)}, got {lagc!r}", where=f"{w}controller.lag_compensation"
-        )
+            return TABLE4_GAINS.copy(), "table4"
+        gpath = (base / g) if not Path(g).is_absolute() else Path(g)
+        try:
+            return load_gains(gpath), str(gpath)
+        except UserError as exc:
+            raise UserError(str(exc), where=where) from None
+    if not only_numbers(g):
+        raise UserError(f'must be "table4", a gains file or 12 numbers, got {g!r}', where=where)
+    return check_gains(g, n_drones, where=where), "inline"
 
-    wind_table = data.get("wind", {"enabled": False})
-    if not isinstance(wind_table, dict):
-        raise UserError("must be a table", where=f"{w}wind")
-    wind = WindConfig.from_dict(wind_table, where=path)
 
+def _parse_controller(data: dict, w: str, base: Path, n_drones: int, vehicle_gains: Path | None) -> _Controller:
+    """``[controller]``: the rule's fields asked of the controller, the gains (:func:`_parse_gains`, chosen
+    over the vehicle's by :func:`~swarm_mj.choices.choose_gains`), the wind feedforward, the attitude map,
+    the mixer and the lag compensation."""
+    ctl = check_keys(data.get("controller", {}), _CONTROLLER_KEYS, w + "controller")
+    wc = f"{w}controller."
+    params = check_overrides({k: v for k, v in ctl.items() if k in _RULE_KEYS["controller"]}, f"{w}controller")
+    gains = _parse_gains(ctl.get("gains"), base, n_drones, f"{wc}gains")
+    return _Controller(
+        rule_params=params,
+        gains=choose_gains(scenario=gains, vehicle=vehicle_gains),
+        wind_feedforward=flag(ctl, "wind_feedforward", True, wc),
+        attitude_map=choice(
+            ctl, "attitude_map", "exact", ("exact", "paper"), wc, "must be 'exact' or 'paper', got {v!r}"
+        ),
+        mixer=choice(ctl, "mixer", "auto", MIXERS, wc),
+        lag_compensation=choice(ctl, "lag_compensation", "auto", LAG_COMPENSATION, wc),
+    )
+
+
+def _parse_wind(data: dict, w: str, path: str) -> WindConfig:
+    """``[wind]`` (off by default): :meth:`~swarm_mj.physics.wind.WindConfig.from_dict`."""
+    return WindConfig.from_dict(subtable(data, "wind", {"enabled": False}, w), where=path)
+
+
+def _parse_aero(data: dict, w: str, params: QuadParams, dt: float) -> AeroConfig:
+    """``[aero]`` (the paper's physics by default): :func:`~swarm_mj.physics.aero.presets.parse_aero` with
+    the vehicle's rotor lag, which is 0 or at least the physics timestep ``dt``."""
     aero = vehicle_lag(parse_aero(data.get("aero"), where=f"{w}aero"), data.get("aero"), params)
     if 0 < aero.motor_tau < dt:
         raise UserError(
             f"must be 0 (ideal rotors) or at least the physics timestep {dt:g} s, got {aero.motor_tau:g}",
             where=f"{w}aero.motor_tau",
         )
-    # Checks across fields, still before anything flies.
-    check_duration(duration, T, 1 + n_f, f"{w}duration")
-    check_reference(make_trajectory(traj, tparams, where=f"{w}leader.params"), duration, T, f"{w}leader.params")
-    names = ["leader"] + [f"follower{k}" for k in range(1, n_f + 1)]
-    if starts is not None:
-        check_start_spacing(np.vstack([leader_start, starts]), names, f"{w}followers.start", clearance)
-    else:
-        check_start_spacing(leader_start[None, :], names[:1], f"{w}leader.start", clearance)
+    return aero
 
+
+def _check_across(clock: _Clock, leader: _Leader, followers: _Followers, w: str, clearance: float) -> None:
+    """The checks across tables, still before anything flies: the duration against the log's memory,
+    the leader's reference over the run, the spacing of the starts."""
+    duration, T, n_f = clock.duration, clock.control_period, followers.n
+    check_duration(duration, T, 1 + n_f, f"{w}duration")
+    traj = make_trajectory(leader.trajectory, leader.params, where=f"{w}leader.params")
+    check_reference(traj, duration, T, f"{w}leader.params")
+    names = ["leader"] + [f"follower{k}" for k in range(1, n_f + 1)]
+    if followers.starts is not None:
+        check_start_spacing(np.vstack([leader.start, followers.starts]), names, f"{w}followers.start", clearance)
+    else:
+        check_start_spacing(leader.start[None, :], names[:1], f"{w}leader.start", clearance)
+
+
+def _parse_labels(data: dict, w: str, path: str, name: str | None) -> tuple[str, str]:
+    """The top level's ``name`` (``name`` when given, else the file's stem) and ``description``: strings."""
     for key in ("name", "description"):
         if key in data and not isinstance(data[key], str):
             raise UserError(f"must be a string, got {data[key]!r}", where=f"{w}{key}")
     nm = name or data.get("name") or (Path(path).stem if not path.startswith("<") else "scenario")
+    return str(nm), str(data.get("description", ""))
+
+
+def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None) -> Scenario:
+    """Validate a parsed TOML document into a :class:`Scenario`: each table by its own reader, in the
+    order the first mistake is reported, then the checks across tables."""
+    base = Path(path).parent if path and not path.startswith("<") else Path.cwd()
+    check_keys(data, _TOP_KEYS, path)
+    w = f"{path}: "
+    clock = _parse_clock(data, w)
+    vehicle = _parse_vehicle(data.get("vehicle"), base, f"{w}vehicle")
+    clearance = START_CLEARANCE_M * (vehicle.params.rotor_span / DEFAULT_PARAMS.rotor_span)
+    steady_after = float(number(data, "steady_after", 10.0, w, minimum=0))
+    leader = _parse_leader(data, w)
+    followers = _parse_followers(data, w, clock.seed, path, clearance)
+    formation = _parse_formation(data, w, path)
+    controller = _parse_controller(data, w, base, 1 + followers.n, vehicle.gains_file)
+    wind = _parse_wind(data, w, path)
+    aero = _parse_aero(data, w, vehicle.params, clock.timestep)
+    _check_across(clock, leader, followers, w, clearance)
+    label, description = _parse_labels(data, w, path, name)
     return Scenario(
-        name=str(nm),
-        description=str(data.get("description", "")),
-        duration=duration,
-        control_period=T,
-        timestep=dt,
-        integrator=integrator,
-        seed=seed,
+        name=label,
+        description=description,
+        duration=clock.duration,
+        control_period=clock.control_period,
+        timestep=clock.timestep,
+        integrator=clock.integrator,
+        seed=clock.seed,
         steady_after=steady_after,
-        trajectory=traj,
-        trajectory_params=dict(tparams),
-        leader_start=leader_start,
-        leader_yaw_deg=yaw_deg,
-        n_followers=n_f,
-        follower_starts=starts,
-        random_start=rstart,
-        diameter=diameter,
-        anti_collision=rule,
-        anti_collision_params=ac_params,
-        sensing_range=sensing,
-        gains=chosen.gains,
-        gains_source=chosen.source,
-        gains_origin=chosen.origin,
-        wind_feedforward=ff,
-        attitude_map=amap,
-        mixer=mixer,
-        lag_compensation=lagc,
+        trajectory=leader.trajectory,
+        trajectory_params=dict(leader.params),
+        leader_start=leader.start,
+        leader_yaw_deg=leader.yaw_deg,
+        n_followers=followers.n,
+        follower_starts=followers.starts,
+        random_start=followers.random_start,
+        diameter=formation.diameter,
+        anti_collision=formation.anti_collision,
+        anti_collision_params={**formation.rule_params, **controller.rule_params},
+        sensing_range=formation.sensing_range,
+        gains=controller.gains.gains,
+        gains_source=controller.gains.source,
+        gains_origin=controller.gains.origin,
+        wind_feedforward=controller.wind_feedforward,
+        attitude_map=controller.attitude_map,
+        mixer=controller.mixer,
+        lag_compensation=controller.lag_compensation,
         wind=wind,
         path=path,
         raw=data,
         aero=aero,
-        vehicle=vehicle,
-        params=params,
-        vehicle_mixer=vehicle_mixer,
-        barrier_params=barrier,
+        vehicle=vehicle.model,
+        params=vehicle.params,
+        vehicle_mixer=vehicle.mixer,
+        barrier_params=formation.barrier,
     )
-
-
-def parse_vehicle(table: Any, base: Path, where: str = "vehicle") -> tuple[str, QuadParams, str | None, Path | None]:
-    """The ``[vehicle]`` table: ``model = "paper"`` (the default: Table 1, :data:`DEFAULT_PARAMS`),
-    a bundled vehicle's name (``"crazyflie21"``) or a vehicle file (a path, relative to the scenario's
-    folder; :func:`swarm_mj.choices.resolve_vehicle`). Returns (the model as given, its
-    :class:`~swarm_mj.physics.params.QuadParams`, the vehicle file's ``mixer`` or None, its ``gains``
-    file or None); :class:`UserError` naming the field or the vehicle file and key otherwise
-    (docs/vehicles.md)."""
-    if table is None:
-        return "paper", DEFAULT_PARAMS, None, None
-    t = _check_keys(table, _VEHICLE_KEYS, where)
-    model, vehicle, _ = resolve_vehicle(t.get("model", "paper"), base, f"{where}.model")
-    return model, vehicle.params(), vehicle.mixer, vehicle.gains_file
-
-
-def _missing(where: str):
-    raise UserError("missing table", where=where)
 
 
 def bundled_scenarios() -> dict[str, Path]:
