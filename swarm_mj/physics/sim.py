@@ -87,6 +87,10 @@ class Monitor(Protocol):
 
     def reset(self, sim: Sim) -> None: ...
 
+    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
+        """As :meth:`reset` for the drones of ``rows`` (N,) bool (the copies :meth:`Sim.reset_copies` puts
+        back), the others untouched."""
+
     def after_step(self, sim: Sim) -> None: ...
 
 
@@ -94,6 +98,10 @@ class ForceStage(Protocol):
     name: str
 
     def reset(self, sim: Sim) -> None: ...
+
+    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
+        """As :meth:`reset` for the drones of ``rows`` (N,) bool (the copies :meth:`Sim.reset_copies` puts
+        back), the others untouched."""
 
     def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         """ADD this stage's world-frame force (N, 3) [N] and torque (N, 3) [N·m] at each drone's CoM
@@ -414,6 +422,9 @@ class DragStage:
     def reset(self, sim: Sim) -> None:
         self.neg_drag = -sim.params.drag  # (3,)
 
+    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
+        """Nothing per drone."""
+
     def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         add_drag_kernel(sim.vel, self.neg_drag, force)
 
@@ -429,6 +440,9 @@ class WindStage:
 
     def reset(self, sim: Sim) -> None:
         self.force = np.zeros((sim.n_total, 3))  # (N, 3)
+
+    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
+        self.force[rows] = 0.0
 
     def set(self, force: np.ndarray | None) -> None:
         """The force (N, 3) or (3,) for the coming period (None: zero)."""
@@ -701,8 +715,10 @@ class Sim:
     ) -> None:
         """Put only the copies of the bool mask ``copies`` (m,) back at rest at the rows of ``positions``
         (N, 3) and ``yaws`` (N,) (defaults: the world's), as :meth:`reset` would, leaving the other
-        copies alone (a vector environment's per-copy auto-reset): their state, inputs and applied
-        forces, the solver's warm start and the contact bookkeeping of their drones are cleared.
+        copies alone (a vector environment's per-copy auto-reset): their state, rotor lag, inputs and
+        applied forces, the solver's warm start and the contact bookkeeping of their drones are cleared,
+        ``mj_forward`` finds the contacts at the starts (derived quantities only: the other copies' state
+        is untouched) and every force stage and monitor resets their rows (``reset_rows``).
         MuJoCo's warning counters and ``time`` are shared by all copies and are left as they are."""
         mask = np.asarray(copies, dtype=bool).reshape(self.n_copies)
         rows = np.repeat(mask, self.n)  # (N,)
@@ -715,13 +731,21 @@ class Sim:
         self.qvel[rows] = 0.0
         self.ctrl[rows] = 0.0
         self.rotor_thrust[rows] = 0.0
+        self.rotor_command[rows] = 0.0
+        if self._act is not None:
+            self._act[rows] = 0.0  # the rotors' lag states (mj_resetData's zero)
         self._xfrc_force[rows] = 0.0
         self._xfrc_torque[rows] = 0.0
         self.data.qacc_warmstart.reshape(self.n_total, 6)[rows] = 0.0
-        self.wind.force[rows] = 0.0
         self.parked[mask] = False
         self._park_qpos[rows] = self.qpos[rows]
         self._pairs_in_contact = {p for p in self._pairs_in_contact if not rows[p[0]]}
+        self._floor_solid()
+        mujoco.mj_forward(self.model, self.data)  # the contacts at the starts, as reset's
+        for stage in self.stages:
+            stage.reset_rows(self, rows)
+        for mon in self.monitors:
+            mon.reset_rows(self, rows)
 
     # ------------------------------------------------------------------ step
     def step(self, U: np.ndarray, wind_force: np.ndarray | None = None) -> None:

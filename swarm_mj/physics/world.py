@@ -302,9 +302,15 @@ def _collision_body(plane, params: QuadParams) -> None:  # noqa: ANN001 - plane:
     plane.pos = [0.0, 0.0, h / 2 - REST_HEIGHT * s]
 
 
-def _take_colliders(drone: mjcf.RootElement) -> list[str]:
-    """The names of the drone's geoms that collide (contype or conaffinity nonzero, own or from their class);
-    their contype/conaffinity are set to 0 (contacts then come from explicit pairs only)."""
+#: The solid floor's contype: collision bit 4, which the skid's and the rotor disc's conaffinity hold (_drone_mjcf).
+_FLOOR_CONTYPE = 4
+
+
+def _take_colliders(drone: mjcf.RootElement, floor_bits: int = 0) -> list[tuple[str, int, int]]:
+    """The drone's geoms that collide (contype or conaffinity nonzero, own or from their class), as (name,
+    contype, conaffinity); their contype is set to 0 and their conaffinity to its ``floor_bits`` (the solid
+    floor's contype, 0 without one): drone–drone contacts then come from explicit pairs only, floor contacts
+    from the masks as before."""
     out = []
     for geom in drone.find_all("geom"):
         ct = geom.contype if geom.contype is not None else (geom.dclass.geom.contype if geom.dclass else None)
@@ -313,12 +319,13 @@ def _take_colliders(drone: mjcf.RootElement) -> list[str]:
             if geom.conaffinity is not None
             else (geom.dclass.geom.conaffinity if geom.dclass else None)
         )
-        if (1 if ct is None else ct) or (1 if ca is None else ca):
+        ct, ca = (1 if ct is None else int(ct)), (1 if ca is None else int(ca))
+        if ct or ca:
             if geom.name is None:
                 raise UserError("every colliding geom of the quadrotor asset needs a name (contact pairs)")
             geom.contype = 0
-            geom.conaffinity = 0
-            out.append(geom.name)
+            geom.conaffinity = ca & floor_bits
+            out.append((geom.name, ct, ca))
     return out
 
 
@@ -395,11 +402,6 @@ def build_world(
         not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
     ):
         raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
-    if contact_groups is not None and ground:
-        raise UserError(
-            "contact_groups (independent copies) with a solid ground is not supported yet: "
-            "the copies' floor contacts would need pairs too"
-        )
     spec = WorldSpec(
         n_drones, positions, yaws, tuple(names), params, timestep, integrator, collisions, asset_path, floor,
         torque_motors, ground, motor_tau, contact_groups,
@@ -487,12 +489,13 @@ def _compose(spec: WorldSpec) -> tuple[mujoco.MjModel, str]:
     )
 
     frames = []
-    colliders: list[list[str]] = []  # per drone: its colliding geoms' full names (contact_groups only)
+    colliders: list[list[tuple[str, int, int]]] = []  # per drone: (full name, contype, conaffinity), contact_groups
     for k, name in enumerate(spec.names):
         rgba = LEADER_RGBA if k == 0 else FOLLOWER_RGBA
         drone = _drone_mjcf(name, spec.params, rgba, spec.asset_path, ground=spec.ground, motor_tau=spec.motor_tau)
         if spec.contact_groups is not None and spec.collisions:
-            colliders.append([f"{name}/{geom}" for geom in _take_colliders(drone)])
+            floor_bits = _FLOOR_CONTYPE if spec.ground else 0
+            colliders.append([(f"{name}/{g}", ct, ca) for g, ct, ca in _take_colliders(drone, floor_bits)])
         frame = arena.worldbody.attach(drone)
         frame.pos = spec.positions[k]
         c, s = np.cos(spec.yaws[k] / 2), np.sin(spec.yaws[k] / 2)
@@ -511,13 +514,14 @@ def _compose(spec: WorldSpec) -> tuple[mujoco.MjModel, str]:
         assert spec.contact_groups is not None  # colliders are only collected with contact_groups
         # written into the XML directly: PyMJCF's own pair elements cost O(pairs · geoms) to resolve
         size = spec.n_drones // spec.contact_groups
-        pairs = [
+        pairs = [  # the pairs MuJoCo's contype/conaffinity test lets collide
             f'<pair geom1="{ga}" geom2="{gb}" condim="3" friction="1 1 0.005 0.0001 0.0001"/>'
             for g in range(spec.contact_groups)
             for a in range(g * size, (g + 1) * size)
             for b in range(a + 1, (g + 1) * size)
-            for ga in colliders[a]
-            for gb in colliders[b]
+            for ga, cta, caa in colliders[a]
+            for gb, ctb, cab in colliders[b]
+            if (cta & cab) or (ctb & caa)
         ]
         head, tail = xml.rsplit("</mujoco>", 1)
         xml = head + "  <contact>\n    " + "\n    ".join(pairs) + "\n  </contact>\n</mujoco>" + tail

@@ -9,6 +9,7 @@ Gymnasium 1.x ships no checker for vector envs; the API checks below follow its 
 
 from __future__ import annotations
 
+import types
 from dataclasses import replace
 
 import numpy as np
@@ -63,13 +64,25 @@ def same_info(a: dict, b: dict, keys) -> None:
 
 
 def compare_with_sync(
-    sc, m: int, steps: int, mode: AutoresetMode, actions=None, seed: int = 7, atol: float = 0.0
+    sc,
+    m: int,
+    steps: int,
+    mode: AutoresetMode,
+    actions=None,
+    seed: int = 7,
+    atol: float = 0.0,
+    block: int | None = 2,
+    aero: str | None = None,
 ) -> dict:
     """Step SwarmVectorEnv and SyncVectorEnv(SwarmGymEnv) side by side; everything must agree, bit for bit
     (atol = 0) or, where drones touch, to ``atol``: the vector env's contacts come from explicit pairs, the
-    single env's from MuJoCo's broad phase, in another order, so the solver sums them in another order."""
-    ours = SwarmVectorEnv(sc, num_envs=m, flatten=True, autoreset_mode=mode, block=2)
-    ref = SyncVectorEnv([lambda: FlatAction(SwarmGymEnv(sc, flatten=True)) for _ in range(m)], autoreset_mode=mode)
+    single env's from MuJoCo's broad phase, in another order, so the solver sums them in another order.
+    ``aero`` goes to both (None: the scenario's); ``block`` to the vector env (None: its default). Returns
+    the counts of terminations, truncations and resets, and ``resets`` (m,): each copy's."""
+    ours = SwarmVectorEnv(sc, num_envs=m, flatten=True, autoreset_mode=mode, block=block, aero=aero)
+    ref = SyncVectorEnv(
+        [lambda: FlatAction(SwarmGymEnv(sc, flatten=True, aero=aero)) for _ in range(m)], autoreset_mode=mode
+    )
     assert ours.single_observation_space == ref.single_observation_space
     assert ours.single_action_space == ref.single_action_space
     o1, i1 = ours.reset(seed=seed)
@@ -78,7 +91,7 @@ def compare_with_sync(
     np.testing.assert_array_equal(i1["wind_seed"], i2["wind_seed"])
     if actions is None:
         actions = hover_actions(ours, steps, np.random.default_rng(1))
-    seen = {"terminated": 0, "truncated": 0, "reset": 0}
+    seen = {"terminated": 0, "truncated": 0, "reset": 0, "resets": np.zeros(m, dtype=np.int64)}
     for k in range(steps):
         r1 = ours.step(actions[k])
         r2 = ref.step(actions[k])
@@ -97,6 +110,7 @@ def compare_with_sync(
         seen["terminated"] += int(r1[2].sum())
         seen["truncated"] += int(r1[3].sum())
         seen["reset"] += int(r1[4].get("_wind_seed", np.zeros(m, bool)).sum())
+        seen["resets"] += r1[4].get("_wind_seed", np.zeros(m, bool))
     ours.close()
     ref.close()
     return seen
@@ -145,17 +159,6 @@ def test_bad_input():
         SwarmVectorEnv("circle", num_envs=2, autoreset_mode=AutoresetMode.DISABLED)
 
 
-def test_non_paper_aero_refused_in_one_line():
-    """The vector env flies the paper's physics only: a scenario with another [aero] is refused before
-    any model is built (docs/design.md, "The environment: one task over copies"), not flown as the paper's."""
-    from swarm_mj.physics.aero.presets import with_aero
-
-    sc = with_aero(load_scenario("circle"), "realistic")
-    with pytest.raises(UserError, match="paper's physics only") as err:
-        SwarmVectorEnv(sc, num_envs=2)
-    assert "\n" not in str(err.value) and "realistic" in str(err.value)
-
-
 def test_returned_data_not_reused_and_deterministic():
     env = SwarmVectorEnv(windy(0.1), num_envs=2)
     a = hover_actions(env, 3, np.random.default_rng(0))
@@ -181,6 +184,84 @@ def test_equals_sync_vector_env_with_resets(mode):
     """Wind turbulence per copy, 5-step episodes: truncations and auto-resets (seeds drawn per copy)."""
     seen = compare_with_sync(windy(0.05), m=3, steps=13, mode=mode)
     assert seen["truncated"] == 6 and seen["reset"] >= 3
+
+
+def realistic_actions(env, steps: int, lift=(1.5, 0.9, 1.25, 0.7)) -> np.ndarray:
+    """(steps, m, 4n) U of each copy near lift[c] × hover (with noise): copies 0 and 2 climb off the floor,
+    1 and 3 press on it."""
+    a = hover_actions(env, steps, np.random.default_rng(4), sd=0.3)
+    a[:, :, 0::4] *= np.asarray(lift)[None, : env.num_envs, None]
+    return a
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_realistic_physics_equals_sync_vector_env_with_resets(mode):
+    """Issue 48: SwarmVectorEnv("anti_collision", num_envs=4, aero="realistic") == SyncVectorEnv over
+    SwarmGymEnv("anti_collision", aero="realistic"), bit for bit, through three auto-resets of every copy (0.2-s
+    episodes): the rotors' lag, the solid floor and its ground monitor, downwash and ground effect reset per
+    copy as a fresh environment's reset does (each copy its own model by default: the solver takes a model's
+    floor contacts together)."""
+    sc = load_scenario("anti_collision").with_overrides(duration=0.2)
+    probe = SwarmVectorEnv(sc, num_envs=4, aero="realistic", threads=1)
+    assert [blk.b for blk in probe.physics.blocks] == [1, 1, 1, 1]
+    assert probe.physics.blocks[0].sim.motor_lag and probe.physics.blocks[0].sim.monitors
+    steps = 3 * probe.n_steps + 8
+    seen = compare_with_sync(
+        sc, m=4, steps=steps, mode=mode, actions=realistic_actions(probe, steps), block=None, aero="realistic"
+    )
+    assert (seen["resets"] >= 3).all() and seen["truncated"] == 12
+
+
+def test_reset_copies_leaves_a_copy_as_a_fresh_reset_every_stage_included():
+    """Sim.reset_copies under realistic physics (4 copies in one model): the reset copies' rows of the MuJoCo
+    state (rotor lag included), of every force stage and of the ground monitor equal a freshly reset Sim's,
+    and the other copies' rows are what they were. Copies 0 and 2 have climbed off the floor, 1 and 3 not."""
+    from swarm_mj.pipeline.swarm import SwarmPhysics
+    from swarm_mj.scenario import flown
+
+    sc = flown(load_scenario("anti_collision").with_overrides(duration=1.0), aero="realistic")
+
+    def rows_of(sim) -> dict:
+        N, d = sim.n_total, sim.data
+        out = {
+            "qpos": sim.qpos, "qvel": sim.qvel, "act": d.act.reshape(N, 4), "ctrl": sim.ctrl,
+            "warmstart": d.qacc_warmstart.reshape(N, 6), "thrust": sim.rotor_thrust, "command": sim.rotor_command,
+            "xfrc": d.xfrc_applied[sim.world.body_ids],
+        }  # fmt: skip
+        for obj in (*sim.stages, *sim.monitors):
+            for key, v in vars(obj).items():
+                if isinstance(v, np.ndarray) and v.ndim and v.shape[0] == N:
+                    out[f"{obj.name}.{key}"] = v
+        return {key: np.array(v) for key, v in out.items()}
+
+    def physics():
+        ph = SwarmPhysics(sc, 4, block=4, contact_pairs=True)
+        ph.begin(np.ones(4, bool), [3, 3, 3, 3])
+        ph.reset()
+        return ph
+
+    fresh = rows_of(physics().blocks[0].sim)
+    ph = physics()
+    sim = ph.blocks[0].sim
+    assert {s.name for s in sim.stages} >= {"downwash", "ground_effect"} and sim.motor_lag
+    probe = types.SimpleNamespace(params=ph.params, n=ph.n, num_envs=4)
+    for a in realistic_actions(probe, 40):
+        ph.step(a.reshape(-1, 4))
+    ground = sim.monitors[0]
+    assert ground.airborne.reshape(4, ph.n)[[0, 2]].all() and not ground.airborne.reshape(4, ph.n)[[1, 3]].any()
+    before = rows_of(sim)
+    mask = np.array([True, False, True, False])
+    rows = np.repeat(mask, ph.n)
+    ph.put_back(mask)
+    after = rows_of(sim)
+    assert len(after) == len(fresh) > 14  # the stages' and the monitor's arrays are there
+    for key in after:
+        np.testing.assert_array_equal(after[key][rows], fresh[key][rows], err_msg=key)
+        np.testing.assert_array_equal(after[key][~rows], before[key][~rows], err_msg=key)
+    changed = [key for key in after if not np.array_equal(before[key][rows], fresh[key][rows])]
+    assert {"act", "ground.airborne", "downwash.force"} <= set(changed)  # what the reset had to undo
+    assert not ground.compiled_ready() or not ground.airborne.all()
 
 
 def test_per_copy_termination_on_divergence_equals_sync():

@@ -88,8 +88,13 @@ def test_vector_env_vehicle() -> None:
         np.testing.assert_array_equal(np.asarray(envs.physics.blocks[0].sim.params.m), CF["mass"])
     finally:
         envs.close()
-    with pytest.raises(UserError, match="paper's physics only"):
-        SwarmVectorEnv("circle", 2, aero="realistic", threads=1)
+    envs = SwarmVectorEnv("circle", 2, vehicle="crazyflie21", aero="realistic", threads=1)  # issue 48: any physics
+    try:
+        sim = envs.physics.blocks[0].sim
+        assert envs.scenario.aero.model == "realistic" and sim.motor_lag and sim.monitors
+        assert sim.params.m == CF["mass"]
+    finally:
+        envs.close()
 
 
 # --------------------------------------------------------------------------- the vehicle's own gains

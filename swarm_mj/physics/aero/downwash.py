@@ -329,6 +329,11 @@ class DownwashStage:
             self.force, self.torque,
         )  # fmt: skip
 
+    def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
+        """As :meth:`reset` for the drones of ``rows`` (N,) bool (:meth:`~swarm_mj.physics.sim.Sim.reset_copies`)."""
+        self.force[rows] = 0.0
+        self.torque[rows] = 0.0
+
     def record(self) -> DownwashRecord:
         """This stage for a compiled driver (valid until the next :meth:`reset`)."""
         return self._record

@@ -92,6 +92,20 @@ class GroundContacts:
         self._vel_now = sim.vel.copy()
         self._record = GroundTrack(self._vel_before, self._vel_now)
 
+    def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
+        """As :meth:`reset` for the drones of ``rows`` (N,) bool, the copies
+        :meth:`~swarm_mj.physics.sim.Sim.reset_copies` puts back (their contacts with the floor at their starts,
+        found by its ``mj_forward``), the other drones untouched. ``ground_contacts``, ``crashes`` and ``log``
+        count every copy of the model and are kept."""
+        self.in_contact[rows] = self._contacts(sim)[rows]
+        self.airborne[rows] = False
+        self.episode[rows] = False
+        self.episode_crashed[rows] = False
+        self._all_airborne = bool(self.airborne.all())
+        self._any_contact = bool(self.in_contact.any())
+        self._vel_before[rows] = sim.vel[rows]
+        self._vel_now[rows] = sim.vel[rows]
+
     def record(self) -> GroundTrack:
         """This monitor's per-step bookkeeping for a compiled driver (valid until the next :meth:`reset`)."""
         return self._record

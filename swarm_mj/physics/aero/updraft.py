@@ -51,6 +51,9 @@ class UpdraftStage:
         self.force = np.zeros((sim.n_total, 3))
         self._record = UpdraftRecord(self.centre, self.radius, self.lift, self.force)
 
+    def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
+        self.force[rows] = 0.0
+
     def record(self) -> UpdraftRecord:
         return self._record
 
