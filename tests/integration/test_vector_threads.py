@@ -164,7 +164,7 @@ def test_a_failing_group_is_raised_after_every_group_has_ended():
 
 def test_physics_with_a_solid_floor_on_threads_gives_one_model_per_block_and_the_same_bits():
     """A solid floor's gate writes the model as a block steps (Sim.floor_gate), so on threads each block
-    gets its own model (SwarmPhysics; the vector env itself flies the paper's physics only). Copies 0 and 2
+    gets its own model (SwarmPhysics; the vector env's default is one copy per model there). Copies 0 and 2
     stay on the floor (no thrust: the gate keeps it solid), copies 1 and 3 climb away (the gate turns it
     off): they fly the same bit for bit on 1 and 2 threads."""
     from swarm_mj.physics.aero.presets import with_aero
