@@ -191,7 +191,18 @@ def _observe_samples():
             qpos,
             np.zeros((m * n, 6)),
             n,
-            CopyRefs(0.01, 2.0, z, z, z, np.zeros(K), np.ones(K), np.zeros((n - 1, 3)), True, False),
+            CopyRefs(
+                T=0.01,
+                sensing_range=2.0,
+                pos=z,
+                vel=z,
+                acc=z,
+                yaw=np.zeros(K),
+                D=np.ones(K),
+                unit_offsets=np.zeros((n - 1, 3)),
+                wind_known=True,
+                relative=False,
+            ),
             np.arange(m, dtype=np.int64),
             0,
             np.zeros(m, np.int64),
@@ -253,9 +264,19 @@ def observe_copies(
         k = ks[c]
         # the copy's references (its wind speed unread)
         r = Refs(
-            refs.pos, refs.vel, refs.acc, refs.yaw, refs.D, refs.unit_offsets, prev_leader[c], leader_vel[c],
-            refs.sensing_range, wind[c], wind[c], refs.wind_known,
-        )  # fmt: skip
+            pos=refs.pos,
+            vel=refs.vel,
+            acc=refs.acc,
+            yaw=refs.yaw,
+            D=refs.D,
+            unit_offsets=refs.unit_offsets,
+            prev_leader=prev_leader[c],
+            leader_vel=leader_vel[c],
+            sensing_range=refs.sensing_range,
+            wind_force=wind[c],
+            wind_speed=wind[c],
+            wind_known=refs.wind_known,
+        )
         pos, vel, quat, omega, rpy, rpy_rate, rel, mask, dist, sp, spv, spa, yaw, wf = observe(
             CopyState(q, v, refs.T), r, k
         )

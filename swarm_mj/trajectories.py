@@ -34,7 +34,12 @@ def _constant(t, pos, yaw) -> Reference:
     k = len(t)
     z = np.zeros((k, 3))
     return Reference(
-        np.tile(np.asarray(pos, float), (k, 1)), z, z.copy(), np.full(k, float(yaw)), np.zeros(k), np.zeros(k)
+        pos=np.tile(np.asarray(pos, float), (k, 1)),
+        vel=z,
+        acc=z.copy(),
+        yaw=np.full(k, float(yaw)),
+        yaw_rate=np.zeros(k),
+        yaw_acc=np.zeros(k),
     )
 
 
@@ -68,7 +73,7 @@ def lemniscate(
         pos = np.column_stack([x[0] + center[0], y[0] + center[1], np.full(k, altitude)])
         vel = np.column_stack([x[1], y[1], np.zeros(k)])
         acc = np.column_stack([x[2], y[2], np.zeros(k)])
-        return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+        return Reference(pos=pos, vel=vel, acc=acc, yaw=np.zeros(k), yaw_rate=np.zeros(k), yaw_acc=np.zeros(k))
 
     return f
 
@@ -86,7 +91,7 @@ def circle(
         pos = np.column_stack([x[0] + center[0], y[0] + center[1], altitude + climb_rate * t])
         vel = np.column_stack([x[1], y[1], np.full(k, climb_rate)])
         acc = np.column_stack([x[2], y[2], np.zeros(k)])
-        return Reference(pos, vel, acc, np.zeros(k), np.zeros(k), np.zeros(k))
+        return Reference(pos=pos, vel=vel, acc=acc, yaw=np.zeros(k), yaw_rate=np.zeros(k), yaw_acc=np.zeros(k))
 
     return f
 

@@ -114,13 +114,13 @@ def main(args: argparse.Namespace) -> int:
         load_gains(gains)
         gains = str(Path(gains).resolve())
     case = StressCase(
-        rules[0],
-        args.seed0,
-        args.followers,
-        args.radius,
-        args.min_spacing,
-        args.duration,
-        args.sensing_range,
+        rule=rules[0],
+        seed=args.seed0,
+        followers=args.followers,
+        radius=args.radius,
+        min_spacing=args.min_spacing,
+        duration=args.duration,
+        sensing_range=args.sensing_range,
         diameter=args.diameter,
         aero=args.aero or "paper",
         vehicle=vehicle,

@@ -22,9 +22,13 @@ import time
 from dataclasses import replace
 from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from ..tuning.cost import StepCostSettings, TuneOptions, TuneOutcome
+    from ..vehicles import Vehicle
 
 PAPER_IMPROVEMENT_PCT = (10.67, 35.45)  # paper Table 3, min and max over its runs
 
@@ -270,12 +274,32 @@ def _check_output(path: Path) -> None:
 
 
 def main(args: argparse.Namespace) -> int:
-    from ..errors import UserError
-    from ..output.progress import Progress
-    from ..tuning.constraints import INFEASIBLE
-    from ..tuning.cost import StepCostSettings, TuneOptions, tune_gains
+    opts, settings, vehicle, out = _checked(args)  # everything validated before any worker starts
+    if not args.quiet:
+        print(_announcement(args, opts, settings, vehicle), file=sys.stderr, flush=True)
+    res, use = _tune(args, opts, settings, vehicle.name, out)
+    if not math.isfinite(res.best_cost):
+        from ..experiments.outcome import FlightFailed
 
-    # Validate everything before any worker starts.
+        kept = f"; {out} left as it was" if out.exists() else ""
+        raise FlightFailed(
+            f"no candidate flew the step: every one of the {opts.population} flowers diverged in every "
+            f"iteration (cost inf/nan) on vehicle {vehicle.name}; no gains file written{kept}"
+        )
+    write_gains_file(out, res, vehicle.name, use)
+    if not args.quiet:
+        print(format_outcome(res, out, run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, out)))
+    return 0
+
+
+def _checked(args: argparse.Namespace) -> tuple[TuneOptions, StepCostSettings, Vehicle, Path]:
+    """The tune's options, its step's settings, the vehicle and the output path, every one checked
+    (:class:`UserError`) before any worker starts."""
+    from ..errors import UserError
+    from ..scenario import check_duration, check_seed
+    from ..tuning.cost import StepCostSettings, TuneOptions
+    from ..vehicles import load_vehicle
+
     opts = TuneOptions(
         population=args.population,
         iterations=args.iterations,
@@ -288,12 +312,8 @@ def main(args: argparse.Namespace) -> int:
     )
     if not (math.isfinite(args.t_sim) and args.t_sim > 0):
         raise UserError(f"--t-sim must be a positive number of seconds, got {args.t_sim}")
-    from ..scenario import check_duration, check_seed
-
     check_seed(args.seed, "--seed")
     check_duration(args.t_sim, 0.01, max(int(args.population), 1), "--t-sim")
-    from ..vehicles import load_vehicle
-
     vehicle = load_vehicle(args.vehicle)
     tau = args.motor_tau if args.motor_tau is not None else (vehicle.motor_tau or 0.0)
     settings = StepCostSettings(
@@ -305,12 +325,22 @@ def main(args: argparse.Namespace) -> int:
     _check_backend(args)
     out = Path(args.output)
     _check_output(out)
-    quiet = args.quiet
-    if not quiet:
-        print(_announcement(args, opts, settings, vehicle), file=sys.stderr, flush=True)
+    return opts, settings, vehicle, out
+
+
+def _tune(
+    args: argparse.Namespace, opts: TuneOptions, settings: StepCostSettings, vehicle: str, out: Path
+) -> tuple[TuneOutcome, str]:
+    """Run the FPA with a progress line per iteration, the best gains so far written to ``out`` after each
+    (where any candidate flew); a Ctrl-C says where they are. Returns the result and the hint of the
+    gains file's 'Use:' line."""
+    from ..output.progress import Progress
+    from ..tuning.constraints import INFEASIBLE
+    from ..tuning.cost import tune_gains
+
     t0 = time.perf_counter()
     last: list = []
-    bar = Progress(opts.iterations, "FPA tune", False if quiet else None, unit="iterations")
+    bar = Progress(opts.iterations, "FPA tune", False if args.quiet else None, unit="iterations")
     bar.note("evaluating the initial population")
 
     use = run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, "FILE")
@@ -318,7 +348,7 @@ def main(args: argparse.Namespace) -> int:
     def on_iteration(o) -> None:
         if math.isfinite(o.best_cost):  # else every candidate so far diverged: nothing worth a file
             last[:] = [o]
-            write_gains_file(out, o, vehicle.name, use)
+            write_gains_file(out, o, vehicle, use)
         it = len(o.history) - 1
         best = (
             f"best ISE {o.best_ise:10.5f}"
@@ -349,18 +379,7 @@ def main(args: argparse.Namespace) -> int:
                 file=sys.stderr,
             )
         raise
-    if not math.isfinite(res.best_cost):
-        from ..experiments.outcome import FlightFailed
-
-        kept = f"; {out} left as it was" if out.exists() else ""
-        raise FlightFailed(
-            f"no candidate flew the step: every one of the {opts.population} flowers diverged in every "
-            f"iteration (cost inf/nan) on vehicle {vehicle.name}; no gains file written{kept}"
-        )
-    write_gains_file(out, res, vehicle.name, use)
-    if not quiet:
-        print(format_outcome(res, out, run_hint(args.vehicle, settings.params, settings.target, settings.yaw_deg, out)))
-    return 0
+    return res, use
 
 
 def _check_backend(args: argparse.Namespace) -> None:

@@ -122,9 +122,21 @@ class Backstepping:
         #: backstepping_kernel bound to the record and C-ordered float64 inputs (:func:`swarm_mj._jit.bind`)
         self._kernel: Callable[..., np.ndarray] | None = None
         self.record = Gains(
-            self._a_pos, self._c1_pos, self._c2_pos, self._a_att, self._c1_att, self._c2_att, self._drag_over_m,
-            float(p.m), float(p.g), self._inertia, self._torque_scale, self._cor, float(p.L), self.T,
-        )  # fmt: skip
+            a_pos=self._a_pos,
+            c1_pos=self._c1_pos,
+            c2_pos=self._c2_pos,
+            a_att=self._a_att,
+            c1_att=self._c1_att,
+            c2_att=self._c2_att,
+            drag_over_m=self._drag_over_m,
+            m=float(p.m),
+            g=float(p.g),
+            inertia=self._inertia,
+            torque_scale=self._torque_scale,
+            cor=self._cor,
+            L=float(p.L),
+            T=self.T,
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -141,10 +153,21 @@ class Backstepping:
         attitude-priority mixer on when ``priority`` (the vehicle's rotor limits), new stage buffers."""
         p, n = self.params, self.n
         return Control(
-            self.record, self.prev_att_d, self.att_d, U_last, self.attitude_map == "exact", self.wind_feedforward,
-            bool(priority), p.unmix_t, p.mix_t, float(p.f_min), float(p.f_max), np.zeros(n), np.zeros((5, n, 3)),
-            np.zeros((n, 4)),
-        )  # fmt: skip
+            gains=self.record,
+            prev_att_d=self.prev_att_d,
+            att_d=self.att_d,
+            U_last=U_last,
+            exact=self.attitude_map == "exact",
+            use_wind=self.wind_feedforward,
+            priority=bool(priority),
+            unmix_t=p.unmix_t,
+            mix_t=p.mix_t,
+            f_min=float(p.f_min),
+            f_max=float(p.f_max),
+            zeros1=np.zeros(n),
+            scratch=np.zeros((5, n, 3)),
+            U_out=np.zeros((n, 4)),
+        )
 
     def compute(
         self,
@@ -209,7 +232,22 @@ def _per_drone3(v, n: int) -> np.ndarray:
 def _kernel_samples():
     n = 2
     z1, z3, g = np.zeros(n), np.zeros((n, 3)), np.ones((n, 3))
-    gains = Gains(g, g, g, g, g, g, np.ones(3), 0.5, 9.81, np.ones(3), np.ones(3), np.ones(3), 0.25, 0.01)
+    gains = Gains(
+        a_pos=g,
+        c1_pos=g,
+        c2_pos=g,
+        a_att=g,
+        c1_att=g,
+        c2_att=g,
+        drag_over_m=np.ones(3),
+        m=0.5,
+        g=9.81,
+        inertia=np.ones(3),
+        torque_scale=np.ones(3),
+        cor=np.ones(3),
+        L=0.25,
+        T=0.01,
+    )
     return [
         (
             gains,

@@ -86,7 +86,9 @@ class AttitudePredictor:
         self._first = True
         self._prev_rate = np.zeros((self.n, 3))
         self._prev_body = np.zeros((self.n, 3))
-        self._record = Predictor(True, self.d_att, self.k_rate, self._prev_rate, self._prev_body)
+        self._record = Predictor(
+            on=True, d_att=self.d_att, k_rate=self.k_rate, prev_rate=self._prev_rate, prev_body=self._prev_body
+        )
         self._out = np.empty((3, self.n, 3))  # (η_p, η̇_p, ω_p), rewritten by every call
 
     def record(self) -> Predictor:

@@ -56,10 +56,22 @@ class DownwashFeedforward:
         self._call: Callable[..., None] | None = None  # feedforward_force bound to the record (_jit.bind)
         z3 = np.zeros((n, 3))
         self._record = Feedforward(
-            True, n, float(params.L), params.rotor_dirs, st.rho, st.rotor_radius, st.half_cda, st.half_cda_body,
-            np.zeros((n, 3)), np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)), np.zeros((n, 4)), self.force, z3, z3.copy(),
-            z3.copy(),
-        )  # fmt: skip
+            on=True,
+            n=n,
+            L=float(params.L),
+            dirs=params.rotor_dirs,
+            rho=st.rho,
+            r=st.rotor_radius,
+            half_cda=st.half_cda,
+            half_cda_body=st.half_cda_body,
+            pos=np.zeros((n, 3)),
+            quat=np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)),
+            rotor=np.zeros((n, 4)),
+            force=self.force,
+            torque=z3,
+            sum_force=z3.copy(),
+            sum_torque=z3.copy(),
+        )
 
     def record(self) -> Feedforward:
         """The feedforward for a compiled driver (swarm_mj.pipeline.records)."""
@@ -184,10 +196,21 @@ class BacksteppingPolicy:
         n3 = (n, 3)
         rel, mask, dist, sp, spv, spa = self._unread
         return Obs(
-            _f8(obs["pos"], n3), _f8(obs["vel"], n3), _f8(obs["quat"], (n, 4)), _f8(obs["body_rates"], n3),
-            _f8(obs["rpy"], n3), _f8(obs["rpy_rate"], n3), rel, mask, dist, sp, spv, spa,
-            _f8(obs["setpoint_yaw"], (n,)), _f8(obs["wind_force"], n3),
-        )  # fmt: skip
+            pos=_f8(obs["pos"], n3),
+            vel=_f8(obs["vel"], n3),
+            quat=_f8(obs["quat"], (n, 4)),
+            omega=_f8(obs["body_rates"], n3),
+            rpy=_f8(obs["rpy"], n3),
+            rpy_rate=_f8(obs["rpy_rate"], n3),
+            rel=rel,
+            mask=mask,
+            dist=dist,
+            sp=sp,
+            spv=spv,
+            spa=spa,
+            yaw=_f8(obs["setpoint_yaw"], (n,)),
+            wf=_f8(obs["wind_force"], n3),
+        )
 
     @property
     def events(self) -> list[dict]:
@@ -218,7 +241,7 @@ class BacksteppingPolicy:
         if U is rec.U_out:  # the mixer's buffer, rewritten by the next command
             U = U.copy()
         ctl.U = U
-        return Command(U, pos_d, vel_d, acc_d, ctl.att_d.copy())
+        return Command(U=U, pos_d=pos_d, vel_d=vel_d, acc_d=acc_d, att_d=ctl.att_d.copy())
 
     def __call__(self, obs: dict) -> np.ndarray:
         return self.command(obs).U

@@ -99,7 +99,7 @@ class RunLog:
             raise UserError(f"force stages must have distinct names, got {list(stages)}")
         rows = np.zeros((len(stages), k, n, 3))
         series = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
-        return cls(names, **series, stage_rows=rows, forces=_named(rows, stages))
+        return cls(names=names, **series, stage_rows=rows, forces=_named(rows, stages))
 
     def force(self, name: str) -> np.ndarray:
         """The force (k, n, 3) of the stage ``name``; zeros when the run had no such stage."""
@@ -145,7 +145,7 @@ class RunLog:
     def truncated(self, k: int) -> RunLog:
         rows = self.stage_rows[:, :k]
         series = {f: getattr(self, f)[:k] for f in _SERIES}
-        return RunLog(self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
+        return RunLog(names=self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
 
 
 def _named(rows: np.ndarray, names: Sequence[str] | dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -209,6 +209,58 @@ def run(
     :class:`BacksteppingPolicy` (e.g. an exported set's, swarm_mj/export/flyback.py); one with a
     ``not_compiled`` reason flies step by step.
     """
+    sc = _with_options(scenario, aero=aero, duration=duration, gains=gains, anti_collision=anti_collision)
+    # Ctrl-C from here on (compiling, building the world, flying) stops the run cleanly: the loop
+    # returns what ran (at least the start) and the CLI writes its recording (exit 130).
+    with interrupt or CooperativeInterrupt() as interrupt:
+        say = _compile_kernels(progress)
+        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
+        policy = (make_policy or BacksteppingPolicy)(sc, env.params)
+        check_keepout_fits(sc, policy.rule)
+        log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        bar = Progress(env.n_steps, sc.name, progress)
+        wall0 = _time.perf_counter()
+        compiling = CompileClock().start()  # what Numba compiles in the run is left out of its speed figure
+        obs = env.reset().observation
+        # the chunk driver (swarm_mj/pipeline/fast.py) flies chunks of formed flight, when every stage compiles
+        reason = "fused=False" if fused is False else (getattr(policy, "not_compiled", None) or why_not(env, policy))
+        if reason is not None and fused is not False and say is not None:
+            say(f"flying step by step: {reason}")
+        fast = FastLoop.build(env, policy, log, compile=bool(fused), announce=say) if reason is None else None
+        try:
+            k, error = _fly(env, policy, log, fast, obs, bar, interrupt)
+        finally:
+            bar.close()
+            compiling.stop()
+    wall = _time.perf_counter() - wall0 - compiling.seconds
+    if compiling.seconds >= 0.5 and progress is not False:
+        print(f"compiled for {compiling.seconds:.1f} s during the run (not counted in its speed)", file=sys.stderr)
+    log = _closed(log, env, k, error)
+    summary = summarize(sc, log, env, policy, wall)
+    if error is not None:
+        summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
+    # of the K flown, the periods the chunk driver flew (swarm_mj/pipeline/fast.py); why none could, if so
+    extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
+    return RunResult(
+        scenario=sc,
+        log=log,
+        summary=summary,
+        events=list(policy.events),
+        contact_log=list(env.sim.contact_log),
+        error=error,
+        extra=extra,
+    )
+
+
+def _with_options(
+    scenario: Scenario | str,
+    *,
+    aero: str | None,
+    duration: float | None,
+    gains: np.ndarray | None,
+    anti_collision: str | None,
+) -> Scenario:
+    """The scenario (a name, a path or a :class:`Scenario`) with :func:`run`'s options that are given."""
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     sc = with_aero(sc, aero)
     if duration is not None:
@@ -217,87 +269,76 @@ def run(
         sc = sc.with_overrides(gains=np.asarray(gains, float), gains_source="override")
     if anti_collision is not None:
         sc = sc.with_overrides(anti_collision=anti_collision)
-    # Ctrl-C from here on (compiling, building the world, flying) stops the run cleanly: the loop
-    # returns what ran (at least the start) and the CLI writes its recording (exit 130).
-    with interrupt or CooperativeInterrupt() as interrupt:
-        announced: list[str] = []  # the first run's notice, printed before compiling
+    return sc
 
-        def announce(msg: str) -> None:
-            announced.append(msg)
-            print(msg, file=sys.stderr, flush=True)
 
-        compile_s = warm_up(announce=None if progress is False else announce)
-        if announced:
-            print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
-        env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True, seed=seed, force_stages=force_stages)
-        policy = (make_policy or BacksteppingPolicy)(sc, env.params)
-        check_keepout_fits(sc, policy.rule)
-        K = env.n_steps
-        log = RunLog.allocate(env.names, K + 1, [st.name for st in env.sim.force_stages])
-        bar = Progress(K, sc.name, progress)
-        error: BaseException | None = None
-        wall0 = _time.perf_counter()
-        compiling = CompileClock().start()  # what Numba compiles in the run is left out of its speed figure
-        ts = env.reset()
-        obs = ts.observation
-        k = 0
-        wind_speed = env.wind.speed
-        # the chunk driver (swarm_mj/pipeline/fast.py) flies chunks of formed flight, when every stage compiles
-        reason = "fused=False" if fused is False else (getattr(policy, "not_compiled", None) or why_not(env, policy))
-        if reason is not None and fused is not False and progress is not False:
-            announce(f"flying step by step: {reason}")
-        fast = (
-            FastLoop.build(env, policy, log, compile=bool(fused), announce=None if progress is False else announce)
-            if reason is None
-            else None
-        )
-        try:
-            while True:
-                if fast is not None and k < K and fast.ready():
-                    k = fast.run(min(K, k + CHUNK))
-                    fast.raise_if_stopped()
-                    obs = env._obs
-                    bar.update(k)
-                    if interrupt.requested:
-                        raise KeyboardInterrupt
-                    if fast.status == 0:  # done: the chunk flew to its end
-                        continue
-                cmd = policy.command(obs)
-                log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
-                if k >= K:
-                    break
+def _compile_kernels(progress: bool | None) -> Callable[[str], None] | None:
+    """Compile the control kernels where they are not cached (announced first, then timed on stderr);
+    returns the run's announcer of what it does (a line on stderr), None where ``progress`` is False."""
+    announced: list[str] = []  # the first run's notice, printed before compiling
+
+    def announce(msg: str) -> None:
+        announced.append(msg)
+        print(msg, file=sys.stderr, flush=True)
+
+    compile_s = warm_up(announce=None if progress is False else announce)
+    if announced:
+        print(f"compiled the control kernels in {compile_s:.0f} s (cached for later runs)", file=sys.stderr)
+    return None if progress is False else announce
+
+
+def _fly(
+    env: SwarmEnv,
+    policy: BacksteppingPolicy,
+    log: RunLog,
+    fast: FastLoop | None,
+    obs: dict,
+    bar: Progress,
+    interrupt: CooperativeInterrupt,
+) -> tuple[int, BaseException | None]:
+    """Fly the reset ``env`` from its observation ``obs`` to its last period, logging each sample in ``log``:
+    chunks of formed flight on the chunk driver ``fast`` where it is ready, every other period step by step.
+    Returns the periods flown and what stopped the run early (a Ctrl-C, a divergence) or None."""
+    K, k = env.n_steps, 0
+    wind_speed = env.wind.speed
+    try:
+        while True:
+            if fast is not None and k < K and fast.ready():
+                k = fast.run(min(K, k + CHUNK))
+                fast.raise_if_stopped()
+                obs = env._obs
+                bar.update(k)
                 if interrupt.requested:
                     raise KeyboardInterrupt
-                ts = env.step(cmd)
-                rec = env.last_applied
-                assert rec is not None
-                log.applied(k, rec)
-                obs = ts.observation
-                k += 1
-                if k % 50 == 0:
-                    bar.update(k)
-        except KeyboardInterrupt as exc:
-            error = exc
-        except SimulationDiverged as exc:
-            error = exc
-        finally:
-            bar.close()
-            compiling.stop()
-    wall = _time.perf_counter() - wall0 - compiling.seconds
-    if compiling.seconds >= 0.5 and progress is not False:
-        print(f"compiled for {compiling.seconds:.1f} s during the run (not counted in its speed)", file=sys.stderr)
+                if fast.status == 0:  # done: the chunk flew to its end
+                    continue
+            cmd = policy.command(obs)
+            log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
+            if k >= K:
+                return k, None
+            if interrupt.requested:
+                raise KeyboardInterrupt
+            ts = env.step(cmd)
+            rec = env.last_applied
+            assert rec is not None
+            log.applied(k, rec)
+            obs = ts.observation
+            k += 1
+            if k % 50 == 0:
+                bar.update(k)
+    except (KeyboardInterrupt, SimulationDiverged) as exc:
+        return k, exc
+
+
+def _closed(log: RunLog, env: SwarmEnv, k: int, error: BaseException | None) -> RunLog:
+    """The log of a run that flew ``k`` periods: its samples (the last holding the last inputs, with the
+    wind's force at its instant) where it ended, the ``k`` before the error where one stopped it."""
     n_samples = k + 1 if error is None else k
     if error is None and k > 0:
         # the last sample has no following period: hold the last inputs (zero-order hold)
         log.hold_last(k)
         log.wind_force[k] = env.wind.drone_forces(k, env.sim.vel)
-    log = log.truncated(max(n_samples, 1))
-    summary = summarize(sc, log, env, policy, wall)
-    if error is not None:
-        summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
-    # of the K flown, the periods the chunk driver flew (swarm_mj/pipeline/fast.py); why none could, if so
-    extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
-    return RunResult(sc, log, summary, list(policy.events), list(env.sim.contact_log), error, extra)
+    return log.truncated(max(n_samples, 1))
 
 
 def preset_signatures() -> list[tuple]:
@@ -317,6 +358,9 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     """The JSON summary (stable keys of the issues; more may be added)."""
     t = log.t
     sim_time = float(t[-1]) if len(t) else 0.0
+    # every drone at once (k, n, ...): the references are the followers' slots and the leader's commanded position
+    ref = log.slot.copy()
+    ref[:, 0] = log.pos_d[:, 0]
     out: dict = {
         "scenario": sc.name,
         "sim_time_s": sim_time,
@@ -329,44 +373,8 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         "anti_collision_rule": policy.rule.name,
         "wind": bool(sc.wind.enabled),
         "wind_feedforward": bool(sc.wind_feedforward),
-        "drones": {},
+        "drones": _drones(sc, log, env, ref),
     }
-    steady = t >= sc.steady_after
-    # every drone at once (k, n, ...): the references are the followers' slots and the leader's commanded position
-    ref = log.slot.copy()
-    ref[:, 0] = log.pos_d[:, 0]
-    e = ref - log.pos  # (k, n, 3)
-    att_e = np.rad2deg(log.att_d[:, :, :2] - log.rpy[:, :, :2])  # (k, n, 2) roll, pitch errors (deg)
-    errors = _rmse_dicts(e, att_e)
-    # t rises, so the steady samples are the last ones: a view of them, not a copy (the same rows, the same sums)
-    first = int(np.argmax(steady))
-    tail = slice(first, None) if steady[first:].all() else steady
-    errors_steady = _rmse_dicts(e[tail], att_e[tail]) if steady.any() else [None] * len(log.names)
-    tilt = np.rad2deg(np.abs(log.rpy[:, :, :2]).max(axis=0))  # (n, 2) the largest |roll|, |pitch|
-    if len(t) > 1:
-        # over time, then over the rotors (n,): the same extrema, along NumPy's fast axis order
-        rotor_max, rotor_min = (
-            np.nanmax(np.nanmax(log.rotor, axis=0), axis=1),
-            np.nanmin(np.nanmin(log.rotor, axis=0), axis=1),
-        )
-    for i, name in enumerate(log.names):
-        d: dict = {
-            "rmse": errors[i],
-            "rmse_steady": errors_steady[i],
-            "max_rotor_thrust_n": float(rotor_max[i]) if len(t) > 1 else 0.0,
-            "min_rotor_thrust_n": float(rotor_min[i]) if len(t) > 1 else 0.0,
-            "max_abs_roll_deg": float(tilt[i, 0]),
-            "max_abs_pitch_deg": float(tilt[i, 1]),
-        }
-        if i == 0 and sc.trajectory == "step" and len(t) > 1:
-            target = env.reference.pos[0]
-            yaw_t = float(env.reference.yaw[0])
-            d["step"] = {
-                ax: step_metrics(t, log.pos[:, 0, j], float(target[j]), float(log.pos[0, 0, j]))
-                for j, ax in enumerate("xyz")
-            }
-            d["step"]["psi"] = step_metrics(t, log.rpy[:, 0, 2], yaw_t, float(log.rpy[0, 0, 2]))
-        out["drones"][name] = d
     out["contacts"] = int(env.sim.contact_events)
     out["contact_steps"] = int(env.sim.contact_steps)
     # Ground contacts and crashes (docs/aero.md); 0 when the preset has no solid ground.
@@ -391,25 +399,79 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
         out["downwash_force_max_n"] = (
             float(norm(log.downwash).max()) if "downwash" in log.forces else 0.0
         )  # zeros without that stage
-    if sc.n_drones > 1:
-        sep, kk, pair = min_separation(log.pos, dist)
-        out["min_separation_m"] = sep
-        out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
-        out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
-        airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
-        if airborne.any():
-            out["min_separation_airborne_m"] = min_separation(log.pos[airborne], dist[airborne])[0]
-        changes = env.scenario.diameter_schedule().change_times
-        out["formation"] = _formation(log, changes[changes <= sim_time], on_ground=bool(flight["never_took_off"]))
-        dip = _dip(log, vehicle)
-        out["downwash_dip_worst_m"] = dip["worst_m"]
-        out["downwash_dip"] = dip
-        out["anti_collision"] = _events(policy)
-    else:  # the stable keys exist for one drone too
-        out["min_separation_m"] = None
-        out["formation"] = None
-        out["downwash_dip_worst_m"] = 0.0
-        out["anti_collision"] = {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0}
+    out.update(_swarm(log, env, policy, dist, on_ground=bool(flight["never_took_off"])))
+    return out
+
+
+def _drones(sc: Scenario, log: RunLog, env: SwarmEnv, ref: np.ndarray) -> dict:
+    """Each drone's part of the summary by name: its position and attitude errors (RMSE) over the run and
+    once steady (against ``ref``, (k, n, 3)), its rotor thrusts' extremes, its largest tilts, and the
+    leader's step response where the trajectory is a step."""
+    t = log.t
+    steady = t >= sc.steady_after
+    e = ref - log.pos  # (k, n, 3)
+    att_e = np.rad2deg(log.att_d[:, :, :2] - log.rpy[:, :, :2])  # (k, n, 2) roll, pitch errors (deg)
+    errors = _rmse_dicts(e, att_e)
+    # t rises, so the steady samples are the last ones: a view of them, not a copy (the same rows, the same sums)
+    first = int(np.argmax(steady))
+    tail = slice(first, None) if steady[first:].all() else steady
+    errors_steady = _rmse_dicts(e[tail], att_e[tail]) if steady.any() else [None] * len(log.names)
+    tilt = np.rad2deg(np.abs(log.rpy[:, :, :2]).max(axis=0))  # (n, 2) the largest |roll|, |pitch|
+    if len(t) > 1:
+        # over time, then over the rotors (n,): the same extrema, along NumPy's fast axis order
+        rotor_max, rotor_min = (
+            np.nanmax(np.nanmax(log.rotor, axis=0), axis=1),
+            np.nanmin(np.nanmin(log.rotor, axis=0), axis=1),
+        )
+    drones: dict = {}
+    for i, name in enumerate(log.names):
+        d: dict = {
+            "rmse": errors[i],
+            "rmse_steady": errors_steady[i],
+            "max_rotor_thrust_n": float(rotor_max[i]) if len(t) > 1 else 0.0,
+            "min_rotor_thrust_n": float(rotor_min[i]) if len(t) > 1 else 0.0,
+            "max_abs_roll_deg": float(tilt[i, 0]),
+            "max_abs_pitch_deg": float(tilt[i, 1]),
+        }
+        if i == 0 and sc.trajectory == "step" and len(t) > 1:
+            target = env.reference.pos[0]
+            yaw_t = float(env.reference.yaw[0])
+            d["step"] = {
+                ax: step_metrics(t, log.pos[:, 0, j], float(target[j]), float(log.pos[0, 0, j]))
+                for j, ax in enumerate("xyz")
+            }
+            d["step"]["psi"] = step_metrics(t, log.rpy[:, 0, 2], yaw_t, float(log.rpy[0, 0, 2]))
+        drones[name] = d
+    return drones
+
+
+def _swarm(log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, dist: np.ndarray, on_ground: bool) -> dict:
+    """The summary's keys of the swarm (present for one drone too): the least separation (over the pair
+    distances ``dist``, (k, pairs)) and where, the formation (:func:`_formation`), the downwash dip
+    (:func:`_dip`) and the rule's events (:func:`_events`)."""
+    if len(log.names) <= 1:  # the stable keys exist for one drone too
+        return {
+            "min_separation_m": None,
+            "formation": None,
+            "downwash_dip_worst_m": 0.0,
+            "anti_collision": {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0},
+        }
+    t = log.t
+    sim_time = float(t[-1]) if len(t) else 0.0
+    out: dict = {}
+    sep, kk, pair = min_separation(log.pos, dist)
+    out["min_separation_m"] = sep
+    out["min_separation_at_s"] = float(t[int(kk)]) if kk >= 0 else None
+    out["min_separation_pair"] = [log.names[pair[0]], log.names[pair[1]]]
+    airborne = (log.pos[:, :, 2] > 0.1).all(axis=1)
+    if airborne.any():
+        out["min_separation_airborne_m"] = min_separation(log.pos[airborne], dist[airborne])[0]
+    changes = env.scenario.diameter_schedule().change_times
+    out["formation"] = _formation(log, changes[changes <= sim_time], on_ground=on_ground)
+    dip = _dip(log, policy.controller.params)
+    out["downwash_dip_worst_m"] = dip["worst_m"]
+    out["downwash_dip"] = dip
+    out["anti_collision"] = _events(policy)
     return out
 
 

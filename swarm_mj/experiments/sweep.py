@@ -306,7 +306,11 @@ def sweep(
             raise UserError(f"--param {param}: no values")
         vals = list(values)
         variants = [apply_param(sc, param, v) for v in vals]
-    tasks = [SweepTask(v, s, vi, duration) for vi, v in enumerate(variants) for s in seed_list]
+    tasks = [
+        SweepTask(scenario=v, seed=s, value_index=vi, duration=duration)
+        for vi, v in enumerate(variants)
+        for s in seed_list
+    ]
     total = len(tasks)
     w = resolve_workers(workers)
     t0 = time.perf_counter()

@@ -206,7 +206,7 @@ class BarrierRule(Rule):
         dt = float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
         f = self.barrier_filter
         seen = seen_within(pos, self.params.sensing_range)
-        sensed = Sensed(float(t), pos, self.vel, seen, self.footprint, dt)
+        sensed = Sensed(t=float(t), positions=pos, velocities=self.vel, seen=seen, keep_out=self.footprint, dt=dt)
         out = f(sensed, pos_d, vel_d, acc_d, self._followers)
         self.take_separation_events()
         self.vel_d, self.acc_d = out[1], out[2]

@@ -54,12 +54,32 @@ def idle_record(n: int) -> FormedRecord:
     """A formed-step record (:class:`~swarm_mj.pipeline.records.Rule`) of stand-ins for n drones,
     ``on`` False (a run without the layered rule: nothing of it is read); the same types as a rule's own."""
     z, e, b = np.zeros((n, 3)), np.zeros((n, 2)), np.zeros(n, dtype=np.bool_)
-    limits = PathLimits(*([1.0] * len(PathLimits._fields)))
+    limits = PathLimits(**dict.fromkeys(PathLimits._fields, 1.0))
     return FormedRecord(
-        False, False, 0.0, 0.0, np.zeros(n), z, z.copy(), np.full(1, np.nan), np.zeros(1), np.zeros(1),
-        np.zeros((n, n)), e, e.copy(), e.copy(), b, np.zeros(n), np.zeros(n), np.zeros(n), limits, z.copy(), z.copy(),
-        b.copy(), np.arange(n, dtype=np.int64),
-    )  # fmt: skip
+        on=False,
+        jet_aware=False,
+        safety=0.0,
+        overlap=0.0,
+        offset=np.zeros(n),
+        prev_pos=z,
+        vel=z.copy(),
+        prev_t=np.full(1, np.nan),
+        dt=np.zeros(1),
+        formation_alt=np.zeros(1),
+        slot_h=np.zeros((n, n)),
+        path_p=e,
+        path_v=e.copy(),
+        path_a=e.copy(),
+        blocked=b,
+        zp=np.zeros(n),
+        zv=np.zeros(n),
+        za=np.zeros(n),
+        limits=limits,
+        vel_d=z.copy(),
+        acc_d=z.copy(),
+        steer=b.copy(),
+        slot_of=np.arange(n, dtype=np.int64),
+    )
 
 
 def _limits_sample() -> PathLimits:

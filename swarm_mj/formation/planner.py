@@ -239,7 +239,14 @@ class LayeredRule(PaperRule):
         if f is None:
             return pos_d, vel_d, acc_d
         seen = seen_within(positions, self.sensing_range)
-        sensed = Sensed(float(t), positions, self.vel, seen, self.footprint, float(self._dt[0]))
+        sensed = Sensed(
+            t=float(t),
+            positions=positions,
+            velocities=self.vel,
+            seen=seen,
+            keep_out=self.footprint,
+            dt=float(self._dt[0]),
+        )
         out = f(sensed, pos_d, vel_d, acc_d, self._followers)
         self.take_separation_events()
         return out

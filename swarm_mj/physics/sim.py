@@ -393,7 +393,9 @@ def drone_views(phys):
     xfrc torque (N, 3)), the drones' bodies at body0 + i·body_step of ``phys.xfrc``."""
     n = phys.qpos.shape[0]
     rows = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step]
-    kin = Kinematics(phys.qpos[:, 0:3], phys.qpos[:, 3:7], phys.qvel[:, 0:3], phys.rotor_thrust)
+    kin = Kinematics(
+        pos=phys.qpos[:, 0:3], quat=phys.qpos[:, 3:7], vel=phys.qvel[:, 0:3], rotor_thrust=phys.rotor_thrust
+    )
     return kin, rows[:, 0:3], rows[:, 3:6]
 
 
@@ -538,7 +540,9 @@ class Sim:
         self.rotor_command = np.zeros((N, 4))  # (N, 4)
         self._force = np.zeros((N, 3))  # (N, 3) stage sums (general path)
         self._torque = np.zeros((N, 3))
-        self.kinematics = Kinematics(self.pos, self.quat, self.vel, self.rotor_thrust)  # what force stages read
+        self.kinematics = Kinematics(
+            pos=self.pos, quat=self.quat, vel=self.vel, rotor_thrust=self.rotor_thrust
+        )  # what force stages read
         self._ncon = _mjstep.ncon_view(d)
         self.drag = DragStage()
         self.wind = WindStage()
@@ -657,15 +661,40 @@ class Sim:
         fid, solid, z_near = self._gate or (0, 0, 0.0)
         addr = _mjstep.mj_step_address() or 0
         return Physics(
-            np.uint64(addr), np.uint64(self.model._address), np.uint64(d._address),
-            self._ncon if self._ncon is not None else np.zeros(1, dtype=np.int32), self._warnings, self.qpos,
-            self.qvel, self.ctrl, d.xfrc_applied, int(ids[0]), int(ids[1] - ids[0]) if len(ids) > 1 else 1,
-            self.rotor_thrust, self.rotor_command, self._act if self._act is not None else np.zeros((self.n_total, 4)),
-            bool(self.motor_lag), self.wind.force, np.ascontiguousarray(self.drag.neg_drag, dtype=float), self._force,
-            self._torque, self._unmix_t, self._mix_t, float(self._f_min), float(self._f_max), int(self.n_substeps),
-            float(self.control_period), float(self.floor_z), float(self.max_distance), float(self.max_tilt),
-            bool(self._gate_on), float(z_near), self.model.geom_contype, int(fid), int(solid),
-        )  # fmt: skip
+            fn=np.uint64(addr),
+            m_addr=np.uint64(self.model._address),
+            d_addr=np.uint64(d._address),
+            ncon=self._ncon if self._ncon is not None else np.zeros(1, dtype=np.int32),
+            warn=self._warnings,
+            qpos=self.qpos,
+            qvel=self.qvel,
+            ctrl=self.ctrl,
+            xfrc=d.xfrc_applied,
+            body0=int(ids[0]),
+            body_step=int(ids[1] - ids[0]) if len(ids) > 1 else 1,
+            rotor_thrust=self.rotor_thrust,
+            rotor_command=self.rotor_command,
+            act=self._act if self._act is not None else np.zeros((self.n_total, 4)),
+            lag=bool(self.motor_lag),
+            wind=self.wind.force,
+            neg_drag=np.ascontiguousarray(self.drag.neg_drag, dtype=float),
+            force=self._force,
+            torque=self._torque,
+            unmix_t=self._unmix_t,
+            mix_t=self._mix_t,
+            f_min=float(self._f_min),
+            f_max=float(self._f_max),
+            nsub=int(self.n_substeps),
+            T=float(self.control_period),
+            floor_z=float(self.floor_z),
+            max_distance=float(self.max_distance),
+            max_tilt=float(self.max_tilt),
+            gate_on=bool(self._gate_on),
+            gate_z=float(z_near),
+            contype=self.model.geom_contype,
+            gate_id=int(fid),
+            gate_solid=int(solid),
+        )
 
     def record(self) -> Physics:
         """The simulator for a compiled driver (:class:`swarm_mj.pipeline.records.Physics`), valid until the next

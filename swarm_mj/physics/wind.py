@@ -503,10 +503,26 @@ class WindField:
         if not cfg.enabled:
             zeros = np.zeros((k, 3))
             return WindSeries(
-                t, zeros, zeros.copy(), np.zeros((k, 3), dtype=bool), cfg.rho, cfg.cd, cfg.area, cfg.relative_airspeed
+                times=t,
+                speed=zeros,
+                force=zeros.copy(),
+                on_mask=np.zeros((k, 3), dtype=bool),
+                rho=cfg.rho,
+                cd=cfg.cd,
+                area=cfg.area,
+                relative_airspeed=cfg.relative_airspeed,
             )
         speed = deterministic_speed(t, cfg)  # (k, 3)
         speed[:, :2] += self.turbulence(k)
         on = schedule_mask(t, cfg.schedule)  # (k, 3)
         force = np.where(on, force_from_speed(speed, cfg.rho, cfg.cd, cfg.area), 0.0)  # (k, 3)
-        return WindSeries(t, speed, force, on, cfg.rho, cfg.cd, cfg.area, cfg.relative_airspeed)
+        return WindSeries(
+            times=t,
+            speed=speed,
+            force=force,
+            on_mask=on,
+            rho=cfg.rho,
+            cd=cfg.cd,
+            area=cfg.area,
+            relative_airspeed=cfg.relative_airspeed,
+        )

@@ -403,9 +403,21 @@ def build_world(
     ):
         raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
     spec = WorldSpec(
-        n_drones, positions, yaws, tuple(names), params, timestep, integrator, collisions, asset_path, floor,
-        torque_motors, ground, motor_tau, contact_groups,
-    )  # fmt: skip
+        n_drones=n_drones,
+        positions=positions,
+        yaws=yaws,
+        names=tuple(names),
+        params=params,
+        timestep=timestep,
+        integrator=integrator,
+        collisions=collisions,
+        asset_path=asset_path,
+        floor=floor,
+        torque_motors=torque_motors,
+        ground=ground,
+        motor_tau=motor_tau,
+        contact_groups=contact_groups,
+    )
     key = _cache_key(spec)
     built = _BUILT.get(key) if key is not None else None
     if built is None:

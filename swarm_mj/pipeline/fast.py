@@ -196,7 +196,7 @@ class FastLoop:
             return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
         if status == BAD_ACTION:
             return k
-        env._obs = self._handed = env._observation(Obs(*(b.copy() for b in self._obs)))
+        env._obs = self._handed = env._observation(Obs(**{k: b.copy() for k, b in self._obs._asdict().items()}))
         self._record(k)
         if k >= env.n_steps:
             env._done = True
@@ -218,9 +218,16 @@ class FastLoop:
         log, j, env = self.log, k - 1, self.env
         if j >= 0:
             env.last_applied = StepRecord(
-                j * env.T, log.U[j].copy(), log.rotor[j].copy(), log.wind_force[j].copy(), None, None, None, None,
-                env.sim.stage_forces(),
-            )  # fmt: skip
+                time=j * env.T,
+                U=log.U[j].copy(),
+                rotor_thrust=log.rotor[j].copy(),
+                wind_force=log.wind_force[j].copy(),
+                pos_d=None,
+                vel_d=None,
+                acc_d=None,
+                att_d=None,
+                aero_forces=env.sim.stage_forces(),
+            )
 
     def raise_if_stopped(self) -> None:
         """Raise what the per-period path raises where the last :meth:`run` stopped: the simulator's

@@ -163,10 +163,21 @@ def observe(phys, refs, k):
     :func:`observe_into` new buffers."""
     n = phys.qpos.shape[0]
     obs = Obs(
-        np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 4)), np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3)),
-        np.empty((n, n, 3)), np.empty((n, n)), np.empty((n, n)), np.empty((n, 3)), np.empty((n, 3)),
-        np.empty((n, 3)), np.empty(n), np.empty((n, 3)),
-    )  # fmt: skip
+        pos=np.empty((n, 3)),
+        vel=np.empty((n, 3)),
+        quat=np.empty((n, 4)),
+        omega=np.empty((n, 3)),
+        rpy=np.empty((n, 3)),
+        rpy_rate=np.empty((n, 3)),
+        rel=np.empty((n, n, 3)),
+        mask=np.empty((n, n)),
+        dist=np.empty((n, n)),
+        sp=np.empty((n, 3)),
+        spv=np.empty((n, 3)),
+        spa=np.empty((n, 3)),
+        yaw=np.empty(n),
+        wf=np.empty((n, 3)),
+    )
     observe_into(phys, refs, obs, k)
     return obs
 

@@ -112,9 +112,21 @@ class Obs(NamedTuple):
         writes every one (``observe_into``)."""
         z = np.zeros if fill else np.empty
         return cls(
-            z((n, 3)), z((n, 3)), z((n, 4)), z((n, 3)), z((n, 3)), z((n, 3)), z((n, n, 3)), z((n, n)), z((n, n)),
-            z((n, 3)), z((n, 3)), z((n, 3)), z(n), z((n, 3)),
-        )  # fmt: skip
+            pos=z((n, 3)),
+            vel=z((n, 3)),
+            quat=z((n, 4)),
+            omega=z((n, 3)),
+            rpy=z((n, 3)),
+            rpy_rate=z((n, 3)),
+            rel=z((n, n, 3)),
+            mask=z((n, n)),
+            dist=z((n, n)),
+            sp=z((n, 3)),
+            spv=z((n, 3)),
+            spa=z((n, 3)),
+            yaw=z(n),
+            wf=z((n, 3)),
+        )
 
 
 class Rule(NamedTuple):
@@ -207,7 +219,23 @@ class Feedforward(NamedTuple):
     def off(cls, n: int) -> Feedforward:
         """No feedforward for n drones (``on`` False): the stand-in a command without one passes."""
         z3, z4 = np.zeros((n, 3)), np.zeros((n, 4))
-        return cls(False, n, 0.0, np.zeros((4, 2)), 0.0, 0.0, 0.0, 0.0, z3, z4, z4, z3, z3, z3, z3)
+        return cls(
+            on=False,
+            n=n,
+            L=0.0,
+            dirs=np.zeros((4, 2)),
+            rho=0.0,
+            r=0.0,
+            half_cda=0.0,
+            half_cda_body=0.0,
+            pos=z3,
+            quat=z4,
+            rotor=z4,
+            force=z3,
+            torque=z3,
+            sum_force=z3,
+            sum_torque=z3,
+        )
 
 
 class Predictor(NamedTuple):
@@ -222,7 +250,7 @@ class Predictor(NamedTuple):
     @classmethod
     def off(cls, n: int) -> Predictor:
         """No lag prediction for n drones (``on`` False): the stand-in a command without one passes."""
-        return cls(False, 0.0, 0.0, np.zeros((n, 3)), np.zeros((n, 3)))
+        return cls(on=False, d_att=0.0, k_rate=0.0, prev_rate=np.zeros((n, 3)), prev_body=np.zeros((n, 3)))
 
 
 class GroundTrack(NamedTuple):
@@ -249,4 +277,3 @@ class LogRows(NamedTuple):
     wind_force: np.ndarray  # (K+1, n, 3)
     D: np.ndarray  # (K+1,)
     forces: np.ndarray  # (S, K+1, n, 3) each force stage's force, in the simulator's stage order
-

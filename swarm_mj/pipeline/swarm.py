@@ -131,10 +131,19 @@ class SwarmPhysics:
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
         self._observe = Bound(observe_into, records=2)  # bound to the records: no re-typing per call (_jit.py)
+        pos, vel, acc, yaw = self._ref
         self._copy_refs = CopyRefs(
-            float(T), float(sc.sensing_range), *self._ref, self.D, self.unit_offsets, self.wind_known,
-            self.relative_wind,
-        )  # fmt: skip
+            T=float(T),
+            sensing_range=float(sc.sensing_range),
+            pos=pos,
+            vel=vel,
+            acc=acc,
+            yaw=yaw,
+            D=self.D,
+            unit_offsets=self.unit_offsets,
+            wind_known=self.wind_known,
+            relative=self.relative_wind,
+        )
         self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
         aero = sc.aero
         start = self._starts(None)  # (n, 3)
@@ -191,7 +200,7 @@ class SwarmPhysics:
         self.new_contacts = np.zeros(m, dtype=np.int64)  # ... over the last step
         self.health = np.zeros(m, dtype=np.int8)  # the last step's health codes (physics.sim.HEALTH_NAMES)
         # each copy's wind (begin); calm until then
-        self.series: list[WindSeries] = [WindField(WindConfig.none(), dt=T).sample(self.times)] * m
+        self.series: list[WindSeries] = [WindField(config=WindConfig.none(), dt=T).sample(self.times)] * m
         self.wind = np.zeros((m, K + 1, 3))  # (m, K+1, 3) each copy's uniform wind force series
         self.wind_now = np.zeros((N, 3))  # the wind force held over the current period (the physics)
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)
@@ -216,7 +225,7 @@ class SwarmPhysics:
             self.seeds[c] = seed
             if self.seeded_starts:
                 self.starts[c * n : (c + 1) * n] = self._starts(seed)
-            series = WindField(sc.wind, dt=self.T, seed=seed).sample(self.times)
+            series = WindField(config=sc.wind, dt=self.T, seed=seed).sample(self.times)
             self.series[c] = series
             self.wind[c] = series.force
         self.k[mask] = 0
@@ -244,10 +253,19 @@ class SwarmPhysics:
         its leader-velocity estimate, views updated in place by :func:`~swarm_mj.pipeline.period.observe`)."""
         pos, vel, acc, yaw = self._ref
         return Refs(
-            pos, vel, acc, yaw, self.D, self.unit_offsets, self.prev_leader[c], self.leader_vel[c],
-            float(self.scenario.sensing_range), self.wind[c], np.ascontiguousarray(self.series[c].speed, dtype=float),
-            self.wind_known,
-        )  # fmt: skip
+            pos=pos,
+            vel=vel,
+            acc=acc,
+            yaw=yaw,
+            D=self.D,
+            unit_offsets=self.unit_offsets,
+            prev_leader=self.prev_leader[c],
+            leader_vel=self.leader_vel[c],
+            sensing_range=float(self.scenario.sensing_range),
+            wind_force=self.wind[c],
+            wind_speed=np.ascontiguousarray(self.series[c].speed, dtype=float),
+            wind_known=self.wind_known,
+        )
 
     # ------------------------------------------------------------------ wind
     def drone_wind(self, c: int, vel: np.ndarray) -> np.ndarray:
@@ -361,6 +379,20 @@ class SwarmPhysics:
             cs = copies[(copies >= blk.c0) & (copies < blk.c0 + blk.b)]
             if len(cs):
                 observe_copies(
-                    blk.sim.qpos, blk.sim.qvel, self.n, self._copy_refs, cs, blk.c0, self.k, self.prev_leader,
-                    self.leader_vel, self.wind, self.wind_obs, offs, out, self.new_contacts, reward, min_sep,
-                )  # fmt: skip
+                    blk.sim.qpos,
+                    blk.sim.qvel,
+                    self.n,
+                    self._copy_refs,
+                    cs,
+                    blk.c0,
+                    self.k,
+                    self.prev_leader,
+                    self.leader_vel,
+                    self.wind,
+                    self.wind_obs,
+                    offs,
+                    out,
+                    self.new_contacts,
+                    reward,
+                    min_sep,
+                )

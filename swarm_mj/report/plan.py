@@ -132,7 +132,7 @@ class JobList:
         for vi, v in enumerate(variants):
             for s in range(seeds):
                 idx.append(len(self.jobs))
-                self.add(f"sweep:{key}", SweepTask(v, s, vi, duration))
+                self.add(f"sweep:{key}", SweepTask(scenario=v, seed=s, value_index=vi, duration=duration))
         self.sweeps[key] = {
             "scenario": sc.name,
             "param": param,
@@ -214,36 +214,52 @@ def plan_jobs(plan: Plan, fpa: FpaGains) -> JobList:
 
 def _step_jobs(jl: JobList, fpa: FpaGains) -> None:
     step = load_scenario("step")
-    jl.add("step", RunJob("step/table4", step, keep=STEP_KEEP))
-    jl.add("step", RunJob("step/paper_map", step.with_overrides(attitude_map="paper"), keep=("pos", "rpy")))
+    jl.add("step", RunJob(key="step/table4", scenario=step, keep=STEP_KEEP))
+    jl.add(
+        "step", RunJob(key="step/paper_map", scenario=step.with_overrides(attitude_map="paper"), keep=("pos", "rpy"))
+    )
     if fpa.gains is not None:
         jl.add(
             "step",
-            RunJob("step/fpa", step.with_overrides(gains=fpa.gains, gains_source=str(fpa.path)), keep=("pos", "rpy")),
+            RunJob(
+                key="step/fpa",
+                scenario=step.with_overrides(gains=fpa.gains, gains_source=str(fpa.path)),
+                keep=("pos", "rpy"),
+            ),
         )
 
 
 def _table5_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:
     for name in TABLE5_SCENARIOS:
         sc = load_scenario(name)
-        jl.add("t5", RunJob(f"t5/{name}/ground", sc, duration=plan.table5_s, keep=TABLE5_KEEP[name], every=2))
-        jl.add("t5", RunJob(f"t5/{name}/on_path", _on_path(sc), duration=plan.table5_s))
+        jl.add(
+            "t5", RunJob(key=f"t5/{name}/ground", scenario=sc, duration=plan.table5_s, keep=TABLE5_KEEP[name], every=2)
+        )
+        jl.add("t5", RunJob(key=f"t5/{name}/on_path", scenario=_on_path(sc), duration=plan.table5_s))
         if fpa.gains is not None:
             jl.add(
                 "t5",
                 RunJob(
-                    f"t5/{name}/fpa", sc.with_overrides(gains=fpa.gains, gains_source="fpa"), duration=plan.table5_s
+                    key=f"t5/{name}/fpa",
+                    scenario=sc.with_overrides(gains=fpa.gains, gains_source="fpa"),
+                    duration=plan.table5_s,
                 ),
             )
     for name in TABLE5_NOFF:
-        jl.add("t5", RunJob(f"t5/{name}/ground", load_scenario(name), duration=plan.table5_s))
+        jl.add("t5", RunJob(key=f"t5/{name}/ground", scenario=load_scenario(name), duration=plan.table5_s))
 
 
 def _swarm_jobs(jl: JobList, plan: Plan) -> None:
     for name in SWARMS:
-        jl.add("swarm", RunJob(f"swarm/{name}", load_scenario(name), duration=plan.swarm_s, keep=("pos",), every=10))
+        jl.add(
+            "swarm",
+            RunJob(key=f"swarm/{name}", scenario=load_scenario(name), duration=plan.swarm_s, keep=("pos",), every=10),
+        )
     jl.add(
-        "vd", RunJob("variable_d", load_scenario("variable_diameter"), duration=plan.variable_d_s, keep=("pos", "D"))
+        "vd",
+        RunJob(
+            key="variable_d", scenario=load_scenario("variable_diameter"), duration=plan.variable_d_s, keep=("pos", "D")
+        ),
     )
     for name in ANTI_COLLISION_SCENARIOS:
         sc = load_scenario(name)
@@ -252,12 +268,20 @@ def _swarm_jobs(jl: JobList, plan: Plan) -> None:
                 continue  # the swarm run above
             dur = plan.anti_s if name == "anti_collision" else plan.swarm_s
             keep = ("pos", "pos_d") if name == "anti_collision" else ()
-            jl.add("ac", RunJob(f"ac/{name}/{rule}", sc.with_overrides(anti_collision=rule), duration=dur, keep=keep))
+            jl.add(
+                "ac",
+                RunJob(
+                    key=f"ac/{name}/{rule}", scenario=sc.with_overrides(anti_collision=rule), duration=dur, keep=keep
+                ),
+            )
     if plan.snapshot:
         jl.add(
             "snap",
             RunJob(
-                "snapshot/scenario1", load_scenario("scenario1"), duration=min(25.0, plan.swarm_s or 60.0), keep=("*",)
+                key="snapshot/scenario1",
+                scenario=load_scenario("scenario1"),
+                duration=min(25.0, plan.swarm_s or 60.0),
+                keep=("*",),
             ),
         )
 
@@ -284,8 +308,17 @@ def _fpa_jobs(jl: JobList, plan: Plan, fpa: FpaGains) -> None:
     from ..control.backstepping import TABLE4_GAINS
 
     for s in plan.fpa_seeds:
-        jl.add("fpa", TuneJob(f"fpa/{s}", s, plan.fpa_population, plan.fpa_iterations))
-        jl.add("fpa", TuneJob(f"fpa_paper/{s}", s, plan.fpa_population, plan.fpa_iterations, "paper"))
+        jl.add("fpa", TuneJob(key=f"fpa/{s}", seed=s, population=plan.fpa_population, iterations=plan.fpa_iterations))
+        jl.add(
+            "fpa",
+            TuneJob(
+                key=f"fpa_paper/{s}",
+                seed=s,
+                population=plan.fpa_population,
+                iterations=plan.fpa_iterations,
+                mode="paper",
+            ),
+        )
     ise_gains = [tuple(map(float, TABLE4_GAINS))]
     if fpa.gains is not None:
         ise_gains.append(tuple(map(float, fpa.gains)))

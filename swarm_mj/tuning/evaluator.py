@@ -296,12 +296,12 @@ class BatchEvaluator:
                 self.slices.append(slice(a + int(lo), a + int(hi)))
             self.groups.append(
                 _Group(
-                    slice(a, a + mg),
-                    blocks,
-                    np.empty((mg, 7)),
-                    np.empty((mg, 6)),
-                    np.zeros(mg, dtype=np.int8),
-                    np.zeros((self.K + 1, mg, 4)),
+                    rows=slice(a, a + mg),
+                    blocks=blocks,
+                    qpos=np.empty((mg, 7)),
+                    qvel=np.empty((mg, 6)),
+                    codes=np.zeros(mg, dtype=np.int8),
+                    track=np.zeros((self.K + 1, mg, 4)),
                 )
             )
         self._pos_d = np.tile(np.asarray(s.target, float), (self.m, 1))  # (m, 3) step set-point
@@ -518,11 +518,11 @@ def step_check(gains: np.ndarray, settings: StepCostSettings = StepCostSettings(
     cost = float(ev.evaluate(g)[0])
     step = {ax: {k: float(v[0]) for k, v in ev.step[ax].items()} for ax in AXES}
     return StepCheck(
-        cost,
-        step,
-        float(ev.max_tilt_deg[0]),
-        float(ev.violation[0]),
-        settings.bars if settings.bars is not None else StepBars(),
+        ise=cost,
+        step=step,
+        max_tilt_deg=float(ev.max_tilt_deg[0]),
+        violation=float(ev.violation[0]),
+        bars=settings.bars if settings.bars is not None else StepBars(),
     )
 
 

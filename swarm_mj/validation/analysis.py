@@ -269,13 +269,13 @@ def analyse_flight(
             pairing = " + ".join(setups[u].vehicle.name for u in ps.uppers) + " over " + setups[d].vehicle.name
             out.append(
                 PassResult(
-                    flight.name,
-                    split_of(flight),
-                    pairing,
-                    ps,
-                    flight.t[sl],
-                    meas[sl],
-                    {m: v[sl] for m, v in pred.items()},
+                    flight=flight.name,
+                    split=split_of(flight),
+                    pairing=pairing,
+                    p=ps,
+                    t=flight.t[sl],
+                    measured=meas[sl],
+                    predicted={m: v[sl] for m, v in pred.items()},
                 )
             )
     return out

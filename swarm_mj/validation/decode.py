@@ -78,7 +78,7 @@ def decode_bytes(data: bytes, path: Path | str = "<bytes>") -> RawLog:
         idx = end + 1
     if n == 0 or idx + 4 > len(data):
         raise UserError(f"{path}: not a Crazyflie uSD log (bad header)")
-    log = RawLog(path)
+    log = RawLog(path=path)
     if not _crc_ok(data[: idx + 4]):
         log.crc_errors += 1
     offset = idx + 4

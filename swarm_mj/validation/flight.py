@@ -114,17 +114,17 @@ class DroneLog:
         left = np.clip(np.searchsorted(self.t, t, side="right") - 1, 0, len(self.t) - 1)  # last at or before
         valid = (self.t[right] - self.t[left]) <= MAX_GAP
         return DroneLog(
-            self.drone,
-            self.path,
-            t,
-            lin(self.pos),
-            lin(self.vel),
-            lin(self.acc),
-            q,
-            lin(self.pwm),
-            lin(self.vbat),
-            self.crc_errors,
-            valid,
+            drone=self.drone,
+            path=self.path,
+            t=t,
+            pos=lin(self.pos),
+            vel=lin(self.vel),
+            acc=lin(self.acc),
+            quat=q,
+            pwm=lin(self.pwm),
+            vbat=lin(self.vbat),
+            crc_errors=self.crc_errors,
+            valid=valid,
         )
 
 
@@ -164,7 +164,9 @@ def load_flight(session: Path, experiment: str, run: str, files: dict[str, Path]
     if t1 - t0 < 10 * DT:
         raise UserError(f"{session / experiment}: flight {run}: the logs do not overlap in time")
     grid = t0 + DT * np.arange(int(math.floor((t1 - t0) / DT)) + 1)
-    return Flight(session, experiment, run, {d: g.resample(grid) for d, g in logs.items()})
+    return Flight(
+        session=session, experiment=experiment, run=run, drones={d: g.resample(grid) for d, g in logs.items()}
+    )
 
 
 def find_flights(data: Path) -> list[tuple[Path, str, str, dict[str, Path]]]:

@@ -66,13 +66,13 @@ def find_passes(
         uppers = tuple(others[j] for j in range(len(others)) if over[j, a:b].any())
         out.append(
             Pass(
-                lower,
-                uppers if over[:, a:b].sum(axis=0).max() > 1 else (others[jj],),
-                a,
-                b,
-                a + int(ii),
-                float(r[jj, ii]),
-                float(dz[jj, a + ii]),
+                lower=lower,
+                uppers=uppers if over[:, a:b].sum(axis=0).max() > 1 else (others[jj],),
+                start=a,
+                stop=b,
+                i_min=a + int(ii),
+                r_min=float(r[jj, ii]),
+                dz=float(dz[jj, a + ii]),
             )
         )
     return out

@@ -69,7 +69,15 @@ def read_thrust_model(path: Path) -> ThrustModel:
     missing = [k for k in ("C_00", "C_10", "C_01", "C_20", "C_11") if k not in coef]
     if missing:
         raise UserError(f"{path}: not a thrust model: no {', '.join(missing)}")
-    return ThrustModel(path.name, coef["C_00"], coef["C_10"], coef["C_01"], coef["C_20"], coef["C_11"], mass)
+    return ThrustModel(
+        source=path.name,
+        c00=coef["C_00"],
+        c10=coef["C_10"],
+        c01=coef["C_01"],
+        c20=coef["C_20"],
+        c11=coef["C_11"],
+        mass_g=mass,
+    )
 
 
 def readme_assignments(session: Path) -> dict[str, str]:

@@ -57,23 +57,27 @@ KINDS = {
 
 #: Every key a vehicle file may have (one line each; docs/vehicles.md's table lists the same keys).
 KEYS: dict[str, Key] = {
-    "name": Key("", "string", "no (file stem)", "the vehicle's name"),
-    "mass": Key("kg", "positive", "always", "take-off mass"),
-    "arm_length": Key("m", "positive", "always", "centre of mass to motor axis (the paper's L)"),
-    "rotor_radius": Key("m", "positive", "always", "propeller radius"),
-    "inertia": Key("kg·m²", "3 positive", "to fly", "[Ix, Iy, Iz], principal"),
-    "drag": Key("N·s/m", "3 nonnegative", "to fly", "[Kx, Ky, Kz], the linear drag of eq. (1)"),
-    "max_thrust": Key("N", "positive", "to fly", "thrust of one rotor at full command"),
-    "min_thrust": Key("N", "nonnegative", "no (0)", "least thrust of one rotor, below max_thrust"),
-    "yaw_torque_coefficient": Key("m", "positive", "no", "κ = rotor drag torque / rotor thrust"),
-    "collision_radius": Key("m", "positive", "no (arm_length)", "radius of the disc that touches other drones"),
-    "motor_tau": Key("s", "positive", "no", "rotor time constant: the lag under --aero realistic"),
-    "downwash_gain": Key("", "positive", "no (1)", "gain on its jet's force on the drones below"),
-    "gains": Key("", "gains", "no", "the gains tuned for it, flown where a scenario names none"),
-    "mixer": Key("", MIXERS, "no", 'what a scenario\'s mixer = "auto" becomes on it'),
-    "layout": Key("", ("+", "x"), 'no ("+")', 'rotor layout: "+" (on the body axes) or "x" (at 45°)'),
-    "hub_area": Key("m²", "nonnegative", "no", "the hub plate a jet from above meets"),
-    "height": Key("m", "positive", "no", "height of the colliding body"),
+    "name": Key(unit="", kind="string", need="no (file stem)", doc="the vehicle's name"),
+    "mass": Key(unit="kg", kind="positive", need="always", doc="take-off mass"),
+    "arm_length": Key(unit="m", kind="positive", need="always", doc="centre of mass to motor axis (the paper's L)"),
+    "rotor_radius": Key(unit="m", kind="positive", need="always", doc="propeller radius"),
+    "inertia": Key(unit="kg·m²", kind="3 positive", need="to fly", doc="[Ix, Iy, Iz], principal"),
+    "drag": Key(unit="N·s/m", kind="3 nonnegative", need="to fly", doc="[Kx, Ky, Kz], the linear drag of eq. (1)"),
+    "max_thrust": Key(unit="N", kind="positive", need="to fly", doc="thrust of one rotor at full command"),
+    "min_thrust": Key(unit="N", kind="nonnegative", need="no (0)", doc="least thrust of one rotor, below max_thrust"),
+    "yaw_torque_coefficient": Key(unit="m", kind="positive", need="no", doc="κ = rotor drag torque / rotor thrust"),
+    "collision_radius": Key(
+        unit="m", kind="positive", need="no (arm_length)", doc="radius of the disc that touches other drones"
+    ),
+    "motor_tau": Key(unit="s", kind="positive", need="no", doc="rotor time constant: the lag under --aero realistic"),
+    "downwash_gain": Key(unit="", kind="positive", need="no (1)", doc="gain on its jet's force on the drones below"),
+    "gains": Key(unit="", kind="gains", need="no", doc="the gains tuned for it, flown where a scenario names none"),
+    "mixer": Key(unit="", kind=MIXERS, need="no", doc='what a scenario\'s mixer = "auto" becomes on it'),
+    "layout": Key(
+        unit="", kind=("+", "x"), need='no ("+")', doc='rotor layout: "+" (on the body axes) or "x" (at 45°)'
+    ),
+    "hub_area": Key(unit="m²", kind="nonnegative", need="no", doc="the hub plate a jet from above meets"),
+    "height": Key(unit="m", kind="positive", need="no", doc="height of the colliding body"),
 }
 
 

@@ -93,7 +93,9 @@ class CameraPath:
         half = int(round(style.zoom_window_s / dt)) if dt > 0 else 0
         envelope = _sliding_max(need, half)
         distance = np.maximum(_ema_zero_phase(envelope, dt, style.smooth_s), need)
-        return cls(t, lookat, distance, azimuth, style.elevation_deg, style.fovy_deg)
+        return cls(
+            t=t, lookat=lookat, distance=distance, azimuth=azimuth, elevation=style.elevation_deg, fovy=style.fovy_deg
+        )
 
     def index(self, time: float) -> int:
         return nearest_index(self.t, time)

@@ -325,9 +325,16 @@ class DownwashStage:
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
         self._record = DownwashRecord(
-            self.n_per_copy, self.arm, self.dirs, self.rho, self.rotor_radius, self.half_cda, self.half_cda_body,
-            self.force, self.torque,
-        )  # fmt: skip
+            n_per_copy=self.n_per_copy,
+            arm=self.arm,
+            dirs=self.dirs,
+            rho=self.rho,
+            rotor_radius=self.rotor_radius,
+            half_cda=self.half_cda,
+            half_cda_body=self.half_cda_body,
+            force=self.force,
+            torque=self.torque,
+        )
 
     def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
         """As :meth:`reset` for the drones of ``rows`` (N,) bool (:meth:`~swarm_mj.physics.sim.Sim.reset_copies`)."""

@@ -133,7 +133,13 @@ class GroundEffectStage:
         self.force = np.zeros((N, 3))
         self.torque = np.zeros((N, 3))
         self._record = GroundEffectRecord(
-            self.arm, self.dirs, self.rotor_z, self.rotor_radius, self.z_clip, self.force, self.torque
+            arm=self.arm,
+            dirs=self.dirs,
+            rotor_z=self.rotor_z,
+            rotor_radius=self.rotor_radius,
+            z_clip=self.z_clip,
+            force=self.force,
+            torque=self.torque,
         )
 
     def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim

@@ -49,7 +49,7 @@ class UpdraftStage:
 
     def reset(self, sim) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
         self.force = np.zeros((sim.n_total, 3))
-        self._record = UpdraftRecord(self.centre, self.radius, self.lift, self.force)
+        self._record = UpdraftRecord(centre=self.centre, radius=self.radius, lift=self.lift, force=self.force)
 
     def reset_rows(self, sim, rows: np.ndarray) -> None:  # noqa: ANN001 - swarm_mj.physics.sim.Sim
         self.force[rows] = 0.0
