@@ -5,7 +5,7 @@ The named rules and :func:`~.anticollision.make_rule` are in :mod:`.anticollisio
 so that either can be imported first).
 """
 
-from .barrier import BarrierFilter, BarrierRule
+from .barrier import BarrierFilter
 from .planner import LayeredRule
 from .rule_params import PRESETS, RuleParams
 from .rules import NoRule, PaperRule, Rule
@@ -14,7 +14,6 @@ from .slots import DiameterSchedule, polygon_offsets, slot_positions
 
 __all__ = [
     "BarrierFilter",
-    "BarrierRule",
     "LayeredRule",
     "NoRule",
     "PRESETS",

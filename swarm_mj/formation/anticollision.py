@@ -104,7 +104,7 @@ def make_rule(
     as written (a scenario's ``[formation]`` keys and ``[controller] downwash_feedforward``;
     :class:`UserError` naming ``where`` for an unknown one). ``barrier``: a scenario's
     ``[formation.barrier]`` table, for the rules with a barrier filter (``takes_barrier_params``:
-    ``barrier``, ``barrier-lanes``; docs/barrier.md); another rule has no use for it and flies without it
+    ``barrier``; docs/barrier.md); another rule has no use for it and flies without it
     (a scenario with the table may fly ``--anti-collision jet-aware`` or a sweep over the rules)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)

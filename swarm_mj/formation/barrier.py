@@ -81,20 +81,16 @@ reference only as far as the limit allowed; those drone-periods are counted
 
 **The separation filter** (:class:`BarrierFilter`, a :class:`~.separation.SeparationFilter`): the
 filter guarding any planner's references; ``anti_collision = "barrier"`` (:class:`BarrierPlannerRule`)
-is the jet-aware planner with it. **The lane rule** (:class:`BarrierRule`, ``"barrier-lanes"``, the
-first version): the same filter with no planner, flying every follower from its start on a nominal
-that goes round the leader on two lanes (:func:`lane_nominal_kernel`), so that followers do not meet
-the leader or each other head-on.
+is the jet-aware planner with it.
 
 **The modules.** The keep-out and the pair's constraint: :mod:`.keepout`; the QP and the input limits:
 :mod:`.barrier_qp`; the parameters and the filter's record: :mod:`.barrier_params`; the filter's
 kernels: :mod:`.barrier_kernels`; one period of the filter and :class:`BarrierFilter`:
-:mod:`.barrier_filter`; the two rules: this module, which re-exports the public names of the others.
+:mod:`.barrier_filter`; the rule: this module, which re-exports the public names of the others.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -114,103 +110,8 @@ from .barrier_params import (
 from .barrier_qp import project_polyhedron
 from .jet_aware import JetAwareRule
 from .keepout import DOWNWASH_MULTIPLE, keepout_radii, pair_constraint
-from .layered import estimate_velocities
 from .rule_params import PRESETS, RuleParams
-from .rules import Rule
-from .separation import Sensed, seen_within
 from .slots import capt_assignment
-
-#: The lane rule's own defaults (docs/barrier.md, "The lane rule"): the filter as the lane rule flew it
-#: before it ran on :func:`barrier_step` (a leader that yields, the gate on present positions, no
-#: vertical jerk limit, no deadlock escape); a scenario's ``[formation.barrier]`` still sets them.
-LANE_RULE_DEFAULTS: dict[str, Any] = {
-    "leader_yields": True,
-    "gate_horizon_s": 0.0,
-    "gate_holds_start": False,
-    "vertical_jerk_limit": 0.0,
-    "escape_after_s": 0.0,
-}
-
-
-class BarrierRule(Rule):
-    """``anti_collision = "barrier-lanes"`` (docs/barrier.md, "The lane rule"): no planner; the
-    formation's slots are the references, and :class:`BarrierFilter` flies every follower from its
-    start on its own reference with the lane nominal.
-
-    The same filter as ``barrier``'s (:func:`barrier_step`, one compiled period), configured from
-    :class:`BarrierParams` as the lane rule: its nominal goes round the leader on the lanes
-    (``lanes``; :func:`lane_nominal_kernel`) with the PD ``nominal_kp``, ``nominal_kd``, and every
-    follower starts *guarded* (its reference (r, ṙ) where it stands), so that it goes to its slot
-    on that nominal, not on a step of the reference; its defaults differ from ``barrier``'s where
-    :data:`LANE_RULE_DEFAULTS` says. A follower whose reference reaches its slot
-    (within ``release_m``, ``release_mps``) flies the slot, and is guarded again when it would
-    violate a constraint, as under ``barrier``. The filter's relax events are this rule's events
-    (``{t, drone, other: -1, action: "relax"}``)."""
-
-    name = "barrier-lanes"
-    #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
-    takes_barrier_params = True
-
-    def __init__(
-        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
-    ) -> None:
-        """``params``/``overrides``: the anti-collision record's fields (its ``downwash_feedforward``,
-        ``sensing_range``); ``barrier`` and the keys only :class:`BarrierParams` has among
-        ``overrides`` set the filter (:func:`barrier_params`)."""
-        own = own_keys(overrides)
-        super().__init__(n, params, **overrides)
-        self.barrier = barrier_params(self.params, {**LANE_RULE_DEFAULTS, **own, **(barrier or {})})
-        bp = self.barrier
-        lanes = replace(bp, guard_lanes=bp.lanes, guard_kp=bp.nominal_kp, guard_kd=bp.nominal_kd)
-        self.barrier_filter = BarrierFilter(lanes, self.vehicle)
-        self.separation_filter = self.barrier_filter
-        self.events: list[dict] = []
-        self.vel_d = np.zeros((n, 3))
-        self.acc_d = np.zeros((n, 3))
-        self._followers = np.arange(n) > 0  # (n,) the drones the filter steers (read-only)
-        self.footprint = float(self.params.keep_out(self.vehicle))  # (m) Sensed.keep_out, as the planner's
-
-    def reset(self, positions: np.ndarray) -> None:
-        positions = np.asarray(positions, dtype=float)
-        self.events = []
-        self.barrier_filter.reset(self.n)
-        rec = self.barrier_filter.record()
-        rec.guarded[1:] = True  # every follower on the filter's reference from where it stands
-        rec.ref[:] = positions
-        self.vel = np.zeros((self.n, 3))  # (n, 3) velocities estimated from successive positions
-        self._prev_pos = positions.copy()  # (n, 3)
-        self._prev_t = np.full(1, np.nan)  # (1,) s (NaN: no update yet)
-        self._dt = np.zeros(1)  # (1,) s
-
-    def update(
-        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """With zero formation velocity and acceleration references (see :meth:`references`)."""
-        z = np.zeros((self.n, 3))
-        pos_out, _, _ = self.references(t, positions, pos_d, z, z, formation_alt)
-        return pos_out, self._followers.copy()
-
-    def references(
-        self,
-        t: float,
-        positions: np.ndarray,
-        pos_d: np.ndarray,
-        vel_d: np.ndarray,
-        acc_d: np.ndarray,
-        formation_alt: float,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(pos_d, vel_d, acc_d) (n, 3): the filter's references (:meth:`BarrierFilter.__call__`) from
-        the formation's, the velocities estimated from successive positions
-        (:func:`~.layered.estimate_velocities`, as the planner's)."""
-        pos = np.ascontiguousarray(positions, dtype=np.float64)
-        dt = float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
-        f = self.barrier_filter
-        seen = seen_within(pos, self.params.sensing_range)
-        sensed = Sensed(t=float(t), positions=pos, velocities=self.vel, seen=seen, keep_out=self.footprint, dt=dt)
-        out = f(sensed, pos_d, vel_d, acc_d, self._followers)
-        self.take_separation_events()
-        self.vel_d, self.acc_d = out[1], out[2]
-        return out
 
 
 class BarrierPlannerRule(JetAwareRule):
@@ -264,12 +165,10 @@ __all__ = [
     "BARRIER_TABLE",
     "DOWNWASH_MULTIPLE",
     "EVENTS_PER_DRONE",
-    "LANE_RULE_DEFAULTS",
     "BarrierFilter",
     "BarrierParams",
     "BarrierPlannerRule",
     "BarrierRecord",
-    "BarrierRule",
     "apply_filter",
     "barrier_off",
     "barrier_params",

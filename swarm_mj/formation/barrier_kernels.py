@@ -236,7 +236,7 @@ def lane_nominal_kernel(
 ) -> None:
     """The guarded nominal accelerations of the drones flagged ``rows`` (n,) into ``u`` (n, 3) (other
     rows untouched): the PD onto the reference, acc_d + k_p·(pos_d − r) + k_d·(vel_d − ṙ), and, with
-    ``lanes``, a two-lane roundabout round the leader (docs/barrier.md, "The lane rule").
+    ``lanes``, a two-lane roundabout round the leader (docs/barrier.md, ``guard_lanes``).
 
     In the leader's frame (horizontal), a follower whose reference is more than ``arrive_angle``
     round the leader from it flies round on a lane, the shorter way: counter-clockwise on the ring

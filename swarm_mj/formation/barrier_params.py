@@ -46,8 +46,6 @@ class BarrierParams:
     leader_filters: bool = _p(
         True, "", "drone 0's references pass the filter (its guarded approach; its share with leader_yields)", None
     )
-    nominal_kp: float = _p(4.0, "1/s²", "the nominal's PD towards the reference: position gain")
-    nominal_kd: float = _p(4.0, "1/s", "the nominal's PD: velocity gain (critically damped at 2 rad/s with kp 4)")
     floor_m: float = _p(0.1, "m", "a pair of drones both below this altitude (on the ground) is not filtered", None)
     priority_share: float = _p(
         0.0, "–", "the lower index's share of a burden (b > 0); room is split in halves", 0.0, 1.0, open_lo=False
@@ -59,7 +57,6 @@ class BarrierParams:
     accel_filter_s: float = _p(
         0.05, "s", "time constant of the estimated accelerations (0: taken as 0)", 0.0, open_lo=False
     )
-    lanes: bool = _p(True, "", "`barrier-lanes`: its nominal goes round the leader on two lanes", None)
     guard_kp: float = _p(6.25, "1/s²", "`barrier`: the guarded nominal's PD onto the planner's reference, position")
     guard_kd: float = _p(5.0, "1/s", "… velocity gain (critically damped at 2.5 rad/s with guard_kp 6.25)")
     guard_lanes: bool = _p(
@@ -242,13 +239,11 @@ EVENTS_PER_DRONE = 8
 
 def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> BarrierRecord:
     """A fresh record of n drones (every drone free, no state taken yet). Its scalar parameters are
-    the fields of ``bp`` of the same name (as float or bool, their declared types), but ``lanes``:
-    the record's is ``bp.guard_lanes`` (``bp.lanes`` is the lane rule's own)."""
+    the fields of ``bp`` of the same name (as float or bool, their declared types); its ``lanes`` is
+    ``bp.guard_lanes``."""
     cast = {"float": float, "bool": bool}
     kw: dict[str, Any] = {
-        f.name: cast[str(f.type)](getattr(bp, f.name))
-        for f in fields(bp)
-        if f.name in BarrierRecord._fields and f.name != "lanes"
+        f.name: cast[str(f.type)](getattr(bp, f.name)) for f in fields(bp) if f.name in BarrierRecord._fields
     }
     cap = EVENTS_PER_DRONE * max(n, 1)
     return BarrierRecord(

@@ -216,7 +216,6 @@ PRESETS: dict[str, RuleParams] = {
     # without the crossing brake (docs/barrier.md, "the planner's crossing brake": the filter
     # separates, and the brake's on-off chatter drove the lagged drones' limit cycle)
     "barrier": replace(_JET_AWARE, descent_speed=0.75, crossing_brake=False),
-    "barrier-lanes": RuleParams(),
     "off": RuleParams(),
 }
 

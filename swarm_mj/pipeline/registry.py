@@ -29,7 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 from .. import _jit
-from ..formation.barrier import BarrierPlannerRule, BarrierRecord, BarrierRule, barrier_step
+from ..formation.barrier import BarrierPlannerRule, BarrierRecord, barrier_step
 from ..formation.jet_aware import JetAwareRule
 from ..formation.layered import formed_update
 from ..formation.planner import LayeredRule
@@ -70,7 +70,6 @@ ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "off": NoRule,
     "jet-aware": JetAwareRule,
     "barrier": BarrierPlannerRule,
-    "barrier-lanes": BarrierRule,
 }
 
 

@@ -374,7 +374,7 @@ def test_filter_guards_a_violating_reference_and_satisfies_the_barrier():
     """Follower 1 asked to fly into follower 2 (both seen): its acceleration is changed so that (B)
     holds for its share of the pair (computed by hand), it is guarded, the leader's row (not steered)
     and a far, unseen drone's row are the planner's; moving the unseen drone changes nothing."""
-    bp = BarrierParams(lanes=False, both_states=False, tiebreak=0.0)
+    bp = BarrierParams(both_states=False, tiebreak=0.0)
     radii = bp.radii()
     pos = np.array([[0.0, 0.0, 2.0], [-0.5, 3.0, 2.0], [0.5, 3.0, 2.0], [30.0, 0.0, 2.0]])
     vel = np.zeros((4, 3))
@@ -408,7 +408,7 @@ def test_filter_hands_a_drone_back_to_its_planner():
     """A follower guarded once (by a neighbour passing close) is handed back once its nominal is
     safe and its reference is back on the planner's: the output is then the planner's bit for bit
     (the burden split in halves, so that both are guarded)."""
-    bp = BarrierParams(lanes=False, priority_share=0.5)
+    bp = BarrierParams(priority_share=0.5)
     f = BarrierFilter(bp)
     f.reset(3)
     dt = 0.01
@@ -435,7 +435,7 @@ def test_filter_keeps_straight_line_planners_apart():
     the leader far away): flown as double integrators tracking the filter's references exactly,
     the keep-out of the filter is never entered by more than the discretisation's 1 %, and both
     reach their goals."""
-    bp = BarrierParams(lanes=False, priority_share=0.5)
+    bp = BarrierParams(priority_share=0.5)
     radii = bp.radii()
     f = BarrierFilter(bp)
     f.reset(3)
@@ -486,7 +486,7 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     at the first period of the stretch (t of that call), not one per period; the counters count
     drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``
     (the burden split in halves, so that both relax)."""
-    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, lanes=False, priority_share=0.5))
+    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, priority_share=0.5))
     f.reset(3)
     pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])

@@ -13,7 +13,7 @@ import pytest
 from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.errors import UserError
 from swarm_mj.formation.anticollision import make_rule
-from swarm_mj.formation.barrier import LANE_RULE_DEFAULTS, BarrierParams, BarrierPlannerRule, BarrierRule, keepout_radii
+from swarm_mj.formation.barrier import BarrierParams, BarrierPlannerRule, keepout_radii
 from swarm_mj.formation.rule_params import check_overrides
 from swarm_mj.scenario import parse_scenario
 
@@ -56,42 +56,31 @@ def test_every_field_is_explained_in_the_docs():
     assert not [f.name for f in fields(BarrierParams) if f"`{f.name}`" not in doc]
 
 
-@pytest.mark.parametrize("rule", ["barrier", "barrier-lanes"])
-def test_every_field_is_settable_from_a_scenario_and_reaches_the_filter(rule):
+def test_every_field_is_settable_from_a_scenario_and_reaches_the_filter():
     for f in fields(BarrierParams):
         v = _other_value(f)
-        sc = parse_scenario(_scenario(rule, **{f.name: v}))
+        sc = parse_scenario(_scenario("barrier", **{f.name: v}))
         assert sc.barrier_params == {f.name: v}
         r = BacksteppingPolicy(sc).rule
-        bp = r.barrier_filter.barrier if isinstance(r, BarrierPlannerRule) else r.barrier
-        assert isinstance(r, (BarrierPlannerRule, BarrierRule))
+        assert isinstance(r, BarrierPlannerRule)
+        bp = r.barrier_filter.barrier
         assert getattr(bp, f.name) == v, f.name
-        # the other fields keep the rule's defaults (the sensing range: the scenario's, 4 m)
-        defaults = BarrierParams(**(LANE_RULE_DEFAULTS if rule == "barrier-lanes" else {}))
-        assert bp == replace(defaults, **{f.name: v}), f.name
+        # the other fields keep their defaults (the sensing range: the scenario's, 4 m)
+        assert bp == replace(BarrierParams(), **{f.name: v}), f.name
 
 
-def test_the_lane_rule_flies_the_filter_with_its_own_nominal_and_the_vehicles_keep_out():
-    """``barrier-lanes`` is the barrier filter (one compiled step, docs/barrier.md, "The lane rule"):
-    its record's nominal is the lane rule's (``lanes``, ``nominal_kp``, ``nominal_kd``), its defaults
-    are LANE_RULE_DEFAULTS', every follower starts on the filter's reference where it stands, and
-    the keep-out is the run's vehicle's (it was the paper drone's for any vehicle before)."""
+def test_the_filter_record_has_the_guarded_nominal_and_the_vehicles_keep_out():
+    """``barrier``'s filter record: its guarded nominal is ``guard_lanes``, ``guard_kp``, ``guard_kd``
+    as set, and the keep-out is the run's vehicle's (not the paper drone's)."""
     from swarm_mj.vehicles import load_vehicle
 
     vehicle = load_vehicle("crazyflie21").params()
-    r = make_rule("barrier-lanes", 3, vehicle=vehicle, barrier={"lanes": False, "nominal_kp": 9.0})
-    assert isinstance(r, BarrierRule)
+    r = make_rule("barrier", 3, vehicle=vehicle, barrier={"guard_lanes": True, "guard_kp": 9.0})
     rec = r.separation_filter.record()
-    assert not rec.lanes and rec.lane_gains[0] == 9.0 and rec.lane_gains[1] == BarrierParams().nominal_kd
-    assert rec.leader_yields and rec.gate_horizon_s == 0.0 and rec.vertical_jerk_limit == 0.0
+    assert rec.lanes and rec.lane_gains[0] == 9.0 and rec.lane_gains[1] == BarrierParams().guard_kd
     expected = keepout_radii(vehicle, margin=BarrierParams().tracking_margin_m)
     assert rec.radii.tolist() == pytest.approx(expected.tolist())
     assert expected[0] < keepout_radii(margin=BarrierParams().tracking_margin_m)[0]  # not the paper drone's
-    start = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]
-    r.reset(start)
-    rec = r.separation_filter.record()  # a run's own record
-    assert rec.guarded[1:].all() and not rec.guarded[0]
-    assert rec.ref.tolist() == start
 
 
 def test_the_filter_senses_as_far_as_the_scenario_unless_its_table_says():
@@ -112,7 +101,7 @@ def test_the_filter_senses_as_far_as_the_scenario_unless_its_table_says():
         ("max_tilt_deg", 95.0, "<= 89 deg"),
         ("accel_down", 9.9, "<= 9.8"),
         ("tracking_margin_m", -0.01, ">= 0 m"),
-        ("lanes", 1, "true or false"),
+        ("guard_lanes", 1, "true or false"),
         ("leash_m", float("nan"), "finite"),
         ("lane_outer", 1.0, "must exceed lane_inner"),
         ("gian", 3.0, "unknown key 'gian'; did you mean 'gain'\\?$"),
@@ -136,7 +125,7 @@ def test_the_table_must_be_a_table_and_does_not_apply_to_a_rule_without_a_filter
     assert sc.barrier_params == {"gain": 2.0}
     plain = BacksteppingPolicy(parse_scenario(_scenario("jet-aware"))).rule
     rule = BacksteppingPolicy(sc).rule
-    assert type(rule) is type(plain) and not isinstance(rule, (BarrierPlannerRule, BarrierRule))
+    assert type(rule) is type(plain) and not isinstance(rule, BarrierPlannerRule)
     assert rule.params == plain.params
     barrier_sc = parse_scenario(_scenario("barrier", gain=2.0))
     flown = BacksteppingPolicy(barrier_sc, anti_collision="jet-aware").rule  # what --anti-collision jet-aware flies

@@ -44,8 +44,8 @@ def test_a_rule_flies_fast_by_what_its_record_has_registered(name):
     rule.reset(np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [-1.0, 0.0, 0.0]]))
     why = registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step")
     # the chunk driver's rule stage is the layered planner's formed step (no rule: the same, switched off);
-    # the paper's rule and the lane rule have none, and fly step by step
-    assert (why is None) == (name not in ("paper", "barrier-lanes")), why
+    # the paper's rule has none, and flies step by step
+    assert (why is None) == (name != "paper"), why
     filt = rule.separation_filter
     if filt is not None:
         assert registry.why_not_compiled(filt, registry.FILTER_KERNELS, "filter", "step") is None
