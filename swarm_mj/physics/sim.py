@@ -2,7 +2,10 @@
 
 :meth:`Sim.step` owns each control period T, in one compiled call where it can (:func:`period_physics`:
 1. and 2. below, handing back to Python only the physics steps Python must see, as the chunk driver of
-swarm_mj/pipeline/period.py does; else 2. is a Python loop):
+swarm_mj/pipeline/period.py does; else :func:`python_period`, handing back after every step), in one loop
+over the steps (:meth:`Sim._fly_period`). The kernels are in :mod:`swarm_mj.physics.kernels`, the compiled
+period in :mod:`swarm_mj.physics.compiled`, drag and wind in :mod:`swarm_mj.physics.stages`, the contact
+pairs in :mod:`swarm_mj.physics.contacts` (their names re-exported here):
 
 1. **saturation** — the commanded U1..U4 (N, 4) are mapped to rotor thrusts, clipped to
    [f_min, f_max] per rotor and mapped back (:func:`swarm_mj.physics.mixing.saturate_kernel`,
@@ -42,41 +45,93 @@ the rotor thrusts F1..F4 actually produced.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Callable, Iterable, Sequence
 from typing import Protocol
 
 import mujoco
 import numpy as np
 
-from .._jit import AVAILABLE, bind, compiled, jit
+from .._jit import bind, compiled
 from ..errors import SimulationDiverged, UserError
 from ..pipeline import registry
 from ..pipeline.records import Kinematics, Physics
 from . import _mjstep
 from ._mjstep import timer_pause, timer_resume
-from .mixing import saturate_kernel
+from .compiled import (
+    apply_forces,
+    drone_views,
+    hold_inputs,
+    log_stage_forces,
+    period_physics,
+    physics_steps,
+    track_monitors,
+    unhealthy,
+)
+from .contacts import touching_pairs
+from .kernels import (
+    BELOW_FLOOR,
+    DIVERGENCE_WARNING_IDS,
+    DIVERGENCE_WARNINGS,
+    FLOOR_GATE_M,
+    HEALTH_NAMES,
+    HEALTHY,
+    MUJOCO_WARNING,
+    NON_FINITE,
+    TILTED,
+    TOO_FAR,
+    add_drag_kernel,
+    copy_state,
+    drag_kernel,
+    drone_state,
+    first_unhealthy,
+    floor_gate,
+    floor_gate_kernel,
+    flush_stage_forces,
+    health_kernel,
+    unmix_kernel,
+)
 from .params import QuadParams
+from .stages import DragStage, WindStage
 from .world import World
 
-#: Health codes of :meth:`Sim.health` (per copy; 0 = healthy).
-HEALTHY, NON_FINITE, BELOW_FLOOR, TOO_FAR, TILTED, MUJOCO_WARNING = 0, 1, 2, 3, 4, 5
-HEALTH_NAMES = {
-    HEALTHY: "healthy",
-    NON_FINITE: "non-finite state",
-    BELOW_FLOOR: "below the floor",
-    TOO_FAR: "too far",
-    TILTED: "tilted too far",
-    MUJOCO_WARNING: "MuJoCo divergence warning",
-}
-#: MuJoCo warnings that mean the simulation diverged (MuJoCo resets MjData on the first three).
-DIVERGENCE_WARNINGS = (
-    mujoco.mjtWarning.mjWARN_BADQACC,
-    mujoco.mjtWarning.mjWARN_BADQPOS,
-    mujoco.mjtWarning.mjWARN_BADQVEL,
-    mujoco.mjtWarning.mjWARN_BADCTRL,
-)
-#: Their indices in ``MjData.warning`` (what a compiled kernel reads).
-DIVERGENCE_WARNING_IDS = tuple(int(w) for w in DIVERGENCE_WARNINGS)
+#: The simulator and, re-exported, the names its modules define (imports from swarm_mj.physics.sim keep working).
+__all__ = [
+    "BELOW_FLOOR",
+    "DIVERGENCE_WARNINGS",
+    "DIVERGENCE_WARNING_IDS",
+    "FLOOR_GATE_M",
+    "HEALTHY",
+    "HEALTH_NAMES",
+    "MUJOCO_WARNING",
+    "NON_FINITE",
+    "TILTED",
+    "TOO_FAR",
+    "DragStage",
+    "ForceStage",
+    "Monitor",
+    "Sim",
+    "WindStage",
+    "add_drag_kernel",
+    "apply_forces",
+    "copy_state",
+    "drag_kernel",
+    "drone_state",
+    "drone_views",
+    "first_unhealthy",
+    "floor_gate",
+    "floor_gate_kernel",
+    "flush_stage_forces",
+    "health_kernel",
+    "hold_inputs",
+    "log_stage_forces",
+    "period_physics",
+    "physics_steps",
+    "track_monitors",
+    "unhealthy",
+    "unmix_kernel",
+]
+
 _W_QACC, _W_QPOS, _W_QVEL, _W_CTRL = DIVERGENCE_WARNING_IDS
 
 
@@ -106,358 +161,6 @@ class ForceStage(Protocol):
     def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
         """ADD this stage's world-frame force (N, 3) [N] and torque (N, 3) [N·m] at each drone's CoM
         for the coming physics step. N = all drones of all copies, in sim order (copy-major)."""
-
-
-# --------------------------------------------------------------------------- kernels
-
-
-def _state_samples():
-    qpos = np.zeros((2, 7))
-    qpos[:, 3] = 1.0
-    return qpos, np.zeros((2, 6))
-
-
-@jit
-def drone_state(qpos: np.ndarray, qvel: np.ndarray, i: int, floor_z: float, max_distance: float) -> int:
-    """Drone i of qpos (N, 7), qvel (N, 6): 0 if sane, 1 if non-finite, 2 if below ``floor_z``,
-    3 if beyond ``max_distance`` on an axis."""
-    for c in range(7):
-        if not np.isfinite(qpos[i, c]):
-            return NON_FINITE
-    for c in range(6):
-        if not np.isfinite(qvel[i, c]):
-            return NON_FINITE
-    if qpos[i, 2] < floor_z:
-        return BELOW_FLOOR
-    for c in range(3):
-        if abs(qpos[i, c]) > max_distance:
-            return TOO_FAR
-    return HEALTHY
-
-
-@jit
-def copy_state(
-    qpos: np.ndarray, qvel: np.ndarray, c: int, n: int, floor_z: float, max_distance: float, max_tilt: float
-) -> int:
-    """The code of the first unhealthy drone of copy c (rows c·n .. c·n + n − 1 of qpos (N, 7),
-    qvel (N, 6)): :func:`drone_state`'s, or TILTED where |roll| or |pitch| > ``max_tilt``; 0 if none."""
-    for i in range(c * n, c * n + n):
-        code = drone_state(qpos, qvel, i, floor_z, max_distance)
-        if code != HEALTHY:
-            return code
-        if max_tilt < np.inf:
-            # roll and pitch of the quaternion (w, x, y, z): the formulas of swarm_mj.physics.state
-            w, x, y, z = qpos[i, 3], qpos[i, 4], qpos[i, 5], qpos[i, 6]
-            roll = np.arctan2(2.0 * (w * x + y * z), 1.0 - 2.0 * (x * x + y * y))
-            pitch = np.arcsin(min(max(2.0 * (w * y - z * x), -1.0), 1.0))
-            if not (abs(roll) <= max_tilt and abs(pitch) <= max_tilt):
-                return TILTED
-    return HEALTHY
-
-
-@jit(samples=lambda: [(*_state_samples(), 2, -0.5, 1e3, np.inf, np.zeros(1, dtype=np.int8))])
-def health_kernel(
-    qpos: np.ndarray, qvel: np.ndarray, n: int, floor_z: float, max_distance: float, max_tilt: float, out: np.ndarray
-) -> None:
-    """The state part of the health mask: out (m,) = :func:`copy_state` of each copy of n drones."""
-    for c in range(out.shape[0]):
-        out[c] = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
-
-
-@jit(samples=lambda: [(*_state_samples(), 2, 1, -0.5, 1e3, np.inf)])
-def first_unhealthy(
-    qpos: np.ndarray, qvel: np.ndarray, n: int, m: int, floor_z: float, max_distance: float, max_tilt: float
-) -> int:
-    """The first nonzero :func:`copy_state` code of the m copies (0: all healthy)."""
-    for c in range(m):
-        code = copy_state(qpos, qvel, c, n, floor_z, max_distance, max_tilt)
-        if code != HEALTHY:
-            return code
-    return HEALTHY
-
-
-@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)), np.zeros((5, 6))[1::2, 0:3])])
-def drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, ext: np.ndarray, out: np.ndarray) -> None:
-    """out (N, 3) = −K·v (N, 3) + F_ext (N, 3): linear drag of eq. (1) plus the wind force
-    (the drag and wind stages fused, when they are the only ones)."""
-    n = vel.shape[0]
-    for i in range(n):
-        for c in range(3):
-            out[i, c] = neg_drag[c] * vel[i, c] + ext[i, c]
-
-
-@jit(samples=lambda: [(np.zeros((5, 6))[1::2, 0:3], np.zeros((5, 6))[1::2, 3:6], np.zeros((2, 3)), np.zeros((2, 3)))])
-def flush_stage_forces(xf: np.ndarray, xtorque: np.ndarray, force: np.ndarray, torque: np.ndarray) -> None:
-    """xf (N, 3) += force, xtorque (N, 3) = torque (the extra stages' sum of one physics step), then
-    force and torque back to zero for the next step."""
-    for i in range(force.shape[0]):
-        for c in range(3):
-            xf[i, c] += force[i, c]
-            xtorque[i, c] = torque[i, c]
-            force[i, c] = 0.0
-            torque[i, c] = 0.0
-
-
-@jit(samples=lambda: [(np.zeros((2, 4)), np.eye(4), np.zeros((2, 4)))])
-def unmix_kernel(U: np.ndarray, unmix_t: np.ndarray, F_out: np.ndarray) -> None:
-    """F_out (N, 4) = U (N, 4) · UNMIXᵀ: rotor thrusts F1..F4 of the wrench U1..U4 (eqs. 26–29)."""
-    for i in range(U.shape[0]):
-        for r in range(4):
-            f = 0.0
-            for c in range(4):
-                f += U[i, c] * unmix_t[c, r]
-            F_out[i, r] = f
-
-
-@jit(samples=lambda: [(np.zeros((2, 3)), np.ones(3), np.zeros((2, 3)))])
-def add_drag_kernel(vel: np.ndarray, neg_drag: np.ndarray, force: np.ndarray) -> None:
-    """force (N, 3) += −K·v (N, 3): the linear drag of paper eq. (1)."""
-    n = vel.shape[0]
-    for i in range(n):
-        for c in range(3):
-            force[i, c] += neg_drag[c] * vel[i, c]
-
-
-#: The floor gate's clearance (m): the floor is tested for contacts in a control period only when a
-#: drone's bounding sphere could come within this of it, falling at its present speed (docs/aero.md,
-#: "Cost"). 0.1 m covers an acceleration of 2000 m/s² over a 10-ms period, far beyond any drone's.
-FLOOR_GATE_M = 0.1
-
-
-@jit(samples=lambda: [(*_state_samples(), 0.3, 0.01, np.zeros(3, dtype=np.int32), 0, 4)])
-def floor_gate_kernel(
-    qpos: np.ndarray, qvel: np.ndarray, z_near: float, horizon: float, contype: np.ndarray, floor_id: int, solid: int
-) -> None:
-    """The floor gate: ``contype[floor_id]`` (the model's ``geom_contype``) = ``solid`` when a drone of
-    qpos (N, 7), qvel (N, 6) could reach the floor within ``horizon`` s, else 0 (no floor pair is
-    tested). A drone can reach it when z − |v_z,down|·horizon < ``z_near`` (the floor's top + the
-    drones' floor reach + :data:`FLOOR_GATE_M`). With the floor off, MuJoCo finds no floor contact,
-    as it would have found none with it on: the contacts, hence the run, are the same bit for bit."""
-    near = False
-    for i in range(qpos.shape[0]):
-        fall = -qvel[i, 2] if qvel[i, 2] < 0.0 else 0.0
-        if not qpos[i, 2] - fall * horizon >= z_near:  # NaN: near (the health check reports it)
-            near = True
-            break
-    contype[floor_id] = solid if near else 0
-
-
-def floor_gate(world: World) -> tuple[int, int, float] | None:
-    """(floor geom id, its contype, z_near of :func:`floor_gate_kernel`) for a world whose floor is
-    solid, else None. The reach is the largest |geom position| + bounding radius + margin over the
-    drones' geoms that can touch the floor (MuJoCo's contype/conaffinity test)."""
-    m = world.model
-    fid = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, "floor")
-    if fid < 0:
-        return None
-    ct = int(m.geom_contype[fid])
-    if ct == 0 or m.geom_conaffinity[fid] != 0:  # not solid, or solid through what the gate leaves alone
-        return None
-    level = np.allclose(np.abs(m.geom_quat[fid]), (1.0, 0.0, 0.0, 0.0))
-    if m.geom_type[fid] != mujoco.mjtGeom.mjGEOM_PLANE or m.geom_bodyid[fid] != 0 or not level:
-        return None
-    touch = (world.geom_drone >= 0) & ((m.geom_conaffinity & ct) != 0)
-    if not np.isin(m.geom_bodyid[touch], world.body_ids).all():
-        return None  # floor-touching geoms on a body other than the drones' free ones
-    reach = np.linalg.norm(m.geom_pos[touch], axis=1) + m.geom_rbound[touch] + m.geom_margin[touch]
-    if reach.size == 0:
-        return None
-    return fid, ct, float(m.geom_pos[fid, 2] + reach.max() + FLOOR_GATE_M)
-
-
-# --------------------------------------------------------------------------- compiled force stages
-
-
-def _apply_stages(stages, kin, force, torque):  # pragma: no cover - replaced by the overload when compiled
-    """Each compiled stage of the tuple ``stages`` (records) adds its force and torque (N, 3)."""
-    for rec in stages:
-        registry.FORCE_KERNELS[type(rec)](rec, kin, force, torque)
-
-
-def _apply_stages_compiled(stages, kin, force, torque):
-    """The stage tuple unrolled at compile time: each record's registered kernel in turn."""
-    kernels = [registry.FORCE_KERNELS[t.instance_class] for t in stages.types]
-    body = "".join(f"    k{i}(stages[{i}], kin, force, torque)\n" for i in range(len(kernels)))
-    src = "def impl(stages, kin, force, torque):\n" + body + "    return None\n"
-    scope = {f"k{i}": k for i, k in enumerate(kernels)}
-    exec(src, scope)  # noqa: S102 - source built from the registry above, no outside text
-    return scope["impl"]
-
-
-def _log_stages(stages, rows, k):  # pragma: no cover - replaced by the overload when compiled
-    for j, rec in enumerate(stages):
-        rows[j, k] = rec.force
-
-
-def _log_stages_compiled(stages, rows, k):
-    """rows[j, k] (S, K+1, N, 3) = the j-th stage's force of the last physics step."""
-    body = "".join(f"    rows[{j}, k] = stages[{j}].force\n" for j in range(len(stages.types)))
-    src = "def impl(stages, rows, k):\n" + body + "    return None\n"
-    scope: dict = {}
-    exec(src, scope)  # noqa: S102
-    return scope["impl"]
-
-
-def _track_monitors(monitors, kin):  # pragma: no cover - replaced by the overload when compiled
-    for rec in monitors:
-        registry.MONITOR_KERNELS[type(rec)](rec, kin)
-
-
-def _track_monitors_compiled(monitors, kin):
-    """The monitor tuple unrolled at compile time: each record's registered step in turn."""
-    kernels = [registry.MONITOR_KERNELS[t.instance_class] for t in monitors.types]
-    body = "".join(f"    k{i}(monitors[{i}], kin)\n" for i in range(len(kernels)))
-    scope = {f"k{i}": k for i, k in enumerate(kernels)}
-    exec("def impl(monitors, kin):\n" + body + "    return None\n", scope)  # noqa: S102
-    return scope["impl"]
-
-
-if AVAILABLE:  # the tuples unrolled when compiled; the Python fallbacks above run as they are otherwise
-    from numba.extending import overload
-
-    overload(_apply_stages)(_apply_stages_compiled)
-    overload(_log_stages)(_log_stages_compiled)
-    overload(_track_monitors)(_track_monitors_compiled)
-
-
-@jit(inline=True)
-def track_monitors(monitors, kin) -> None:
-    """Each compiled monitor's step after a physics step without any contact (registry.MONITOR_KERNELS)."""
-    _track_monitors(monitors, kin)
-
-
-@jit(inline=True)
-def apply_forces(phys, stages, kin, xf, xtorque) -> None:
-    """One physics step's forces into xfrc_applied (xf, xtorque (N, 3) views): drag −K·v + the wind
-    held over the period (eq. 1, eq. 37), the produced rotor thrusts of lagged rotors, then each
-    compiled force stage's force and torque (their sum added, the torque set; the sums zeroed)."""
-    drag_kernel(kin.vel, phys.neg_drag, phys.wind, xf)
-    if phys.lag:
-        unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
-    if len(stages) > 0:
-        _apply_stages(stages, kin, phys.force, phys.torque)
-        flush_stage_forces(xf, xtorque, phys.force, phys.torque)
-
-
-@jit(inline=True)
-def log_stage_forces(stages, rows, k) -> None:
-    """The force (N, 3) of each stage of ``stages`` into rows[j, k] (S, K+1, N, 3)."""
-    _log_stages(stages, rows, k)
-
-
-@jit(inline=True)
-def hold_inputs(phys, U) -> None:
-    """Saturation (docs/interpretations.md §1): U (n, 4) → rotor thrusts clipped to [f_min, f_max] →
-    ``ctrl``, held over the period; the rotors' command where they lag; the floor gate."""
-    saturate_kernel(U, phys.unmix_t, phys.mix_t, phys.f_min, phys.f_max, phys.ctrl, phys.rotor_thrust)
-    if phys.lag:
-        for i in range(phys.rotor_command.shape[0]):  # a loop: a slice copy costs seconds of compiling
-            for r in range(4):
-                phys.rotor_command[i, r] = phys.rotor_thrust[i, r]
-    if phys.gate_on:
-        floor_gate_kernel(phys.qpos, phys.qvel, phys.gate_z, phys.T, phys.contype, phys.gate_id, phys.gate_solid)
-
-
-@jit(inline=True)
-def unhealthy(phys) -> bool:
-    """Sim.check's test: a MuJoCo divergence warning, or a state :func:`first_unhealthy` flags."""
-    for w in DIVERGENCE_WARNING_IDS:
-        if phys.warn[w]:
-            return True
-    n = phys.qpos.shape[0]
-    return first_unhealthy(phys.qpos, phys.qvel, n, 1, phys.floor_z, phys.max_distance, phys.max_tilt) != 0
-
-
-@jit(inline=True)
-def physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each) -> int:
-    """The physics steps s0 .. nsub − 1 of a control period (2. of the module docstring): each step's forces
-    (:func:`apply_forces`), MuJoCo's own ``mj_step`` (:func:`swarm_mj.physics._mjstep.step_call`), then the
-    compiled monitors (:func:`track_monitors`). Returns 0 when the period's steps are done, else the
-    number of the next step (1 .. nsub) after the step that hands back to Python: one with a contact
-    (``ncon`` > 0: :meth:`Sim.after_physics_step` counts it), or every step when ``python_each`` (Python
-    still holds drones in contact, or a monitor's Python must see each step). Needs a compiled
-    ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`). The chunk driver's physics
-    (swarm_mj/pipeline/period.py) and :meth:`Sim.step`'s (through :func:`period_physics`)."""
-    for s in range(s0, phys.nsub):
-        apply_forces(phys, stages, kin, xf, xtorque)
-        _mjstep.step_call(phys.fn, phys.m_addr, phys.d_addr)  # type: ignore[call-arg]  # a Numba intrinsic
-        if phys.ncon[0] > 0 or python_each:
-            return s + 1
-        track_monitors(monitors, kin)
-    return 0
-
-
-@jit(inline=True)
-def drone_views(phys):
-    """The views of the drones' rows a physics step reads and writes: (kinematics, xfrc force (N, 3),
-    xfrc torque (N, 3)), the drones' bodies at body0 + i·body_step of ``phys.xfrc``."""
-    n = phys.qpos.shape[0]
-    rows = phys.xfrc[phys.body0 : phys.body0 + n * phys.body_step : phys.body_step]
-    kin = Kinematics(
-        pos=phys.qpos[:, 0:3], quat=phys.qpos[:, 3:7], vel=phys.qvel[:, 0:3], rotor_thrust=phys.rotor_thrust
-    )
-    return kin, rows[:, 0:3], rows[:, 3:6]
-
-
-@jit
-def period_physics(phys, stages, monitors, U, s0, python_each) -> int:
-    """:meth:`Sim.step`'s one compiled call per control period: from its start (``s0`` = 0) saturation
-    and the floor gate (:func:`hold_inputs`, U (N, 4)), then :func:`physics_steps` from step ``s0``; returns
-    what :func:`physics_steps` returns (0: the period is flown; s > 0: Python handles step s − 1's contacts
-    and monitors, then calls again with ``s0`` = s unless s = nsub). The chunk driver calls the same two
-    stage functions (swarm_mj/pipeline/period.py, ``fly_chunk``)."""
-    if s0 == 0:
-        hold_inputs(phys, U)
-    kin, xf, xtorque = drone_views(phys)
-    return physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
-
-
-# --------------------------------------------------------------------------- force stages
-
-
-class DragStage:
-    """Paper eq. (1)'s linear drag −(Kx·ẋ, Ky·ẏ, Kz·ż) (world frame), from the velocity at the start
-    of each physics step."""
-
-    name = "drag"
-
-    def reset(self, sim: Sim) -> None:
-        self.neg_drag = -sim.params.drag  # (3,)
-
-    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
-        """Nothing per drone."""
-
-    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
-        add_drag_kernel(sim.vel, self.neg_drag, force)
-
-
-class WindStage:
-    """The wind force F^w (paper eq. 37) of the current control period, (N, 3) world frame, held
-    (zero-order) over the period: :meth:`Sim.step` sets it (:attr:`force`)."""
-
-    name = "wind"
-
-    def __init__(self) -> None:
-        self.force = np.zeros((0, 3))
-
-    def reset(self, sim: Sim) -> None:
-        self.force = np.zeros((sim.n_total, 3))  # (N, 3)
-
-    def reset_rows(self, sim: Sim, rows: np.ndarray) -> None:
-        self.force[rows] = 0.0
-
-    def set(self, force: np.ndarray | None) -> None:
-        """The force (N, 3) or (3,) for the coming period (None: zero)."""
-        if force is None:
-            self.force[:] = 0.0
-        else:
-            self.force[:] = force
-
-    def apply(self, sim: Sim, force: np.ndarray, torque: np.ndarray) -> None:
-        force += self.force
-
-
-# --------------------------------------------------------------------------- the pipeline
 
 
 def _index(ids: np.ndarray) -> slice | np.ndarray:
@@ -626,7 +329,7 @@ class Sim:
         of a first run, and ``swarm-mj warm-up`` compile it too); True if :meth:`step` now flies a control
         period in one compiled call (it needs every force stage compiled and a compiled ``mj_step``)."""
         self._calls = _Calls(self, compile=True)
-        return self._calls.period is not None
+        return self._calls.compiled
 
     def not_compiled(self) -> str | None:
         """Why the force stages cannot fly in a compiled driver (None: they can): the first one that is
@@ -790,19 +493,12 @@ class Sim:
             U = self._hold_parked(U)
         self.wind.set(wind_force)
         calls = self._bound()
+        bound = U.shape == self.ctrl.shape  # else the dispatcher types U (and its shape is the caller's)
+        if bound:
+            U = np.ascontiguousarray(U)  # (N, 4) C order: the bound calls' type
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/physics/_mjstep.py)
         try:
-            bound = U.shape == self.ctrl.shape  # else the dispatcher types U (and its shape is the caller's)
-            if bound:
-                U = np.ascontiguousarray(U)  # (N, 4) C order: the bound calls' type
-            if bound and calls.period is not None:
-                self._period_compiled(calls, U)
-            else:
-                (calls.hold_inputs if bound else hold_inputs)(calls.phys, U)
-                if self._fused:
-                    self._substeps_fused(calls)
-                else:
-                    self._substeps()
+            self._fly_period(calls, calls.period if bound else calls.any_shape(), U)
         finally:
             timer_resume(saved)
         if self.motor_lag:
@@ -810,20 +506,21 @@ class Sim:
         if parked:
             self._put_back()
 
-    def _period_compiled(self, calls: _Calls, U: np.ndarray) -> None:
-        """1. and 2. of the module docstring in one compiled call (:func:`period_physics`: saturation, the
-        floor gate, then :func:`physics_steps`, the chunk driver's physics), back in Python only after a
-        physics step with a contact, or after every step while Python must see each one (drones still in
-        contact, a monitor without a compiled step or not ready for it): exactly where the chunk driver
-        hands back (swarm_mj/pipeline/fast.py)."""
-        period, phys, stages, monitors = calls.period, calls.phys, calls.stages, calls.monitors
-        assert period is not None
-        s = period(phys, stages, monitors, U, 0, self._python_each(calls))
+    def _fly_period(self, calls: _Calls, period: Callable[..., int], U: np.ndarray) -> None:
+        """1. and 2. of the module docstring, the one loop over a period's physics steps. ``period(phys, stages,
+        monitors, U, s, python_each)`` saturates U at s = 0, flies the physics steps from s and returns 0 when the
+        period is flown, else the number of the step after the one it hands back after: Python then counts
+        that step's contacts and runs the monitors (:meth:`after_physics_step`) and calls it again from there.
+        The compiled :func:`period_physics` hands back only after a step with a contact, or after every step
+        while Python must see each one (:meth:`_python_each`): exactly where the chunk driver hands back
+        (swarm_mj/pipeline/fast.py). Its Python counterpart (:func:`python_period`) hands back after every step."""
+        phys, stages, monitors, every = calls.phys, calls.stages, calls.monitors, not calls.compiled
+        s = period(phys, stages, monitors, U, 0, every or self._python_each(calls))
         while s:
             self.after_physics_step()
             if s == self.n_substeps:
                 return
-            s = period(phys, stages, monitors, U, s, self._python_each(calls))
+            s = period(phys, stages, monitors, U, s, every or self._python_each(calls))
 
     def _python_each(self, calls: _Calls) -> bool:
         """Python must see every physics step: drones still in contact, or a monitor whose Python
@@ -835,32 +532,6 @@ class Sim:
             return False
         return calls.monitors_python or any(not m.compiled_ready() or m.holds_steps() for m in self.monitors)  # type: ignore[attr-defined]
 
-    def _substeps_fused(self, calls: _Calls) -> None:
-        """Drag + wind in one compiled call, xf = −K·v + F_wind (the stage loop's sum 0 + (−K·v) + F_wind),
-        then the extra stages' sum added (and their torque set): :func:`apply_forces`, the function
-        the compiled driver calls (swarm_mj/pipeline/period.py), where every extra stage has a compiled kernel."""
-        m, d = self.model, self.data
-        xf, xt = self._xfrc_force, self._xfrc_torque
-        if self._compiled is not None:
-            phys, stages, kin, apply = calls.phys, calls.stages, self.kinematics, calls.apply_forces
-            for _ in range(self.n_substeps):
-                apply(phys, stages, kin, xf, xt)
-                mujoco.mj_step(m, d)
-                self.after_physics_step()
-            return
-        vel, ext, k = self.vel, self.wind.force, self.drag.neg_drag
-        extra, lag = self._extra, self.motor_lag
-        force, torque = self._force, self._torque
-        for _ in range(self.n_substeps):
-            drag_kernel(vel, k, ext, xf)
-            if lag:
-                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)  # produced rotor thrusts
-            for stage in extra:
-                stage.apply(self, force, torque)
-            flush_stage_forces(xf, xt, force, torque)  # xf += f, torque = tq; f, tq = 0
-            mujoco.mj_step(m, d)
-            self.after_physics_step()
-
     def after_physics_step(self) -> None:
         """2c. of the module docstring, what follows each ``mj_step``: drone–drone contacts, then the
         monitors (the chunk driver, swarm_mj/pipeline/period.py, hands each step with a contact back to this)."""
@@ -869,21 +540,18 @@ class Sim:
         for mon in self.monitors:
             mon.after_step(self)
 
-    def _substeps(self) -> None:
-        """Every stage adds its force and torque, the sums go to xfrc_applied, then mj_step and contacts."""
-        m, d = self.model, self.data
+    def _stage_forces(self) -> None:
+        """One physics step's forces into xfrc_applied where the stages do not start with drag and wind (the
+        general path): every stage adds its force and torque into zeroed sums, which are then set."""
         force, torque = self._force, self._torque
-        for _ in range(self.n_substeps):
-            force[:] = 0.0
-            torque[:] = 0.0
-            if self.motor_lag:
-                unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
-            for stage in self.stages:
-                stage.apply(self, force, torque)
-            self._xfrc_force[:] = force
-            self._xfrc_torque[:] = torque
-            mujoco.mj_step(m, d)
-            self.after_physics_step()
+        force[:] = 0.0
+        torque[:] = 0.0
+        if self.motor_lag:
+            unmix_kernel(self._act, self._unmix_t, self.rotor_thrust)
+        for stage in self.stages:
+            stage.apply(self, force, torque)
+        self._xfrc_force[:] = force
+        self._xfrc_torque[:] = torque
 
     # ------------------------------------------------------------------ health
     def health(self, out: np.ndarray | None = None) -> np.ndarray:
@@ -955,56 +623,83 @@ class Sim:
 
     # ------------------------------------------------------------------ contacts
     def _count_contacts(self) -> None:
-        d = self.data
-        pairs: set[tuple[int, int]] = set()
-        if d.ncon:
-            g1 = self._geom_drone[d.contact.geom1[: d.ncon]]
-            g2 = self._geom_drone[d.contact.geom2[: d.ncon]]
-            for a, b in zip(g1.tolist(), g2.tolist()):
-                if a >= 0 and b >= 0 and a != b:
-                    pairs.add((min(a, b), max(a, b)))
+        pairs = touching_pairs(self.data, self._geom_drone)
         if pairs:
             self.contact_steps += 1
             for pair in pairs - self._pairs_in_contact:
                 self.contact_events += 1
-                self.contact_log.append((float(d.time), pair[0], pair[1]))
+                self.contact_log.append((float(self.data.time), pair[0], pair[1]))
         self._pairs_in_contact = pairs
 
     def drone_contacts(self) -> list[tuple[int, int]]:
         """Pairs of drones (i < j) whose geoms are in contact right now."""
-        d = self.data
-        out = set()
-        for c in range(d.ncon):
-            a, b = self._geom_drone[d.contact.geom1[c]], self._geom_drone[d.contact.geom2[c]]
-            if a >= 0 and b >= 0 and a != b:
-                out.add((int(min(a, b)), int(max(a, b))))
-        return sorted(out)
+        return sorted(touching_pairs(self.data, self._geom_drone))
+
+
+def python_period(model: mujoco.MjModel, data: mujoco.MjData, hold: Callable, forces: Callable) -> Callable[..., int]:
+    """:func:`period_physics` with ``mj_step`` called from Python, one physics step a call: ``period(phys,
+    stages, monitors, U, s0, python_each)`` saturates at ``s0`` = 0 (``hold(phys, U)``), applies the step's
+    forces (``forces()``), steps MuJoCo and returns s0 + 1 (Python sees every step)."""
+
+    def period(phys: Physics, stages: tuple, monitors: tuple, U: np.ndarray, s0: int, python_each: bool) -> int:  # noqa: ARG001
+        if s0 == 0:
+            hold(phys, U)
+        forces()
+        mujoco.mj_step(model, data)
+        return s0 + 1
+
+    return period
 
 
 class _Calls:
-    """:class:`Sim`'s compiled calls bound to its records (:func:`swarm_mj._jit.bind`); built by
-    :meth:`Sim._bound`, dropped whenever a record is rebuilt. ``period`` (:func:`period_physics`) where the
-    force stages are compiled, a kernel can call ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`) and
-    it is compiled for these records already (in memory or Numba's on-disk cache: compiling it costs a first
+    """:class:`Sim`'s calls of a control period bound to its records (:func:`swarm_mj._jit.bind`); built by
+    :meth:`Sim._bound`, dropped whenever a record is rebuilt. ``period``: :func:`period_physics` (``compiled``)
+    where the force stages are compiled, a kernel can call ``mj_step`` (:func:`swarm_mj.physics._mjstep.available`)
+    and it is compiled for these records already (in memory or Numba's on-disk cache: compiling it costs a first
     run 2-3 s, so it is compiled with the chunk driver, :func:`swarm_mj.pipeline.fast.compile_now`, in the
-    background or by ``swarm-mj warm-up``), else None (the Python loop over the physics steps, with
-    ``apply_forces`` where the stages are compiled)."""
+    background or by ``swarm-mj warm-up``), else :func:`python_period` (saturation bound, the forces of
+    :meth:`forces`)."""
 
     def __init__(self, sim: Sim, compile: bool = False) -> None:  # noqa: A002
+        self._sim = sim
         #: the records the calls are bound to (passed with them: never another record)
         self.phys, self.stages = phys, stages = sim._record, sim._compiled
         self.unhealthy = bind(unhealthy, phys)
-        self.period: Callable[..., int] | None = None
-        self.apply_forces: Callable[..., None] = apply_forces  # through the dispatcher unless bound below
-        self.hold_inputs: Callable[..., None] = hold_inputs
         #: the compiled monitors' records; ``monitors_python``: some monitor has none (Python sees each step)
         self.monitors_python = sim.monitors_not_compiled() is not None
         self.monitors: tuple = () if self.monitors_python else tuple(m.record() for m in sim.monitors)  # type: ignore[attr-defined]
         U = np.zeros(sim.ctrl.shape)  # (N, 4) C order, as Sim.step passes it
         args = (phys, stages, self.monitors, U, 0, False)
-        if stages is not None and _mjstep.available() and (compile or compiled(period_physics, *args)):
+        self.compiled = stages is not None and _mjstep.available() and (compile or compiled(period_physics, *args))
+        if self.compiled:
             self.period = bind(period_physics, *args)
-            return
-        self.hold_inputs = bind(hold_inputs, phys, U)  # saturation from Python: the physics steps looped there
-        if stages is not None:
-            self.apply_forces = bind(apply_forces, phys, stages, sim.kinematics, sim._xfrc_force, sim._xfrc_torque)
+        else:
+            self.period = python_period(sim.model, sim.data, bind(hold_inputs, phys, U), self.forces())
+
+    def any_shape(self) -> Callable[..., int]:
+        """The period for a U of another shape than ``ctrl``'s: :func:`python_period`, saturating through
+        Numba's dispatcher (which types U, or refuses it)."""
+        return python_period(self._sim.model, self._sim.data, hold_inputs, self.forces())
+
+    def forces(self) -> Callable[[], None]:
+        """One physics step's forces into xfrc_applied, from Python: :func:`apply_forces` (drag −K·v + the wind,
+        the produced rotor thrusts, the compiled stages), then each stage without a compiled kernel adds its
+        force and torque (``apply``) and their sums are added (:func:`flush_stage_forces`); where the stages do
+        not start with drag and wind, :meth:`Sim._stage_forces`."""
+        sim = self._sim
+        if not sim._fused:
+            return sim._stage_forces
+        xf, xt = sim._xfrc_force, sim._xfrc_torque
+        stages = () if self.stages is None else self.stages
+        apply = functools.partial(bind(apply_forces, self.phys, stages, sim.kinematics, xf, xt), self.phys, stages)
+        kin, extra, force, torque = sim.kinematics, sim._extra, sim._force, sim._torque
+        if self.stages is not None:
+            return functools.partial(apply, kin, xf, xt)
+
+        def forces() -> None:
+            apply(kin, xf, xt)
+            for stage in extra:
+                stage.apply(sim, force, torque)
+            flush_stage_forces(xf, xt, force, torque)  # xf += force, xt = torque; both back to zero
+
+        return forces

@@ -131,19 +131,7 @@ class SwarmPhysics:
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
         self._observe = Bound(observe_into, records=2)  # bound to the records: no re-typing per call (_jit.py)
-        pos, vel, acc, yaw = self._ref
-        self._copy_refs = CopyRefs(
-            T=float(T),
-            sensing_range=float(sc.sensing_range),
-            pos=pos,
-            vel=vel,
-            acc=acc,
-            yaw=yaw,
-            D=self.D,
-            unit_offsets=self.unit_offsets,
-            wind_known=self.wind_known,
-            relative=self.relative_wind,
-        )
+        self._copy_refs = self._shared_refs(float(sc.sensing_range))
         self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
         aero = sc.aero
         start = self._starts(None)  # (n, 3)
@@ -206,6 +194,22 @@ class SwarmPhysics:
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)
         # bound once (no re-typing per step, _jit.bind): these arrays are this object's, written only in place
         self._copy_winds = bind(copy_winds, self.wind, self.k, K, n, self.wind_now)
+
+    def _shared_refs(self, sensing_range: float) -> CopyRefs:
+        """The references every copy shares (the task's record): the leader trajectory, D(t), the wind's roles."""
+        pos, vel, acc, yaw = self._ref
+        return CopyRefs(
+            T=float(self.T),
+            sensing_range=sensing_range,
+            pos=pos,
+            vel=vel,
+            acc=acc,
+            yaw=yaw,
+            D=self.D,
+            unit_offsets=self.unit_offsets,
+            wind_known=self.wind_known,
+            relative=self.relative_wind,
+        )
 
     # ------------------------------------------------------------------ episodes
     def _starts(self, seed: int | None) -> np.ndarray:
