@@ -142,13 +142,22 @@ def test_the_finder_sees_records_and_calls():
         assert _record(mods, module, name) is not None, (module, name)
     assert _record(mods, "swarm_mj.pipeline.records", "Physics")[1] == 33
     source = (
-        "from .pipeline.records import Gains as G\nfrom .pipeline import records\n"
-        "G(1, 2, 3)\nrecords.Obs._make(x)\nG(a=1)\n"
+        "from typing import NamedTuple\n"
+        "from .pipeline.records import Gains as G\n"
+        "from .pipeline import records\n"
+        "G(1, 2, 3)\n"  # line 4: positional, through an alias
+        "records.Obs._make(x)\n"  # line 5: _make, through a module
+        "G(a_pos=1)\n"  # keywords: fine
+        "class P(NamedTuple):\n    a: int\n    b: int\n    c: int\n    d: int\n"
+        "    @classmethod\n    def zero(cls):\n        return cls(0, 0, 0, 0)\n"  # line 14: cls(...)
     )
     probe = _Module(PACKAGE / "probe.py", source)
-    calls = [n for n in ast.walk(probe.tree) if isinstance(n, ast.Call)]
-    assert _callee(mods, probe, calls[0].func) == ("swarm_mj.pipeline.records.Gains", 14)
-    assert _callee(mods, probe, calls[1].func.value) == ("swarm_mj.pipeline.records.Obs", 14)
+    found = positional({**mods, probe.name: probe})
+    assert sorted((node.lineno, name, n) for m, node, name, n in found if m is probe) == [
+        (4, "swarm_mj.pipeline.records.Gains", 14),
+        (5, "swarm_mj.pipeline.records.Obs", 14),
+        (14, "swarm_mj.probe.P", 4),
+    ]
 
 
 def test_records_are_built_by_keyword():
