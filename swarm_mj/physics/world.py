@@ -238,40 +238,7 @@ def _drone_mjcf(
                 biastype="none",
             )
     if ground:
-        # Landing gear (docs/aero.md): a strut under the hub and a square skid plate at its foot. The
-        # skid touches only the floor: collision bit 4 (the floor has contype 4, the skid conaffinity 4
-        # and contype 0). The rotor disc (the drone's outline) also gets conaffinity bit 4, so that a
-        # tilted drone hits the floor with it; drone-drone pairs are unchanged (bit 1). One geom per
-        # drone (the skid): every geom costs MuJoCo bounding-volume and collision work at each RK4
-        # stage, so the strut, which only has to be seen, is a site (docs/aero.md, "Cost").
-        from .aero.ground import SKID_HALF, SKID_HALF_Z, SKID_Z, STRUT_RADIUS
-
-        body = drone.find("body", "body")
-        body.add(
-            "site",
-            name="strut",
-            type="capsule",
-            fromto=[0, 0, -0.02 * s, 0, 0, SKID_Z * s],
-            size=[STRUT_RADIUS * s],
-            group=1,
-            rgba=[0.2, 0.2, 0.25, 1],
-        )
-        body.add(
-            "geom",
-            name="skid",
-            type="box",
-            size=[SKID_HALF * s, SKID_HALF * s, SKID_HALF_Z * s],
-            pos=[0, 0, SKID_Z * s],
-            euler=[0, 0, 45],
-            contype=0,
-            conaffinity=4,
-            group=1,
-            density=0,
-            rgba=[0.2, 0.2, 0.25, 1],
-        )
-        disc = drone.find("geom", "rotor_plane")
-        if disc is not None:
-            disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
+        _landing_gear(drone, s)
     hub = _drawn_part(drone, "hub")
     if hub is not None:
         hub.rgba = list(rgba)
@@ -282,6 +249,44 @@ def _drone_mjcf(
             if params.layout == "x":  # the arms from rotor to rotor: turned 45° about z
                 g.euler = [0, 0, 45]
     return drone
+
+
+def _landing_gear(drone: mjcf.RootElement, s: float) -> None:
+    """Add the landing gear to ``drone`` (``s``: its ``size_scale``) and let its rotor disc touch the floor."""
+    # Landing gear (docs/aero.md): a strut under the hub and a square skid plate at its foot. The
+    # skid touches only the floor: collision bit 4 (the floor has contype 4, the skid conaffinity 4
+    # and contype 0). The rotor disc (the drone's outline) also gets conaffinity bit 4, so that a
+    # tilted drone hits the floor with it; drone-drone pairs are unchanged (bit 1). One geom per
+    # drone (the skid): every geom costs MuJoCo bounding-volume and collision work at each RK4
+    # stage, so the strut, which only has to be seen, is a site (docs/aero.md, "Cost").
+    from .aero.ground import SKID_HALF, SKID_HALF_Z, SKID_Z, STRUT_RADIUS
+
+    body = drone.find("body", "body")
+    body.add(
+        "site",
+        name="strut",
+        type="capsule",
+        fromto=[0, 0, -0.02 * s, 0, 0, SKID_Z * s],
+        size=[STRUT_RADIUS * s],
+        group=1,
+        rgba=[0.2, 0.2, 0.25, 1],
+    )
+    body.add(
+        "geom",
+        name="skid",
+        type="box",
+        size=[SKID_HALF * s, SKID_HALF * s, SKID_HALF_Z * s],
+        pos=[0, 0, SKID_Z * s],
+        euler=[0, 0, 45],
+        contype=0,
+        conaffinity=4,
+        group=1,
+        density=0,
+        rgba=[0.2, 0.2, 0.25, 1],
+    )
+    disc = drone.find("geom", "rotor_plane")
+    if disc is not None:
+        disc.conaffinity = int(disc.conaffinity if disc.conaffinity is not None else 1) | 4
 
 
 def _collision_body(plane, params: QuadParams) -> None:  # noqa: ANN001 - plane: a PyMJCF geom
@@ -376,32 +381,9 @@ def build_world(
     bit, and every build returns its own copy, so nothing written to one world's model reaches
     another (:func:`clear_world_cache` forgets them).
     """
-    if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
-        raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
-    if not (np.isfinite(timestep) and timestep > 0):
-        raise UserError(f"timestep must be a positive number of seconds, got {timestep!r}")
-    if integrator not in INTEGRATORS:
-        raise UserError(f"unknown integrator {integrator!r}; choose one of {sorted(INTEGRATORS)}")
-    names = list(names) if names is not None else default_names(n_drones)
-    if len(names) != n_drones or len(set(names)) != n_drones:
-        raise UserError(f"need {n_drones} distinct drone names, got {names!r}")
-    if positions is None:
-        positions = np.column_stack([np.arange(n_drones, dtype=float), np.zeros(n_drones), np.zeros(n_drones)])
-    positions = np.asarray(positions, dtype=float)
-    if positions.shape != (n_drones, 3) or not np.isfinite(positions).all():
-        raise UserError(f"positions must be a finite ({n_drones}, 3) array, got shape {positions.shape}")
-    yaws = np.zeros(n_drones) if yaws is None else np.asarray(yaws, dtype=float)
-    if yaws.shape != (n_drones,) or not np.isfinite(yaws).all():
-        raise UserError(f"yaws must be a finite ({n_drones},) array, got {yaws.tolist()!r}")
+    names, positions, yaws = _checked_world(n_drones, names, positions, yaws, timestep, integrator)
     asset_path = Path(asset) if asset is not None else QUADROTOR_XML
-    if not (np.isfinite(motor_tau) and motor_tau >= 0):
-        raise UserError(f"motor_tau must be a time constant >= 0 s, got {motor_tau!r}")
-    if torque_motors not in ("joint", "site"):
-        raise UserError(f"torque_motors must be 'joint' or 'site', got {torque_motors!r}")
-    if contact_groups is not None and (
-        not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
-    ):
-        raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
+    _check_motors(n_drones, motor_tau, torque_motors, contact_groups)
     spec = WorldSpec(
         n_drones=n_drones,
         positions=positions,
@@ -427,12 +409,7 @@ def build_world(
     cached, xml = built
     model = copy.copy(cached)  # mj_copyModel: the cached model is never handed out, so never mutated
 
-    body_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{n}/body") for n in names])
-    if (body_ids < 0).any():
-        raise UserError("compiled model lacks a drone body named '<drone>/body'")
-    geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
-    for k, bid in enumerate(body_ids):
-        geom_drone[model.geom_bodyid == bid] = k
+    body_ids, geom_drone = _drone_ids(model, names)
     return World(
         model=model,
         names=names,
@@ -443,6 +420,58 @@ def build_world(
         initial_yaws=yaws.copy(),
         xml=xml,
     )
+
+
+def _checked_world(
+    n_drones: int,
+    names: Sequence[str] | None,
+    positions: np.ndarray | Sequence[Sequence[float]] | None,
+    yaws: np.ndarray | Sequence[float] | None,
+    timestep: float,
+    integrator: str,
+) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """:func:`build_world`'s drones checked: (names, positions (n, 3), yaws (n,)), defaults filled in."""
+    if not isinstance(n_drones, (int, np.integer)) or n_drones < 1:
+        raise UserError(f"n_drones must be an integer >= 1, got {n_drones!r}")
+    if not (np.isfinite(timestep) and timestep > 0):
+        raise UserError(f"timestep must be a positive number of seconds, got {timestep!r}")
+    if integrator not in INTEGRATORS:
+        raise UserError(f"unknown integrator {integrator!r}; choose one of {sorted(INTEGRATORS)}")
+    names = list(names) if names is not None else default_names(n_drones)
+    if len(names) != n_drones or len(set(names)) != n_drones:
+        raise UserError(f"need {n_drones} distinct drone names, got {names!r}")
+    if positions is None:
+        positions = np.column_stack([np.arange(n_drones, dtype=float), np.zeros(n_drones), np.zeros(n_drones)])
+    positions = np.asarray(positions, dtype=float)
+    if positions.shape != (n_drones, 3) or not np.isfinite(positions).all():
+        raise UserError(f"positions must be a finite ({n_drones}, 3) array, got shape {positions.shape}")
+    yaws = np.zeros(n_drones) if yaws is None else np.asarray(yaws, dtype=float)
+    if yaws.shape != (n_drones,) or not np.isfinite(yaws).all():
+        raise UserError(f"yaws must be a finite ({n_drones},) array, got {yaws.tolist()!r}")
+    return names, positions, yaws
+
+
+def _check_motors(n_drones: int, motor_tau: float, torque_motors: str, contact_groups: int | None) -> None:
+    """:func:`build_world`'s motors and contact groups checked (:class:`UserError` naming the argument)."""
+    if not (np.isfinite(motor_tau) and motor_tau >= 0):
+        raise UserError(f"motor_tau must be a time constant >= 0 s, got {motor_tau!r}")
+    if torque_motors not in ("joint", "site"):
+        raise UserError(f"torque_motors must be 'joint' or 'site', got {torque_motors!r}")
+    if contact_groups is not None and (
+        not isinstance(contact_groups, (int, np.integer)) or contact_groups < 1 or n_drones % contact_groups
+    ):
+        raise UserError(f"contact_groups must divide the {n_drones} drones, got {contact_groups!r}")
+
+
+def _drone_ids(model: mujoco.MjModel, names: Sequence[str]) -> tuple[np.ndarray, np.ndarray]:
+    """(body ids (n,), the drone index of every geom (ngeom,), −1 for the floor and the world's)."""
+    body_ids = np.array([mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, f"{n}/body") for n in names])
+    if (body_ids < 0).any():
+        raise UserError("compiled model lacks a drone body named '<drone>/body'")
+    geom_drone = np.full(model.ngeom, -1, dtype=np.int64)
+    for k, bid in enumerate(body_ids):
+        geom_drone[model.geom_bodyid == bid] = k
+    return body_ids, geom_drone
 
 
 def _compose(spec: WorldSpec) -> tuple[mujoco.MjModel, str]:
