@@ -182,9 +182,45 @@ def has_overload(fn: Callable[..., Any], sig: tuple) -> bool:
     if sig in dispatcher.overloads:
         return True
     try:
-        return any(key[0] == sig for key in dispatcher._cache._cache_file._load_index())
+        return any(key[0] == sig for key in _numba_cache(dispatcher)._cache_file._load_index())
     except Exception:  # noqa: BLE001 - numba internals changed
         return False
+
+
+# --------------------------------------------------------------------------- Numba's on-disk cache
+# Numba has no public API for its on-disk cache: where it lives, which signatures its index holds, and
+# dropping it are a dispatcher's internals (``Dispatcher._cache``, a ``_CacheImpl`` with its
+# ``_cache_file``). This module is the one of the package that knows Numba, so it is the one that reaches
+# into them, through :func:`_numba_cache` alone; the chunk driver (swarm_mj/pipeline/fast.py) and the
+# kernels' warm-up go through the functions below, each of which does without on a surprise.
+
+
+def _numba_cache(fn: Callable[..., Any]) -> Any:
+    """The on-disk cache object of the Numba dispatcher ``fn`` (AttributeError for a plain function)."""
+    dispatcher: Any = fn
+    return dispatcher._cache
+
+
+def cache_dir(fn: Callable[..., Any]) -> str | None:
+    """The directory of Numba's on-disk cache for ``fn``; None for a plain function (no Numba)."""
+    try:
+        return str(_numba_cache(fn).cache_path)
+    except AttributeError:
+        return None
+
+
+def cached_signatures(fn: Callable[..., Any]) -> list[tuple]:
+    """The signatures (tuples of Numba types) Numba's on-disk cache index holds for ``fn``'s current
+    source ([] without Numba, or on any surprise of Numba's internals)."""
+    try:
+        return [key[0] for key in _numba_cache(fn)._cache_file._load_index()]
+    except Exception:  # noqa: BLE001 - numba internals changed
+        return []
+
+
+def flush_cache(fn: Callable[..., Any]) -> None:
+    """Empty Numba's on-disk cache of the dispatcher ``fn`` (its index and overloads): a stale one would load."""
+    _numba_cache(fn).flush()
 
 
 class CompileClock:
@@ -299,8 +335,7 @@ def _cache_index(kernel: Callable[..., Any]) -> bool | None:
     if not AVAILABLE:
         return None
     try:
-        dispatcher: Any = kernel  # a numba Dispatcher; its cache is untyped internals
-        return bool(dispatcher._cache._cache_file._load_index())
+        return bool(_numba_cache(kernel)._cache_file._load_index())
     except Exception:  # noqa: BLE001 - numba internals changed
         return None
 

@@ -15,7 +15,8 @@ the wind held over each period, contact counting, health, the observation) and t
 :class:`swarm_mj.wrappers.vector.SwarmVectorEnv` drives the same two for m copies. What is this
 class's own: the dm_env API, the action modes (U, a :class:`Command`, a setpoint), the
 :class:`StepRecord`, ``raise_on_divergence`` and the exception naming why, and the attributes the
-runner and the chunk driver read (``sim``, ``k``, ``wind``, ``_refs``, ``_obs``, ``obs_record``).
+runner and the chunk driver read (``sim``, ``k``, ``wind``, ``refs``, ``observation``, ``obs_record``) and
+what the chunk driver hands back (:meth:`SwarmEnv.after_chunk`).
 
 What a step applied is in :attr:`SwarmEnv.last_applied`, a :class:`StepRecord`: the U1..U4
 after saturation and the rotor thrusts, the wind force, and, when the action was a
@@ -76,7 +77,7 @@ from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .physics.sim import HEALTHY, ForceStage
 from .physics.wind import WindSeries
-from .pipeline.records import Obs
+from .pipeline.records import Obs, Refs
 from .pipeline.swarm import SwarmPhysics
 from .scenario import Scenario, flown
 from .task import copy_outcome, copy_reward, observation_shapes
@@ -326,13 +327,31 @@ class SwarmEnv(dm_env.Environment):
         self.physics.k[0] = k
 
     @property
-    def _contacts_seen(self) -> int:
-        """The simulator's drone–drone contacts counted into the steps' rewards so far."""
-        return self.physics.counted()
+    def refs(self) -> Refs:
+        """This episode's references as a record (the chunk driver's, over the same arrays; replaced by
+        :meth:`reset`)."""
+        return self._refs
 
-    @_contacts_seen.setter
-    def _contacts_seen(self, seen: int) -> None:  # the chunk driver hands back after stepping the Sim itself
-        self.physics.count_until(seen)
+    @property
+    def observation(self) -> dict:
+        """The observation the last :meth:`reset` or :meth:`step` returned (after a non-finite divergence: the
+        last finite one)."""
+        return self._obs
+
+    def after_chunk(self, k: int, contacts_seen: int, obs: Obs | None = None) -> dict | None:
+        """Take back the episode from a driver that stepped the simulator itself (the chunk driver,
+        swarm_mj/pipeline/fast.py): ``k`` control periods flown, the simulator's ``contacts_seen`` drone–drone
+        contacts counted into the rewards, and, where it stopped at the end of a period, that period's
+        observation record ``obs`` (the observation is built from it and returned, and the episode is done at
+        ``n_steps``, as :meth:`step` leaves it)."""
+        self.k = k
+        self.physics.count_until(contacts_seen)
+        if obs is None:
+            return None
+        self._obs = self._observation(obs)
+        if k >= self.n_steps:
+            self._done = True
+        return self._obs
 
     @property
     def wind(self) -> WindSeries:

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Set as AbstractSet
 from typing import Protocol
 
 import mujoco
@@ -408,6 +409,12 @@ class Sim:
     @property
     def time(self) -> float:
         return float(self.data.time)
+
+    @property
+    def pairs_in_contact(self) -> AbstractSet[tuple[int, int]]:
+        """The drone pairs (i, j) touching after the last physics step (read-only: the contact counting's
+        own; a driver that steps the physics itself hands each step with one back to :meth:`after_physics_step`)."""
+        return self._pairs_in_contact
 
     def reset(
         self, positions: np.ndarray | None = None, yaws: np.ndarray | None = None, velocities: np.ndarray | None = None

@@ -103,7 +103,7 @@ class FastLoop:
         self._obs = Obs.empty(n)
         self._handed: dict | None = None  # the observation the last chunk handed back (its buffers hold it)
         self._ruled = n > 1  # command() applies no rule to one drone (why_not: the rule has a compiled step)
-        self._refs = env._refs
+        self._refs = env.refs
         self._log = log.rows
         # the stand-ins of a run of one drone or without a separation filter, built once: the driver
         # reads neither (``on`` False) and writes neither, so every chunk can pass the same ones
@@ -119,7 +119,7 @@ class FastLoop:
         if why_not(env, policy) is not None:
             return None
         loop = cls(env, policy, log)
-        sig = signature(loop._args(0, env.k))
+        sig = loop.signature(env.k)
         if not compiled(sig):
             if not compile:
                 if compile_in_background(sig) and announce is not None:
@@ -129,6 +129,10 @@ class FastLoop:
         return loop
 
     # ------------------------------------------------------------------ the records
+    def signature(self, k_end: int) -> tuple:
+        """The driver's compile signature for this run (:func:`signature` of its arguments up to ``k_end``)."""
+        return signature(self._args(0, k_end))
+
     def _args(self, k: int, k_end: int) -> tuple:
         """The driver's arguments for periods k .. k_end − 1 (the owners' records, read at each call: a
         ``reset`` or a period flown in Python may replace their arrays)."""
@@ -139,7 +143,7 @@ class FastLoop:
         filt = policy.rule.separation_filter.record() if self._filtered else self._no_filter
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
-        python_each = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
+        python_each = bool(sim.pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
         return (
             k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, filt, policy.control_record(), ff,
             pred, self._log, sim.compiled_stages(), monitors,
@@ -153,7 +157,7 @@ class FastLoop:
             self._cool -= 1
             return False
         env, policy = self.env, self.policy
-        if env.k < 1 or not policy.started() or env.sim._pairs_in_contact:
+        if env.k < 1 or not policy.started() or env.sim.pairs_in_contact:
             return False
         if not all(mon.compiled_ready() for mon in env.sim.monitors):
             return False
@@ -168,10 +172,10 @@ class FastLoop:
 
         env, policy, sim = self.env, self.policy, self.env.sim
         fly = _driver()
-        obs = env._obs
+        obs = env.observation
         if obs is not self._handed:  # periods flown in Python since the last chunk: their observation in
             for buf, key in zip(self._obs, _OBS_KEYS, strict=True):
-                buf[...] = obs[key] if key != "dist" else env._dist
+                buf[...] = obs[key] if key != "dist" else env.obs_record.dist
         ctl = policy.controller
         args = list(self._args(env.k, k_end))
         k0 = env.k
@@ -182,7 +186,7 @@ class FastLoop:
                 if status == CONTACT:
                     sim.after_physics_step()  # contacts and monitors, as Sim.step after that physics step
                     args[0], args[1] = k, s
-                    args[3] = bool(sim._pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
+                    args[3] = bool(sim.pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
                     continue
                 break
         self.status = status
@@ -190,16 +194,13 @@ class FastLoop:
         ctl.U = policy.U_last.copy()  # the last command (command() kept it in U_last, as in Python)
         if status == REACT:
             self._cool = COOL_DOWN
-        env.k = k
-        env._contacts_seen = sim.contact_events
-        if status == UNHEALTHY:
-            return k - 1  # the period whose step failed (env.k is past it, as SwarmEnv.step leaves it)
-        if status == BAD_ACTION:
-            return k
-        env._obs = self._handed = env._observation(Obs(**{k: b.copy() for k, b in self._obs._asdict().items()}))
+        if status in (UNHEALTHY, BAD_ACTION):  # UNHEALTHY: env.k past the failed period, as SwarmEnv.step leaves it
+            env.after_chunk(k, sim.contact_events)
+            return k - 1 if status == UNHEALTHY else k
+        self._handed = env.after_chunk(
+            k, sim.contact_events, Obs(**{k: b.copy() for k, b in self._obs._asdict().items()})
+        )
         self._record(k)
-        if k >= env.n_steps:
-            env._done = True
         return k
 
     def _take_filter_events(self) -> None:
@@ -296,18 +297,16 @@ def _sources_hash() -> str:
 def _stamp() -> Path | None:
     """Where the hash of the sources the cached driver came from is kept (beside Numba's index)."""
     try:
-        return Path(_driver()._cache.cache_path) / "period.fly_chunk.sources"
-    except (AttributeError, ImportError):  # no numba
+        path = _jit.cache_dir(_driver())
+    except ImportError:
         return None
+    return None if path is None else Path(path) / "period.fly_chunk.sources"  # None: no numba
 
 
 def _cached_signatures() -> list[tuple]:
-    """The signatures Numba's on-disk cache index holds for the driver (an internal API: [] on surprise)."""
-    try:
-        index = _driver()._cache._cache_file._load_index()
-        return [key[0] for key in index]
-    except Exception:  # noqa: BLE001 - numba internals changed
-        return []
+    """The signatures Numba's on-disk cache index holds for the driver ([] on surprise:
+    :func:`swarm_mj._jit.cached_signatures`)."""
+    return _jit.cached_signatures(_driver())
 
 
 def compiled(sig: tuple) -> bool:
@@ -336,7 +335,7 @@ def compile_now(signatures: list[tuple]) -> float:
     except OSError:
         fresh = False
     if not fresh:
-        fly._cache.flush()  # Numba would load a stale one
+        _jit.flush_cache(fly)  # Numba would load a stale one
     for sig in signatures:
         fly.compile(sig)
         period, period_sig = _period(sig)
@@ -398,7 +397,7 @@ def compile_in_background(sig: tuple, spawn: Callable[..., Any] = subprocess.Pop
     return True
 
 
-def _background_main(argv: list[str]) -> None:
+def background_main(argv: list[str]) -> None:
     """The process :func:`compile_in_background` starts: compile the pickled signature in the lock
     file ``argv[0]``, then drop the lock file."""
     lock = Path(argv[0]) if argv else None
@@ -415,4 +414,4 @@ def _background_main(argv: list[str]) -> None:
 if __name__ == "__main__":  # python -m swarm_mj.pipeline.fast LOCK: through the imported module, the one runs use
     import importlib
 
-    importlib.import_module("swarm_mj.pipeline.fast")._background_main(sys.argv[1:])
+    importlib.import_module("swarm_mj.pipeline.fast").background_main(sys.argv[1:])

@@ -309,6 +309,43 @@ def test_no_import_cycles_and_no_private_names_across_modules():
     assert not cycle, " -> ".join(cycle)
 
 
+#: NamedTuple's public API, spelled with an underscore so as not to clash with field names
+_NAMEDTUPLE_API = frozenset({"_replace", "_asdict", "_fields", "_field_defaults", "_make"})
+
+
+def _private_reads(source: str) -> list[str]:
+    """Every attribute access ``X._name`` in ``source`` where X is not ``self`` or ``cls`` (dunder names and
+    NamedTuple's ``_replace``/``_asdict``/... allowed), as "line: X._name"."""
+    out = []
+    for node in ast.walk(ast.parse(source)):
+        if not isinstance(node, ast.Attribute):
+            continue
+        name = node.attr
+        if not name.startswith("_") or (name.startswith("__") and name.endswith("__")) or name in _NAMEDTUPLE_API:
+            continue
+        if isinstance(node.value, ast.Name) and node.value.id in ("self", "cls"):
+            continue
+        out.append(f"{node.lineno}: {ast.unparse(node)}")
+    return out
+
+
+def test_the_pipeline_reads_no_private_attribute_of_another_object():
+    """swarm_mj/pipeline/ talks to the environment, the simulator and Numba through their public
+    interfaces (``SwarmEnv.after_chunk``, ``Sim.pairs_in_contact``, ``swarm_mj._jit.cached_signatures``...),
+    never through their private attributes."""
+    found = {
+        f.name: hits
+        for f in sorted((REPO / "swarm_mj" / "pipeline").glob("*.py"))
+        if (hits := _private_reads(f.read_text()))
+    }
+    assert found == {}, found
+
+
+def test_the_private_attribute_check_finds_one_where_there_is_one():
+    src = "def f(env, self):\n    a = env._obs\n    env.sim._pairs = 1\n    b = self._x, o._replace(x=1), o.__class__\n"
+    assert _private_reads(src) == ["2: env._obs", "3: env.sim._pairs"]
+
+
 def test_no_function_of_the_package_takes_more_than_20_parameters():
     """State lives in typed records, not in argument lists of dozens (docs/design.md, "The control
     period, written once"): tools/max_params.py over swarm_mj/ finds nothing (the next test shows
