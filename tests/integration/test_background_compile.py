@@ -36,7 +36,7 @@ def _realistic_signature(path: Path) -> Path:
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
     log = RunLog.allocate(env.names, env.n_steps + 1, [s.name for s in env.sim.force_stages])
     assert env.sim.monitors, "the realistic physics has the ground monitor"
-    sig = fast.signature(fast.FastLoop(env, BacksteppingPolicy(sc, env.params), log)._args(0, 0))
+    sig = fast.FastLoop(env, BacksteppingPolicy(sc, env.params), log).signature(0)
     path.write_bytes(pickle.dumps(sig))
     return path
 
@@ -54,9 +54,9 @@ from swarm_mj.pipeline import fast
 sig = pickle.loads(open(sys.argv[1], "rb").read())
 names = list(inspect.signature(fast._driver().py_func).parameters)
 stages, monitors = sig[names.index("stages")], sig[names.index("monitors")]
-from swarm_mj.physics import sim
-sim._apply_stages_compiled(stages, None, None, None)  # what Numba calls to unroll the tuples: a lookup each
-sim._track_monitors_compiled(monitors, None)
+from swarm_mj.physics import compiled
+compiled._apply_stages_compiled(stages, None, None, None)  # what Numba calls to unroll the tuples: a lookup each
+compiled._track_monitors_compiled(monitors, None)
 print(len(stages.types), len(monitors.types))
 """
 

@@ -231,7 +231,7 @@ def _sig(name="circle", aero=None):
     sc = with_aero(load_scenario(name).with_overrides(duration=0.1), aero)
     env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
     log = RunLog.allocate(env.names, env.n_steps + 1, [s.name for s in env.sim.force_stages])
-    return fast.signature(fast.FastLoop(env, BacksteppingPolicy(sc, env.params), log)._args(0, 0))
+    return fast.FastLoop(env, BacksteppingPolicy(sc, env.params), log).signature(0)
 
 
 def test_compiled_is_tied_to_the_sources(monkeypatch):
