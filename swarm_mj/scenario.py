@@ -121,7 +121,7 @@ class Scenario:
     path: str = ""
     raw: dict = field(default_factory=dict, repr=False, compare=False)
     aero: AeroConfig = PAPER  # physics preset (docs/aero.md); the paper's model by default
-    mixer: str = "auto"  # "auto" | "clip" | "attitude_priority" (see attitude_priority_on)
+    mixer: str = "auto"  # "auto" | "clip" | "attitude_priority" | "yaw_last" (see mixer_flown)
     lag_compensation: str = "auto"  # "auto" | "on" | "off" (see lag_horizons)
     vehicle: str = "paper"  # [vehicle] model: a bundled vehicle's name or a vehicle file (docs/vehicles.md)
     params: QuadParams = DEFAULT_PARAMS  # the vehicle's parameters; the paper's (Table 1) by default
@@ -153,17 +153,24 @@ class Scenario:
         return preset.with_overrides({**self.anti_collision_params, "sensing_range": self.sensing_range})
 
     @property
-    def attitude_priority_on(self) -> bool:
-        """Whether the controller desaturates its rotor commands with attitude priority
-        (:func:`~swarm_mj.physics.mixing.attitude_priority`): ``mixer = "auto"`` is the vehicle file's
-        ``mixer`` where it gives one (the Crazyflie's: its firmware's power distribution, docs/vehicles.md),
-        else attitude priority wherever the rotors have lag (``--aero realistic``) and the paper's
-        per-rotor clipping otherwise."""
+    def mixer_flown(self) -> str:
+        """The controller's mixer: ``"clip"`` (the paper's per-rotor clipping), ``"attitude_priority"``
+        (:func:`~swarm_mj.physics.mixing.attitude_priority`) or ``"yaw_last"``
+        (:func:`~swarm_mj.physics.mixing.yaw_last`). ``mixer = "auto"`` is the vehicle file's ``mixer``
+        where it gives one (the Crazyflie's ``yaw_last``, docs/vehicles.md "Mixer"), else attitude
+        priority wherever the rotors have lag (``--aero realistic``) and the paper's per-rotor clipping
+        otherwise."""
         if self.mixer != "auto":
-            return self.mixer == "attitude_priority"
+            return self.mixer
         if self.vehicle_mixer is not None:
-            return self.vehicle_mixer == "attitude_priority"
-        return self.aero.motor_tau > 0
+            return self.vehicle_mixer
+        return "attitude_priority" if self.aero.motor_tau > 0 else "clip"
+
+    @property
+    def attitude_priority_on(self) -> bool:
+        """Whether the controller desaturates its rotor commands, torques before thrust
+        (:attr:`mixer_flown` ``"attitude_priority"`` or ``"yaw_last"``), rather than clipping each rotor."""
+        return self.mixer_flown != "clip"
 
     @property
     def lag_horizons(self) -> tuple[float, float] | None:

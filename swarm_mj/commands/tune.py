@@ -194,6 +194,7 @@ def gains_toml(
             f"t_sim = {_toml_value(float(s.t_sim))}",
             f"vehicle = {_toml_value(vehicle)}",
             f"motor_tau = {_toml_value(float(s.motor_tau))}",
+            f"mixer = {_toml_value(s.mixer_flown)}",
             f"control_period = {_toml_value(float(s.control_period))}",
             f"timestep = {_toml_value(float(s.timestep))}",
             f"integrator = {_toml_value(s.integrator)}",
@@ -321,6 +322,7 @@ def _checked(args: argparse.Namespace) -> tuple[TuneOptions, StepCostSettings, V
         bars=lagged_bars(float(tau)) if args.constraints == "step-bars" else None,
         params=vehicle.params(),
         motor_tau=float(tau),
+        mixer=vehicle.mixer or "auto",
     )
     _check_backend(args)
     out = Path(args.output)

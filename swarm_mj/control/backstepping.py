@@ -147,10 +147,11 @@ class Backstepping:
         self.att_d = np.zeros((self.n, 3))  # (n, 3) last commanded (φ_d, θ_d, ψ_d)
         self.U = np.zeros((self.n, 4))  # (n, 4) last output
 
-    def control_record(self, U_last: np.ndarray, *, priority: bool) -> Control:
+    def control_record(self, U_last: np.ndarray, *, priority: bool, yaw_last: bool = False) -> Control:
         """This controller as :func:`swarm_mj.pipeline.period.command` takes it: its gains record and attitude
         memories (valid until :meth:`reset`), ``U_last`` (n, 4) the caller's buffer of the last command, the
-        attitude-priority mixer on when ``priority`` (the vehicle's rotor limits), new stage buffers."""
+        attitude-priority mixer on when ``priority`` (the vehicle's rotor limits; with ``yaw_last`` the mixer
+        that gives up yaw first, :func:`~swarm_mj.physics.mixing.yaw_last`), new stage buffers."""
         p, n = self.params, self.n
         return Control(
             gains=self.record,
@@ -159,7 +160,8 @@ class Backstepping:
             U_last=U_last,
             exact=self.attitude_map == "exact",
             use_wind=self.wind_feedforward,
-            priority=bool(priority),
+            priority=bool(priority or yaw_last),
+            yaw_last=bool(yaw_last),
             unmix_t=p.unmix_t,
             mix_t=p.mix_t,
             f_min=float(p.f_min),

@@ -115,8 +115,10 @@ class BacksteppingPolicy:
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         name = resolve_rule(anti_collision, sc.aero.downwash) if anti_collision else sc.rule
         self.rule = make_rule(name, self.n, vehicle=params, barrier=sc.barrier_params, **rule_params)  # its keep-out
-        # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1)
-        self.attitude_priority = sc.attitude_priority_on
+        # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1), yaw first given
+        # up with the "yaw_last" mixer (docs/vehicles.md, "Mixer")
+        self.mixer = sc.mixer_flown
+        self.attitude_priority = self.mixer != "clip"
         # the attitude fed back predicted over the rotors' lag (ours, docs/interpretations.md §2)
         lag = sc.lag_horizons
         self.predictor = None if lag is None else AttitudePredictor(self.n, lag[0], lag[1], sc.control_period)
@@ -144,7 +146,7 @@ class BacksteppingPolicy:
         ctl = self.controller
         if self._records is None or self._records[0].att_d is not ctl.att_d:
             # the command stage's buffers (Control.zeros1, scratch, U_out) made here: no allocation per period
-            rec = ctl.control_record(self.U_last, priority=self.attitude_priority)
+            rec = ctl.control_record(self.U_last, priority=self.attitude_priority, yaw_last=self.mixer == "yaw_last")
             ff = self.downwash_ff.record() if self.downwash_ff is not None else self._no_ff
             pred = self.predictor.record() if self.predictor is not None else self._no_pred
             self._records = (rec, ff, pred)

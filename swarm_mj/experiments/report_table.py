@@ -12,6 +12,13 @@ from ..scenario import trajectory_args
 from ..trajectories import TRAJECTORIES
 from .outcome import failure_line
 
+#: The summary's ``controller.mixer`` in the physics line's words (swarm_mj/physics/mixing.py).
+_MIXER_WORDS = {
+    "attitude_priority": "attitude-priority",
+    "yaw_last": "yaw-last attitude-priority",
+    "clip": "per-rotor clip",
+}
+
 
 def _f(v, fmt: str = "{:.4f}") -> str:
     if v is None:
@@ -176,7 +183,7 @@ def _physics_lines(s: dict) -> list[str]:
         f"physics '{aero.get('model')}': ground {'on' if aero.get('ground') else 'off'}, downwash "
         f"{'on' if aero.get('downwash') else 'off'}, ground effect {'on' if aero.get('ground_effect') else 'off'}, "
         f"rotor lag {1000 * float(aero.get('motor_tau') or 0):g} ms; controller: "
-        f"{'attitude-priority' if ctl.get('mixer') == 'attitude_priority' else 'per-rotor clip'} mixing, "
+        f"{_MIXER_WORDS.get(ctl.get('mixer'), 'per-rotor clip')} mixing, "
         + (f"attitude predicted {1000 * lag[0]:g} ms ahead" if lag else "no lag compensation")
         + " (docs/aero.md)"
     ]

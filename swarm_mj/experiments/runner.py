@@ -383,7 +383,7 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
     # what the controller adds where the rotors lag (docs/interpretations.md §1, §2)
     lag = sc.lag_horizons
     out["controller"] = {
-        "mixer": "attitude_priority" if policy.attitude_priority else "clip",
+        "mixer": getattr(policy, "mixer", "attitude_priority" if policy.attitude_priority else "clip"),
         "lag_compensation_s": list(lag) if lag is not None else None,
     }
     if sc.anti_collision == AUTO:  # which rule "auto" chose for this physics, and why (docs/barrier.md, "auto")

@@ -51,8 +51,8 @@ ROTOR_DIRS = {
 }
 
 
-#: The controller's ``[controller] mixer`` choices (:attr:`swarm_mj.scenario.Scenario.attitude_priority_on`).
-MIXERS = ("auto", "clip", "attitude_priority")
+#: The controller's ``[controller] mixer`` choices (:attr:`swarm_mj.scenario.Scenario.mixer_flown`).
+MIXERS = ("auto", "clip", "attitude_priority", "yaw_last")
 
 
 def u_to_rotor(U: np.ndarray) -> np.ndarray:
@@ -166,4 +166,75 @@ def attitude_priority(
     U = np.ascontiguousarray(U, dtype=np.float64)
     out = np.empty_like(U)
     attitude_priority_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), out)
+    return out
+
+
+def _yaw_last_samples():
+    return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
+
+
+@jit(samples=_yaw_last_samples)
+def yaw_last_kernel(
+    U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float, out: np.ndarray
+) -> None:
+    """:func:`yaw_last` for U (n, 4) into out (n, 4): rows that need neither are copied."""
+    n = U.shape[0]
+    F = np.empty(4)  # the rotors of U1, U2, U3 (no yaw)
+    Y = np.empty(4)  # the rotors' share of the yaw U4
+    room = f_max - f_min
+    for i in range(n):
+        for r in range(4):
+            f = 0.0
+            for c in range(3):
+                f += U[i, c] * unmix_t[c, r]
+            F[r] = f
+            Y[r] = U[i, 3] * unmix_t[3, r]
+        # the largest share s of the yaw, 0 ≤ s ≤ 1, whose rotor spread fits the range: for every pair
+        # (r, q), F_r − F_q + s·(Y_r − Y_q) ≤ f_max − f_min; none where roll and pitch alone do not fit
+        s = 1.0
+        for r in range(4):
+            for q in range(4):
+                dy = Y[r] - Y[q]
+                if F[r] - F[q] > room:
+                    s = 0.0
+                elif dy > 0.0:
+                    s = min(s, (room - (F[r] - F[q])) / dy)
+        lo = np.inf
+        hi = -np.inf
+        for r in range(4):
+            F[r] += s * Y[r]
+            lo = min(lo, F[r])
+            hi = max(hi, F[r])
+        # then the collective thrust moved, as little as needed, as attitude_priority_kernel does
+        shift = 0.0
+        if lo < f_min:
+            shift = min(f_min - lo, max(f_max - hi, 0.0))
+        elif hi > f_max:
+            shift = -min(hi - f_max, max(lo - f_min, 0.0))
+        if s == 1.0 and shift == 0.0:  # it fits: copied, as attitude_priority_kernel copies
+            for c in range(4):
+                out[i, c] = U[i, c]
+            continue
+        for r in range(4):
+            u = 0.0
+            for c in range(4):
+                u += (F[c] + shift) * mix_t[c, r]
+            out[i, r] = u
+
+
+def yaw_last(
+    U: np.ndarray, f_min: float, f_max: float, unmix_t: np.ndarray = UNMIX_T, mix_t: np.ndarray = MIX_T
+) -> np.ndarray:
+    """U1..U4 (n, 4) made to fit the rotors' range [f_min, f_max] in the order roll and pitch, yaw,
+    collective thrust: the yaw torque U4 is scaled by the largest factor s, 0 ≤ s ≤ 1, whose rotor
+    spread (highest minus lowest rotor) still fits the range (s = 0 where roll and pitch alone do not
+    fit), then U1 is moved as :func:`attitude_priority` moves it. A command that fits is returned
+    unchanged, and U2, U3 are never changed. PX4's multicopter mixer gives up yaw first in the same
+    order (roll and pitch, then yaw, then thrust); ours, for a vehicle whose yaw is dear in rotor
+    thrust (docs/vehicles.md, "Mixer": a Crazyflie yaw torque takes L/κ = 6.6 times the thrust
+    difference of the same roll torque / L). The arithmetic is :func:`yaw_last_kernel`;
+    ``unmix_t``/``mix_t`` are a vehicle's, the paper's by default."""
+    U = np.ascontiguousarray(U, dtype=np.float64)
+    out = np.empty_like(U)
+    yaw_last_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), out)
     return out

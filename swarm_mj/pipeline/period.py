@@ -27,7 +27,8 @@ separation filter          :func:`~swarm_mj.formation.barrier.barrier_step` (the
 downwash feedforward       :func:`feedforward_force`
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
-                           :func:`~swarm_mj.physics.mixing.attitude_priority_kernel`
+                           :func:`~swarm_mj.physics.mixing.attitude_priority_kernel` (or
+                           :func:`~swarm_mj.physics.mixing.yaw_last_kernel`)
 log rows                   :func:`log_inputs`, :func:`log_outputs`
 saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
 physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
@@ -55,7 +56,7 @@ from ..formation.barrier import barrier_step
 from ..formation.layered import formed_update, merge_rows
 from ..formation.slots import setpoints_into
 from ..physics.aero import downwash as _downwash
-from ..physics.mixing import attitude_priority_kernel
+from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
 from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
 from .records import Obs
@@ -105,8 +106,9 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, first):
     """U1..U4 (n, 4) of the built-in policy from the references (n, 3): the known external force
     (the wind given to the controller, plus the downwash feedforward from the last command),
     the attitude predicted over the rotors' lag, backstepping (eqs. 17–24), the attitude-priority
-    mixer. Reads of ``obs`` the drones' state, yaw references and wind force only. Writes ctl.att_d,
-    ctl.prev_att_d, ctl.U_last (the thrust the next feedforward uses) and the predictor's last rates.
+    mixer (or the yaw-last one). Reads of ``obs`` the drones' state, yaw references and wind force
+    only. Writes ctl.att_d, ctl.prev_att_d, ctl.U_last (the thrust the next feedforward uses) and the
+    predictor's last rates.
 
     ``first``: no command since the controller's reset (the per-period path's first period; the chunk
     driver starts later): the feedforward takes each drone's last thrust as m·g, the lag prediction
@@ -135,7 +137,10 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, first):
         ctl.use_wind, ctl.prev_att_d, first, ctl.exact, ctl.att_d,
     )  # fmt: skip
     if ctl.priority:
-        attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, ctl.U_out)
+        if ctl.yaw_last:
+            yaw_last_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, ctl.U_out)
+        else:
+            attitude_priority_kernel(U, ctl.unmix_t, ctl.mix_t, ctl.f_min, ctl.f_max, ctl.U_out)
         U = ctl.U_out
     ctl.U_last[:] = U
     return U

@@ -186,7 +186,8 @@ class Control(NamedTuple):
     U_last: np.ndarray  # (n, 4) last command (written)
     exact: bool  # attitude_map == "exact"
     use_wind: bool  # wind feedforward
-    priority: bool  # attitude-priority mixer
+    priority: bool  # attitude-priority mixer (or yaw_last's, with yaw_last)
+    yaw_last: bool  # the mixer gives up yaw first (mixing.yaw_last_kernel)
     unmix_t: np.ndarray  # (4, 4) U → rotor thrusts, transposed (the mixer's)
     mix_t: np.ndarray  # (4, 4) rotor thrusts → U, transposed
     f_min: float  # rotor thrust limits (N)

@@ -63,6 +63,7 @@ from ..experiments.parallel import ThreadTeam, check_count, default_workers
 from ..metrics import ise, step_metrics_batch
 from ..paper import TABLE4_GAINS
 from ..physics._mjstep import profiler_paused
+from ..physics.mixing import MIXERS
 from ..physics.observation import attitude_kernel
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..physics.sim import Sim
@@ -109,6 +110,10 @@ class StepCostSettings:
     #: lagged run (attitude-priority mixing, the attitude predicted τ + T ahead; docs/aero.md), as
     #: ``swarm-mj tune --vehicle`` does under the vehicle's lag (docs/vehicles.md); 0: the paper's
     motor_tau: float = 0.0
+    #: the controller's mixer (swarm_mj/physics/mixing.py ``MIXERS``): ``"auto"`` is attitude priority under
+    #: rotor lag and the paper's per-rotor clipping without; a vehicle's own (``tune --vehicle``: the vehicle
+    #: file's ``mixer``, the Crazyflie's ``"yaw_last"``), so that the tune flies what ``swarm-mj run`` flies
+    mixer: str = "auto"
     #: the step bars as constraints of the tune (Deb's rules, :mod:`.constraints`); None: ISE only
     bars: StepBars | None = field(default=StepBars())
 
@@ -123,6 +128,8 @@ class StepCostSettings:
             raise UserError(f"unknown integrator {self.integrator!r}; choose one of {sorted(INTEGRATORS)}")
         if self.attitude_map not in ("exact", "paper"):
             raise UserError(f"attitude_map must be 'exact' or 'paper', got {self.attitude_map!r}")
+        if self.mixer not in MIXERS:
+            raise UserError(f"mixer must be one of {', '.join(MIXERS)}, got {self.mixer!r}")
         tau = self.motor_tau
         if isinstance(tau, bool) or not isinstance(tau, (int, float)) or not math.isfinite(tau) or tau < 0:
             raise UserError(f"motor-tau must be a time constant >= 0 s, got {tau!r}")
@@ -141,6 +148,14 @@ class StepCostSettings:
                     f"t-sim {self.t_sim:g} s is shorter than the longest settling bar ({longest:g} s): "
                     f"no candidate could meet the step bars; give a longer t-sim or --constraints none"
                 )
+
+    @property
+    def mixer_flown(self) -> str:
+        """The mixer flown: :attr:`mixer`, with ``"auto"`` resolved as a scenario's
+        (:attr:`swarm_mj.scenario.Scenario.mixer_flown`, without a vehicle file's)."""
+        if self.mixer != "auto":
+            return self.mixer
+        return "attitude_priority" if self.motor_tau > 0 else "clip"
 
     @property
     def n_samples(self) -> int:
@@ -355,13 +370,15 @@ class BatchEvaluator:
         # The command of every run (period.command's Python body, its kernels compiled), over records of this
         # group's copies: backstepping with the copies' gains (m_g, 12) in its Gains record, no wind force and
         # no feedforward; with rotor lag the controller of a lagged run (Scenario.lag_horizons, mixer "auto";
-        # docs/vehicles.md): the attitude predicted τ + T ahead and the attitude-priority mixer.
+        # docs/vehicles.md): the attitude predicted τ + T ahead and the attitude-priority mixer (or the mixer
+        # the settings name: a vehicle's).
         ctl = Backstepping(
             m_g, g, params=s.params, control_period=s.control_period, wind_feedforward=False,
             attitude_map=s.attitude_map,
         )  # fmt: skip
         T, lagged = s.control_period, s.motor_tau > 0
-        rec = ctl.control_record(np.zeros((m_g, 4)), priority=lagged)
+        mixer = s.mixer_flown
+        rec = ctl.control_record(np.zeros((m_g, 4)), priority=mixer != "clip", yaw_last=mixer == "yaw_last")
         pred = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T).record() if lagged else Predictor.off(m_g)
         ff, obs, command = Feedforward.off(m_g), Obs.empty(m_g), self._command
         pos_d, zero3, yaw_d = self._pos_d[rows], self._zero3[rows], self._yaw_d[rows]

@@ -28,7 +28,7 @@ _HERE = Path(__file__).resolve().parent
 #: The bundled gains files a vehicle file's ``gains`` may name without a path (their file stems).
 GAINS_DIR = SCENARIOS_DIR / "gains"
 #: The mixers a vehicle file's ``mixer`` may name (what ``mixer = "auto"`` becomes on it).
-MIXERS = ("clip", "attitude_priority")
+MIXERS = ("clip", "attitude_priority", "yaw_last")
 #: Least thrust-to-weight ratio 4·max_thrust / (mass·g) a vehicle file may give: hovering takes at most
 #: 1/1.4 = 71 % of the rotors' thrust, so each rotor keeps 40 % of its hover thrust in hand to climb and to
 #: steer, and the drone holds its height tilted up to acos(1/1.4) = 44° (docs/vehicles.md, "Thrust to weight").

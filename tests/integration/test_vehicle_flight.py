@@ -35,14 +35,14 @@ def _ise_by_hand(log, K: int) -> float:  # noqa: ANN001
 
 def test_lagged_tune_cost_is_eq25_on_the_runner_loop() -> None:
     """The tune under the vehicle's lag flies what `swarm-mj run` flies: the Crazyflie step with 15-ms
-    rotors (no ground), attitude-priority mixing and lag compensation, ISE to 1e-9."""
+    rotors (no ground), the vehicle's yaw-last mixing and lag compensation, ISE to 1e-9."""
     sc = load_scenario("crazyflie_step").with_overrides(
         aero=parse_aero({"model": "paper", "motor_tau": 0.015}), duration=3.0, gains=TABLE4_GAINS
     )
-    assert sc.attitude_priority_on and sc.lag_horizons == (0.025, 0.015)
+    assert sc.mixer_flown == CF.mixer == "yaw_last" and sc.lag_horizons == (0.025, 0.015)
     res = run(sc, progress=False)
     assert res.error is None
-    settings = StepCostSettings(t_sim=3.0, params=CF.params(), motor_tau=0.015)
+    settings = StepCostSettings(t_sim=3.0, params=CF.params(), motor_tau=0.015, mixer=CF.mixer)
     assert step_ise(TABLE4_GAINS, settings) == pytest.approx(_ise_by_hand(res.log, settings.n_samples), rel=1e-9)
     # and the lag matters: the same gains without it have another cost
     ideal = StepCostSettings(t_sim=3.0, params=CF.params())
@@ -71,8 +71,11 @@ def test_tiny_vehicle_tune_records_vehicle_and_lag(tmp_path, capsys) -> None:  #
     assert rc == 0
     data = tomllib.loads(out.read_text())
     assert data["settings"]["vehicle"] == "crazyflie21" and data["settings"]["motor_tau"] == CF.motor_tau
+    assert data["settings"]["mixer"] == CF.mixer  # the vehicle's mixer, as swarm-mj run flies it
     assert data["bars"]["settling_z_s"] == pytest.approx(1.5 + LAG_SETTLING_FACTOR * CF.motor_tau)
-    s = StepCostSettings(t_sim=3.0, params=CF.params(), motor_tau=CF.motor_tau, bars=lagged_bars(CF.motor_tau))
+    s = StepCostSettings(
+        t_sim=3.0, params=CF.params(), motor_tau=CF.motor_tau, bars=lagged_bars(CF.motor_tau), mixer=CF.mixer
+    )
     assert step_ise(load_gains(out), s) == pytest.approx(data["ise"], rel=1e-12)
 
 
@@ -89,8 +92,10 @@ def test_shipped_crazyflie_gains_are_what_the_code_computes() -> None:
     data = tomllib.loads(CF_GAINS.read_text())
     s = data["settings"]
     assert (s["vehicle"], s["population"], s["iterations"], s["t_sim"]) == ("crazyflie21", 50, 100, 10.0)
-    assert s["motor_tau"] == CF.motor_tau  # tuned under the vehicle's own rotor lag
-    settings = StepCostSettings(params=CF.params(), motor_tau=s["motor_tau"], bars=lagged_bars(s["motor_tau"]))
+    assert s["motor_tau"] == CF.motor_tau and s["mixer"] == CF.mixer  # tuned under the vehicle's lag and mixer
+    settings = StepCostSettings(
+        params=CF.params(), motor_tau=s["motor_tau"], bars=lagged_bars(s["motor_tau"]), mixer=s["mixer"]
+    )
     gains = load_gains(CF_GAINS)
     assert step_ise(gains, settings) == pytest.approx(data["ise"], rel=1e-9)
     assert step_ise(TABLE4_GAINS, settings) == pytest.approx(data["table4_ise"], rel=1e-9)

@@ -2,9 +2,9 @@
 written once"): ``BacksteppingPolicy.command`` calls ``period.command``'s Python body
 (``_jit.python_body``) on the policy's records. Checked here against the stages composed by hand, as the
 policy composed them before (the downwash feedforward from m·g then the last U1, the lag prediction,
-``Backstepping.compute``, ``attitude_priority``), bit for bit from the first period on; the log's input row
-(``RunLog.observe``) against the observation. Whole runs through both drivers:
-tests/integration/test_fast_path.py."""
+``Backstepping.compute``, ``attitude_priority`` or the vehicle's ``yaw_last``), bit for bit from the first
+period on; the log's input row (``RunLog.observe``) against the observation. Whole runs through both
+drivers: tests/integration/test_fast_path.py."""
 
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from swarm_mj.control.policy import BacksteppingPolicy, DownwashFeedforward
 from swarm_mj.env import Command, Observation, SwarmEnv
 from swarm_mj.experiments.runner import RunLog
 from swarm_mj.physics.aero.presets import with_aero
-from swarm_mj.physics.mixing import attitude_priority
+from swarm_mj.physics.mixing import attitude_priority, yaw_last
 from swarm_mj.scenario import load_scenario
 
 needs_numba = pytest.mark.skipif(not _jit.AVAILABLE, reason="Numba is off (SWARM_MJ_NO_JIT) or not installed")
@@ -40,6 +40,7 @@ class ByHand:
         self.pred = None if policy.predictor is None else AttitudePredictor(policy.n, lag[0], lag[1], sc.control_period)
         self.ff = None if policy.downwash_ff is None else DownwashFeedforward(policy.n, c.params)
         self.priority = policy.attitude_priority
+        self.mixer = yaw_last if policy.mixer == "yaw_last" else attitude_priority
         self.last_U1: np.ndarray | None = None
 
     def __call__(self, obs: dict, cmd: Command) -> np.ndarray:
@@ -56,7 +57,7 @@ class ByHand:
             wind_force=ext, omega_body=body,
         )  # fmt: skip
         if self.priority:
-            U = attitude_priority(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
+            U = self.mixer(U, p.f_min, p.f_max, p.unmix_t, p.mix_t)
         self.last_U1 = U[:, 0].copy()
         return U
 
@@ -86,12 +87,19 @@ def _fly(name: str, aero: str | None, periods: int, plain: bool = False):
 
 @pytest.mark.parametrize(
     ("name", "aero"),
-    [("circle", None), ("wind_circle", None), ("lemniscate_single", None), ("circle", "realistic")],
+    [
+        ("circle", None),
+        ("wind_circle", None),
+        ("lemniscate_single", None),
+        ("circle", "realistic"),
+        ("crazyflie_circle", "realistic"),
+    ],
 )
 def test_the_policy_command_equals_the_stages_composed_by_hand(name, aero):
     policy = _fly(name, aero, 40)
     if aero == "realistic":  # every stage of the command was on: the comparison is not vacuous
         assert policy.downwash_ff is not None and policy.predictor is not None and policy.attitude_priority
+        assert policy.mixer == ("yaw_last" if name.startswith("crazyflie") else "attitude_priority")
 
 
 def test_a_plain_dict_observation_gives_the_same_command():

@@ -1,8 +1,9 @@
 """The tuner's command is the command of every run (docs/design.md, "The control period, written once"):
 ``BatchEvaluator`` flies its copies with ``period.command``'s Python body on records of its m copies. Checked
 here against the stages composed by hand as the evaluator composed them before (the lag prediction,
-``Backstepping.compute`` with the copies' gains (m, 12), ``attitude_priority`` where the rotors lag), bit
-for bit from the first period, on the paper's drone and on a vehicle with rotor lag."""
+``Backstepping.compute`` with the copies' gains (m, 12), ``attitude_priority`` where the rotors lag, the
+vehicle's ``yaw_last`` where its file names it), bit for bit from the first period, on the paper's drone and on
+a vehicle with rotor lag."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 from swarm_mj.control.backstepping import Backstepping
 from swarm_mj.control.lag import AttitudePredictor
 from swarm_mj.paper import TABLE4_GAINS
-from swarm_mj.physics.mixing import attitude_priority
+from swarm_mj.physics.mixing import attitude_priority, yaw_last
 from swarm_mj.physics.observation import attitude_kernel
 from swarm_mj.tuning import BatchEvaluator, StepCostSettings
 from swarm_mj.vehicles import load_vehicle
@@ -22,7 +23,9 @@ SCALES = (0.8, 1.0, 1.25)  # one gain set per copy: the copies' commands differ 
 
 def _settings(vehicle: str) -> StepCostSettings:
     v = load_vehicle(vehicle)
-    return StepCostSettings(t_sim=0.6, bars=None, params=v.params(), motor_tau=float(v.motor_tau or 0.0))
+    return StepCostSettings(
+        t_sim=0.6, bars=None, params=v.params(), motor_tau=float(v.motor_tau or 0.0), mixer=v.mixer or "auto"
+    )
 
 
 def _flown(settings: StepCostSettings, gains: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
@@ -47,6 +50,8 @@ def test_the_evaluators_command_equals_the_stages_composed_by_hand(vehicle):
     s = _settings(vehicle)
     p, T, tau = s.params, s.control_period, s.motor_tau
     assert (tau > 0) == (vehicle == "crazyflie21")
+    mixer = yaw_last if s.mixer_flown == "yaw_last" else attitude_priority
+    assert (s.mixer_flown == "yaw_last") == (vehicle == "crazyflie21")
     gains = np.array([TABLE4_GAINS * c for c in SCALES])  # (m, 12)
     m = len(gains)
     ctl = Backstepping(m, gains, params=p, control_period=T, attitude_map=s.attitude_map)
@@ -61,7 +66,7 @@ def test_the_evaluators_command_equals_the_stages_composed_by_hand(vehicle):
             rpy, rate, omega = pred(rpy, rate, omega)
         want = ctl.compute(rpy, rate, pos, vel, pos_d, zero3, zero3, yaw_d, omega_body=omega)
         if pred is not None:
-            raw, want = want, attitude_priority(want, p.f_min, p.f_max, p.unmix_t, p.mix_t)
+            raw, want = want, mixer(want, p.f_min, p.f_max, p.unmix_t, p.mix_t)
             mixed += not np.array_equal(raw, want)
         np.testing.assert_array_equal(U, want, err_msg=f"{vehicle}, period {k}")
         assert len({tuple(u) for u in U}) == m  # each copy flies its own gains

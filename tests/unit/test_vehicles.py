@@ -361,17 +361,17 @@ def test_stress_flies_the_vehicle_and_its_gains() -> None:
 
 def test_auto_mixer_is_the_vehicles_where_its_file_names_one(tmp_path) -> None:  # noqa: ANN001
     """docs/vehicles.md, "Crazyflie scenarios": ``mixer = "auto"`` is the vehicle file's ``mixer`` (the
-    Crazyflie's firmware desaturates with attitude priority) under either physics; without one, attitude
-    priority where the rotors lag and the paper's clipping otherwise; a scenario's own mixer wins."""
-    assert CF.mixer == "attitude_priority" and load_vehicle("paper").mixer is None
+    Crazyflie's gives up yaw first, "Mixer") under either physics; without one, attitude priority where the
+    rotors lag and the paper's clipping otherwise; a scenario's own mixer wins."""
+    assert CF.mixer == "yaw_last" and load_vehicle("paper").mixer is None
     cf = parse_scenario({**BASE, "vehicle": {"model": "crazyflie21"}})
-    assert cf.mixer == "auto" and cf.aero.motor_tau == 0 and cf.attitude_priority_on
+    assert cf.mixer == "auto" and cf.aero.motor_tau == 0 and cf.attitude_priority_on and cf.mixer_flown == "yaw_last"
     assert not parse_scenario(
         {**BASE, "vehicle": {"model": "crazyflie21"}, "controller": {"mixer": "clip"}}
     ).attitude_priority_on
     paper = parse_scenario(dict(BASE))
-    assert not paper.attitude_priority_on
-    assert parse_scenario({**BASE, "aero": {"model": "realistic"}}).attitude_priority_on
+    assert not paper.attitude_priority_on and paper.mixer_flown == "clip"
+    assert parse_scenario({**BASE, "aero": {"model": "realistic"}}).mixer_flown == "attitude_priority"
     f = tmp_path / "v.toml"
     f.write_text('mass = 1\narm_length = 0.2\nrotor_radius = 0.1\nmixer = "fancy"\n')
     with pytest.raises(UserError, match="vehicle key 'mixer' must be one of 'clip', 'attitude_priority'"):
