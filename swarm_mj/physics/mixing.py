@@ -231,9 +231,9 @@ def yaw_last(
     fit), then U1 is moved as :func:`attitude_priority` moves it. A command that fits is returned
     unchanged, and U2, U3 are never changed. PX4's multicopter mixer gives up yaw first in the same
     order (roll and pitch, then yaw, then thrust); ours, for a vehicle whose yaw is dear in rotor
-    thrust (docs/vehicles.md, "Mixer": a Crazyflie yaw torque takes L/κ = 6.6 times the thrust
-    difference of the same roll torque / L). The arithmetic is :func:`yaw_last_kernel`;
-    ``unmix_t``/``mix_t`` are a vehicle's, the paper's by default."""
+    thrust (docs/vehicles.md, "Mixer": a Crazyflie yaw torque takes d/κ = 4.7 times the thrust
+    difference of the same roll torque, d = L/√2 its per-axis arm). The arithmetic is
+    :func:`yaw_last_kernel`; ``unmix_t``/``mix_t`` are a vehicle's, the paper's by default."""
     U = np.ascontiguousarray(U, dtype=np.float64)
     out = np.empty_like(U)
     yaw_last_kernel(U, unmix_t, mix_t, float(f_min), float(f_max), out)
