@@ -183,7 +183,7 @@ def _physics_lines(s: dict) -> list[str]:
         f"physics '{aero.get('model')}': ground {'on' if aero.get('ground') else 'off'}, downwash "
         f"{'on' if aero.get('downwash') else 'off'}, ground effect {'on' if aero.get('ground_effect') else 'off'}, "
         f"rotor lag {1000 * float(aero.get('motor_tau') or 0):g} ms; controller: "
-        f"{_MIXER_WORDS.get(ctl.get('mixer'), 'per-rotor clip')} mixing, "
+        f"{_MIXER_WORDS.get(str(ctl.get('mixer')), 'per-rotor clip')} mixing, "
         + (f"attitude predicted {1000 * lag[0]:g} ms ahead" if lag else "no lag compensation")
         + " (docs/aero.md)"
     ]
