@@ -4,7 +4,7 @@ file and exits 3; the hint after a tune flies the tuned vehicle.
 
 A vehicle that cannot lift is refused where a vehicle file is loaded, so the drones are held down here
 by a Vehicle built in the test with its thrust below its weight (the load check bypassed), handed to the
-commands through the one place they resolve a vehicle (``swarm_mj.choices.resolve_vehicle``)."""
+commands through the one place they resolve a vehicle (``resolve_vehicle``, as ``swarm_mj.scenario`` imports it)."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from swarm_mj import choices
+from swarm_mj import scenario as scenario_module  # where scenarios and --vehicle resolve a vehicle
 from swarm_mj.cli import main as cli_main
 from swarm_mj.commands import EXIT_FLIGHT_FAILED
 from swarm_mj.experiments.runner import run
@@ -38,9 +38,9 @@ def weak(share: float) -> Vehicle:
 @pytest.fixture
 def held_down(monkeypatch):  # noqa: ANN001, ANN201
     """``--vehicle weak`` resolves to a Crazyflie whose rotors give 97 % of its weight."""
-    real = choices.resolve_vehicle
+    real = scenario_module.resolve_vehicle
     monkeypatch.setattr(
-        choices,
+        scenario_module,
         "resolve_vehicle",
         lambda model, base, where: ("weak", weak(0.97), None) if model == "weak" else real(model, base, where),
     )
@@ -77,7 +77,7 @@ def test_held_down_under_the_papers_physics_too() -> None:
 
 def test_a_crash_exits_3(tmp_path, monkeypatch, capsys) -> None:  # noqa: ANN001
     """A drone starting 2 m up on rotors giving half its weight falls: a ground crash (> 1 m/s)."""
-    monkeypatch.setattr(choices, "resolve_vehicle", lambda model, base, where: ("weak", weak(0.5), None))
+    monkeypatch.setattr(scenario_module, "resolve_vehicle", lambda model, base, where: ("weak", weak(0.5), None))
     monkeypatch.chdir(tmp_path)
     Path("drop.toml").write_text(
         'duration = 3.0\n[leader]\ntrajectory = "hover"\nstart = [0.0, 0.0, 2.0]\n'
