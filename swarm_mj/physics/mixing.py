@@ -111,6 +111,27 @@ def saturate(
     return U_out, F
 
 
+@jit(inline=True)
+def _collective_shift(lo: float, hi: float, f_min: float, f_max: float) -> float:
+    """The shift of all four rotors, as small as it can be, that brings the lowest ``lo`` and the
+    highest ``hi`` into [f_min, f_max] as far as they fit (0 where they already do)."""
+    if lo < f_min:
+        return min(f_min - lo, max(f_max - hi, 0.0))
+    if hi > f_max:
+        return -min(hi - f_max, max(lo - f_min, 0.0))
+    return 0.0
+
+
+@jit(inline=True)
+def _remix(F: np.ndarray, shift: float, mix_t: np.ndarray, out: np.ndarray, i: int) -> None:
+    """Row i of out (n, 4) = U of the rotor thrusts F (4,) each moved by ``shift``."""
+    for r in range(4):
+        u = 0.0
+        for c in range(4):
+            u += (F[c] + shift) * mix_t[c, r]
+        out[i, r] = u
+
+
 def _priority_samples():
     return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
 
@@ -132,20 +153,12 @@ def attitude_priority_kernel(
             F[r] = f
             lo = min(lo, f)
             hi = max(hi, f)
-        shift = 0.0
-        if lo < f_min:
-            shift = min(f_min - lo, max(f_max - hi, 0.0))
-        elif hi > f_max:
-            shift = -min(hi - f_max, max(lo - f_min, 0.0))
+        shift = _collective_shift(lo, hi, f_min, f_max)
         if shift == 0.0:
             for c in range(4):
                 out[i, c] = U[i, c]
             continue
-        for r in range(4):
-            u = 0.0
-            for c in range(4):
-                u += (F[c] + shift) * mix_t[c, r]
-            out[i, r] = u
+        _remix(F, shift, mix_t, out, i)
 
 
 def attitude_priority(
@@ -206,20 +219,12 @@ def yaw_last_kernel(
             lo = min(lo, F[r])
             hi = max(hi, F[r])
         # then the collective thrust moved, as little as needed, as attitude_priority_kernel does
-        shift = 0.0
-        if lo < f_min:
-            shift = min(f_min - lo, max(f_max - hi, 0.0))
-        elif hi > f_max:
-            shift = -min(hi - f_max, max(lo - f_min, 0.0))
+        shift = _collective_shift(lo, hi, f_min, f_max)
         if s == 1.0 and shift == 0.0:  # it fits: copied, as attitude_priority_kernel copies
             for c in range(4):
                 out[i, c] = U[i, c]
             continue
-        for r in range(4):
-            u = 0.0
-            for c in range(4):
-                u += (F[c] + shift) * mix_t[c, r]
-            out[i, r] = u
+        _remix(F, shift, mix_t, out, i)
 
 
 def yaw_last(
