@@ -1,6 +1,6 @@
 """The benchmark tools of issue 30: tools/accuracy.py keeps docs/physics_step.md's hand-written tail,
 and tools/bench_step_contacts.py's summary counts what each run reports. tools/bench_peers.py's crazyflow
-flight: tests/integration/test_bench_tools_runs.py."""
+flight: tests/integration/test_bench_tools_runs.py. tools/golden.py's comparison (issue 48)."""
 
 from __future__ import annotations
 
@@ -57,3 +57,22 @@ def test_step_contacts_summary_sums_each_step():
         "stopped": 1,
     }
     assert s["10 ms"]["seeds_with_contact"] == [0, 1] and s["10 ms"]["contact_steps"] == 5
+
+
+def test_golden_compare_finds_a_changed_number_and_ignores_timing(tmp_path):
+    """tools/golden.py (issue 48's bit-for-bit bar): a number moved by more than 1e-9 is a difference,
+    one within it or a timing key is not, a missing summary is one, and a new key in NEW is allowed."""
+    golden = _tool("golden")
+    base, new = tmp_path / "base", tmp_path / "new"
+    base.mkdir()
+    new.mkdir()
+    summary = {"drones": {"leader": {"rmse": [0.25, 1.0e-3]}}, "wall_time_s": 2.0, "rule": "layers"}
+    (base / "a.json").write_text(golden.json.dumps(summary))
+    (base / "b.json").write_text(golden.json.dumps(summary))
+    same = {**summary, "drones": {"leader": {"rmse": [0.25 + 1e-12, 1.0e-3]}}, "wall_time_s": 9.0, "extra": 1}
+    (new / "a.json").write_text(golden.json.dumps(same))
+    assert golden.compare(base, new) == ["b.json: not written"]
+    moved = {**summary, "drones": {"leader": {"rmse": [0.25, 1.1e-3]}}}
+    (new / "b.json").write_text(golden.json.dumps(moved))
+    assert golden.compare(base, new) == ["b.json.drones.leader.rmse[1]: 0.001 vs 0.0011"]
+    assert golden.differences({"rule": "layers"}, {"rule": "barrier"}) == [".rule: 'layers' vs 'barrier'"]
