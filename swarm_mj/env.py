@@ -64,14 +64,14 @@ seed replays the last one. The backstepping policy often asks for more than
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import dm_env
 import numpy as np
 from dm_env import specs
 
-from ._jit import jit
+from ._jit import bind, jit
 from .choices import VehicleLike
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
@@ -183,6 +183,7 @@ class SwarmEnv(dm_env.Environment):
         self.D = ph.D  # (K+1,)
         self.unit_offsets = ph.unit_offsets  # (n-1, 3)
         self._setpoint_ctl: Backstepping | None = None
+        self._reward_call: Callable[..., float] | None = None  # copy_reward bound (_reward)
         if action == "setpoint":
             self._setpoint_ctl = Backstepping(
                 n,
@@ -252,7 +253,8 @@ class SwarmEnv(dm_env.Environment):
             U = a
         # the wind force of the coming period, held over it (zero-order hold), and the period itself
         ph, sim = self.physics, self.sim
-        t = self.k * self.T
+        k = int(ph.k[0])  # the period flown now (self.k)
+        t = k * self.T
         healthy = ph.step(U)[0] == HEALTHY
         force = ph.wind_now.copy()  # (n, 3)
         pos_d, vel_d, acc_d, att_d = refs if refs is not None else (None, None, None, None)
@@ -281,7 +283,7 @@ class SwarmEnv(dm_env.Environment):
         new_contacts = int(ph.new_contacts[0])
         # the task's reward and termination (swarm_mj/task.py), as for every copy of the vector env
         reward, terminated, truncated = copy_outcome(
-            self._reward(obs, new_contacts), diverged is not None, new_contacts, self.k, self.n_steps,
+            self._reward(obs, new_contacts), diverged is not None, new_contacts, k + 1, self.n_steps,
             self.terminate_on_contact,
         )  # fmt: skip
         if terminated:
@@ -392,4 +394,10 @@ class SwarmEnv(dm_env.Environment):
 
     def _reward(self, obs: dict, new_contacts: int) -> float:
         """The task's reward of this step (:func:`swarm_mj.task.copy_reward`)."""
-        return copy_reward(obs["pos"], obs["setpoint"], self._dist, new_contacts)
+        pos, sp, dist, rec = obs["pos"], obs["setpoint"], self._dist, self.obs_record
+        if pos is not rec.pos or sp is not rec.sp:  # the dict's arrays replaced: the dispatcher types them
+            return copy_reward(pos, sp, dist, new_contacts)
+        call = self._reward_call  # bound once (_jit.bind): the record's arrays are (n, 3), (n, n) float64, C order
+        if call is None:
+            call = self._reward_call = bind(copy_reward, pos, sp, dist, new_contacts)
+        return call(pos, sp, dist, new_contacts)

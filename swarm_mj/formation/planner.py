@@ -10,6 +10,7 @@ from typing import Any
 
 import numpy as np
 
+from .._jit import Bound
 from ..physics.params import DEFAULT_PARAMS
 from ..pipeline.records import Rule as FormedRecord
 from .layered import (
@@ -181,6 +182,9 @@ class LayeredRule(PaperRule):
         self._formation_alt = np.full(1, np.inf)  # (1,) (m) offsets are kept floor_clearance above the floor
         self.slot_of = np.arange(n, dtype=np.int64)  # (n,) drone i flies to slot slot_of[i] (layered.slotted)
         self._record: FormedRecord | None = None
+        # the compiled formed step and paths bound to the record (no re-typing of its fields per call: _jit.Bound)
+        self._formed_update = Bound(formed_update)
+        self._formed_paths_call = Bound(formed_paths)
 
     def record(self) -> FormedRecord:
         """The formed step's record (:class:`~swarm_mj.pipeline.records.Rule`) over this rule's own
@@ -342,7 +346,7 @@ class LayeredRule(PaperRule):
     ) -> tuple[np.ndarray, np.ndarray]:
         """The formed swarm's paths towards the slots pos_d (n, 3) and formation_alt + offset (n,)
         (:func:`~.layered.formed_paths`)."""
-        out = formed_paths(
+        out = self._formed_paths_call(
             self.record(),
             float(dt),
             np.ascontiguousarray(pos_d, dtype=np.float64),
@@ -359,7 +363,7 @@ class LayeredRule(PaperRule):
         driver flies too) decides, and the Python reaction (:meth:`_update_formed`) flies only the
         periods where Fig. 5 has work to do."""
         if self._all_formed:
-            busy, out = formed_update(
+            busy, out = self._formed_update(
                 self.record(),
                 np.ascontiguousarray(positions, dtype=np.float64),
                 np.ascontiguousarray(pos_d, dtype=np.float64),
