@@ -132,11 +132,12 @@ def _remix(F: np.ndarray, shift: float, mix_t: np.ndarray, out: np.ndarray, i: i
         out[i, r] = u
 
 
-def _priority_samples():
+def _mixer_samples():
+    """Warm-up arguments of the two desaturating mixers (same signature)."""
     return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
 
 
-@jit(samples=_priority_samples)
+@jit(samples=_mixer_samples)
 def attitude_priority_kernel(
     U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float, out: np.ndarray
 ) -> None:
@@ -182,11 +183,7 @@ def attitude_priority(
     return out
 
 
-def _yaw_last_samples():
-    return [(np.zeros((2, 4)), UNMIX_T, MIX_T, 0.0, 4.5, np.zeros((2, 4)))]
-
-
-@jit(samples=_yaw_last_samples)
+@jit(samples=_mixer_samples)
 def yaw_last_kernel(
     U: np.ndarray, unmix_t: np.ndarray, mix_t: np.ndarray, f_min: float, f_max: float, out: np.ndarray
 ) -> None:
