@@ -33,24 +33,16 @@ from .physics.mixing import MIXERS
 from .physics.params import DEFAULT_PARAMS, QuadParams
 from .physics.wind import WindConfig
 from .resources import SCENARIOS_DIR
+from .scenario_sensing import SensingLike, parse_scenario_sensing, sensing_overrides
 from .scenario_toml import scenario_toml as scenario_toml  # re-exported: the stress command writes with it
-from .starts import (  # re-exported: the checks of where drones start live in swarm_mj.starts
-    MAX_RANGE_M as MAX_RANGE_M,
-)
-from .starts import (
-    START_CLEARANCE_M as START_CLEARANCE_M,
-)
-from .starts import (
-    RandomStart as RandomStart,
-)
-from .starts import (
-    check_random_start_feasible as check_random_start_feasible,
-)
-from .starts import (
-    check_start_spacing as check_start_spacing,
-)
-from .starts import (
-    random_follower_starts as random_follower_starts,
+from .sensing.params import SensingParams
+from .starts import (  # noqa: F401 - re-exported: the checks of where drones start live in swarm_mj.starts
+    MAX_RANGE_M,
+    START_CLEARANCE_M,
+    RandomStart,
+    check_random_start_feasible,
+    check_start_spacing,
+    random_follower_starts,
 )
 from .table_fields import check_keys, choice, flag, number, only_numbers, subtable, vec
 from .trajectories import TRAJECTORIES, make_trajectory
@@ -77,6 +69,7 @@ _TOP_KEYS = {
     "wind",
     "aero",
     "vehicle",
+    "sensing",
 }
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
@@ -130,6 +123,8 @@ class Scenario:
     barrier_params: dict[str, Any] = field(default_factory=dict)
     #: where ``gains`` came from: a key of :data:`swarm_mj.choices.GAINS_ORIGINS` (choices.choose_gains)
     gains_origin: str = "scenario"
+    #: ``[sensing]``: what each drone knows of the others (docs/sensing.md); the oracle by default
+    sensing: SensingParams = SensingParams()
 
     @property
     def start_clearance(self) -> float:
@@ -228,9 +223,12 @@ class Scenario:
         ``vehicle=V`` (a bundled name, a vehicle file or a :class:`~swarm_mj.vehicles.Vehicle`) flies V:
         its parameters, mixer, rotor lag and, unless chosen, its gains (:func:`vehicle_overrides`).
         ``gains=`` without ``gains_origin`` are gains given for the run (they win over the vehicle's).
+        ``sensing=`` (a preset's name or a record) replaces the ``[sensing]`` table (:func:`sensing_overrides`).
         """
         if "vehicle" in kw:
             kw = {**vehicle_overrides(self, kw.pop("vehicle")), **kw}
+        if "sensing" in kw:
+            kw = {**sensing_overrides(self, kw.pop("sensing")), **kw}
         if "gains" in kw and "gains_origin" not in kw:
             kw["gains_origin"] = "option"
         if "seed" in kw:
@@ -646,6 +644,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
     controller = _parse_controller(data, w, base, 1 + followers.n, vehicle.gains_file)
     wind = _parse_wind(data, w, path)
     aero = _parse_aero(data, w, vehicle.params, clock.timestep)
+    sensing, sensing_range = parse_scenario_sensing(data, w, formation.sensing_range)
     _check_across(clock, leader, followers, w, clearance)
     label, description = _parse_labels(data, w, path, name)
     return Scenario(
@@ -667,7 +666,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         diameter=formation.diameter,
         anti_collision=formation.anti_collision,
         anti_collision_params={**formation.rule_params, **controller.rule_params},
-        sensing_range=formation.sensing_range,
+        sensing_range=sensing_range,
         gains=controller.gains.gains,
         gains_source=controller.gains.source,
         gains_origin=controller.gains.origin,
@@ -683,6 +682,7 @@ def parse_scenario(data: dict, path: str = "<scenario>", name: str | None = None
         params=vehicle.params,
         vehicle_mixer=vehicle.mixer,
         barrier_params=formation.barrier,
+        sensing=sensing,
     )
 
 
@@ -754,15 +754,19 @@ def flown(
     vehicle: VehicleLike | None = None,
     aero: str | None = None,
     gains: str | Path | np.ndarray | None = None,
-    where: tuple[str, str, str] = ("vehicle", "aero", "gains"),
+    sensing: SensingLike | None = None,
+    where: tuple[str, ...] = ("vehicle", "aero", "gains", "sensing"),
 ) -> Scenario:
     """``scenario`` (a name, a path or a :class:`~swarm_mj.scenario.Scenario`) with the vehicle, the
-    physics preset and the gains asked for (None: the scenario's). What ``--vehicle``, ``--aero`` and
-    ``--gains`` do in every command, and ``vehicle=``/``aero=`` in the environments. ``gains``: a gains
-    file or an array; ``where``: the names the errors give these three (e.g. the options)."""
+    physics preset, the gains and the sensing asked for (None: the scenario's). What ``--vehicle``,
+    ``--aero``, ``--gains`` and ``--sensing`` do in every command, and ``vehicle=``/``aero=`` in the
+    environments. ``gains``: a gains file or an array; ``sensing``: a preset's name or a record, the whole
+    ``[sensing]`` table (:func:`sensing_overrides`); ``where``: the names the errors give them."""
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     if vehicle is not None:
         sc = replace(sc, **vehicle_overrides(sc, vehicle, where[0]))
+    if sensing is not None:
+        sc = replace(sc, **sensing_overrides(sc, sensing, where[3] if len(where) > 3 else "sensing"))
     if aero is not None:
         if not isinstance(aero, str):
             raise UserError(f"must be a physics preset's name ('paper' or 'realistic'), got {aero!r}", where=where[1])

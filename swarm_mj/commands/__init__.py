@@ -7,6 +7,8 @@
 RULE_NAMES = ("auto", "layers", "paper", "off", "jet-aware", "barrier")
 #: The physics presets (``swarm_mj.physics.aero.presets.AERO_MODELS``, kept equal by a test).
 AERO_NAMES = ("paper", "realistic")
+#: The sensing presets (``swarm_mj.sensing.params.PRESETS``' keys, kept equal by a test; docs/sensing.md).
+SENSING_NAMES = ("perfect", "mocap", "uwb")
 
 #: Exit statuses of every command (README, "Exit status"; ``swarm-mj run --help``'s epilog).
 EXIT_OK = 0
@@ -39,9 +41,20 @@ def add_vehicle_argument(p, *, default: str = "the scenario's") -> None:  # noqa
     )
 
 
+def add_sensing_argument(p) -> None:  # noqa: ANN001 - an argparse parser
+    """``--sensing PRESET``, the same option in ``run``, ``video``, ``sweep`` and ``stress``: it replaces
+    the scenario's ``[sensing]`` table as a whole (:func:`swarm_mj.scenario_sensing.sensing_overrides`)."""
+    p.add_argument(
+        "--sensing",
+        choices=SENSING_NAMES,
+        metavar="PRESET",
+        help="what each drone knows of the others: perfect (default, the oracle), mocap, uwb; docs/sensing.md",
+    )
+
+
 def flown_scenario(args, scenario=None):  # noqa: ANN001, ANN201 - argparse args; a Scenario
-    """The scenario ``args.scenario`` (or ``scenario``) with ``--vehicle``, ``--aero`` and ``--gains``
-    applied by the one rule of :func:`swarm_mj.scenario.flown` (errors name the options)."""
+    """The scenario ``args.scenario`` (or ``scenario``) with ``--vehicle``, ``--aero``, ``--gains`` and
+    ``--sensing`` applied by the one rule of :func:`swarm_mj.scenario.flown` (errors name the options)."""
     from ..scenario import flown
 
     return flown(
@@ -49,5 +62,6 @@ def flown_scenario(args, scenario=None):  # noqa: ANN001, ANN201 - argparse args
         vehicle=getattr(args, "vehicle", None),
         aero=getattr(args, "aero", None),
         gains=getattr(args, "gains", None),
-        where=("--vehicle", "--aero", "--gains"),
+        sensing=getattr(args, "sensing", None),
+        where=("--vehicle", "--aero", "--gains", "--sensing"),
     )

@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from ..output.interrupt import CooperativeInterrupt
-from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_vehicle_argument
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_sensing_argument, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -40,6 +40,7 @@ def add_parser(sub) -> None:
         choices=AERO_NAMES,
         help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
     )
+    add_sensing_argument(p)  # --sensing
     p.add_argument("--video", metavar="MP4", help="also render an MP4 video (EGL)")
     p.add_argument("--snapshot", metavar="PNG", help="also render a still image")
     p.add_argument("--snapshot-time", type=float, default=20.0, help="time of the still (s, default 20)")
@@ -112,7 +113,7 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     from . import flown_scenario
 
     exported = load_export(args.scenario) if is_export(args.scenario) else None  # each drone flies its own pieces
-    sc = flown_scenario(args, exported.scenario if exported else None)  # --vehicle, --aero, --gains
+    sc = flown_scenario(args, exported.scenario if exported else None)  # --vehicle, --aero, --gains, --sensing
     check_args(args, sc)
     if args.seed is not None:
         sc = sc.with_overrides(seed=args.seed)  # the wind and any random starts, as sweep/stress call seed s

@@ -38,7 +38,7 @@ from ..experiments.stress import (  # noqa: F401
     stress_scenario,
     summarize_rule,
 )
-from . import AERO_NAMES, RULE_NAMES, add_vehicle_argument
+from . import AERO_NAMES, RULE_NAMES, add_sensing_argument, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -79,6 +79,7 @@ def add_parser(sub) -> None:
     )
     p.add_argument("--aero", choices=AERO_NAMES, help="physics preset (default: paper; docs/aero.md)")
     add_vehicle_argument(p, default="the paper's drone")  # --vehicle and --gains
+    add_sensing_argument(p)  # --sensing: every start's [sensing] preset, its range --sensing-range
     p.add_argument("--json", metavar="PATH", help="also write the table and every start's numbers as JSON")
     p.add_argument(
         "--save-scenario",
@@ -125,6 +126,7 @@ def main(args: argparse.Namespace) -> int:
         aero=args.aero or "paper",
         vehicle=vehicle,
         gains=gains,
+        sensing=args.sensing or "perfect",
     )
     table, rows = stress(rules, args.starts, case, args.workers, progress=not args.quiet)
     if save:
@@ -137,7 +139,8 @@ def main(args: argparse.Namespace) -> int:
             "#   swarm-mj run THIS_FILE --seed S --anti-collision R\n" + scenario_toml(stress_data(case)),
         )
     doc = {
-        "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")} | {"aero": case.aero},
+        "settings": {k: v for k, v in vars(args).items() if k not in ("func", "quiet")}
+        | {"aero": case.aero, "sensing": case.sensing},
         # the versions the numbers came from: a contact count moves with MuJoCo's (docs/libraries.md)
         "machine": machine_description(),
         "table": table,
@@ -147,7 +150,7 @@ def main(args: argparse.Namespace) -> int:
         from ..output.atomic import write_json_atomic
 
         write_json_atomic(args.json, doc)  # first: a reader that stops reading the table (| head) loses nothing
-    print(format_table(table, args.followers))
+    print(format_table(table, args.followers, case.sensing))
     print("\n".join(replay_lines(table, rows, save)))
     if args.json == "-":
         from ..output.atomic import write_json_atomic

@@ -8,7 +8,7 @@ import tomllib
 from typing import Any
 
 from ..errors import UserError
-from . import AERO_NAMES, EXIT_EPILOG, EXIT_ERROR, EXIT_FLIGHT_FAILED, add_vehicle_argument
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_ERROR, EXIT_FLIGHT_FAILED, add_sensing_argument, add_vehicle_argument
 
 
 def add_parser(sub) -> None:
@@ -47,6 +47,7 @@ def add_parser(sub) -> None:
         choices=AERO_NAMES,
         help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
     )
+    add_sensing_argument(p)  # --sensing
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=main)
 
@@ -116,7 +117,7 @@ def main(args: argparse.Namespace) -> int:
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     param, values = parse_param(args.param) if args.param else (None, None)
-    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
+    sc = flown_scenario(args)  # --vehicle, --aero, --gains, --sensing: the rule of swarm_mj/choices.py
     if args.duration is not None:
         from ..scenario import check_duration
 
@@ -174,7 +175,7 @@ def replay_line(args: argparse.Namespace, res) -> str:
     cmd = ["swarm-mj", "run", args.scenario, "--seed", str(seed)]
     if args.duration is not None:
         cmd += ["--duration", repr(float(args.duration))]
-    for opt in ("vehicle", "aero", "gains"):  # what the sweep flew
+    for opt in ("vehicle", "aero", "gains", "sensing"):  # what the sweep flew
         if getattr(args, opt, None):
             cmd += [f"--{opt}", str(getattr(args, opt))]
     note = ""

@@ -20,7 +20,7 @@ from pathlib import Path
 
 from ..errors import UserError
 from ..video.style import DEFAULT_FPS, DEFAULT_SNAPSHOT_TIME, MAX_SIZE, VideoStyle
-from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_vehicle_argument
+from . import AERO_NAMES, EXIT_EPILOG, EXIT_FLIGHT_FAILED, RULE_NAMES, add_sensing_argument, add_vehicle_argument
 
 # --------------------------------------------------------------------------- option checks (before simulating)
 
@@ -131,6 +131,7 @@ def add_parser(sub) -> None:
         choices=AERO_NAMES,
         help="physics preset (default: the scenario's, 'paper' for every bundled one; docs/aero.md)",
     )
+    add_sensing_argument(p)  # --sensing
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=main)
 
@@ -141,7 +142,7 @@ def main(args: argparse.Namespace) -> int:
     from ..scenario import check_duration, check_seed
     from . import flown_scenario
 
-    sc = flown_scenario(args)  # --vehicle, --aero, --gains: the rule of swarm_mj/choices.py
+    sc = flown_scenario(args)  # --vehicle, --aero, --gains, --sensing: the rule of swarm_mj/choices.py
 
     if args.duration is not None:
         check_duration(args.duration, sc.control_period, sc.n_drones, "--duration")

@@ -44,6 +44,7 @@ class StressCase:
     aero: str = "paper"  # physics preset (docs/aero.md)
     vehicle: str | None = None  # [vehicle] model (docs/vehicles.md); None: the paper's drone
     gains: str | None = None  # a gains file; None: the vehicle's, else Table 4 (swarm_mj/choices.py)
+    sensing: str = "perfect"  # [sensing] preset (docs/sensing.md); its range is sensing_range (the alias)
 
 
 def stress_scenario(case: StressCase):
@@ -69,6 +70,7 @@ def stress_data(case: StressCase) -> dict:
         "aero": {"model": case.aero},
         **({"vehicle": {"model": case.vehicle}} if case.vehicle is not None else {}),
         **({"controller": {"gains": case.gains}} if case.gains is not None else {}),
+        **({"sensing": {"preset": case.sensing}} if case.sensing != "perfect" else {}),
     }
 
 
@@ -198,16 +200,17 @@ def check_rules_fit(rules: list[str], case: StressCase) -> None:
         check_keepout_fits(sc, made, where="--diameter")
 
 
-def format_table(table: dict, followers: int) -> str:
+def format_table(table: dict, followers: int, sensing: str = "perfect") -> str:
     """The per-rule table as text (episodes: drone–drone contact episodes, a pair of drones in contact
     over consecutive physics steps counted once, docs/physics_step.md; crashed: runs stopped as
     diverged; crashes: ground crashes, docs/aero.md; dip: the worst downwash dip,
-    docs/interpretations.md §4; path: the median over starts of the mean path flown per follower)."""
+    docs/interpretations.md §4; path: the median over starts of the mean path flown per follower);
+    ``sensing``: the preset flown, named in the header unless ``perfect``."""
     head = (
         f"{'rule':<11} {'starts':>6} {'w/contact':>9} {'episodes':>8} {'crashed':>7} {'crashes':>7} "
         f"{'min sep (m)':>11} {'settle med (s)':>14} {'settle worst (s)':>16} {'dip (m)':>8} "
         f"{'keep-out ρ':>10} {'in keep-out (s)':>15} {'path (m)':>8}"
-        f"   ({followers} followers)"
+        f"   ({followers} followers{'' if sensing == 'perfect' else f', sensing {sensing}'})"
     )
     lines = [head]
     for rule, r in table.items():
