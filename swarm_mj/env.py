@@ -80,6 +80,8 @@ from .physics.wind import WindSeries
 from .pipeline.records import Obs, Refs
 from .pipeline.swarm import SwarmPhysics
 from .scenario import Scenario, flown
+from .sensing import SensingParams
+from .sensing.stage import SensingStage, sensing_stage, view_keys
 from .task import copy_outcome, copy_reward, observation_shapes
 
 
@@ -160,8 +162,10 @@ class SwarmEnv(dm_env.Environment):
         force_stages: Sequence[ForceStage] = (),
         vehicle: VehicleLike | None = None,
         aero: str | None = None,
+        sensing: str | SensingParams | None = None,
     ) -> None:
-        self.scenario = sc = flown(scenario, vehicle=vehicle, aero=aero)
+        sc = flown(scenario, vehicle=vehicle, aero=aero)
+        self.scenario = sc = sc if sensing is None else sc.with_overrides(sensing=sensing)
         if action not in ("thrust", "setpoint"):
             raise UserError(f"action must be 'thrust' or 'setpoint', got {action!r}")
         self.action_mode = action
@@ -182,6 +186,8 @@ class SwarmEnv(dm_env.Environment):
         self.reference = ph.reference
         self.D = ph.D  # (K+1,)
         self.unit_offsets = ph.unit_offsets  # (n-1, 3)
+        #: each drone's own view (swarm_mj.sensing.stage; None: the ``perfect`` oracle, the true state)
+        self.sensing: SensingStage | None = sensing_stage(sc.sensing, self.T, n)
         self._setpoint_ctl: Backstepping | None = None
         self._reward_call: Callable[..., float] | None = None  # copy_reward bound (_reward)
         if action == "setpoint":
@@ -206,6 +212,8 @@ class SwarmEnv(dm_env.Environment):
         ph.begin(_ONE, (self.seed,))  # k = 0, the wind of this seed, the leader estimate zeroed
         ph.reset()
         self._refs = ph.refs()  # the references as a record, shared with the chunk driver
+        if self.sensing is not None:
+            self.sensing.reset(ph.starts[: self.n], self.seed)
         self.last_applied: StepRecord | None = None
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
@@ -390,6 +398,10 @@ class SwarmEnv(dm_env.Environment):
             wind_force=o.wf,
         )
         obs.record = o
+        if self.sensing is not None:
+            k, r = self.k, self._refs
+            view = self.sensing.observe(k, o.pos, o.vel, (r.pos[k], r.vel[k], r.acc[k]), float(r.D[k]), r.unit_offsets)
+            obs.update(view_keys(view, self.scenario.sensing_range))
         return obs
 
     def _reward(self, obs: dict, new_contacts: int) -> float:

@@ -16,10 +16,16 @@ import numpy as np
 from .._jit import bind, python_body
 from ..env import Command
 from ..formation.anticollision import make_rule, resolve_rule
+from ..formation.barrier import BarrierFilter
+from ..formation.own_view import OwnViewRule
+from ..formation.rules import Rule
+from ..formation.slots import min_slot_spacing
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..pipeline.period import command, feedforward_force
 from ..pipeline.records import Control, Feedforward, Obs, Predictor
 from ..scenario import Scenario
+from ..sensing.margin import BarrierMargin, barrier_margin
+from ..sensing.stage import sensing_stage
 from .backstepping import Backstepping
 from .lag import AttitudePredictor
 
@@ -114,7 +120,23 @@ class BacksteppingPolicy:
         )
         rule_params: dict[str, Any] = {"sensing_range": sc.sensing_range, **sc.anti_collision_params}
         name = resolve_rule(anti_collision, sc.aero.downwash) if anti_collision else sc.rule
-        self.rule = make_rule(name, self.n, vehicle=params, barrier=sc.barrier_params, **rule_params)  # its keep-out
+        self.rule: Rule | OwnViewRule = make_rule(
+            name, self.n, vehicle=params, barrier=sc.barrier_params, **rule_params
+        )
+        # under a sensing model each drone decides from its own view: its own copy of the rule (docs/sensing.md)
+        self.own_view = self.n > 1 and sensing_stage(sc.sensing, sc.control_period, self.n) is not None
+        #: the barrier's measurement-robust margin under a sensing model (None: no barrier, or the oracle)
+        self.margin: BarrierMargin | None = None
+        if self.own_view:
+            filt = self.rule.separation_filter
+            if isinstance(filt, BarrierFilter):  # its keep-out widened by the margin (docs/sensing.md)
+                self.margin = _barrier_margin(sc, params, filt)
+                table = {
+                    **(sc.barrier_params or {}),
+                    "tracking_margin_m": filt.barrier.tracking_margin_m + 0.5 * self.margin.applied_m,
+                }
+                self.rule = make_rule(name, self.n, vehicle=params, barrier=table, **rule_params)
+            self.rule = OwnViewRule(self.rule)
         # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1), yaw first given
         # up with the "yaw_last" mixer (docs/vehicles.md, "Mixer")
         self.mixer = sc.mixer_flown
@@ -225,25 +247,85 @@ class BacksteppingPolicy:
         if not self._started:
             self.rule.reset(obs["pos"])
             self._started = True
+        if self.own_view:
+            return self._command_from_view(obs)
         pos_d, vel_d, acc_d = obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"]
         if self.n > 1:
             # Anti-collision (docs/interpretations.md §4): the rule adjusts the setpoints (n, 3) and,
             # for the drones it steers, also hands the velocity/acceleration references (zero = hold x, y).
+            assert isinstance(self.rule, Rule)
             pos_d, vel_d, acc_d = self.rule.references(
                 float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
             )
+        return self._finish(self._obs_record(obs), pos_d, vel_d, acc_d)
+
+    def _finish(self, o: Obs, pos_d: Any, vel_d: Any, acc_d: Any, ff: Feedforward | None = None) -> Command:
+        """The command stage (:func:`swarm_mj.pipeline.period.command`) on the observation record ``o`` and
+        the references (n, 3); ``ff``: the feedforward's record (default: this policy's)."""
         ctl, n3 = self.controller, (self.n, 3)
-        o = self._obs_record(obs)
         pos_d, vel_d, acc_d = _f8(pos_d, n3), _f8(vel_d, n3), _f8(acc_d, n3)
-        rec, ff, pred = self._stage_records()
+        rec, own_ff, pred = self._stage_records()
         if self._command is None:
             self._command = python_body(command)
-        U = self._command(rec, ff, pred, o, pos_d, vel_d, acc_d, not ctl.started)
+        U = self._command(rec, own_ff if ff is None else ff, pred, o, pos_d, vel_d, acc_d, not ctl.started)
         ctl.started = True
         if U is rec.U_out:  # the mixer's buffer, rewritten by the next command
             U = U.copy()
         ctl.U = U
         return Command(U=U, pos_d=pos_d, vel_d=vel_d, acc_d=acc_d, att_d=ctl.att_d.copy())
 
+    def _command_from_view(self, obs: dict) -> Command:
+        """The command when each drone decides from its own view (the observation's ``view_*`` keys,
+        swarm_mj.sensing.stage): drone i's references from its copy of the rule on its view, its
+        controller on its own estimated position and velocity, its downwash feedforward from where it
+        believes the others are (:func:`viewed_feedforward`)."""
+        rule = self.rule  # (reset at the first command from the starts: the flight plan's pads, known to all)
+        assert isinstance(rule, OwnViewRule)
+        vp = obs["view_pos"]
+        pos_d, vel_d, acc_d = rule.references_from_view(
+            float(obs["time"]),
+            vp,
+            obs["view_setpoint"],
+            obs["view_setpoint_vel"],
+            obs["setpoint_acc"],
+            vp[:, 0, 2],
+            obs["view_vel"],
+        )
+        o = self._obs_record(obs)._replace(pos=_f8(obs["own_pos"], (self.n, 3)), vel=_f8(obs["own_vel"], (self.n, 3)))
+        if self.downwash_ff is not None:
+            m_g = float(self.controller.params.m * self.controller.params.g)
+            thrust = self.U_last[:, 0] if self.controller.started else np.full(self.n, m_g)
+            force = viewed_feedforward(self.downwash_ff, vp, o.quat, thrust, m_g)
+            o = o._replace(wf=o.wf + force)
+            return self._finish(o, pos_d, vel_d, acc_d, ff=self._no_ff)
+        return self._finish(o, pos_d, vel_d, acc_d)
+
     def __call__(self, obs: dict) -> np.ndarray:
         return self.command(obs).U
+
+
+def _barrier_margin(sc: Scenario, params: QuadParams, filt: BarrierFilter) -> BarrierMargin:
+    """The barrier's margin for the scenario's sensing (:func:`swarm_mj.sensing.margin.barrier_margin`): the
+    formation's closest positions at its smallest D, the filter's keep-out width, the vehicle's thrust."""
+    spacing = min_slot_spacing(sc.n_followers, float(np.min(sc.diameter_schedule().values)))
+    return barrier_margin(
+        sc.sensing, sc.control_period, 4.0 * float(params.f_max) / float(params.m), float(params.g), spacing,
+        float(filt.radii[0]), filt.barrier.robust_confidence,
+    )  # fmt: skip
+
+
+def viewed_feedforward(
+    ff: DownwashFeedforward, view_pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray, hover: float
+) -> np.ndarray:
+    """(n, 3) each drone's downwash feedforward from its own view: row i of the jets' force at the positions
+    drone i believes (view_pos[i] (n, n, 3)), the others level at hover thrust ``hover`` (N; the view has
+    no attitude or thrust of theirs), drone i with its own attitude quat[i] and last thrust thrust[i]."""
+    n = view_pos.shape[0]
+    out = np.empty((n, 3))
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
+    u = np.full(n, hover)
+    for i in range(n):
+        q[i], u[i] = quat[i], thrust[i]
+        out[i] = ff(view_pos[i], q, u)[i]
+        q[i], u[i] = (1.0, 0.0, 0.0, 0.0), hover
+    return out

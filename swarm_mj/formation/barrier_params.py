@@ -34,6 +34,13 @@ class BarrierParams:
     tracking_margin_m: float = _p(
         0.02, "m", "keep-out inflated by twice this for the real drone's tracking error", 0.0, open_lo=False
     )
+    robust_confidence: float = _p(
+        0.999,
+        "",
+        "under a sensing model, the confidence of the measurement-robust margin (docs/sensing.md)",
+        0.5,
+        0.999999,
+    )
     gain: float = _p(3.0, "1/s", "k of (B): α(s) = k·s for both orders (critically damped)")
     max_tilt_deg: float = _p(30.0, "deg", "horizontal limit (g − accel_down)·tan(this)", 0.0, 89.0)
     accel_up: float = _p(3.0, "m/s²", "vertical acceleration limit up")

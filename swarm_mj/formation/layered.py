@@ -79,6 +79,8 @@ def idle_record(n: int) -> FormedRecord:
         acc_d=z.copy(),
         steer=b.copy(),
         slot_of=np.arange(n, dtype=np.int64),
+        sensed_vel=z.copy(),
+        vel_sensed=np.zeros(1, dtype=np.bool_),
     )
 
 
@@ -345,7 +347,8 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     ``jet-aware`` also slots within D̄, or keep-outs overlapping in plan view), and nothing but the
     jet-aware slot distances and formation altitude (rule.slot_h, rule.formation_alt) is written:
     the rule's Python reaction flies the period. Else the velocity estimate
-    (:func:`estimate_velocities`) and the paths (:func:`formed_paths`) with the offsets held.
+    (:func:`estimate_velocities`; under a sensing model ``rule.sensed_vel``, the drone's view's) and the
+    paths (:func:`formed_paths`) with the offsets held.
     Drone i's slot is row ``rule.slot_of[i]`` of pos_d (:func:`slotted`; identity but for a rule
     that assigns slots, docs/barrier.md)."""
     n = pos.shape[0]
@@ -366,6 +369,10 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     if react_needed(rule.offset, h, rule.safety):
         return True, pos_d
     dt = estimate_velocities(t, pos, rule.prev_pos, rule.vel, rule.prev_t, rule.dt)
+    if rule.vel_sensed[0]:  # a sensing model: the velocities of the drone's view
+        for i in range(n):
+            for j in range(3):
+                rule.vel[i, j] = rule.sensed_vel[i, j]
     return False, formed_paths(rule, dt, pos_d, formation_alt, rule.offset)
 
 

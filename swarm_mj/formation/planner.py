@@ -174,6 +174,8 @@ class LayeredRule(PaperRule):
         self._prev_t = np.full(1, np.nan)  # (1,) (s) time of the last update (NaN: none yet)
         self._dt = np.zeros(1)  # (1,) (s) the dt of the last update
         self.vel = np.zeros((n, 3))  # (n, 3) velocities estimated from positions
+        self._sensed_vel = np.zeros((n, 3))  # (n, 3) the view's velocities (sense_velocities)
+        self._vel_sensed = np.zeros(1, dtype=bool)  # (1,) vel is _sensed_vel (a sensing model)
         self._all = np.ones(n, dtype=bool)  # (n,) every drone (read-only)
         self._followers = np.ones(n, dtype=bool)  # (n,) the drones the rule steers (read-only)
         self._followers[0] = False
@@ -215,8 +217,17 @@ class LayeredRule(PaperRule):
                 acc_d=self.acc_d,
                 steer=self._followers,
                 slot_of=self.slot_of,
+                sensed_vel=self._sensed_vel,
+                vel_sensed=self._vel_sensed,
             )
         return self._record
+
+    def sense_velocities(self, vel: np.ndarray) -> None:
+        """Under a sensing model: the velocities (n, 3) of this copy's drone's view (what it believes every
+        drone flies, its own included), used from now on instead of differencing positions (paper §4's
+        estimate, which would turn the view's position noise into velocity noise: docs/sensing.md)."""
+        self._sensed_vel[:] = vel
+        self._vel_sensed[0] = True
 
     def compiled_ready(self) -> bool:
         """Its compiled formed step (:func:`~.layered.formed_update`, the chunk driver's) is all it would
@@ -399,7 +410,10 @@ class LayeredRule(PaperRule):
         """The step dt since the last update and every drone's velocity estimated from its
         successive positions (:func:`~.layered.estimate_velocities`)."""
         pos = np.ascontiguousarray(positions, dtype=np.float64)
-        return float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
+        dt = float(estimate_velocities(float(t), pos, self._prev_pos, self.vel, self._prev_t, self._dt))
+        if self._vel_sensed[0]:
+            self.vel[:] = self._sensed_vel
+        return dt
 
     def _sense(self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float, dt: float) -> PlanStep:
         """What this step of the transition works from (ours): each follower's layer and altitude

@@ -71,6 +71,11 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
     why = sim.not_compiled() or sim.monitors_not_compiled()
     if why is not None:
         return why
+    sensing = getattr(env, "sensing", None)
+    if sensing is not None:
+        why = registry.why_not_compiled(sensing, registry.SENSING_KERNELS, "sensing stage", "step")
+        if why is not None:
+            return why
     if env.wind.relative_airspeed:
         return "the wind on the relative airspeed is computed in Python"
     ids = np.asarray(sim.world.body_ids)

@@ -156,6 +156,8 @@ class Rule(NamedTuple):
     acc_d: np.ndarray  # (n, 3)
     steer: np.ndarray  # (n,) bool: the drones the rule steers
     slot_of: np.ndarray  # (n,) int64: drone i flies to the slot of row slot_of[i] (identity: its own)
+    sensed_vel: np.ndarray  # (n, 3) the velocities the drone's view gives (swarm_mj.sensing), when vel_sensed
+    vel_sensed: np.ndarray  # (1,) bool: vel is sensed_vel, not differenced from positions (a sensing model)
 
 
 class Gains(NamedTuple):

@@ -14,6 +14,7 @@ imported first.
   it does after a physics step without any contact (a contact always goes back to its Python);
 * :data:`RULE_KERNELS`: a rule's record type → the chunk driver's compiled formed step over it;
 * :data:`FILTER_KERNELS`: a separation filter's record type → its compiled period;
+* :data:`SENSING_KERNELS`: a sensing stage's record type → its compiled tick (empty: none yet);
 * :data:`ANTI_COLLISION_RULES`: a rule's name (a scenario's ``formation.anti_collision``) → its class.
 
 Whether a run flies on the chunk driver is decided by capability: every force stage, monitor, the rule
@@ -63,6 +64,10 @@ FILTER_KERNELS: dict[type, Callable[..., Any]] = {
     BarrierRecord: barrier_step,
 }
 
+#: sensing stage record → its compiled tick (none yet: a run with a sensing model flies step by step,
+#: swarm_mj.sensing.stage; the perfect oracle has no stage)
+SENSING_KERNELS: dict[type, Callable[..., Any]] = {}
+
 #: the named anti-collision rules, in the order the CLI lists them (``"auto"`` picks one: anticollision.AUTO)
 ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "layers": LayeredRule,
@@ -95,5 +100,6 @@ __all__ = [
     "FORCE_KERNELS",
     "MONITOR_KERNELS",
     "RULE_KERNELS",
+    "SENSING_KERNELS",
     "why_not_compiled",
 ]

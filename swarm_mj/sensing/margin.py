@@ -1,6 +1,6 @@
 """The measurement-robust margin a barrier needs from the sensing bounds (docs/sensing.md, "The
-measurement-robust margin"): the design the barrier will use when the sensing stage is wired, not
-yet flown.
+measurement-robust margin"): what the barrier adds to its keep-out under a sensing model
+(:func:`barrier_margin`).
 
 A drone i decides on d̂ = ‖p̂_j − p̂_i‖, where p̂_j is the last message it holds from j (sent
 ``age`` ago, with noise e_j) and p̂_i its own estimate (noise e_i). The true distance differs by at
@@ -91,7 +91,7 @@ def robust_margin(
     k = noise_quantile(confidence)
     age, m = age_bound(params, period_s, confidence)
     noise = k * math.hypot(params.position_noise_m, params.own_position_noise_m)
-    stale = speed_bound_mps * age
+    stale = speed_bound_mps * age if age > 0 else 0.0  # (an unbounded speed over no age: nothing)
     vel_err = k * math.hypot(params.velocity_noise_mps, params.own_velocity_noise_mps)
     if accel_bound_mps2 is not None:
         stale = min(stale, k * params.velocity_noise_mps * age + 0.5 * accel_bound_mps2 * age * age)
@@ -101,3 +101,38 @@ def robust_margin(
     return Margin(
         k=k, lost_in_a_row=m, age_s=age, noise_m=noise, staleness_m=stale, total_m=noise + stale, velocity_mps=vel_err
     )
+
+
+class BarrierMargin(NamedTuple):
+    """The margin a barrier flies with under a sensing model (docs/sensing.md, "The measurement-robust margin")."""
+
+    needed_m: float  # δ of :func:`robust_margin` at the confidence asked
+    applied_m: float  # δ flown: needed_m, or the room the formation leaves when that is less
+    room_m: float  # half what the formation's closest positions leave beyond the keep-out (m)
+    confidence: float
+    accel_bound_mps2: float  # ā: the vehicle's largest acceleration, thrust-to-weight·g + g
+
+
+def barrier_margin(
+    params: SensingParams,
+    period_s: float,
+    thrust_accel_mps2: float,
+    g: float,
+    spacing_m: float,
+    width_m: float,
+    confidence: float,
+) -> BarrierMargin:
+    """The margin of a barrier whose keep-out is ``width_m`` wide (horizontally) for a formation whose
+    closest positions are ``spacing_m`` apart: :func:`robust_margin` with the held messages extrapolated
+    (every drone's tracks are, swarm_mj.sensing.tracker), no speed bound (v̄ = inf: the extrapolated
+    term is the one that bounds), ā = ``thrust_accel_mps2`` + g (no drone accelerates more: full thrust
+    against gravity); applied up to half the room the formation leaves, (spacing − width)/2, so that the
+    formation can still be reached (the summary says when it is less than needed)."""
+    need = robust_margin(
+        params, period_s, math.inf, accel_bound_mps2=thrust_accel_mps2 + g, confidence=confidence
+    ).total_m
+    room = max(0.0, 0.5 * (spacing_m - width_m))
+    return BarrierMargin(
+        needed_m=need, applied_m=min(need, room), room_m=room, confidence=confidence,
+        accel_bound_mps2=thrust_accel_mps2 + g,
+    )  # fmt: skip

@@ -1,0 +1,89 @@
+"""A rule flown from each drone's own view (docs/sensing.md, "Each drone decides from its own view").
+
+Under a sensing model (anything but ``perfect``) every drone runs its own copy of the anti-collision
+rule, as each Crazyflie would run its own firmware: copy i is given drone i's view only (where it
+believes every drone is, the formation setpoints built from where it believes the leader is, the
+leader's altitude it believes), and drone i flies row i of what its copy returns. What copy i
+computes for the other rows is drone i's prediction of the others' decisions from its view; nothing
+of it leaves the copy. A rule therefore needs no change to fly decentralised: its contract (row i
+depends only on drone i's own state and what it senses, docs/interpretations.md §4) is now enforced
+by the data each copy receives, not only by how the rule is written.
+
+Every copy is built like the rule itself, from the same parameters; each holds its own state (paths,
+offsets, the barrier filter's record). The events of drone i are copy i's events about drone i.
+"""
+
+from __future__ import annotations
+
+import copy
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from .rules import Rule
+
+
+class OwnViewRule:
+    """``n`` copies of a rule, copy i deciding drone i's row from drone i's view.
+
+    The interface the policy calls: ``reset(positions)``, ``references_from_view(t, view_pos,
+    setpoint, setpoint_vel, setpoint_acc, formation_alt, view_vel)`` (each (n, n, ...) but
+    ``setpoint_acc`` (n, 3) and ``formation_alt`` (n,)), ``events``, ``name``, ``downwash_feedforward``,
+    ``separation_filter`` (the template's: its keep-out, for the checks before a run)."""
+
+    def __init__(self, rule: Rule) -> None:
+        self.rule = rule  # the template (never flown itself)
+        self.n = rule.n
+        self.name = rule.name
+        self.params = rule.params
+        self.vehicle = rule.vehicle
+        self.separation_filter = rule.separation_filter
+        self.copies: list[Rule] = [copy.deepcopy(rule) for _ in range(self.n)]
+        self.events: list[dict] = []
+
+    @property
+    def downwash_feedforward(self) -> bool:
+        return self.rule.downwash_feedforward
+
+    def reset(self, positions: np.ndarray) -> None:
+        """Start of a run: every copy from the drones' starts (the flight plan's pads, known to all)."""
+        for c in self.copies:
+            c.reset(positions)
+        self.events = []
+
+    def references_from_view(
+        self,
+        t: float,
+        view_pos: np.ndarray,
+        setpoint: np.ndarray,
+        setpoint_vel: np.ndarray,
+        setpoint_acc: np.ndarray,
+        formation_alt: np.ndarray,
+        view_vel: np.ndarray | None = None,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pos_d, vel_d, acc_d) (n, 3): row i from copy i's ``references`` on drone i's view (row i of
+        view_pos, setpoint, setpoint_vel (n, n, 3); formation_alt[i]); a rule that estimates velocities
+        takes row i of ``view_vel`` (n, n, 3) instead (its ``sense_velocities``)."""
+        n = self.n
+        pos_d, vel_d, acc_d = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+        for i, rule in enumerate(self.copies):
+            sense = getattr(rule, "sense_velocities", None)
+            if sense is not None and view_vel is not None:
+                sense(view_vel[i])
+            p, v, a = rule.references(
+                t, view_pos[i], setpoint[i], setpoint_vel[i], setpoint_acc, float(formation_alt[i])
+            )
+            pos_d[i], vel_d[i], acc_d[i] = p[i], v[i], a[i]
+            self._take_events(rule, i)
+        return pos_d, vel_d, acc_d
+
+    def _take_events(self, rule: Rule, i: int) -> None:
+        """Copy i's events about drone i into this rule's; the rest (its predictions of the others) dropped."""
+        if rule.events:
+            self.events.extend(e for e in rule.events if e.get("drone") == i)
+            rule.events.clear()
+
+    def each(self, fn: Callable[[Rule], Any]) -> list[Any]:
+        """``fn`` of every copy (e.g. a filter's counters, summed by the caller)."""
+        return [fn(c) for c in self.copies]

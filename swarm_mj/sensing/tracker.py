@@ -1,0 +1,114 @@
+"""Each drone's track of every other drone: what it believes now, from the messages it holds
+(docs/sensing.md, "What a drone believes").
+
+A receiver holds the latest message from each sender (:mod:`.channel`): a position and a velocity,
+sent ``age`` ago. It does not fly on that message as it is:
+
+* **dead reckoning over the age**: the message's position advanced by its velocity over its age,
+  ẑ = p + v·age (a message sent 26 ms ago describes where the sender was, not where it is);
+* **a constant-velocity track** per (receiver, sender): the belief x moves with the sender's broadcast
+  velocity every tick, x ← x + v·T, and each new message corrects it by a gain α, spread over the
+  sender's broadcast interval (m ticks: x ← x + α·(ẑ − x⁻)/m per tick), so that the rules, which
+  difference the positions they are given (paper §4's velocity estimate), see no step at a message;
+* α is the steady-state Kalman gain of that track (:func:`track_gain`): the prediction over one
+  interval Δ errs by (σ_v + ā·L)·Δ (the broadcast velocity's noise, and how much it has changed over
+  the latency L under an acceleration ā the track does not model, :data:`TRACK_ACCEL`) plus ½·ā·Δ²,
+  the message by σ_p. With exact messages (σ_p = 0) α is 1
+  and the belief is ẑ itself (copied, no arithmetic): a channel without noise, latency or loss at the
+  control rate gives the truth bit for bit.
+
+Before its first message from a sender, a receiver believes the sender stands at its start (the
+flight plan's pads, which every drone knows). The state is a record of arrays updated in place by
+:func:`track_step`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+#: ā (m/s²): the acceleration the constant-velocity track does not model, in the prediction error of
+#: its gain (:func:`track_gain`): the followers' acceleration limit (``max_accel`` 4 m/s² of the
+#: jet-aware and barrier planners). With 2 m/s² and without the latency term the ``mocap`` track lagged
+#: the leader's take-off dash by up to 6 cm (α 0.06); with them by under 1 cm (docs/sensing.md).
+TRACK_ACCEL = 4.0
+
+
+def track_gain(
+    sigma_pos: float, sigma_vel: float, interval_s: float, latency_s: float = 0.0, accel: float = TRACK_ACCEL
+) -> float:
+    """α in [0, 1]: the steady-state Kalman gain of a track predicted with a velocity of noise
+    ``sigma_vel`` (m/s), ``latency_s`` old, over ``interval_s`` between messages of position noise
+    ``sigma_pos`` (m): q = (σ_v + ā·L)·Δ + ½·ā·Δ², Q = q², R = σ_p², P⁻ = Q/2 + √(Q²/4 + Q·R),
+    α = P⁻/(P⁻ + R); 1 when R is 0."""
+    r = sigma_pos * sigma_pos
+    if r == 0.0:
+        return 1.0
+    q = ((sigma_vel + accel * latency_s) * interval_s + 0.5 * accel * interval_s * interval_s) ** 2
+    p = 0.5 * q + math.sqrt(0.25 * q * q + q * r)
+    return p / (p + r)
+
+
+class TrackState(NamedTuple):
+    """Each receiver's track of each sender (row i: drone i's; updated in place by :func:`track_step`)."""
+
+    x: np.ndarray  # (n, n, 3) the believed position of sender j now (m); the diagonal: the drone's own
+    v: np.ndarray  # (n, n, 3) the velocity it is moved with (m/s): the last message's
+    seen_tick: np.ndarray  # (n, n) int64: the send tick of the last message taken in (−1: none)
+    fix: np.ndarray  # (n, n, 3) the correction still to spread, per tick (m)
+    fix_left: np.ndarray  # (n, n) int64: ticks it is still added
+
+
+def start_tracks(starts: np.ndarray) -> TrackState:
+    """The tracks before any message: every receiver believes every sender at its start (n, 3), at rest."""
+    n = starts.shape[0]
+    x = np.broadcast_to(np.asarray(starts, dtype=np.float64)[None, :, :], (n, n, 3)).copy()
+    return TrackState(
+        x=x,
+        v=np.zeros((n, n, 3)),
+        seen_tick=np.full((n, n), -1, dtype=np.int64),
+        fix=np.zeros((n, n, 3)),
+        fix_left=np.zeros((n, n), dtype=np.int64),
+    )
+
+
+def track_step(
+    s: TrackState,
+    held_pos: np.ndarray,
+    held_vel: np.ndarray,
+    held_tick: np.ndarray,
+    age: np.ndarray,
+    period_s: float,
+    alpha: float,
+    spread_ticks: int,
+) -> None:
+    """One control tick of every track, from what the receivers hold now (the channel's held_pos,
+    held_vel (n, n, 3), held_tick (n, n) (−1: nothing) and age (n, n) s): predict with v·T, take in
+    each new message (held_tick past seen_tick) with the gain ``alpha`` spread over ``spread_ticks``
+    (≥ 1); ``alpha`` 1 sets the belief to the message dead-reckoned over its age. In place."""
+    moving = s.seen_tick >= 0  # tracks that have a message: moved with its velocity
+    s.x[moving] += s.v[moving] * period_s
+    spreading = s.fix_left > 0
+    if spreading.any():
+        s.x[spreading] += s.fix[spreading]
+        s.fix_left[spreading] -= 1
+    new = (held_tick >= 0) & (held_tick > s.seen_tick)
+    if not new.any():
+        return
+    a = age[new][:, None]
+    z = np.where(a > 0.0, held_pos[new] + held_vel[new] * a, held_pos[new])  # dead-reckoned over the age
+    first = s.seen_tick[new] < 0
+    if alpha >= 1.0:
+        x = z
+        s.fix_left[new] = 0
+    else:
+        x = s.x[new]
+        fix = alpha * (z - x) / spread_ticks
+        x = np.where(first[:, None], z, x + fix)  # a first message: taken as it is
+        s.fix[new] = fix
+        s.fix_left[new] = np.where(first, 0, spread_ticks - 1)
+    s.x[new] = x
+    s.v[new] = held_vel[new]
+    s.seen_tick[new] = held_tick[new]
