@@ -48,6 +48,7 @@ from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
 from ..pipeline.period import log_inputs
 from ..pipeline.records import LogRows, Obs
 from ..scenario import Scenario, load_scenario
+from ..sensing.log import ViewLog, view_summary
 from .outcome import flight_outcome
 
 __all__ = [
@@ -87,6 +88,8 @@ class RunLog:
     #: of the following period, in the simulator's stage order; ``forces`` names them
     stage_rows: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 0, 3)))
     forces: dict[str, np.ndarray] = field(default_factory=dict)  # stage name -> (k, n, 3), views of stage_rows
+    #: what each drone believed (under a sensing model: swarm_mj.sensing.log); None under the oracle
+    views: ViewLog | None = None
 
     @classmethod
     def allocate(cls, names: list[str], k: int, stages: Sequence[str] = ()) -> RunLog:
@@ -145,7 +148,8 @@ class RunLog:
     def truncated(self, k: int) -> RunLog:
         rows = self.stage_rows[:, :k]
         series = {f: getattr(self, f)[:k] for f in _SERIES}
-        return RunLog(names=self.names, **series, stage_rows=rows, forces=_named(rows, self.forces))
+        views = self.views.truncated(k) if self.views is not None else None
+        return RunLog(names=self.names, **series, stage_rows=rows, forces=_named(rows, self.forces), views=views)
 
 
 def _named(rows: np.ndarray, names: Sequence[str] | dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -218,6 +222,8 @@ def run(
         policy = (make_policy or BacksteppingPolicy)(sc, env.params)
         check_keepout_fits(sc, policy.rule)
         log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        if env.sensing is not None:
+            log.views = ViewLog.allocate(env.n_steps + 1, env.n)
         bar = Progress(env.n_steps, sc.name, progress)
         wall0 = _time.perf_counter()
         compiling = CompileClock().start()  # what Numba compiles in the run is left out of its speed figure
@@ -314,6 +320,8 @@ def _fly(
                     continue
             cmd = policy.command(obs)
             log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
+            if log.views is not None and env.sensing is not None:
+                log.views.record(k, env.sensing)
             if k >= K:
                 return k, None
             if interrupt.requested:
@@ -400,6 +408,19 @@ def summarize(sc: Scenario, log: RunLog, env: SwarmEnv, policy: BacksteppingPoli
             float(norm(log.downwash).max()) if "downwash" in log.forces else 0.0
         )  # zeros without that stage
     out.update(_swarm(log, env, policy, dist, on_ground=bool(flight["never_took_off"])))
+    out["sensing"] = _sensing(sc, log, policy)
+    return out
+
+
+def _sensing(sc: Scenario, log: RunLog, policy: BacksteppingPolicy) -> dict:
+    """The summary's ``sensing``: the model flown (docs/sensing.md), whether each drone decided from its
+    own view, the barrier's measurement-robust margin, and what the drones believed against the truth."""
+    out: dict = {**sc.sensing.table(), "own_view": bool(getattr(policy, "own_view", False))}
+    margin = getattr(policy, "margin", None)
+    if margin is not None:
+        out["robust_margin"] = margin._asdict()
+    if log.views is not None:
+        out.update(view_summary(log.views, log.pos))
     return out
 
 
