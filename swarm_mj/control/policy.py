@@ -24,7 +24,9 @@ from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..pipeline.period import command, feedforward_force
 from ..pipeline.records import Control, Feedforward, Obs, Predictor
 from ..scenario import Scenario
+from ..sensing.channel import channel_config
 from ..sensing.margin import BarrierMargin, barrier_margin
+from ..sensing.payload import Payloads
 from ..sensing.stage import sensing_stage
 from .backstepping import Backstepping
 from .lag import AttitudePredictor
@@ -137,6 +139,9 @@ class BacksteppingPolicy:
                 }
                 self.rule = make_rule(name, self.n, vehicle=params, barrier=table, **rule_params)
             self.rule = OwnViewRule(self.rule)
+        # the attitude and thrust packets the feedforward reads under a sensing model (swarm_mj.sensing.payload)
+        self._payload_args = (self.n, channel_config(sc.sensing, sc.control_period).delay_ticks, sc.control_period)
+        self._payloads = Payloads(*self._payload_args, float(params.m * params.g))
         # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1), yaw first given
         # up with the "yaw_last" mixer (docs/vehicles.md, "Mixer")
         self.mixer = sc.mixer_flown
@@ -194,6 +199,7 @@ class BacksteppingPolicy:
 
     def reset(self) -> None:
         self.controller.reset()
+        self._payloads = Payloads(*self._payload_args, float(self.controller.params.m * self.controller.params.g))
         if self.predictor is not None:
             self.predictor.reset()
         self._started = False
@@ -293,9 +299,13 @@ class BacksteppingPolicy:
         )
         o = self._obs_record(obs)._replace(pos=_f8(obs["own_pos"], (self.n, 3)), vel=_f8(obs["own_vel"], (self.n, 3)))
         if self.downwash_ff is not None:
-            m_g = float(self.controller.params.m * self.controller.params.g)
-            thrust = self.U_last[:, 0] if self.controller.started else np.full(self.n, m_g)
-            force = viewed_feedforward(self.downwash_ff, vp, o.quat, thrust, m_g)
+            gains = self._stage_records()[0].gains
+            thrust = self.U_last[:, 0].copy() if self.controller.started else np.full(self.n, gains.m * gains.g)
+            k = int(round(float(obs["time"]) / self.controller.T))
+            held = self._payloads
+            held.push(k, o.quat, thrust)  # what each drone's next packet carries besides its state
+            quat, u = held.take(k, obs["view_mask"] > 0.5, obs["view_age"])
+            force = viewed_feedforward(self.downwash_ff, vp, quat, u, o.quat, thrust)
             o = o._replace(wf=o.wf + force)
             return self._finish(o, pos_d, vel_d, acc_d, ff=self._no_ff)
         return self._finish(o, pos_d, vel_d, acc_d)
@@ -315,17 +325,21 @@ def _barrier_margin(sc: Scenario, params: QuadParams, filt: BarrierFilter) -> Ba
 
 
 def viewed_feedforward(
-    ff: DownwashFeedforward, view_pos: np.ndarray, quat: np.ndarray, thrust: np.ndarray, hover: float
+    ff: DownwashFeedforward,
+    view_pos: np.ndarray,
+    view_quat: np.ndarray,
+    view_thrust: np.ndarray,
+    own_quat: np.ndarray,
+    own_thrust: np.ndarray,
 ) -> np.ndarray:
     """(n, 3) each drone's downwash feedforward from its own view: row i of the jets' force at the positions
-    drone i believes (view_pos[i] (n, n, 3)), the others level at hover thrust ``hover`` (N; the view has
-    no attitude or thrust of theirs), drone i with its own attitude quat[i] and last thrust thrust[i]."""
+    drone i believes (view_pos[i] (n, n, 3)), with the attitudes and thrusts of the packets it holds
+    (view_quat[i] (n, n, 4), view_thrust[i] (n, n); swarm_mj.sensing.payload), its own attitude
+    own_quat[i] and last thrust own_thrust[i]."""
     n = view_pos.shape[0]
     out = np.empty((n, 3))
-    q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1))
-    u = np.full(n, hover)
     for i in range(n):
-        q[i], u[i] = quat[i], thrust[i]
+        q, u = view_quat[i].copy(), view_thrust[i].copy()
+        q[i], u[i] = own_quat[i], own_thrust[i]
         out[i] = ff(view_pos[i], q, u)[i]
-        q[i], u[i] = (1.0, 0.0, 0.0, 0.0), hover
     return out
