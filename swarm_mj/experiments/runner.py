@@ -16,6 +16,7 @@ import sys
 import time as _time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -101,7 +102,7 @@ class RunLog:
         if len(set(stages)) != len(stages):
             raise UserError(f"force stages must have distinct names, got {list(stages)}")
         rows = np.zeros((len(stages), k, n, 3))
-        series = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
+        series: dict[str, Any] = {f: z(*s) for f, s in zip(_SERIES, shapes, strict=True)}
         return cls(names=names, **series, stage_rows=rows, forces=_named(rows, stages))
 
     def force(self, name: str) -> np.ndarray:
