@@ -82,7 +82,7 @@ from .pipeline.swarm import SwarmPhysics
 from .scenario import Scenario, flown
 from .sensing import SensingParams
 from .sensing.stage import SensingStage, sensing_stage, view_keys
-from .task import copy_outcome, copy_reward, observation_shapes
+from .task import copy_outcome, copy_reward, observation_specs
 
 
 @dataclass(slots=True)
@@ -305,8 +305,9 @@ class SwarmEnv(dm_env.Environment):
         return dm_env.transition(reward=float(reward), observation=obs)
 
     def observation_spec(self):
-        """The task's observation (:func:`swarm_mj.task.observation_shapes`) as dm_env specs, float64."""
-        return {key: specs.Array(shape, np.float64, key) for key, shape in observation_shapes(self.n).items()}
+        """The task's observation as dm_env specs, float64 (:func:`swarm_mj.task.observation_specs`): with a
+        sensing stage also each drone's own view (``view_*``, ``own_pos``, ``own_vel``)."""
+        return observation_specs(self.n, self.sensing is not None)
 
     def action_spec(self):
         if self.action_mode == "setpoint":

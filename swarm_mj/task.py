@@ -29,6 +29,7 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from dm_env import specs
 
 from ._jit import jit
 from .pipeline.period import observe
@@ -91,6 +92,44 @@ def observation_shapes(n: int) -> dict[str, tuple[int, ...]]:
 
 #: The observation keys in the order :func:`observe_copies` knows them (its offs[i] is key i's offset).
 OBS_KEYS = tuple(observation_shapes(1))
+
+
+def view_shapes(n: int) -> dict[str, tuple[int, ...]]:
+    """The keys a sensing stage adds to the observation of n drones (:func:`swarm_mj.sensing.stage.view_keys`;
+    row i: what drone i believes): key -> shape. The stage also replaces ``neighbours`` and ``neighbour_mask``
+    by the view's (the same shapes)."""
+    return {
+        "view_pos": (n, n, 3),
+        "view_vel": (n, n, 3),
+        "view_mask": (n, n),
+        "view_age": (n, n),
+        "view_setpoint": (n, n, 3),
+        "view_setpoint_vel": (n, n, 3),
+        "own_pos": (n, 3),
+        "own_vel": (n, 3),
+    }
+
+
+#: The bounds of the observation keys that have them (the others are unbounded): a view's mask is 0/1, the age
+#: of what a drone holds is ≥ 0 s, and inf where it holds nothing.
+VIEW_BOUNDS = {"view_mask": (0.0, 1.0), "view_age": (0.0, np.inf)}
+
+
+def observation_specs(n: int, sensing: bool = False) -> dict[str, specs.Array]:
+    """The observation of n drones as dm_env specs, float64 (``SwarmEnv.observation_spec``): the keys of
+    :func:`observation_shapes`, and with a sensing stage (``sensing``) those of :func:`view_shapes`,
+    ``view_mask`` and ``view_age`` bounded (:data:`VIEW_BOUNDS`)."""
+    out: dict[str, specs.Array] = {
+        key: specs.Array(shape, np.float64, key) for key, shape in observation_shapes(n).items()
+    }
+    if sensing:
+        for key, shape in view_shapes(n).items():
+            if key in VIEW_BOUNDS:
+                low, high = VIEW_BOUNDS[key]
+                out[key] = specs.BoundedArray(shape, np.float64, low, high, key)
+            else:
+                out[key] = specs.Array(shape, np.float64, key)
+    return out
 
 
 def _reward_samples():

@@ -14,6 +14,10 @@ Spaces (``n`` drones, leader = row 0; the keys, shapes and meanings are SwarmEnv
   shapes (``time`` is a 0-d Box). Bounds: ``time`` [0, inf), ``rpy`` [-π, π],
   ``neighbour_mask`` [0, 1], everything else unbounded. ``flatten=True`` gives one float64
   ``Box`` instead (``gymnasium.spaces.flatten`` of that Dict: keys in sorted order).
+  Under a sensing model (``sensing=``, any but ``perfect``) the Dict also holds each drone's own view
+  (SwarmEnv's ``view_pos``, ``view_vel`` (n, n, 3), ``view_mask`` (n, n) in [0, 1], ``view_age`` (n, n) in
+  [0, inf] (inf: nothing held), ``view_setpoint``, ``view_setpoint_vel`` (n, n, 3), ``own_pos``, ``own_vel``
+  (n, 3); row i: what drone i believes), and ``neighbours``/``neighbour_mask`` are the view's.
 * action: ``Box`` equal to ``SwarmEnv.action_spec()``: U1..U4 ``(n, 4)`` within what the
   rotors can deliver (``action="thrust"``), or a position setpoint ``(n, 3)`` in
   [-1000, 1000] m (``action="setpoint"``). Actions are NOT clipped here: out-of-bounds U is
@@ -43,7 +47,8 @@ from ..choices import VehicleLike
 from ..env import SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..scenario import Scenario
-from ..task import min_separation
+from ..sensing import SensingParams
+from ..task import min_separation, observation_specs
 
 ENV_ID = "swarm_mj/Swarm-v0"
 
@@ -61,9 +66,19 @@ def _box(spec: specs.Array, low: Any = -np.inf, high: Any = np.inf) -> spaces.Bo
 
 def observation_space(env: SwarmEnv) -> spaces.Dict:
     """The SwarmEnv observation spec as a ``spaces.Dict`` of float64 Box."""
-    return spaces.Dict(
-        {key: _box(spec, *_BOUNDS.get(key, (-np.inf, np.inf))) for key, spec in env.observation_spec().items()}
-    )
+    return space_of(env.observation_spec())
+
+
+def space_of(spec: dict[str, specs.Array]) -> spaces.Dict:
+    """dm_env observation specs (SwarmEnv's, :func:`swarm_mj.task.observation_specs`) as a ``spaces.Dict`` of
+    float64 Box (a bounded spec's bounds, else :data:`_BOUNDS`' or none)."""
+    return spaces.Dict({key: _box(s, *_BOUNDS.get(key, (-np.inf, np.inf))) for key, s in spec.items()})
+
+
+def observation_space_for(n: int, sensing: bool) -> spaces.Dict:
+    """The observation space of n drones without building an environment (the vector env's): with the view keys
+    when ``sensing`` (the environment has a sensing stage)."""
+    return space_of(observation_specs(n, sensing))
 
 
 def action_space(env: SwarmEnv) -> spaces.Box:
@@ -77,12 +92,13 @@ def as_swarm_env(
     terminate_on_contact: bool,
     vehicle: VehicleLike | None = None,
     aero: str | None = None,
+    sensing: str | SensingParams | None = None,
 ) -> SwarmEnv:
-    """The wrapped :class:`SwarmEnv`: ``scenario`` itself when it is one (then ``vehicle`` and ``aero`` are
-    its own: giving them too is a :class:`UserError`), else one built with these settings."""
+    """The wrapped :class:`SwarmEnv`: ``scenario`` itself when it is one (then ``vehicle``, ``aero`` and
+    ``sensing`` are its own: giving them too is a :class:`UserError`), else one built with these settings."""
     if isinstance(scenario, SwarmEnv):
-        if vehicle is not None or aero is not None:
-            raise UserError("vehicle= and aero= go to the SwarmEnv itself when a ready SwarmEnv is wrapped")
+        if vehicle is not None or aero is not None or sensing is not None:
+            raise UserError("vehicle=, aero= and sensing= go to the SwarmEnv itself when a ready SwarmEnv is wrapped")
         return scenario
     return SwarmEnv(
         scenario,
@@ -91,6 +107,7 @@ def as_swarm_env(
         raise_on_divergence=False,
         vehicle=vehicle,
         aero=aero,
+        sensing=sensing,
     )
 
 
@@ -129,7 +146,9 @@ class SwarmGymEnv(gymnasium.Env):
 
     ``scenario`` is a scenario name or path, a :class:`Scenario`, or a ready
     :class:`SwarmEnv` (then ``action`` and ``terminate_on_contact`` are its own). ``vehicle`` and ``aero``:
-    the drones and the physics flown instead of the scenario's (:class:`SwarmEnv`'s).
+    the drones and the physics flown instead of the scenario's, ``sensing``: the sensing model (a preset's
+    name, ``"perfect"``, ``"mocap"``, ``"uwb"``, or a :class:`~swarm_mj.sensing.SensingParams`; None: the
+    scenario's) (:class:`SwarmEnv`'s).
     """
 
     metadata = {"render_modes": []}
@@ -144,11 +163,12 @@ class SwarmGymEnv(gymnasium.Env):
         render_mode: str | None = None,
         vehicle: VehicleLike | None = None,
         aero: str | None = None,
+        sensing: str | SensingParams | None = None,
     ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
-        self.env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero)
+        self.env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero, sensing)
         self.flatten = bool(flatten)
         self.dict_observation_space = observation_space(self.env)
         self.observation_space = (

@@ -31,6 +31,27 @@ neighbour_mask      (n,)   1 where drone j is within sensing range
 wind_force          (3,)   wind force on this drone when the controller is given the wind, else 0
 ==================  =====  ===========================================================
 
+**Under a sensing model** (``sensing=``, any but ``perfect``) an agent's observation is its own view
+(docs/sensing.md): nothing in it is another drone's true state. Agent i holds its own attitude, rates, yaw
+and acceleration references and wind force as above, and instead of ``pos``, ``vel``, ``setpoint``,
+``setpoint_vel`` and ``leader_pos`` (the truth, or made from the leader's true position):
+
+==================  =====  ===========================================================
+key                 shape  meaning (row i of SwarmEnv's key: what drone i believes)
+==================  =====  ===========================================================
+own_pos, own_vel    (3,)   its own position and velocity as its estimator gives them
+view_pos, view_vel  (n,3)  where it believes each drone is and how fast it flies
+                           (its own row: own_pos; what it last held of a drone it no longer
+                           holds: far away, see swarm_mj.sensing.stage.UNSEEN_M)
+view_mask           (n,)   1 where it holds a message from drone j (itself: 0)
+view_age            (n,)   s since drone j sent what it holds (inf: nothing)
+view_setpoint       (n,3)  the formation setpoints it flies by, from where it believes the
+                           leader is (its own: row i); view_setpoint_vel (n,3) their velocities
+neighbours          (n,3)  drone j's position relative to this one as it believes it, zero
+                           where it holds nothing of j or j is beyond sensing range
+neighbour_mask      (n,)   1 where it holds j within sensing range
+==================  =====  ===========================================================
+
 Action: U1..U4 ``(4,)`` bounded like one row of ``SwarmEnv.action_spec()`` (or a position
 setpoint ``(3,)`` with ``action="setpoint"``); out-of-bounds U is clipped per rotor by the
 saturation, NaN raises ``UserError``. Every live agent must act.
@@ -40,7 +61,8 @@ reward). An episode ends for all agents at once: a contact or a divergence termi
 the scenario's duration truncates it; ``agents`` is then empty.
 
 ``state()`` is the whole SwarmEnv observation, flattened (``state_space``), for centralised
-critics. Seeding is as in :class:`~swarm_mj.wrappers.gymnasium.SwarmGymEnv`: ``reset(seed=s)``
+critics (the true states, and under a sensing model every drone's view).
+Seeding is as in :class:`~swarm_mj.wrappers.gymnasium.SwarmGymEnv`: ``reset(seed=s)``
 seeds the wind with ``s``; an unseeded reset draws the wind seed from the generator that
 the last seeded reset created. ``options`` are accepted for API compatibility; none are defined.
 """
@@ -57,6 +79,7 @@ from ..choices import VehicleLike
 from ..env import SwarmEnv
 from ..errors import UserError
 from ..scenario import Scenario
+from ..sensing import SensingParams
 from .gymnasium import as_swarm_env, fresh_observation, observation_space, seed_from, step_info
 
 
@@ -82,12 +105,27 @@ _PER_DRONE = (
     "wind_force",
 )
 
+# Under a sensing model: the keys of an agent's own view (row i of SwarmEnv's), and the keys it does not get
+# (another drone's true state, or made from the leader's true position).
+_VIEW_ROWS = (
+    "view_pos",
+    "view_vel",
+    "view_mask",
+    "view_age",
+    "view_setpoint",
+    "view_setpoint_vel",
+    "own_pos",
+    "own_vel",
+)
+_NOT_OWN = ("pos", "vel", "setpoint", "setpoint_vel", "leader_pos")
+
 
 class SwarmParallelEnv(ParallelEnv):
     """A scenario as a PettingZoo ``ParallelEnv`` with one agent per drone.
 
     ``scenario`` is a scenario name or path, a :class:`Scenario`, or a ready :class:`SwarmEnv`.
-    ``vehicle`` and ``aero``: the drones and the physics flown instead of the scenario's (:class:`SwarmEnv`'s).
+    ``vehicle`` and ``aero``: the drones and the physics flown instead of the scenario's, ``sensing``: the sensing
+    model (:class:`SwarmEnv`'s; under any but ``perfect`` each agent observes its own view, module docstring).
     """
 
     metadata = {"name": "swarm_mj_v0", "render_modes": [], "is_parallelizable": True}
@@ -101,19 +139,27 @@ class SwarmParallelEnv(ParallelEnv):
         render_mode: str | None = None,
         vehicle: VehicleLike | None = None,
         aero: str | None = None,
+        sensing: str | SensingParams | None = None,
     ) -> None:
         if render_mode is not None:
             raise UserError(f"render_mode {render_mode!r} is not supported (use swarm-mj run --video)")
         self.render_mode = None
-        self.env = env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero)
+        self.env = env = as_swarm_env(scenario, action, terminate_on_contact, vehicle, aero, sensing)
         self.possible_agents = list(env.names)
         self.agents: list[str] = []
         self._index = {name: i for i, name in enumerate(self.possible_agents)}
         full = observation_space(env)
         self._full_space = full
         self.state_space = spaces.flatten_space(full)
+        #: an agent's rows (its own row of each) and the keys it does not get (module docstring)
+        self._rows = _PER_DRONE + _VIEW_ROWS if env.sensing is not None else _PER_DRONE
+        self._hidden = _NOT_OWN if env.sensing is not None else ()
         self._obs_space = spaces.Dict(
-            {key: _one_drone(box) if key in _PER_DRONE else box for key, box in full.spaces.items()}
+            {
+                key: _one_drone(box) if key in self._rows else box
+                for key, box in full.spaces.items()
+                if key not in self._hidden
+            }
         )
         spec = env.action_spec()
         lo = np.broadcast_to(spec.minimum, spec.shape)
@@ -199,9 +245,10 @@ class SwarmParallelEnv(ParallelEnv):
     # ------------------------------------------------------------------ internals
     def _split(self, obs: dict) -> dict[str, dict[str, np.ndarray]]:
         """Agent i gets row i of a fresh copy of each per-drone array (its own memory, new every
-        step) and its own copy of the shared entries."""
-        rows = {key: np.array(obs[key], dtype=np.float64) for key in _PER_DRONE}
-        shared = {key: value for key, value in obs.items() if key not in rows}
+        step) and its own copy of the shared entries; under a sensing model its own view, not the
+        keys of :data:`_NOT_OWN`."""
+        rows = {key: np.array(obs[key], dtype=np.float64) for key in self._rows if key not in self._hidden}
+        shared = {key: value for key, value in obs.items() if key not in self._rows and key not in self._hidden}
         out = {}
         for name in self.agents:
             i = self._index[name]

@@ -77,6 +77,15 @@ copy's next seed, as ``SwarmGymEnv.reset()`` does; so for a scenario with fixed 
 vector env gives, bit for bit, what ``gymnasium.vector.SyncVectorEnv`` over m
 ``SwarmGymEnv`` gives (tested).
 
+**Sensing.** ``sensing=`` (SwarmEnv's: a preset's name or a :class:`~swarm_mj.sensing.SensingParams`): under
+any model but ``perfect`` each copy has its own :class:`~swarm_mj.sensing.stage.SensingStage`, reset at every
+reset and auto-reset of the copy from its starts with the copy's episode seed (the copy's seed s + i, or the one
+drawn from its generator: the same sensing stream as ``SwarmEnv.reset(seed)`` of that seed, so copies with
+different seeds get different noise and the vector env equals ``SyncVectorEnv`` over ``SwarmGymEnv(...,
+sensing=...)``, tested), and observed after each period from the copy's observed states: the view keys
+(SwarmEnv's ``view_*``, ``own_pos``, ``own_vel``, and ``neighbours``/``neighbour_mask`` from the view) are in
+the copy's observation (its slots of the flat buffer, where the Dict space puts them).
+
 **Info** (Gymnasium's vector format: ``info[key]`` (m,) with a bool mask ``info["_key"]``):
 ``time``, ``contacts``, ``new_contacts``, ``min_separation`` for copies that stepped,
 ``wind_seed`` for copies that were reset, ``termination`` ("contact" / "diverged") and
@@ -85,7 +94,6 @@ vector env gives, bit for bit, what ``gymnasium.vector.SyncVectorEnv`` over m
 
 from __future__ import annotations
 
-import types
 from collections.abc import Sequence
 from typing import Any
 
@@ -98,14 +106,16 @@ from gymnasium.vector.utils import batch_space
 
 from .._jit import warm_module
 from ..choices import VehicleLike
-from ..env import SwarmEnv, all_finite
+from ..env import all_finite
 from ..errors import UserError
 from ..experiments.parallel import check_count, default_workers
 from ..physics.sim import HEALTH_NAMES, HEALTHY
 from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
 from ..scenario import Scenario, flown
+from ..sensing import SensingParams
+from ..sensing.stage import SensingStage, sensing_stage, view_keys
 from ..task import OBS_KEYS, outcomes
-from .gymnasium import observation_space, seed_from
+from .gymnasium import observation_space_for, seed_from
 
 __all__ = ["BLOCK_DRONES", "OBS_KEYS", "SwarmVectorEnv"]
 
@@ -131,7 +141,7 @@ class SwarmVectorEnv(VectorEnv):
     drones' worth). ``autoreset_mode``: ``AutoresetMode.NEXT_STEP`` (default) or ``SAME_STEP``.
     ``threads``: the threads that step the blocks (default: the usable CPUs; results do not depend on it).
     ``vehicle``: the drones flown instead of the scenario's, ``aero``: the physics preset (``"paper"`` or
-    ``"realistic"``; :class:`~swarm_mj.env.SwarmEnv`'s).
+    ``"realistic"``), ``sensing``: the sensing model (module docstring, "Sensing") (:class:`~swarm_mj.env.SwarmEnv`'s).
     """
 
     metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": []}  # noqa: RUF012 (Gymnasium's)
@@ -149,6 +159,7 @@ class SwarmVectorEnv(VectorEnv):
         threads: int | None = None,
         vehicle: VehicleLike | None = None,
         aero: str | None = None,
+        sensing: str | SensingParams | None = None,
     ) -> None:
         threads = default_workers() if threads is None else check_count("threads", threads)
         if render_mode is not None:
@@ -164,7 +175,8 @@ class SwarmVectorEnv(VectorEnv):
         self.metadata = {**type(self).metadata, "autoreset_mode": mode}
         self.autoreset_mode = mode
         self.render_mode = None
-        self.scenario = sc = flown(scenario, vehicle=vehicle, aero=aero)
+        sc = flown(scenario, vehicle=vehicle, aero=aero)
+        self.scenario = sc = sc if sensing is None else sc.with_overrides(sensing=sensing)  # as SwarmEnv's
         warm_module("swarm_mj.task")  # the copies' observation kernel (_jit.jit's on_demand), compiled once
         self.num_envs = m = int(num_envs)
         self.n = n = sc.n_drones
@@ -181,10 +193,14 @@ class SwarmVectorEnv(VectorEnv):
         self.n_steps = ph.n_steps
         self.times = ph.times  # (K+1,)
 
+        #: each copy's own sensing stage (module docstring, "Sensing"; empty: the ``perfect`` oracle)
+        stages = [sensing_stage(sc.sensing, self.T, n) for _ in range(m)]
+        self.sensing: list[SensingStage] = [st for st in stages if st is not None]
+        self._plan = ph.refs()  # the leader's plan and D(t), shared by the copies (the stages read them)
+        self._block_of = np.repeat(np.arange(len(ph.blocks)), [blk.b for blk in ph.blocks])  # (m,) copy -> block
+
         # spaces: SwarmGymEnv's, per copy
-        shape_only = types.SimpleNamespace(n=n)  # SwarmEnv's spec needs only n
-        shape_only.observation_spec = lambda: SwarmEnv.observation_spec(shape_only)  # type: ignore[arg-type]
-        self.single_dict_observation_space = observation_space(shape_only)  # type: ignore[arg-type]
+        self.single_dict_observation_space = observation_space_for(n, bool(self.sensing))
         self.single_observation_space = (
             spaces.flatten_space(self.single_dict_observation_space)
             if self.flatten
@@ -231,12 +247,40 @@ class SwarmVectorEnv(VectorEnv):
         chosen = np.zeros(self.num_envs, dtype=np.int64)
         for c in np.flatnonzero(mask):
             chosen[c] = int(seeds[int(c)]) if seeds is not None else self._copy_seed(int(c))
-        self.physics.begin(mask, chosen)
+        ph = self.physics
+        ph.begin(mask, chosen)
+        n = self.n
+        for c in np.flatnonzero(mask) if self.sensing else ():
+            self.sensing[c].reset(ph.starts[c * n : (c + 1) * n], int(ph.seeds[c]))  # as SwarmEnv.reset's
 
     def _observe(self, copies: np.ndarray) -> None:
         """The task's observation, reward (before divergence) and minimum separation of the given copies
-        (:meth:`SwarmPhysics.observe_copies`, :func:`swarm_mj.task.observe_copies`)."""
+        (:meth:`SwarmPhysics.observe_copies`, :func:`swarm_mj.task.observe_copies`), and each copy's own view."""
         self.physics.observe_copies(copies, self._offs, self._obs, self._reward, self._min_sep)
+        if self.sensing:
+            self._sense(copies)
+
+    def _sense(self, copies: np.ndarray) -> None:
+        """Each given copy's sensing stage observes its period k from the states its observation holds (as
+        SwarmEnv's does from its record) and writes the view keys into its slots of the flat buffer. A copy with
+        a non-finite state is skipped, as :func:`swarm_mj.task.observe_copies` skips it (its view not advanced)."""
+        n, ph, r = self.n, self.physics, self._plan
+        rng = self.scenario.sensing_range
+        for c in copies:
+            blk = self._blocks[int(self._block_of[c])]
+            rows = slice((int(c) - blk.c0) * n, (int(c) - blk.c0 + 1) * n)
+            if not (all_finite(blk.sim.qpos[rows]) and all_finite(blk.sim.qvel[rows])):
+                continue
+            o = self._obs[c]
+            pos, vel = (
+                o[off : off + size].reshape(shape).copy()
+                for off, size, shape in (self._slots[key] for key in ("pos", "vel"))
+            )
+            k = int(ph.k[c])
+            view = self.sensing[c].observe(k, pos, vel, (r.pos[k], r.vel[k], r.acc[k]), float(r.D[k]), r.unit_offsets)
+            for key, value in view_keys(view, rng).items():
+                off, size, _ = self._slots[key]
+                o[off : off + size] = np.asarray(value, dtype=np.float64).reshape(-1)
 
     @property
     def k(self) -> np.ndarray:

@@ -73,15 +73,17 @@ def compare_with_sync(
     atol: float = 0.0,
     block: int | None = 2,
     aero: str | None = None,
+    sensing: str | None = None,
 ) -> dict:
     """Step SwarmVectorEnv and SyncVectorEnv(SwarmGymEnv) side by side; everything must agree, bit for bit
     (atol = 0) or, where drones touch, to ``atol``: the vector env's contacts come from explicit pairs, the
     single env's from MuJoCo's broad phase, in another order, so the solver sums them in another order.
-    ``aero`` goes to both (None: the scenario's); ``block`` to the vector env (None: its default). Returns
-    the counts of terminations, truncations and resets, and ``resets`` (m,): each copy's."""
-    ours = SwarmVectorEnv(sc, num_envs=m, flatten=True, autoreset_mode=mode, block=block, aero=aero)
+    ``aero`` and ``sensing`` go to both (None: the scenario's); ``block`` to the vector env (None: its default).
+    Returns the counts of terminations, truncations and resets, and ``resets`` (m,): each copy's."""
+    ours = SwarmVectorEnv(sc, num_envs=m, flatten=True, autoreset_mode=mode, block=block, aero=aero, sensing=sensing)
     ref = SyncVectorEnv(
-        [lambda: FlatAction(SwarmGymEnv(sc, flatten=True, aero=aero)) for _ in range(m)], autoreset_mode=mode
+        [lambda: FlatAction(SwarmGymEnv(sc, flatten=True, aero=aero, sensing=sensing)) for _ in range(m)],
+        autoreset_mode=mode,
     )
     assert ours.single_observation_space == ref.single_observation_space
     assert ours.single_action_space == ref.single_action_space
@@ -211,6 +213,20 @@ def test_realistic_physics_equals_sync_vector_env_with_resets(mode):
         sc, m=4, steps=steps, mode=mode, actions=realistic_actions(probe, steps), block=None, aero="realistic"
     )
     assert (seen["resets"] >= 3).all() and seen["truncated"] == 12
+
+
+@pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP])
+def test_mocap_sensing_equals_sync_vector_env_with_resets(mode):
+    """Issue 49: SwarmVectorEnv(..., sensing="mocap") == SyncVectorEnv over SwarmGymEnv(..., sensing="mocap"),
+    bit for bit, view keys included (each copy's own sensing stage, seeded with the copy's episode seed and reset
+    with it at every auto-reset): six drones in turbulence, 0.2-s episodes, at least two auto-resets of every
+    copy."""
+    sc = windy(0.2)
+    probe = SwarmVectorEnv(sc, num_envs=3, sensing="mocap", threads=1)
+    assert len(probe.sensing) == 3 and "view_pos" in probe.single_observation_space.spaces
+    steps = 2 * probe.n_steps + 6
+    seen = compare_with_sync(sc, m=3, steps=steps, mode=mode, sensing="mocap")
+    assert (seen["resets"] >= 2).all() and seen["truncated"] == 6
 
 
 def test_reset_copies_leaves_a_copy_as_a_fresh_reset_every_stage_included():
