@@ -98,7 +98,9 @@ def as_swarm_env(
     ``sensing`` are its own: giving them too is a :class:`UserError`), else one built with these settings."""
     if isinstance(scenario, SwarmEnv):
         if vehicle is not None or aero is not None or sensing is not None:
-            raise UserError("vehicle=, aero= and sensing= go to the SwarmEnv itself when a ready SwarmEnv is wrapped")
+            raise UserError(
+                "vehicle= and aero= go to the SwarmEnv itself when a ready SwarmEnv is wrapped, as does sensing="
+            )
         return scenario
     return SwarmEnv(
         scenario,
