@@ -20,7 +20,10 @@ Entities, on the ``sim_time`` timeline:
   e.g. ``plots/aero/downwash/<name>`` and ``plots/aero/ground_effect/<name>`` under the realistic
   preset (docs/aero.md); where the physics has the downwash, each drone's jet drawn under it
   (``world/drones/<name>/jet``: a frustum along the body's −z axis whose size follows the
-  thrust, 1 m deep and as wide as the jet's half-width at hover thrust).
+  thrust, 1 m deep and as wide as the jet's half-width at hover thrust);
+* under a sensing model (``result.log.views``; none under ``perfect``), what each drone believed:
+  ``world/views/<observer>/ghosts``, ``world/views/<observer>/leader_link`` and
+  ``views/<observer>/age/<other>`` (recording_views.py; the blueprint shows one observer's).
 
 The file is written to ``<path>.partial`` and renamed when complete, so an existing
 recording is never left half-written.
@@ -42,11 +45,16 @@ LEADER_COLOR = [220, 40, 40]
 FOLLOWER_COLOR = [40, 110, 220]
 
 
-def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
+def blueprint(names: list[str], aero: bool = False, views_period_s: float | None = None) -> rrb.Blueprint:
     """3D view beside the plots, so the file opens ready to read: the swarm with 10-s trails,
     the current slots (``world/slot_markers``), the reference path and the safety circles; the
     position errors and the distances (paper Fig. 14) on the right, U1..U4, rotor thrusts, wind
-    and anti-collision events in tabs below them (``aero``: a tab of aerodynamic forces)."""
+    and anti-collision events in tabs below them (``aero``: a tab of aerodynamic forces).
+    ``views_period_s``: the run logged what each drone believed, every period of that length (s):
+    one observer's ghosts in the 3D view, the others' hidden, and a tab of that observer's ages."""
+    from .recording_views import age_overrides, view_overrides
+
+    views = views_period_s is not None
     trail = rrb.VisibleTimeRange(
         "sim_time",
         start=rrb.TimeRangeBoundary.cursor_relative(seconds=-10.0),
@@ -55,7 +63,11 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial3DView(
-                origin="/world", name="swarm", contents=["+ /world/**", "- /world/slots"], time_ranges=[trail]
+                origin="/world",
+                name="swarm",
+                contents=["+ /world/**", "- /world/slots"],
+                time_ranges=[trail],
+                **({"overrides": view_overrides(names, views_period_s)} if views_period_s is not None else {}),
             ),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="/plots/error", name="position error (m)"),
@@ -66,6 +78,15 @@ def blueprint(names: list[str], aero: bool = False) -> rrb.Blueprint:
                     rrb.TimeSeriesView(origin="/plots/wind", name="wind"),
                     rrb.TextLogView(origin="/plots/anti_collision", name="anti-collision"),
                     *([rrb.TimeSeriesView(origin="/plots/aero", name="force stages (N)")] if aero else []),
+                    *(
+                        [
+                            rrb.TimeSeriesView(
+                                origin="/views", name="age of each view (s)", overrides=age_overrides(names)
+                            )
+                        ]
+                        if views
+                        else []
+                    ),
                 ),
             ),
             column_shares=[3, 2],
@@ -121,7 +142,9 @@ def write_recording(result, path: str | Path, *, spawn: bool = False, safety_dis
     rec = rr.RecordingStream("swarm-mj", recording_id=f"{result.scenario.name}-{os.getpid()}")
     try:
         with rec:
-            rr.save(tmp, default_blueprint=blueprint(names, aero=_has_aero(result)))
+            rr.save(
+                tmp, default_blueprint=blueprint(names, aero=_has_aero(result), views_period_s=_views_period(result))
+            )
             _log_run(result, names, _vehicle_of(result), safety_distance)
             rec.flush()
             rr.disconnect()
@@ -205,6 +228,10 @@ def _log_run(result, names: list[str], vehicle: QuadParams, safety_distance: flo
     _scalars("/plots/wind/force", times, log.wind_force[:, 0, :2], ["Fx (N)", "Fy (N)"])
     if _has_aero(result):
         _log_aero(result, names, times, vehicle)
+    if getattr(log, "views", None) is not None:
+        from .recording_views import log_views
+
+        log_views(log.views, log.pos, t, names, radius=0.05 * vehicle.size_scale)
     for ev in result.events:
         rr.set_time("sim_time", duration=ev["t"])
         other = names[ev["other"]] if ev["other"] >= 0 else ""
@@ -212,6 +239,14 @@ def _log_run(result, names: list[str], vehicle: QuadParams, safety_distance: flo
     for tc, a, b in result.contact_log:
         rr.set_time("sim_time", duration=tc)
         rr.log("/plots/anti_collision", rr.TextLog(f"CONTACT {names[a]} - {names[b]}", level=rr.TextLogLevel.ERROR))
+
+
+def _views_period(result) -> float | None:
+    """The period (s) at which the run logged what each drone believed; None where it logged none."""
+    log = result.log
+    if getattr(log, "views", None) is None:
+        return None
+    return float(result.scenario.control_period)
 
 
 def _has_aero(result) -> bool:
