@@ -274,3 +274,44 @@ def test_the_recorded_age_and_mask_are_the_held_messages(strong_run):
     k = np.arange(held_tick.shape[0])[:, None, None]
     assert np.allclose(age[held], ((k - held_tick) * T)[held], rtol=0, atol=1e-9)
     assert np.all(np.isinf(age[~held]))
+
+
+def test_velocity_and_own_noise_sigma_from_the_observed_views():
+    """What the run log does not keep, from ``SwarmEnv``'s observations of a 5 s flight: the velocity a
+    drone holds of another is the sender's position difference over the period before its send tick
+    (send tick = period − age/T) plus noise of σ_vel; each drone's own position (``own_pos``) and
+    velocity (``own_vel``) are the true ones plus noise of the own σ's. Each within 5·σ/√(2N)."""
+    from swarm_mj.control.policy import BacksteppingPolicy
+
+    model = dataclasses.replace(STRONG, own_position_noise_m=0.01, own_velocity_noise_mps=0.05)
+    sc = load_scenario("circle").with_overrides(duration=5.0, anti_collision="layers", sensing=model)
+    env = SwarmEnv(sc, terminate_on_contact=False, seed=2)
+    policy = BacksteppingPolicy(sc, env.params)
+    T = env.T
+    obs = env.reset().observation
+    pos, vel_err, own_pos_err, own_vel_err = [], [], [], []
+    held: list[tuple[int, np.ndarray, np.ndarray]] = []  # (period, view_vel, view_age)
+    for k in range(env.n_steps):
+        pos.append(obs["pos"].copy())
+        own_pos_err.append(obs["own_pos"] - obs["pos"])
+        own_vel_err.append(obs["own_vel"] - obs["vel"])
+        held.append((k, obs["view_vel"].copy(), obs["view_age"].copy()))
+        obs = env.step(policy.command(obs)).observation
+    assert env.last_termination is None
+    P = np.array(pos)  # (K, n, 3)
+    seen: set[tuple[int, int]] = set()
+    for k, vv, age in held:
+        for i, j in zip(*np.nonzero(np.isfinite(age))):
+            s = k - int(round(age[i, j] / T))
+            if s < 1 or (j, s) in seen:  # the first period broadcasts no velocity; one sample per message
+                continue
+            seen.add((j, s))
+            vel_err.append(vv[i, j] - (P[s, j] - P[s - 1, j]) / T)
+    for errors, want in [
+        (np.array(vel_err), model.velocity_noise_mps),
+        (np.array(own_pos_err), model.own_position_noise_m),
+        (np.array(own_vel_err), model.own_velocity_noise_mps),
+    ]:
+        e = errors.ravel()
+        sigma = math.sqrt(float(np.mean(e**2)))
+        assert abs(sigma - want) <= 5 * sigma / math.sqrt(2 * e.size), (sigma, want, e.size)
