@@ -67,7 +67,7 @@ def blueprint(names: list[str], aero: bool = False, views_period_s: float | None
                 name="swarm",
                 contents=["+ /world/**", "- /world/slots"],
                 time_ranges=[trail],
-                **({"overrides": view_overrides(names, views_period_s)} if views_period_s is not None else {}),
+                overrides=view_overrides(names, views_period_s) if views_period_s is not None else None,
             ),
             rrb.Vertical(
                 rrb.TimeSeriesView(origin="/plots/error", name="position error (m)"),

@@ -18,9 +18,13 @@ only (a one-period time range), not as the 10-s trail; a tab plots the same obse
 
 from __future__ import annotations
 
+from collections.abc import Mapping
+from typing import Any
+
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
+from rerun.blueprint.api import VisualizerLike
 
 from ..sensing.stage import UNSEEN_M
 
@@ -39,7 +43,7 @@ def ghost_paths(name: str) -> list[str]:
     return [f"/world/views/{name}/ghosts", f"/world/views/{name}/leader_link"]
 
 
-def view_overrides(names: list[str], period_s: float) -> dict[str, rrb.EntityBehavior | rrb.VisibleTimeRanges]:
+def view_overrides(names: list[str], period_s: float) -> Mapping[Any, VisualizerLike]:
     """The 3D view's per-entity overrides: every observer but :func:`default_observer` hidden, and
     each ghost entity queried over the last period only (one sample: the view's time range is 10 s)."""
     now = rrb.VisibleTimeRanges(
@@ -52,7 +56,7 @@ def view_overrides(names: list[str], period_s: float) -> dict[str, rrb.EntityBeh
         ]
     )
     shown = default_observer(names)
-    out: dict[str, rrb.EntityBehavior | rrb.VisibleTimeRanges] = {}
+    out: dict[Any, VisualizerLike] = {}
     for name in names:
         if name != shown:
             out[f"/world/views/{name}"] = rrb.EntityBehavior(visible=False)
@@ -61,7 +65,7 @@ def view_overrides(names: list[str], period_s: float) -> dict[str, rrb.EntityBeh
     return out
 
 
-def age_overrides(names: list[str]) -> dict[str, rrb.EntityBehavior]:
+def age_overrides(names: list[str]) -> Mapping[Any, VisualizerLike]:
     """The age plot's overrides: every observer but :func:`default_observer` hidden."""
     shown = default_observer(names)
     return {f"/views/{name}": rrb.EntityBehavior(visible=False) for name in names if name != shown}
