@@ -286,6 +286,7 @@ def takeoff_wait_kernel(
     wait: np.ndarray,
     leader_goal: np.ndarray,
     use_goal: bool,
+    held: np.ndarray,
 ) -> None:
     """The take-off gate (swarm_mj/formation/barrier.py's docstring), into ``wait`` (n,) bool: a filtering
     drone on the ground (below ``floor``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is
@@ -293,11 +294,13 @@ def takeoff_wait_kernel(
     when that airborne drone is predicted within ``gate_rho`` (at its ``velocities`` and
     ``accelerations`` (n, 3), sampled every 0.25 s over ``horizon`` s; a grounded one is taken where
     it stands). ``use_goal``: also inside the keep-out of the leader's way, the segment from drone 0
-    to its reference ``leader_goal`` (3,)."""
+    to its reference ``leader_goal`` (3,). ``held`` (n,) bool: the drones the gate held at the last
+    period, which it holds on while the condition holds, even risen above ``floor`` (lifted by the
+    ground effect or a mispredicted downwash while held: it is still the gate's)."""
     n = positions.shape[0]
     for i in range(n):
         wait[i] = False
-        if not filters[i] or positions[i, 2] >= floor:
+        if not filters[i] or (positions[i, 2] >= floor and not held[i]):
             continue
         for j in range(n):
             if j == i or not (j < i or positions[j, 2] >= floor):

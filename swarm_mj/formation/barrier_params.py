@@ -228,6 +228,7 @@ class BarrierRecord(NamedTuple):
     prev_vel: np.ndarray  # (n, 3) the sensed velocities of the last call
     start: np.ndarray  # (n, 3) where each drone stood on the ground (the first call's positions)
     was_relaxed: np.ndarray  # (n,) bool: relaxed at the last call
+    waited: np.ndarray  # (n,) bool: held by the take-off gate at the last call
     active: np.ndarray  # (n,) bool: a barrier constraint changed the drone's command at the last call
     flags: np.ndarray  # (2,) bool: start taken, prev_vel taken
     escaping: np.ndarray  # (n,) bool: the drone escapes up (its nominal's altitude raised)
@@ -267,6 +268,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barr
         prev_vel=np.zeros((n, 3)),
         start=np.zeros((n, 3)),
         was_relaxed=np.zeros(n, dtype=np.bool_),
+        waited=np.zeros(n, dtype=np.bool_),
         active=np.zeros(n, dtype=np.bool_),
         flags=np.zeros(2, dtype=np.bool_),
         escaping=np.zeros(n, dtype=np.bool_),

@@ -560,7 +560,7 @@ def test_take_off_gate_keeps_off_the_leaders_way():
     for use in (True, False):
         wait = np.zeros(3, dtype=np.bool_)
         takeoff_wait_kernel(pos, radii, filters, z, z, True, bp.floor_m, bp.gate_rho, bp.gate_horizon_s, wait,
-                            goal, use)  # fmt: skip
+                            goal, use, np.zeros(3, dtype=np.bool_))  # fmt: skip
         assert wait[1] == use
         assert not wait[2]
 
