@@ -8,7 +8,8 @@
   the paper's physics and ``layers`` under the realistic air);
 * the model does what it says, measured from a run's recorded views alone (``log.views.held_pos``,
   ``held_tick`` against ``log.pos``): σ of the position noise, the latency, the loss rate and the update
-  rate, each within 5 standard errors of its setting (the estimator's standard error beside each check).
+  rate, each within 5 standard errors of its setting (the estimator's standard error beside each check);
+  the velocity noise and each drone's own noise, which the log does not keep, from ``SwarmEnv``'s views.
   tests/unit/test_sensing_stats.py measures the channel alone the same way.
 """
 
