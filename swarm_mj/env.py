@@ -44,6 +44,13 @@ wind_force         (n, 3)        the wind force on each drone when the scenario 
                                  controller the wind (feedforward), else zeros
 =================  ============  ==========================================================
 
+Under a sensing model (``sensing=`` anything but ``perfect``; docs/sensing.md), each drone's own view
+is added (:func:`swarm_mj.sensing.stage.view_keys`; row i: what drone i holds): ``view_pos``,
+``view_vel`` (n, n, 3), ``view_mask``, ``view_age`` (n, n), ``view_setpoint``, ``view_setpoint_vel``
+(n, n, 3), ``own_pos``, ``own_vel`` (n, 3), and ``neighbours``/``neighbour_mask`` are made from the
+view. ``pos``, ``vel`` and ``setpoint`` stay the true ones (the reward's); the built-in policy reads
+only the view and the drone's own state.
+
 Actions (``action="thrust"``, default): U1..U4 per drone, shape (n, 4), bounded by what
 the rotors can deliver; values outside ``action_spec()`` are clipped by the per-rotor
 saturation (documented, never NaN physics); a non-finite action raises ``UserError``.
