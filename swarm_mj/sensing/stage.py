@@ -23,6 +23,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .channel import Channel
+from .margin import age_bound
 from .params import SensingParams
 from .tracker import TrackState, start_tracks, track_gain, track_step
 
@@ -61,6 +62,9 @@ class SensingStage:
         )
         self.tracks: TrackState | None = None
         self.ever = np.zeros((n, n), dtype=bool)
+        #: periods after which a sender never heard from is unknown, not on its pad: the age bound of a held
+        #: entry at 0.999 (docs/sensing.md, the margin's A_c), in periods
+        self.grace_ticks = int(round(age_bound(params, period_s, 0.999)[0] / self.T)) + 1
         self.prev_leader = np.zeros((n, 3))  # (n, 3) each drone's last belief of the leader's position
         self.leader_vel = np.zeros((n, 3))  # (n, 3) its estimate of the leader's velocity
         self.last: OwnView | None = None
@@ -109,7 +113,9 @@ class SensingStage:
         s.seen_tick[gone] = -1  # its next message starts the track afresh
         self.ever |= v.mask
         believed = s.x.copy()
-        unseen = ~v.mask & self.ever
+        # unknown: dropped since held, or never heard from once a message should have come (the pad is
+        # believed only until then: a drone that took off out of range is not where it stood)
+        unseen = ~v.mask & (self.ever | (k >= self.grace_ticks))
         unseen[diag, diag] = False
         if unseen.any():
             believed[unseen] = v.own_pos[np.nonzero(unseen)[0]] + np.array([UNSEEN_M, 0.0, 0.0])
