@@ -46,6 +46,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.formation.barrier_kernels",
     "swarm_mj.formation.barrier_filter",
     "swarm_mj.formation.barrier",
+    "swarm_mj.formation.stagger",
     "swarm_mj.control.backstepping",
     "swarm_mj.control.lag",
     "swarm_mj.env",

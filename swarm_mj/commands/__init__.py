@@ -4,7 +4,7 @@
 #: physics has downwash, ``layers`` under the paper's) and the keys of
 #: ``swarm_mj.formation.anticollision.ANTI_COLLISION_RULES``, which a test keeps equal; written
 #: here so that building the parser does not import the simulator.
-RULE_NAMES = ("auto", "layers", "paper", "off", "jet-aware", "barrier")
+RULE_NAMES = ("auto", "layers", "paper", "off", "jet-aware", "barrier", "stagger")
 #: The physics presets (``swarm_mj.physics.aero.presets.AERO_MODELS``, kept equal by a test).
 AERO_NAMES = ("paper", "realistic")
 #: The sensing presets (``swarm_mj.sensing.params.PRESETS``' keys, kept equal by a test; docs/sensing.md).

@@ -109,8 +109,11 @@ def make_rule(
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
     table = where.rsplit(".", 1)[0]
-    record = PRESETS[name].for_vehicle(vehicle).with_overrides(params, where=table)
+    record = PRESETS.get(name, RuleParams()).for_vehicle(vehicle).with_overrides(params, where=table)
     cls: Any = ANTI_COLLISION_RULES[name]
+    own = getattr(cls, "Params", None)  # a rule's own parameter record: its fields, today's keys (stagger.py)
+    if own is not None:
+        return cls(n, own(**{k: getattr(record, k) for k in own._fields}), vehicle=vehicle)
     if not barrier or not getattr(cls, "takes_barrier_params", False):
         return cls(n, record, vehicle=vehicle)
     return cls(n, record, vehicle=vehicle, barrier=barrier)

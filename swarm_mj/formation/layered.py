@@ -376,6 +376,24 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     return False, formed_paths(rule, dt, pos_d, formation_alt, rule.offset)
 
 
+@jit(inline=True)
+def formed_step(rule: FormedRecord, obs: Any, t: float) -> Any:
+    """The layered rule's compiled step, the chunk driver's (:data:`swarm_mj.pipeline.registry.RULE_KERNELS`'
+    contract: ``step(record, obs, t) -> (react, pos_d, vel_d, acc_d)``): :func:`formed_update` on the
+    observation ``obs`` (:class:`~swarm_mj.pipeline.records.Obs`: its positions, slots, the leader's
+    altitude as the formation's), then the steered drones' rows of vel_d, acc_d (n, 3) from the rule
+    (:meth:`Rule.references <swarm_mj.formation.rules.Rule.references>` does the same merge). react True:
+    Fig. 5 has work to do (the Python rule flies this period). ``rule.on`` False (a run without the
+    layered rule: :func:`idle_record`): the slots and their references, untouched."""
+    if not rule.on:
+        return False, obs.sp, obs.spv, obs.spa
+    react, pos_d = formed_update(rule, obs.pos, obs.sp, t, obs.pos[0, 2])
+    if react:
+        return True, obs.sp, obs.spv, obs.spa
+    vel_d, acc_d = merge_rows(rule.steer, rule.vel_d, rule.acc_d, obs.spv, obs.spa)
+    return False, pos_d, vel_d, acc_d
+
+
 # --------------------------------------------------------------------------- pairwise helpers
 @jit(samples=lambda: [(np.zeros(2), np.full((2, 2), np.inf), 0.8)])
 def react_needed(offset: np.ndarray, h: np.ndarray, safety: float) -> bool:

@@ -13,17 +13,19 @@ feedforward (:func:`feedforward_force`); as their Python bodies (:func:`swarm_mj
 orchestration run by the interpreter, its kernels compiled and bound to the caller's records) for the
 command (:func:`command`, in ``BacksteppingPolicy.command`` after the rule's references) and the log's
 input row (:func:`log_inputs`, in ``RunLog.observe``), since compiling those two for Python callers
-would add 8-13 s and 3-4 s to a first run (docs/design.md). The layered rule's formed step is the rule's
-own compiled step, which its Python ``update`` calls too, and the barrier filter's period is one
-compiled function its Python call shares:
+would add 8-13 s and 3-4 s to a first run (docs/design.md). The rule's step is the rule's own compiled
+step, registered for its record's type (:data:`swarm_mj.pipeline.registry.RULE_KERNELS`), which its Python
+``update`` calls too, and the barrier filter's period is one compiled function its Python call shares:
 
 =========================  =====================================================================
 stage                      function
 =========================  =====================================================================
-the rule's formed step     :func:`rule_formed_step`: :func:`~swarm_mj.formation.layered.formed_update`
-                           (Fig. 5's check, the velocity estimate, the paths) and the merge of rows
-separation filter          :func:`~swarm_mj.formation.barrier.barrier_step` (the barrier filter's
-                           period; ``BarrierFilter`` calls the same function)
+the rule's step            ``_rule_period``: ``RULE_KERNELS[type(rule)]``, chosen when the driver is
+                           compiled (the layered rule's: :func:`~swarm_mj.formation.layered.formed_step`,
+                           Fig. 5's check, the velocity estimate, the paths, the merge of rows)
+separation filter          then ``FILTER_KERNELS[type(filt)]`` (the barrier filter's period,
+                           :func:`~swarm_mj.formation.barrier.barrier_step`, which ``BarrierFilter``
+                           calls too), for a rule record with the fields it reads
 downwash feedforward       :func:`feedforward_force`
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
@@ -49,16 +51,15 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import AVAILABLE, jit
 from ..control.backstepping import backstepping_kernel
 from ..control.lag import predict_kernel
-from ..formation.barrier import barrier_step
-from ..formation.layered import formed_update, merge_rows
 from ..formation.slots import setpoints_into
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
 from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
+from . import registry
 from .records import Obs
 
 #: :func:`fly_chunk` status: the chunk is done; Fig. 5 must act (Python flies this period);
@@ -69,18 +70,45 @@ DONE, REACT, CONTACT, UNHEALTHY, BAD_ACTION = 0, 1, 2, 3, 4
 # --------------------------------------------------------------------------- the stages
 
 
-@jit(inline=True)
-def rule_formed_step(rule, obs, t):
-    """The layered rule's update once every follower is formed, the rule's own compiled step
-    (:func:`~swarm_mj.formation.layered.formed_update`, which LayeredRule.update calls too) with the
-    observation's slots: returns (react, pos_d, vel_d, acc_d); react True when Fig. 5 has work to do
-    (the Python rule then flies the period), else the references (n, 3), the steered drones' rows of
-    vel_d, acc_d from the rule (Rule.references does the same merge)."""
-    react, pos_d = formed_update(rule, obs.pos, obs.sp, t, obs.pos[0, 2])
-    if react:
-        return True, obs.sp, obs.spv, obs.spa
-    vel_d, acc_d = merge_rows(rule.steer, rule.vel_d, rule.acc_d, obs.spv, obs.spa)
-    return False, pos_d, vel_d, acc_d
+def _rule_period(rule, filt, obs, t):  # pragma: no cover - replaced by the overload when compiled
+    """The rule's period in a compiled driver: its registered step, then its separation filter."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+#: the fields of a rule record a separation filter reads (the layered rule's record has them)
+FILTER_READS = ("vel", "prev_t", "steer")
+
+
+def _rule_period_compiled(rule, filt, obs, t):
+    """The rule's period for the record types of ``rule`` and ``filt``, chosen when the driver is compiled:
+    the rule's step, :data:`registry.RULE_KERNELS` ``[type(rule)]``, then, for a record with the fields a
+    separation filter reads (:data:`FILTER_READS`), the filter's period, :data:`registry.FILTER_KERNELS`
+    ``[type(filt)]``, on the velocities the step estimated, the time since the rule's last update and the
+    drones it steers. Returns (react, pos_d, vel_d, acc_d); react True: the Python rule flies the period."""
+    step = registry.RULE_KERNELS[rule.instance_class]
+    if not set(FILTER_READS) <= set(rule.instance_class._fields):
+
+        def impl(rule, filt, obs, t):
+            return step(rule, obs, t)
+
+        return impl
+    separate = registry.FILTER_KERNELS[filt.instance_class]
+
+    def impl_filtered(rule, filt, obs, t):
+        dt = t - rule.prev_t[0]
+        react, pos_d, vel_d, acc_d = step(rule, obs, t)
+        if react or not filt.on:
+            return react, pos_d, vel_d, acc_d
+        pos_d, vel_d, acc_d = separate(filt, t, obs.pos, rule.vel, dt, pos_d, vel_d, acc_d, rule.steer)
+        return False, pos_d, vel_d, acc_d
+
+    return impl_filtered
+
+
+if AVAILABLE:  # the rule's step found in the registry by its record's type when the driver is compiled
+    from numba.extending import overload
+
+    overload(_rule_period, inline="always")(_rule_period_compiled)
 
 
 @jit(inline=True)
@@ -220,24 +248,20 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
     ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
     resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
     still holds drones in contact, so every physics step goes back to it. ``stages``, ``monitors``:
-    the records of the simulator's compiled force stages and monitors, in its order. ``filt``: the
-    rule's barrier separation filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on``
-    False: none), after the rule's formed step as in ``LayeredRule.references``."""
+    the records of the simulator's compiled force stages and monitors, in its order. ``rule``: the rule's
+    record (its step: ``registry.RULE_KERNELS[type(rule)]``); ``filt``: the rule's barrier separation
+    filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on`` False: none), after the rule's
+    step as in ``LayeredRule.references``."""
     n = phys.qpos.shape[0]
     kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
-            pos_d, vel_d, acc_d = obs.sp, obs.spv, obs.spa
-            if rule.on:
-                if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
-                    return REACT, k, 0  # its event buffer could overflow: Python flies this period
-                dt = t - rule.prev_t[0]
-                react, pos_d, vel_d, acc_d = rule_formed_step(rule, obs, t)
-                if react:
-                    return REACT, k, 0
-                if filt.on:
-                    pos_d, vel_d, acc_d = barrier_step(filt, t, obs.pos, rule.vel, dt, pos_d, vel_d, acc_d, rule.steer)
+            if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
+                return REACT, k, 0  # its event buffer could overflow: Python flies this period
+            react, pos_d, vel_d, acc_d = _rule_period(rule, filt, obs, t)
+            if react:
+                return REACT, k, 0
             U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, False)
             for x in U.flat:
                 if not np.isfinite(x):

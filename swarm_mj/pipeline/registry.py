@@ -12,7 +12,15 @@ imported first.
   for the coming physics step and writes its own into ``record.force``;
 * :data:`MONITOR_KERNELS`: a monitor's record type → its compiled ``after_step(record, kinematics)``, what
   it does after a physics step without any contact (a contact always goes back to its Python);
-* :data:`RULE_KERNELS`: a rule's record type → the chunk driver's compiled formed step over it;
+* :data:`RULE_KERNELS`: a rule's record type → its compiled ``step(record, obs, t) -> (react, pos_d, vel_d,
+  acc_d)``, what the chunk driver calls each period (:func:`swarm_mj.pipeline.period.fly_chunk`, through its
+  ``_rule_period``, chosen by the record's type when the driver is compiled): ``obs`` the period's
+  :class:`~swarm_mj.pipeline.records.Obs` (positions, slots ``sp`` and their references ``spv``, ``spa``
+  (n, 3)), ``t`` (s); returns the controller's references (n, 3), or react True to hand the period back to
+  Python (the rule's ``update`` flies it: the layered rule's Fig. 5). The rule's Python ``update`` calls the
+  same compiled function, so both drivers give the same numbers. A record with the fields a separation
+  filter reads (``vel``, ``prev_t``, ``steer``: the layered rule's) has its filter run after the step;
+  another rule flies without one (the driver passes the filter switched off);
 * :data:`FILTER_KERNELS`: a separation filter's record type → its compiled period;
 * :data:`SENSING_KERNELS`: a sensing stage's record type → its compiled tick (empty: none yet);
 * :data:`ANTI_COLLISION_RULES`: a rule's name (a scenario's ``formation.anti_collision``) → its class.
@@ -32,9 +40,10 @@ from typing import Any
 from .. import _jit
 from ..formation.barrier import BarrierPlannerRule, BarrierRecord, barrier_step
 from ..formation.jet_aware import JetAwareRule
-from ..formation.layered import formed_update
+from ..formation.layered import formed_step
 from ..formation.planner import LayeredRule
 from ..formation.rules import NoRule, PaperRule, Rule
+from ..formation.stagger import StaggerRecord, StaggerRule, stagger_step
 from ..physics.aero.downwash import DownwashRecord, downwash_apply
 from ..physics.aero.ground import ground_track
 from ..physics.aero.ground_effect import GroundEffectRecord, ground_effect_apply
@@ -54,9 +63,10 @@ MONITOR_KERNELS: dict[type, Callable[..., Any]] = {
     GroundTrack: ground_track,
 }
 
-#: rule record → the chunk driver's compiled formed step over it (swarm_mj.pipeline.period.rule_formed_step)
+#: rule record → its compiled ``step(record, obs, t) -> (react, pos_d, vel_d, acc_d)`` (the contract above)
 RULE_KERNELS: dict[type, Callable[..., Any]] = {
-    FormedRecord: formed_update,
+    FormedRecord: formed_step,
+    StaggerRecord: stagger_step,  # the worked example of docs/design.md, "A new rule"
 }
 
 #: separation filter record → its compiled period (swarm_mj.pipeline.period.fly_chunk calls it after the rule)
@@ -75,6 +85,7 @@ ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
     "off": NoRule,
     "jet-aware": JetAwareRule,
     "barrier": BarrierPlannerRule,
+    "stagger": StaggerRule,
 }
 
 

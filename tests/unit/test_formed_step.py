@@ -1,6 +1,6 @@
 """The layered rule's formed step, written once (swarm_mj/formation/layered.py ``formed_update``,
 docs/anticollision.md "The formed step, written once"): the per-period rule (LayeredRule.update) and
-the chunk driver's stage (swarm_mj/pipeline/period.py ``rule_formed_step``, on the record
+the chunk driver's stage (the layered record's registered step, swarm_mj/formation/layered.py ``formed_step``, on the record
 swarm_mj/pipeline/fast.py hands it) call the same compiled function, and a tunable of the paths
 set by a scenario reaches it on both."""
 
@@ -16,7 +16,7 @@ from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule
 from swarm_mj.formation.layered import PathLimits, formed_update
 from swarm_mj.formation.rule_params import PARAM_KEYS, RuleParams
-from swarm_mj.pipeline import period
+from swarm_mj.pipeline import registry
 from swarm_mj.pipeline.records import Obs
 from swarm_mj.scenario import parse_scenario
 
@@ -61,7 +61,7 @@ def _fly_chunk_stage(rule: LayeredRule, slots: np.ndarray, k: int) -> list[tuple
     obs.sp[:] = slots
     out = []
     for i in range(k):
-        react, pos_d, vel_d, acc_d = period.rule_formed_step(record, obs, i * T)
+        react, pos_d, vel_d, acc_d = registry.RULE_KERNELS[type(record)](record, obs, i * T)
         assert not react
         out.append((pos_d.copy(), vel_d.copy(), acc_d.copy()))
     return out

@@ -1,0 +1,96 @@
+"""The stagger rule (``anti_collision = "stagger"``), the worked example of docs/design.md, "A new rule":
+one module, one registration line in :mod:`swarm_mj.pipeline.registry` (``ANTI_COLLISION_RULES`` and
+``RULE_KERNELS``), and it flies on the chunk driver.
+
+Drone i ≥ 1 flies its slot raised by i·``hop`` while another drone is closer than D̄
+(``safety_distance``) to it horizontally, and back at its slot once every other drone is beyond
+D̄ + ``hysteresis``; the leader (index 0) flies its own reference. **Invariant**: after each update, two
+drones closer than D̄ horizontally are both raised (the horizontal distance is the same seen from
+either), so their altitude setpoints are their slots' raised by different multiples of ``hop``: the
+pair (i, j) is |i − j|·``hop`` further apart in altitude than its slots. Decentralised: a drone decides
+from its own position and the positions of the drones within D̄ + ``hysteresis`` of it (within any
+sensing range the scenarios fly), with no message.
+
+Its numbers are its own record (:class:`StaggerParams`), whose fields are today's scenario keys
+(``[formation] safety_distance``, ``hop``, ``hysteresis``): :func:`~.anticollision.make_rule` fills it
+from them. It logs no events (its decisions are in the log's ``pos_d``) and steers no velocity or
+acceleration reference. A plain rule, not tuned against the others (``swarm-mj stress --rule stagger``
+measures it).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from .._jit import jit
+from ..pipeline.records import Obs
+from .rules import Rule
+
+
+class StaggerParams(NamedTuple):  # the rule's own keys, set from a scenario's [formation] table
+    safety_distance: float = 0.8  # D̄ (m)
+    hop: float = 0.4  # (m) between the layers of consecutive indices
+    hysteresis: float = 0.05  # (m) back at the slot beyond D̄ + this
+
+
+class StaggerRecord(NamedTuple):
+    safety: float  # D̄ (m)
+    release: float  # D̄ + hysteresis (m)
+    hop: float  # m
+    raised: np.ndarray  # (n,) bool: drone i holds its raise
+
+
+@jit(inline=True)
+def stagger_update(rec: StaggerRecord, pos: np.ndarray, sp: np.ndarray) -> np.ndarray:
+    """The slots sp (n, 3) with each raised drone's altitude raised, from the positions pos (n, 3)."""
+    out = sp.copy()
+    for i in range(1, pos.shape[0]):  # the leader, 0, flies its own reference
+        near = np.inf
+        for j in range(pos.shape[0]):
+            if j != i:
+                near = min(near, math.hypot(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]))
+        rec.raised[i] = near < rec.safety or (rec.raised[i] and near <= rec.release)
+        if rec.raised[i]:
+            out[i, 2] += i * rec.hop
+    return out
+
+
+@jit(inline=True)
+def stagger_step(rec: StaggerRecord, obs: Obs, t: float) -> tuple:
+    """The registered step (registry.RULE_KERNELS): never hands back; the slots' references pass through."""
+    return False, stagger_update(rec, obs.pos, obs.sp), obs.spv, obs.spa
+
+
+class StaggerRule(Rule):
+    """Drones near another fly raised by their index times ``hop`` (the module's docstring)."""
+
+    name = "stagger"
+    Params = StaggerParams  # make_rule fills it from a scenario's keys of the same names
+    downwash_feedforward = False
+
+    def __init__(self, n: int, params: StaggerParams | None = None, **_: Any) -> None:  # vehicle=: unused
+        self.n, self.params = n, params or StaggerParams()
+        p = self.params
+        raised = np.zeros(n, dtype=np.bool_)
+        self._record = StaggerRecord(p.safety_distance, p.safety_distance + p.hysteresis, p.hop, raised)
+        self.vel_d, self.acc_d = np.zeros((n, 3)), np.zeros((n, 3))
+        self.events: list[dict] = []
+
+    def reset(self, positions: np.ndarray) -> None:
+        self._record.raised[:] = False
+        self.events = []
+
+    def record(self) -> StaggerRecord:
+        return self._record
+
+    def compiled_ready(self) -> bool:
+        return True  # its compiled step is all it does
+
+    def update(
+        self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        pos, sp = (np.ascontiguousarray(a, dtype=np.float64) for a in (positions, pos_d))
+        return stagger_update(self._record, pos, sp), np.zeros(self.n, dtype=bool)
