@@ -30,37 +30,35 @@ from ..pipeline.records import Obs
 from .rules import Rule
 
 
-class StaggerParams(NamedTuple):  # the rule's own keys, set from a scenario's [formation] table
+class StaggerParams(NamedTuple):  # its own keys: a scenario's [formation] keys of the same names
     safety_distance: float = 0.8  # D̄ (m)
     hop: float = 0.4  # (m) between the layers of consecutive indices
     hysteresis: float = 0.05  # (m) back at the slot beyond D̄ + this
 
 
 class StaggerRecord(NamedTuple):
-    safety: float  # D̄ (m)
-    release: float  # D̄ + hysteresis (m)
-    hop: float  # m
+    params: StaggerParams
     raised: np.ndarray  # (n,) bool: drone i holds its raise
 
 
 @jit(inline=True)
 def stagger_update(rec: StaggerRecord, pos: np.ndarray, sp: np.ndarray) -> np.ndarray:
     """The slots sp (n, 3) with each raised drone's altitude raised, from the positions pos (n, 3)."""
-    out = sp.copy()
+    out, p = sp.copy(), rec.params
     for i in range(1, pos.shape[0]):  # the leader, 0, flies its own reference
         near = np.inf
         for j in range(pos.shape[0]):
             if j != i:
                 near = min(near, math.hypot(pos[j, 0] - pos[i, 0], pos[j, 1] - pos[i, 1]))
-        rec.raised[i] = near < rec.safety or (rec.raised[i] and near <= rec.release)
+        rec.raised[i] = near < p.safety_distance or (rec.raised[i] and near <= p.safety_distance + p.hysteresis)
         if rec.raised[i]:
-            out[i, 2] += i * rec.hop
+            out[i, 2] += i * p.hop
     return out
 
 
 @jit(inline=True)
 def stagger_step(rec: StaggerRecord, obs: Obs, t: float) -> tuple:
-    """The registered step (registry.RULE_KERNELS): never hands back; the slots' references pass through."""
+    """The registered step (registry.RULE_KERNELS' contract): never hands back; the references pass through."""
     return False, stagger_update(rec, obs.pos, obs.sp), obs.spv, obs.spa
 
 
@@ -73,9 +71,7 @@ class StaggerRule(Rule):
 
     def __init__(self, n: int, params: StaggerParams | None = None, **_: Any) -> None:  # vehicle=: unused
         self.n, self.params = n, params or StaggerParams()
-        p = self.params
-        raised = np.zeros(n, dtype=np.bool_)
-        self._record = StaggerRecord(p.safety_distance, p.safety_distance + p.hysteresis, p.hop, raised)
+        self._record = StaggerRecord(params=self.params, raised=np.zeros(n, dtype=np.bool_))
         self.vel_d, self.acc_d = np.zeros((n, 3)), np.zeros((n, 3))
         self.events: list[dict] = []
 

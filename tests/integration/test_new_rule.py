@@ -11,6 +11,7 @@ Like tests/integration/test_fast_path.py, these FAIL where the chunk driver does
 
 from __future__ import annotations
 
+import ast
 import importlib
 import pickle
 import re
@@ -26,9 +27,10 @@ from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.env import SwarmEnv
 from swarm_mj.experiments.runner import RunLog, run
 from swarm_mj.formation.anticollision import make_rule
-from swarm_mj.formation.stagger import StaggerParams, StaggerRule
+from swarm_mj.formation.stagger import StaggerParams, StaggerRecord, StaggerRule
 from swarm_mj.physics import _mjstep
 from swarm_mj.pipeline import fast, registry
+from swarm_mj.pipeline.records import Obs
 from swarm_mj.scenario import parse_scenario
 
 pytestmark = pytest.mark.skipif(not _jit.ENABLED, reason="SWARM_MJ_NO_JIT set: Numba switched off on purpose")
@@ -126,30 +128,56 @@ def test_a_fresh_interpreter_finds_the_new_rules_step_from_the_pickled_signature
     assert out.stdout.strip() == "StaggerRecord"
 
 
-@pytest.mark.slow
-def test_the_design_docs_rule_runs_as_written(tmp_path, monkeypatch, both):
-    # the code block of docs/design.md, "A new anti-collision rule", as a module of its own, flown step by step
-    # against the registered module on the chunk driver
+def _docs_block() -> str:
     doc = (REPO / "docs" / "design.md").read_text()
     section = doc[doc.index("### A new anti-collision rule") :]
-    block = re.search(r"```python\n(.*?)```", section, re.S).group(1)
-    (tmp_path / "doc_stagger.py").write_text(block)
+    return re.search(r"```python\n(.*?)```", section, re.S).group(1)
+
+
+def _without_docstrings(node: ast.AST) -> str:
+    body = getattr(node, "body", [])
+    if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+        node.body = body[1:]  # type: ignore[attr-defined]
+    return ast.dump(node)
+
+
+def test_the_design_docs_block_is_the_modules_code():
+    module = {
+        n.name: n for n in ast.parse((REPO / "swarm_mj/formation/stagger.py").read_text()).body if hasattr(n, "name")
+    }
+    shown = [n for n in ast.parse(_docs_block()).body]
+    assert [n.name for n in shown] == ["stagger_update", "stagger_step"]  # the compiled step, as registered
+    for node in shown:
+        assert _without_docstrings(node) == _without_docstrings(module[node.name]), node.name
+
+
+@pytest.mark.slow
+def test_the_design_docs_block_runs_as_written_and_replays_the_flight(tmp_path, monkeypatch, both):
+    # the block of docs/design.md as a module of its own, over the rule's record, fed each period's
+    # observation from the chunk driver's log: the references the rule flew, bit for bit
+    head = "import math\nimport numpy as np\nfrom swarm_mj._jit import jit\nfrom swarm_mj.pipeline.records import Obs\n"
+    head += "from swarm_mj.formation.stagger import StaggerRecord\n"
+    (tmp_path / "doc_stagger.py").write_text(head + _docs_block())
     monkeypatch.syspath_prepend(str(tmp_path))
     mod = importlib.import_module("doc_stagger")
-    # the registration lines (swarm_mj/pipeline/registry.py); refused by name while its module is not in KERNEL_MODULES
-    monkeypatch.setitem(registry.ANTI_COLLISION_RULES, "stagger", mod.StaggerRule)
-    monkeypatch.setitem(registry.RULE_KERNELS, mod.StaggerRecord, mod.stagger_step)
-    rule = make_rule("stagger", 6)
-    assert type(rule) is mod.StaggerRule
-    why = registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step")
-    assert why is not None and "doc_stagger is not in _jit.KERNEL_MODULES" in why, why
-    res = run(_squeeze(), progress=False, fused=True)
-    assert res.extra["fast_path"] == "the 'stagger' rule has no compiled step" and res.extra["fused_periods"] == 0
     _, b = both
-    for f in ("pos", "U", "pos_d"):
-        assert np.array_equal(getattr(res.log, f), getattr(b.log, f)), f"log.{f} differs"
-    monkeypatch.setattr(_jit, "KERNEL_MODULES", (*_jit.KERNEL_MODULES, "doc_stagger"))
-    assert registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") is None  # both lines: it qualifies
+    K, n = len(b.log.t) - 1, b.log.pos.shape[1]
+    rec = StaggerRecord(params=StaggerParams(), raised=np.zeros(n, dtype=np.bool_))
+    obs = Obs.empty(n)
+    for k in range(K):
+        obs.pos[:], obs.sp[:] = b.log.pos[k], b.log.slot[k]
+        react, pos_d, _, _ = mod.stagger_step(rec, obs, float(b.log.t[k]))
+        assert not react
+        assert np.array_equal(pos_d, b.log.pos_d[k]), k
+
+
+def test_its_registration_line_is_what_makes_it_fly_fast(monkeypatch):
+    rule = make_rule("stagger", 3)
+    assert registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") is None
+    monkeypatch.delitem(registry.RULE_KERNELS, StaggerRecord)
+    assert registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") == (
+        "the rule 'stagger' has no compiled step"
+    )
 
 
 @pytest.mark.slow
