@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .._jit import jit
+from .._jit import jit, warm_module
 from ..pipeline.records import Obs
 from .rules import Rule
 
@@ -41,7 +41,13 @@ class StaggerRecord(NamedTuple):
     raised: np.ndarray  # (n,) bool: drone i holds its raise
 
 
-@jit(inline=True)
+def _samples() -> list[tuple]:
+    """stagger_update's argument types, compiled when the rule is built (before a run's clock starts)."""
+    z = np.zeros((2, 3))
+    return [(StaggerRecord(params=StaggerParams(), raised=np.zeros(2, dtype=np.bool_)), z, z.copy())]
+
+
+@jit(inline=True, on_demand=True, samples=_samples)
 def stagger_update(rec: StaggerRecord, pos: np.ndarray, sp: np.ndarray) -> np.ndarray:
     """The slots sp (n, 3) with each raised drone's altitude raised, from the positions pos (n, 3)."""
     out, p = sp.copy(), rec.params
@@ -74,6 +80,7 @@ class StaggerRule(Rule):
         self._record = StaggerRecord(params=self.params, raised=np.zeros(n, dtype=np.bool_))
         self.vel_d, self.acc_d = np.zeros((n, 3)), np.zeros((n, 3))
         self.events: list[dict] = []
+        warm_module(__name__)  # its kernel compiled (or loaded from the cache) before the run's clock
 
     def reset(self, positions: np.ndarray) -> None:
         self._record.raised[:] = False

@@ -156,10 +156,13 @@ def test_the_design_docs_block_runs_as_written_and_replays_the_flight(tmp_path, 
     # the block of docs/design.md as a module of its own, over the rule's record, fed each period's
     # observation from the chunk driver's log: the references the rule flew, bit for bit
     head = "import math\nimport numpy as np\nfrom swarm_mj._jit import jit\nfrom swarm_mj.pipeline.records import Obs\n"
-    head += "from swarm_mj.formation.stagger import StaggerRecord\n"
+    head += "from swarm_mj.formation.stagger import StaggerRecord, _samples\n"
     (tmp_path / "doc_stagger.py").write_text(head + _docs_block())
     monkeypatch.syspath_prepend(str(tmp_path))
     mod = importlib.import_module("doc_stagger")
+    sys.modules.pop("doc_stagger")  # registered by importing it, with the kernels: not one of the package's
+    _jit.REGISTRY.pop("doc_stagger.stagger_update")
+    _jit.ON_DEMAND.discard("doc_stagger.stagger_update")
     _, b = both
     K, n = len(b.log.t) - 1, b.log.pos.shape[1]
     rec = StaggerRecord(params=StaggerParams(), raised=np.zeros(n, dtype=np.bool_))
