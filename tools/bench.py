@@ -41,7 +41,10 @@ Rows:
   5 interleaved repeats, the best of each);
 * barrier: ``runner.run`` of the six-drone circle under ``realistic`` with ``--anti-collision
   barrier`` beside the same run with ``jet-aware`` (the "raw" column), wall time of the loop; the
-  ratio is the median of the paired repeats' ``barrier / jet-aware`` (issue 29's bar: 1.3×).
+  ratio is the median of the paired repeats' ``barrier / jet-aware`` (issue 29's bar: 1.3×);
+* sensing: the same circle with ``barrier`` under the ``mocap`` sensing model beside ``perfect`` (the
+  "raw" column), the median paired ratio (issue 49's bar: 1.15× on the chunk driver; a sensing model
+  flies step by step today, docs/sensing.md).
 
 ``tools/bench_peers.py`` adds swarm-mj beside its peers: crazyflow's ``Sim`` (64 worlds x 6 drones,
 state control) beside ``SwarmVectorEnv(64)`` with constant commands and with the backstepping
@@ -82,7 +85,7 @@ import numpy as np
 
 from swarm_mj.physics._mjstep import profiler_paused
 
-SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero", "barrier")
+SECTIONS = ("core", "runs", "env", "vector", "startup", "tuning", "video", "scaling", "aero", "barrier", "sensing")
 ROWS: list[dict] = []
 
 
@@ -814,6 +817,40 @@ def bench_barrier(quick: bool, repeats: int) -> None:
     )
 
 
+def bench_sensing(quick: bool, repeats: int) -> None:
+    """Each drone's own view over the oracle: the realistic circle (6 drones, barrier) under ``mocap``
+    beside ``perfect``, interleaved (docs/sensing.md, "Cost"; issue 49's bar: 1.15×)."""
+    from swarm_mj.experiments.runner import run
+    from swarm_mj.scenario import load_scenario
+
+    dur = 30.0 if quick else 180.0
+    sc = load_scenario("circle").with_overrides(duration=dur, anti_collision="barrier")
+    presets = ("perfect", "mocap")
+    for p in presets:
+        run(sc.with_overrides(duration=1.0, sensing=p), progress=False, aero="realistic")  # warm-up
+    loop: dict[str, list[float]] = {p: [] for p in presets}
+    notes = {}
+    for _ in range(repeats):
+        for p in presets:  # alternate: same machine load
+            res = run(sc.with_overrides(sensing=p), progress=False, aero="realistic")
+            loop[p].append(res.summary["wall_time_s"])
+            notes[p] = res
+    ratio = paired(loop["mocap"], loop["perfect"])
+    s, x = notes["mocap"].summary, notes["mocap"].extra
+    row(
+        "sensing",
+        f"mocap vs perfect sensing, realistic circle, barrier (6 drones, {dur:g} s)",
+        min(loop["mocap"]),
+        min(loop["perfect"]),
+        value=ratio,
+        unit="× perfect",
+        note=f"bar 1.15× on the chunk driver; mocap: {x['fused_periods']} periods fused ({x['fast_path']}), "
+        f"keep-out {s['keepout_time_s']:.2f} s, contacts {s['contacts']}; perfect: "
+        f"{notes['perfect'].extra['fused_periods']} fused; best of {repeats}; ratio: median of the paired repeats",
+        ratio=ratio,
+    )
+
+
 def _load_tool(name: str):
     """tools/NAME.py as a module, or None when absent or broken."""
     p = Path(__file__).resolve().parent / f"{name}.py"
@@ -928,6 +965,8 @@ def main(argv: list[str] | None = None) -> int:
             bench_aero(args.quick, repeats)
         elif sec == "barrier":
             bench_barrier(args.quick, repeats)
+        elif sec == "sensing":
+            bench_sensing(args.quick, repeats)
         print(f"  ({sec}: {time.perf_counter() - t:.0f} s)", flush=True)
     extra(args.quick)
     total = time.perf_counter() - t0
