@@ -330,6 +330,43 @@ def validation(path: Path) -> str:
     return "\n".join(rows)
 
 
+SENSING_PRESETS = ("perfect", "mocap", "uwb")
+SENSING_RULES = ("paper", "layers", "jet-aware", "barrier")
+
+
+def _sensing_cell(t: dict | None) -> str:
+    """One rule under one preset: starts with a contact, crashes, keep-out time, settling median / worst."""
+    if t is None:
+        return "–"
+    med, worst = t.get("settling_median_s"), t.get("settling_worst_s")
+    return (
+        f"{t['starts_with_contact']} / {t.get('crashes', 0)} / {t['keepout_time_total_s']:.1f} s / "
+        f"{f(med, '{:.2f}')}, {f(worst, '{:.1f}')} s"
+    )
+
+
+def sensing(folder: Path) -> str:
+    """The README's sensing table (docs/sensing.md): ``swarm-mj stress --sensing P --aero A --rule R ...
+    --seed0 100000`` as written into ``folder`` (table_P_A.json), each rule under each preset and physics:
+    starts with a contact / crashes / total keep-out time / settling median, worst."""
+    rows = [
+        "| physics | rule | starts | " + " | ".join(f"`{p}`" for p in SENSING_PRESETS) + " |",
+        "|---|---|---|" + "---|" * len(SENSING_PRESETS),
+    ]
+    for aero in ("realistic", "paper"):
+        data = {}
+        for p in SENSING_PRESETS:
+            path = folder / f"table_{p}_{aero}.json"
+            data[p] = json.loads(path.read_text())["table"] if path.exists() else {}
+        for rule in SENSING_RULES:
+            n = next((d[rule]["starts"] for d in data.values() if rule in d), None)
+            if n is None:
+                continue
+            cells = " | ".join(_sensing_cell(data[p].get(rule)) for p in SENSING_PRESETS)
+            rows.append(f"| {aero} | `{rule}` | {n} | {cells} |")
+    return "\n".join(rows)
+
+
 def performance(b: dict) -> str:
     m = b["machine"]
     rows = [
@@ -374,6 +411,7 @@ def main() -> None:
             ("side", side_by_side(report / "side_by_side")),
             ("speed", speed_short(b)),
             ("validation", validation(report / "downwash_validation.json")),
+            ("sensing", sensing(report / "sensing")),
         ),
         a.tables: (
             ("reproduction", reproduction(r)),

@@ -49,6 +49,7 @@ def format_summary(summary: dict, scenario) -> str:
     if s["n_drones"] > 1:
         lines += _swarm_lines(s, paper, downwash=bool((s.get("aero") or {}).get("downwash")))
     lines += _physics_lines(s)
+    lines += _sensing_lines(s)
     if s.get("stopped"):
         lines += ["", f"STOPPED EARLY: {s['stopped']}"]
     failed = failure_line(s.get("flight"))
@@ -169,6 +170,28 @@ def _swarm_lines(s: dict, paper: bool, downwash: bool) -> list[str]:
     auto = s.get("anti_collision_auto")
     if auto is not None:
         lines.append(f"  (auto chose '{auto['rule']}': {auto['why']})")
+    return lines
+
+
+def _sensing_lines(s: dict) -> list[str]:
+    """What each drone knew of the others, where it was not the oracle (docs/sensing.md)."""
+    sn = s.get("sensing") or {}
+    if not sn.get("own_view"):
+        return []
+    rate = f"{sn['rate_hz']:g} Hz" if sn.get("rate_hz") else "every period"
+    lines = [
+        f"sensing '{sn.get('preset')}': each drone decided from its own view (σ {1000 * sn['position_noise_m']:g} mm, "
+        f"{rate}, latency {1000 * sn['latency_s']:g} ms, loss {100 * sn['packet_loss']:g} %); what it believed was "
+        f"off the truth by {100 * (sn.get('belief_error_m') or {}).get('median', 0.0):.1f} cm median, "
+        f"{100 * (sn.get('belief_error_m') or {}).get('max', 0.0):.1f} cm at most (docs/sensing.md)"
+    ]
+    m = sn.get("robust_margin")
+    if m:
+        capped = m["applied_m"] < m["needed_m"]
+        lines.append(
+            f"  barrier keep-out widened by {100 * m['applied_m']:.1f} cm (the robust margin at {m['confidence']:g}"
+            + (f" needs {100 * m['needed_m']:.1f} cm: capped by the formation's room, no guarantee)" if capped else ")")
+        )
     return lines
 
 
