@@ -16,8 +16,6 @@ offsets, the barrier filter's record). The events of drone i are copy i's events
 from __future__ import annotations
 
 import copy
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 
@@ -83,7 +81,3 @@ class OwnViewRule:
         if rule.events:
             self.events.extend(e for e in rule.events if e.get("drone") == i)
             rule.events.clear()
-
-    def each(self, fn: Callable[[Rule], Any]) -> list[Any]:
-        """``fn`` of every copy (e.g. a filter's counters, summed by the caller)."""
-        return [fn(c) for c in self.copies]
