@@ -59,6 +59,7 @@ class TrackState(NamedTuple):
     seen_tick: np.ndarray  # (n, n) int64: the send tick of the last message taken in (−1: none)
     fix: np.ndarray  # (n, n, 3) the correction still to spread, per tick (m)
     fix_left: np.ndarray  # (n, n) int64: ticks it is still added
+    vfix: np.ndarray  # (n, n, 3) the velocity's step to the new message's, spread likewise, per tick (m/s)
 
 
 def start_tracks(starts: np.ndarray) -> TrackState:
@@ -71,6 +72,7 @@ def start_tracks(starts: np.ndarray) -> TrackState:
         seen_tick=np.full((n, n), -1, dtype=np.int64),
         fix=np.zeros((n, n, 3)),
         fix_left=np.zeros((n, n), dtype=np.int64),
+        vfix=np.zeros((n, n, 3)),
     )
 
 
@@ -93,6 +95,7 @@ def track_step(
     spreading = s.fix_left > 0
     if spreading.any():
         s.x[spreading] += s.fix[spreading]
+        s.v[spreading] += s.vfix[spreading]
         s.fix_left[spreading] -= 1
     new = (held_tick >= 0) & (held_tick > s.seen_tick)
     if not new.any():
@@ -101,14 +104,17 @@ def track_step(
     z = np.where(a > 0.0, held_pos[new] + held_vel[new] * a, held_pos[new])  # dead-reckoned over the age
     first = s.seen_tick[new] < 0
     if alpha >= 1.0:
-        x = z
+        x, v = z, held_vel[new]
         s.fix_left[new] = 0
     else:
-        x = s.x[new]
+        x, v = s.x[new], s.v[new]
         fix = alpha * (z - x) / spread_ticks
+        vfix = (held_vel[new] - v) / spread_ticks
         x = np.where(first[:, None], z, x + fix)  # a first message: taken as it is
+        v = np.where(first[:, None], held_vel[new], v + vfix)
         s.fix[new] = fix
+        s.vfix[new] = vfix
         s.fix_left[new] = np.where(first, 0, spread_ticks - 1)
     s.x[new] = x
-    s.v[new] = held_vel[new]
+    s.v[new] = v
     s.seen_tick[new] = held_tick[new]

@@ -137,8 +137,9 @@ def test_a_first_message_is_taken_as_it_is_whatever_the_gain():
 @pytest.mark.parametrize("m", [1, 3, 4, 10])
 def test_a_correction_spread_over_m_ticks_adds_up_to_alpha_times_the_innovation(m):
     """A track at x⁻ moving with v; a message ẑ (age 0, velocity w) at tick 7 with gain α over m ticks:
-    after the m ticks x = x⁻ + α·(ẑ − x⁻) + w·T·(m − 1) (v·T predicted into x⁻ before the message), each
-    tick adding α·(ẑ − x⁻)/m, and nothing more after them."""
+    each of the m ticks adds α·(ẑ − x⁻)/m to x and (w − v)/m to the velocity it moves with (v·T predicted
+    into x⁻ before the message, each later tick moving x by the velocity of the tick before); after them
+    x has taken α·(ẑ − x⁻) in all, the velocity is w, and nothing more is added."""
     alpha = 0.3
     x_old, v, z = np.array([1.0, -2.0, 0.5]), np.array([0.2, 0.1, -0.3]), np.array([1.4, -1.7, 0.9])
     w = np.array([-0.1, 0.4, 0.05])
@@ -146,12 +147,18 @@ def test_a_correction_spread_over_m_ticks_adds_up_to_alpha_times_the_innovation(
     hp, hv, ht, ag = _held(z, w, 7, 0.0)
     x_minus = x_old + v * T  # the prediction of the message's tick
     track_step(s, hp, hv, ht, ag, T, alpha, m)
-    assert s.x[0, 1] == pytest.approx(x_minus + alpha * (z - x_minus) / m, abs=1e-14)
+    step_x, step_v = alpha * (z - x_minus) / m, (w - v) / m
+    want_x, want_v = x_minus + step_x, v + step_v
+    assert s.x[0, 1] == pytest.approx(want_x, abs=1e-14)
+    assert s.v[0, 1] == pytest.approx(want_v, abs=1e-14)
     for tick in range(1, m + 3):
         track_step(s, hp, hv, ht, ag + tick * T, T, alpha, m)
-        done = min(tick + 1, m)  # ticks of the correction added so far
-        want = x_minus + alpha * (z - x_minus) * done / m + w * T * tick
-        assert s.x[0, 1] == pytest.approx(want, abs=1e-13), tick
+        want_x = want_x + want_v * T
+        if tick < m:
+            want_x, want_v = want_x + step_x, want_v + step_v
+        assert s.x[0, 1] == pytest.approx(want_x, abs=1e-13), tick
+        assert s.v[0, 1] == pytest.approx(want_v, abs=1e-13), tick
+    assert s.v[0, 1] == pytest.approx(w, abs=1e-13)
     assert s.fix_left[0, 1] == 0
 
 
