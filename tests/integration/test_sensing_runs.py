@@ -5,7 +5,7 @@
   with sensing on as off);
 * a zero model (no noise, no latency, every period, no loss, no range) on any preset flies bit for bit
   as ``perfect`` (a hypothesis property over the presets and the broadcast rate, for every rule under
-  the paper's physics and ``layers`` under the realistic air);
+  the paper's physics, ``layers`` and ``barrier`` (its downwash feedforward on) under the realistic air);
 * the model does what it says, measured from a run's recorded views alone (``log.views.held_pos``,
   ``held_tick`` against ``log.pos``): σ of the position noise, the latency, the loss rate and the update
   rate, each within 5 standard errors of its setting (the estimator's standard error beside each check);
@@ -115,6 +115,7 @@ _CASES = [
     ("jet-aware", "paper"),
     ("barrier", "paper"),
     ("layers", "realistic"),
+    ("barrier", "realistic"),  # the downwash feedforward from the packets' attitudes and thrusts
 ]
 
 
