@@ -89,6 +89,9 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
     filt = getattr(rule, "separation_filter", None)
     if filt is not None and registry.why_not_compiled(filt, registry.FILTER_KERNELS, "filter", "step") is not None:
         return f"the {rule.name!r} rule's separation filter has no compiled step"
+    if filt is not None and not set(registry.FILTER_READS) <= set(type(rule.record())._fields):
+        reads = ", ".join(registry.FILTER_READS)
+        return f"the {rule.name!r} rule's record lacks what its separation filter reads ({reads})"
     return None
 
 

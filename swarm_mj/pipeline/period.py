@@ -75,18 +75,14 @@ def _rule_period(rule, filt, obs, t):  # pragma: no cover - replaced by the over
     raise NotImplementedError("compiled code only (the chunk driver)")
 
 
-#: the fields of a rule record a separation filter reads (the layered rule's record has them)
-FILTER_READS = ("vel", "prev_t", "steer")
-
-
 def _rule_period_compiled(rule, filt, obs, t):
     """The rule's period for the record types of ``rule`` and ``filt``, chosen when the driver is compiled:
     the rule's step, :data:`registry.RULE_KERNELS` ``[type(rule)]``, then, for a record with the fields a
-    separation filter reads (:data:`FILTER_READS`), the filter's period, :data:`registry.FILTER_KERNELS`
+    separation filter reads (:data:`registry.FILTER_READS`), the filter's period, :data:`registry.FILTER_KERNELS`
     ``[type(filt)]``, on the velocities the step estimated, the time since the rule's last update and the
     drones it steers. Returns (react, pos_d, vel_d, acc_d); react True: the Python rule flies the period."""
     step = registry.RULE_KERNELS[rule.instance_class]
-    if not set(FILTER_READS) <= set(rule.instance_class._fields):
+    if not set(registry.FILTER_READS) <= set(rule.instance_class._fields):
 
         def impl(rule, filt, obs, t):
             return step(rule, obs, t)

@@ -69,6 +69,10 @@ RULE_KERNELS: dict[type, Callable[..., Any]] = {
     StaggerRecord: stagger_step,  # the worked example of docs/design.md, "A new rule"
 }
 
+#: the fields of a rule's record a separation filter reads after the rule's step (the layered rule's record
+#: has them: the estimated velocities, the time of the last update, the steered drones)
+FILTER_READS = ("vel", "prev_t", "steer")
+
 #: separation filter record → its compiled period (swarm_mj.pipeline.period.fly_chunk calls it after the rule)
 FILTER_KERNELS: dict[type, Callable[..., Any]] = {
     BarrierRecord: barrier_step,
@@ -108,6 +112,7 @@ def why_not_compiled(part: Any, table: dict[type, Callable[..., Any]], kind: str
 __all__ = [
     "ANTI_COLLISION_RULES",
     "FILTER_KERNELS",
+    "FILTER_READS",
     "FORCE_KERNELS",
     "MONITOR_KERNELS",
     "RULE_KERNELS",

@@ -183,6 +183,19 @@ def test_its_registration_line_is_what_makes_it_fly_fast(monkeypatch):
     )
 
 
+def test_a_rule_whose_record_lacks_what_a_separation_filter_reads_flies_step_by_step():
+    # the chunk driver runs a filter only after a step whose record has registry.FILTER_READS: asked for
+    # one without them, the run says why rather than fly the filter in Python alone
+    sc = _squeeze(duration=0.1)
+    env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
+    policy = BacksteppingPolicy(sc, env.params)
+    assert fast.why_not(env, policy) is None
+    policy.rule.separation_filter = make_rule("barrier", env.n).separation_filter
+    assert fast.why_not(env, policy) == (
+        "the 'stagger' rule's record lacks what its separation filter reads (vel, prev_t, steer)"
+    )
+
+
 @pytest.mark.slow
 def test_the_command_line_flies_the_new_rule(tmp_path):
     out = subprocess.run(
