@@ -11,15 +11,12 @@ their own 4 m (:class:`~swarm_mj.formation.rule_params.RuleParams`); both set is
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .errors import UserError
 from .formation.rule_params import RuleParams
 from .sensing.params import PRESETS, TABLE_KEYS, SensingParams, parse_sensing_table
 from .table_fields import check_keys
-
-if TYPE_CHECKING:
-    from .scenario import Scenario
 
 #: What ``sensing=`` takes: a preset's name (``perfect``, ``mocap``, ``uwb``) or a whole record.
 SensingLike = str | SensingParams
@@ -44,8 +41,9 @@ def parse_scenario_sensing(data: dict, w: str, rules_range: float) -> tuple[Sens
     return record, rules_range
 
 
-def sensing_overrides(sc: Scenario, sensing: SensingLike, where: str = "sensing") -> dict[str, Any]:
-    """The fields of ``sc`` that change when it flies ``sensing``, which stands for the file's whole
+def sensing_overrides(sc: Any, sensing: SensingLike, where: str = "sensing") -> dict[str, Any]:
+    """The fields of ``sc`` (a :class:`~swarm_mj.scenario.Scenario`, not imported: scenario.py imports this
+    module) that change when it flies ``sensing``, which stands for the file's whole
     ``[sensing]`` table: a preset's name is ``{preset = NAME}``, a record its
     :meth:`~swarm_mj.sensing.params.SensingParams.table`. The alias applies as in a file (``[formation]
     sensing_range`` is the channel's range where the record has none: inf); a record's finite
