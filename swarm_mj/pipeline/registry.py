@@ -29,7 +29,10 @@ Whether a run flies on the chunk driver is decided by capability: every force st
 and its separation filter return from ``record()`` a record type this registry holds
 (:func:`why_not_compiled`). A stage outside the package registers the same way, one line where its user
 builds it (``registry.FORCE_KERNELS[MyRecord] = my_apply``); its kernel's module must also be in
-:data:`swarm_mj._jit.KERNEL_MODULES` (the chunk driver's cache is checked against those sources).
+:data:`swarm_mj._jit.KERNEL_MODULES` (the chunk driver's cache is checked against those sources), and
+importable by every later process on the machine (an installed module, not a script): the chunk
+driver's on-disk cache then holds a signature with its record type, and Numba's index of that cache
+cannot be read where the module cannot be imported.
 """
 
 from __future__ import annotations
