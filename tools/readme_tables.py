@@ -338,10 +338,11 @@ def _sensing_cell(t: dict | None) -> str:
     """One rule under one preset: starts with a contact, crashes, keep-out time, settling median / worst."""
     if t is None:
         return "–"
-    med, worst = t.get("settling_median_s"), t.get("settling_worst_s")
+    med, worst = t.get("settling_median_s"), t.get("settling_worst_s")  # null: never (JSON has no inf)
+    med_s = "never" if med is None else f(med, "{:.2f} s")
+    worst_s = "never" if worst is None else f(worst, "{:.1f} s")
     return (
-        f"{t['starts_with_contact']} / {t.get('crashes', 0)} / {t['keepout_time_total_s']:.1f} s / "
-        f"{f(med, '{:.2f}')}, {f(worst, '{:.1f}')} s"
+        f"{t['starts_with_contact']} / {t.get('crashes', 0)} / {t['keepout_time_total_s']:.1f} s / {med_s}, {worst_s}"
     )
 
 
