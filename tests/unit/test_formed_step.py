@@ -1,8 +1,8 @@
 """The layered rule's formed step, written once (swarm_mj/formation/layered.py ``formed_update``,
 docs/anticollision.md "The formed step, written once"): the per-period rule (LayeredRule.update) and
-the chunk driver's stage (the layered record's registered step, swarm_mj/formation/layered.py ``formed_step``, on the record
-swarm_mj/pipeline/fast.py hands it) call the same compiled function, and a tunable of the paths
-set by a scenario reaches it on both."""
+the chunk driver's stage (the layered record's registered step, swarm_mj/formation/layered.py
+``formed_step``, on the record swarm_mj/pipeline/fast.py hands it) call the same compiled function,
+and a tunable of the paths set by a scenario reaches it on both."""
 
 from __future__ import annotations
 
