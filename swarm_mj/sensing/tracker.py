@@ -35,6 +35,12 @@ import numpy as np
 #: the leader's take-off dash by up to 6 cm (α 0.06); with them by under 1 cm (docs/sensing.md).
 TRACK_ACCEL = 4.0
 
+#: The most ticks a track's velocity takes to reach a new message's (the ramp of :func:`track_step`):
+#: 2. Stepped at once (1), a 0.1 m/s step of ``uwb`` every 0.1 s chattered a follower's barrier command
+#: until it tumbled (stress 100140); ramped over the whole interval (10 ticks), the tracks of a sender
+#: lagged it and a noisy 25-Hz model lost 2 of 6 circles (docs/sensing.md).
+VELOCITY_RAMP_TICKS = 2
+
 
 def track_gain(
     sigma_pos: float, sigma_vel: float, interval_s: float, latency_s: float = 0.0, accel: float = TRACK_ACCEL
@@ -59,7 +65,8 @@ class TrackState(NamedTuple):
     seen_tick: np.ndarray  # (n, n) int64: the send tick of the last message taken in (−1: none)
     fix: np.ndarray  # (n, n, 3) the correction still to spread, per tick (m)
     fix_left: np.ndarray  # (n, n) int64: ticks it is still added
-    vfix: np.ndarray  # (n, n, 3) the velocity's step to the new message's, spread likewise, per tick (m/s)
+    vfix: np.ndarray  # (n, n, 3) the velocity's step to the new message's, per tick of its ramp (m/s)
+    vfix_left: np.ndarray  # (n, n) int64: ticks of the ramp still to add
 
 
 def start_tracks(starts: np.ndarray) -> TrackState:
@@ -73,6 +80,7 @@ def start_tracks(starts: np.ndarray) -> TrackState:
         fix=np.zeros((n, n, 3)),
         fix_left=np.zeros((n, n), dtype=np.int64),
         vfix=np.zeros((n, n, 3)),
+        vfix_left=np.zeros((n, n), dtype=np.int64),
     )
 
 
@@ -95,8 +103,11 @@ def track_step(
     spreading = s.fix_left > 0
     if spreading.any():
         s.x[spreading] += s.fix[spreading]
-        s.v[spreading] += s.vfix[spreading]
         s.fix_left[spreading] -= 1
+    ramping = s.vfix_left > 0
+    if ramping.any():
+        s.v[ramping] += s.vfix[ramping]
+        s.vfix_left[ramping] -= 1
     new = (held_tick >= 0) & (held_tick > s.seen_tick)
     if not new.any():
         return
@@ -106,15 +117,18 @@ def track_step(
     if alpha >= 1.0:
         x, v = z, held_vel[new]
         s.fix_left[new] = 0
+        s.vfix_left[new] = 0
     else:
         x, v = s.x[new], s.v[new]
         fix = alpha * (z - x) / spread_ticks
-        vfix = (held_vel[new] - v) / spread_ticks
+        ramp = min(spread_ticks, VELOCITY_RAMP_TICKS)
+        vfix = (held_vel[new] - v) / ramp
         x = np.where(first[:, None], z, x + fix)  # a first message: taken as it is
         v = np.where(first[:, None], held_vel[new], v + vfix)
         s.fix[new] = fix
         s.vfix[new] = vfix
         s.fix_left[new] = np.where(first, 0, spread_ticks - 1)
+        s.vfix_left[new] = np.where(first, 0, ramp - 1)
     s.x[new] = x
     s.v[new] = v
     s.seen_tick[new] = held_tick[new]
