@@ -783,24 +783,32 @@ def bench_aero(quick: bool, repeats: int) -> None:
     )
 
 
+def _interleaved_runs(variants: dict, repeats: int) -> tuple[dict[str, list[float]], dict]:
+    """Each variant's scenario (name -> Scenario) flown under ``realistic`` after a 1-s warm-up, the
+    variants alternated ``repeats`` times (the same machine load): the loops' wall times by name, and
+    each variant's last result."""
+    from swarm_mj.experiments.runner import run
+
+    for sc in variants.values():
+        run(sc.with_overrides(duration=1.0), progress=False, aero="realistic")  # warm-up
+    loop: dict[str, list[float]] = {name: [] for name in variants}
+    notes = {}
+    for _ in range(repeats):
+        for name, sc in variants.items():
+            res = run(sc, progress=False, aero="realistic")
+            loop[name].append(res.summary["wall_time_s"])
+            notes[name] = res
+    return loop, notes
+
+
 def bench_barrier(quick: bool, repeats: int) -> None:
     """The barrier separation filter's cost over the jet-aware rule's: the realistic circle (6 drones),
     the same run with each rule, interleaved (docs/barrier.md, "cost")."""
-    from swarm_mj.experiments.runner import run
     from swarm_mj.scenario import load_scenario
 
     dur = 30.0 if quick else 180.0
     sc = load_scenario("circle").with_overrides(duration=dur)
-    rules = ("jet-aware", "barrier")
-    for rule in rules:
-        run(sc.with_overrides(duration=1.0), progress=False, aero="realistic", anti_collision=rule)  # warm-up
-    loop: dict[str, list[float]] = {r: [] for r in rules}
-    notes = {}
-    for _ in range(repeats):
-        for rule in rules:  # alternate: same machine load
-            res = run(sc, progress=False, aero="realistic", anti_collision=rule)
-            loop[rule].append(res.summary["wall_time_s"])
-            notes[rule] = res
+    loop, notes = _interleaved_runs({r: sc.with_overrides(anti_collision=r) for r in ("jet-aware", "barrier")}, repeats)
     ratio = paired(loop["barrier"], loop["jet-aware"])
     s, x = notes["barrier"].summary, notes["barrier"].extra
     row(
@@ -820,21 +828,11 @@ def bench_barrier(quick: bool, repeats: int) -> None:
 def bench_sensing(quick: bool, repeats: int) -> None:
     """Each drone's own view over the oracle: the realistic circle (6 drones, barrier) under ``mocap``
     beside ``perfect``, interleaved (docs/sensing.md, "Cost"; issue 49's bar: 1.15×)."""
-    from swarm_mj.experiments.runner import run
     from swarm_mj.scenario import load_scenario
 
     dur = 30.0 if quick else 180.0
     sc = load_scenario("circle").with_overrides(duration=dur, anti_collision="barrier")
-    presets = ("perfect", "mocap")
-    for p in presets:
-        run(sc.with_overrides(duration=1.0, sensing=p), progress=False, aero="realistic")  # warm-up
-    loop: dict[str, list[float]] = {p: [] for p in presets}
-    notes = {}
-    for _ in range(repeats):
-        for p in presets:  # alternate: same machine load
-            res = run(sc.with_overrides(sensing=p), progress=False, aero="realistic")
-            loop[p].append(res.summary["wall_time_s"])
-            notes[p] = res
+    loop, notes = _interleaved_runs({p: sc.with_overrides(sensing=p) for p in ("perfect", "mocap")}, repeats)
     ratio = paired(loop["mocap"], loop["perfect"])
     s, x = notes["mocap"].summary, notes["mocap"].extra
     row(
