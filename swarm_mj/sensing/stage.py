@@ -22,6 +22,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from ..formation.slots import setpoints_into
 from .channel import Channel
 from .margin import age_bound
 from .params import SensingParams
@@ -61,7 +62,6 @@ class SensingStage:
             params.position_noise_m, params.velocity_noise_mps, interval * self.T, cfg.delay_ticks * self.T
         )
         self.tracks: TrackState | None = None
-        self.ever = np.zeros((n, n), dtype=bool)
         #: periods after which a sender never heard from is unknown, not on its pad: the age bound of a held
         #: entry at 0.999 (docs/sensing.md, the margin's A_c), in periods
         self.grace_ticks = int(round(age_bound(params, period_s, 0.999)[0] / self.T)) + 1
@@ -119,19 +119,14 @@ class SensingStage:
         unseen[diag, diag] = False
         if unseen.any():
             believed[unseen] = v.own_pos[np.nonzero(unseen)[0]] + np.array([UNSEEN_M, 0.0, 0.0])
-        leader = believed[:, 0, :]  # (n, 3) where each drone believes the leader is
-        if k > 0:
-            self.leader_vel[:] = (leader - self.prev_leader) / T  # (setpoints_into's estimate, per drone)
-        self.prev_leader[:] = leader
-        sp = np.empty((n, n, 3))
-        spv = np.empty((n, n, 3))
+        # each drone's setpoints: the observation's own function (paper §4) on where it believes the leader is
+        sp, spv, spa, yaw = np.empty((n, n, 3)), np.empty((n, n, 3)), np.empty((n, 3)), np.empty(n)
         ref_pos, ref_vel, ref_acc = leader_plan
-        sp[:, 0, :] = ref_pos
-        spv[:, 0, :] = ref_vel
-        sp[:, 1:, :] = leader[:, None, :] + D * unit_offsets[None, :, :]
-        spv[:, 1:, :] = self.leader_vel[:, None, :]
-        spa = np.zeros((n, 3))
-        spa[0] = ref_acc
+        for i in range(n):
+            setpoints_into(
+                k, T, believed[i, 0], self.prev_leader[i], self.leader_vel[i], ref_pos, ref_vel, ref_acc, 0.0, D,
+                unit_offsets, sp[i], spv[i], spa, yaw,
+            )  # fmt: skip
         self.last = OwnView(
             pos=believed, vel=s.v.copy(), mask=v.mask, age=v.age, setpoint=sp, setpoint_vel=spv, setpoint_acc=spa,
             own_vel=own_vel,
