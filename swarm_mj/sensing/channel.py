@@ -9,8 +9,9 @@ delivered from each sender, unchanged until the next (no extrapolation: the entr
 old it is). The followers' knowledge of the leader (sender 0) goes through the same channel.
 
 The state is a record of typed arrays (:class:`ChannelState`, shapes on each field) and the step is
-a pure function of it, the static :class:`ChannelConfig` and the random draws of the tick
-(:class:`Draws`): :func:`channel_step`. :class:`Channel` holds one run's state and its seeded
+one compiled function of it, the static :class:`ChannelConfig` and the run's generator, which it draws
+from in a fixed order: :func:`channel_tick`, inlined in the sensing stage's tick (both drivers of the
+control period), or :func:`channel_step` from Python. :class:`Channel` holds one run's state and its seeded
 generator (``numpy.random.Generator`` from a ``SeedSequence`` of (seed, copy, :data:`SENSING_STREAM`)).
 A draw is made only for a term that is on: with no noise, no loss and every period the generator
 draws nothing and the view is the truth's own numbers (copies, no arithmetic).
@@ -23,6 +24,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._jit import jit
 from .params import SensingParams
 
 #: The sensing stream's entry in the seed sequence (seed, copy, stream): its own generator, so that
@@ -61,16 +63,6 @@ class ChannelState(NamedTuple):
     held_pos: np.ndarray  # (n, n, 3) [receiver, sender]: the latest delivered position (m)
     held_vel: np.ndarray  # (n, n, 3) the latest delivered velocity (m/s)
     held_tick: np.ndarray  # (n, n) int64: the send tick of what the receiver holds (−1: nothing)
-
-
-class Draws(NamedTuple):
-    """The random numbers of one tick; None where the term is off (nothing drawn)."""
-
-    pos_noise: np.ndarray | None  # (n, 3) N(0, 1) for each sender's broadcast position
-    vel_noise: np.ndarray | None  # (n, 3) for its broadcast velocity
-    lost: np.ndarray | None  # (n, n) bool [receiver, sender]: this copy is lost
-    own_pos_noise: np.ndarray | None  # (n, 3) for each drone's own position
-    own_vel_noise: np.ndarray | None  # (n, 3) for its own velocity
 
 
 class View(NamedTuple):
@@ -126,90 +118,139 @@ def empty_state(n: int, cfg: ChannelConfig, phase: np.ndarray | None = None) -> 
     )
 
 
-def senders_at(cfg: ChannelConfig, phase: np.ndarray, k: int) -> np.ndarray:
-    """(n,) bool: the senders that broadcast at tick ``k`` (≥ 0): those with an instant φ + m·I
-    (m ≥ 0, I the interval in ticks) in (k − 1, k]; every sender at every tick when I is 0."""
+@jit(inline=True)
+def _broadcasts(cfg, phase, s, k):
+    """Sender s broadcasts at tick ``k`` (≥ 0): it has an instant φ + m·I (m ≥ 0, I the interval in
+    ticks) in (k − 1, k]; every tick when I is 0."""
     if cfg.interval_ticks == 0.0:
-        return np.ones(phase.shape[0], dtype=bool)
-
-    def count(q: int) -> np.ndarray:  # broadcast instants up to tick q
-        return np.maximum(np.floor((q - phase) / cfg.interval_ticks + _EPS) + 1.0, 0.0)
-
-    return count(k) > count(k - 1)
+        return True
+    now = max(np.floor((k - phase[s]) / cfg.interval_ticks + _EPS) + 1.0, 0.0)  # broadcast instants up to k
+    before = max(np.floor((k - 1 - phase[s]) / cfg.interval_ticks + _EPS) + 1.0, 0.0)
+    return now > before
 
 
-def _deliver(state: ChannelState, cfg: ChannelConfig, k: int) -> None:
+@jit(samples=lambda: [(ChannelConfig(0.01, 2.5, 0, np.inf, True, 0.0, 0.0, 0.0, 0.0, 0.0), np.zeros(2), 3)])
+def senders_at(cfg: ChannelConfig, phase: np.ndarray, k: int) -> np.ndarray:
+    """(n,) bool: the senders that broadcast at tick ``k`` (≥ 0) (:func:`_broadcasts`)."""
+    out = np.empty(phase.shape[0], dtype=np.bool_)
+    for s in range(phase.shape[0]):
+        out[s] = _broadcasts(cfg, phase, s, k)
+    return out
+
+
+@jit(inline=True)
+def _deliver(state, cfg, k):
     """Deliver every slot due by tick ``k`` (send tick + delay ≤ k), oldest first, and free it."""
-    due = np.flatnonzero((state.buf_tick >= 0) & (state.buf_tick + cfg.delay_ticks <= k))
-    for c in due[np.argsort(state.buf_tick[due], kind="stable")]:
-        keep = state.buf_keep[c]  # (n, n) [receiver, sender]
-        state.held_pos[keep] = np.broadcast_to(state.buf_pos[c][None, :, :], state.held_pos.shape)[keep]
-        state.held_vel[keep] = np.broadcast_to(state.buf_vel[c][None, :, :], state.held_vel.shape)[keep]
-        state.held_tick[keep] = state.buf_tick[c]
-        state.held_tick[state.buf_gone[c]] = -1
+    n = state.held_tick.shape[0]
+    while True:
+        c = -1
+        for q in range(state.buf_tick.shape[0]):  # the oldest slot due
+            bt = state.buf_tick[q]
+            if bt >= 0 and bt + cfg.delay_ticks <= k and (c < 0 or bt < state.buf_tick[c]):
+                c = q
+        if c < 0:
+            return
+        for r in range(n):  # [receiver, sender]
+            for s in range(n):
+                if state.buf_keep[c, r, s]:
+                    for j in range(3):
+                        state.held_pos[r, s, j] = state.buf_pos[c, s, j]
+                        state.held_vel[r, s, j] = state.buf_vel[c, s, j]
+                    state.held_tick[r, s] = state.buf_tick[c]
+                elif state.buf_gone[c, r, s]:
+                    state.held_tick[r, s] = -1
         state.buf_tick[c] = -1
 
 
-def _send(state: ChannelState, cfg: ChannelConfig, k: int, pos: np.ndarray, vel: np.ndarray, draws: Draws) -> None:
-    """Broadcast at tick ``k``: the due senders' noisy states into slot k mod C, with each copy's fate."""
+@jit(inline=True)
+def _send(state, cfg, k, pos, vel, rng):
+    """Broadcast at tick ``k``: the due senders' noisy states into slot k mod C, with each copy's fate (the
+    draws of the tick, each only where its term is on: the positions' noise, the velocities', the losses)."""
     n = pos.shape[0]
     c = k % state.buf_tick.shape[0]
-    sending = senders_at(cfg, state.phase, k)  # (n,)
-    bpos = pos.copy() if draws.pos_noise is None else pos + cfg.sigma_pos * draws.pos_noise
-    bvel = vel.copy() if draws.vel_noise is None else vel + cfg.sigma_vel * draws.vel_noise
-    copies = sending[None, :] & ~np.eye(n, dtype=bool)  # (n, n) [receiver, sender]
-    if math.isinf(cfg.range_m):
-        near = np.ones((n, n), dtype=bool)
-    else:  # the rules' seen_within arithmetic (formation/separation.py), on the true positions
-        rel = pos[None, :, :] - pos[:, None, :]
-        near = np.einsum("ijk,ijk->ij", rel, rel) < cfg.range_m**2
-        if cfg.leader_in_range:
-            near[:, 0] = True
-    reached = copies & near
-    if draws.lost is not None:
-        reached &= ~draws.lost
+    for s in range(n):
+        for j in range(3):
+            state.buf_pos[c, s, j] = pos[s, j]
+            state.buf_vel[c, s, j] = vel[s, j]
+    if cfg.sigma_pos > 0:
+        noise = rng.standard_normal((n, 3))
+        for s in range(n):
+            for j in range(3):
+                state.buf_pos[c, s, j] = pos[s, j] + cfg.sigma_pos * noise[s, j]
+    if cfg.sigma_vel > 0:
+        noise = rng.standard_normal((n, 3))
+        for s in range(n):
+            for j in range(3):
+                state.buf_vel[c, s, j] = vel[s, j] + cfg.sigma_vel * noise[s, j]
+    lost = rng.random((n, n)) < cfg.loss if cfg.loss > 0 else np.zeros((n, n), dtype=np.bool_)
+    for s in range(n):
+        sending = _broadcasts(cfg, state.phase, s, k)
+        for r in range(n):
+            near = True
+            if not (math.isinf(cfg.range_m) or (cfg.leader_in_range and s == 0)):
+                # the rules' seen_within arithmetic (formation/separation.py), on the true positions
+                d0, d1, d2 = pos[s, 0] - pos[r, 0], pos[s, 1] - pos[r, 1], pos[s, 2] - pos[r, 2]
+                near = d0 * d0 + d1 * d1 + d2 * d2 < cfg.range_m * cfg.range_m
+            copy = sending and r != s
+            state.buf_keep[c, r, s] = copy and near and not lost[r, s]
+            state.buf_gone[c, r, s] = copy and not near
     state.buf_tick[c] = k
-    state.buf_pos[c] = bpos
-    state.buf_vel[c] = bvel
-    state.buf_keep[c] = reached
-    state.buf_gone[c] = copies & ~near
 
 
-def channel_step(
-    state: ChannelState, cfg: ChannelConfig, k: int, pos: np.ndarray, vel: np.ndarray, draws: Draws
-) -> View:
-    """One tick ``k`` (> the last) of the channel on the true states ``pos``, ``vel`` (n, 3): what is
-    due is delivered, the due senders broadcast, what is due now (zero delay) is delivered; the view
-    of every drone. Updates ``state`` in place."""
-    if k <= int(state.tick[0]):
-        raise ValueError(f"tick {k} is not after the last one ({int(state.tick[0])})")
+@jit(inline=True)
+def channel_tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age):
+    """One tick ``k`` (> the last) of the channel on the true states ``pos``, ``vel`` (n, 3): what is due is
+    delivered, the due senders broadcast, what is due now (zero delay) is delivered. Writes each drone's own
+    position and velocity for its controller (own_pos, own_vel (n, 3), the true ones with their noise) and the
+    age (n, n) of what each receiver holds (inf: nothing); the held messages are ``state.held_*``. The draws
+    of the tick, in a fixed order: the broadcast positions' noise, the velocities', the losses, the own
+    position's noise, the own velocity's; none for a term that is off."""
     _deliver(state, cfg, k)  # frees the slot k mod C before it is written
-    _send(state, cfg, k, pos, vel, draws)
+    _send(state, cfg, k, pos, vel, rng)
     _deliver(state, cfg, k)
     state.tick[0] = k
     n = pos.shape[0]
-    own_pos = pos.copy() if draws.own_pos_noise is None else pos + cfg.sigma_own_pos * draws.own_pos_noise
-    own_vel = vel.copy() if draws.own_vel_noise is None else vel + cfg.sigma_own_vel * draws.own_vel_noise
-    mask = state.held_tick >= 0  # the diagonal never holds anything
-    age = np.full((n, n), np.inf)
-    age[mask] = (k - state.held_tick[mask]) * cfg.period_s
+    own_pos[:] = pos
+    own_vel[:] = vel
+    if cfg.sigma_own_pos > 0:
+        noise = rng.standard_normal((n, 3))
+        for i in range(n):
+            for j in range(3):
+                own_pos[i, j] = pos[i, j] + cfg.sigma_own_pos * noise[i, j]
+    if cfg.sigma_own_vel > 0:
+        noise = rng.standard_normal((n, 3))
+        for i in range(n):
+            for j in range(3):
+                own_vel[i, j] = vel[i, j] + cfg.sigma_own_vel * noise[i, j]
+    for r in range(n):
+        for s in range(n):
+            ht = state.held_tick[r, s]  # the diagonal never holds anything
+            age[r, s] = (k - ht) * cfg.period_s if ht >= 0 else np.inf
+
+
+def channel_step(
+    state: ChannelState, cfg: ChannelConfig, k: int, pos: np.ndarray, vel: np.ndarray, rng: np.random.Generator
+) -> View:
+    """:func:`channel_tick` (compiled) at tick ``k`` (> the last), with the view of every drone. Updates
+    ``state`` in place and draws from ``rng``."""
+    if k <= int(state.tick[0]):
+        raise ValueError(f"tick {k} is not after the last one ({int(state.tick[0])})")
+    n = pos.shape[0]
+    own_pos, own_vel, age = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, n))
+    _tick(state, cfg, k, np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), rng,
+          own_pos, own_vel, age)  # fmt: skip
     view_pos = state.held_pos.copy()
     view_vel = state.held_vel.copy()
     diag = np.arange(n)
     view_pos[diag, diag] = own_pos
     view_vel[diag, diag] = own_vel
-    return View(pos=view_pos, vel=view_vel, mask=mask, age=age, own_pos=own_pos, own_vel=own_vel)
+    return View(pos=view_pos, vel=view_vel, mask=state.held_tick >= 0, age=age, own_pos=own_pos, own_vel=own_vel)
 
 
-def draw(rng: np.random.Generator, cfg: ChannelConfig, n: int) -> Draws:
-    """The random numbers of one tick, in a fixed order, each only where its term is on."""
-    return Draws(
-        pos_noise=rng.standard_normal((n, 3)) if cfg.sigma_pos > 0 else None,
-        vel_noise=rng.standard_normal((n, 3)) if cfg.sigma_vel > 0 else None,
-        lost=rng.random((n, n)) < cfg.loss if cfg.loss > 0 else None,
-        own_pos_noise=rng.standard_normal((n, 3)) if cfg.sigma_own_pos > 0 else None,
-        own_vel_noise=rng.standard_normal((n, 3)) if cfg.sigma_own_vel > 0 else None,
-    )
+@jit
+def _tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age) -> None:  # pragma: no cover - compiled
+    """:func:`channel_tick` for Python callers (a compiled call of the inlined stage)."""
+    channel_tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age)
 
 
 def sensing_rng(seed: int, copy: int = 0) -> np.random.Generator:
@@ -250,4 +291,4 @@ class Channel:
         k = int(round(q))
         if abs(q - k) > 1e-6:
             raise ValueError(f"t = {t} is not on the control-period grid t0 + k·{self.config.period_s}")
-        return channel_step(self.state, self.config, k, pos, vel, draw(self.rng, self.config, n))
+        return channel_step(self.state, self.config, k, pos, vel, self.rng)

@@ -29,6 +29,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from .._jit import jit
+
 #: ā (m/s²): the acceleration the constant-velocity track does not model, in the prediction error of
 #: its gain (:func:`track_gain`): the followers' acceleration limit (``max_accel`` 4 m/s² of the
 #: jet-aware and barrier planners). With 2 m/s² and without the latency term the ``mocap`` track lagged
@@ -84,7 +86,8 @@ def start_tracks(starts: np.ndarray) -> TrackState:
     )
 
 
-def track_step(
+@jit(inline=True)
+def track_tick(
     s: TrackState,
     held_pos: np.ndarray,
     held_vel: np.ndarray,
@@ -98,37 +101,53 @@ def track_step(
     held_vel (n, n, 3), held_tick (n, n) (−1: nothing) and age (n, n) s): predict with v·T, take in
     each new message (held_tick past seen_tick) with the gain ``alpha`` spread over ``spread_ticks``
     (≥ 1); ``alpha`` 1 sets the belief to the message dead-reckoned over its age. In place."""
-    moving = s.seen_tick >= 0  # tracks that have a message: moved with its velocity
-    s.x[moving] += s.v[moving] * period_s
-    spreading = s.fix_left > 0
-    if spreading.any():
-        s.x[spreading] += s.fix[spreading]
-        s.fix_left[spreading] -= 1
-    ramping = s.vfix_left > 0
-    if ramping.any():
-        s.v[ramping] += s.vfix[ramping]
-        s.vfix_left[ramping] -= 1
-    new = (held_tick >= 0) & (held_tick > s.seen_tick)
-    if not new.any():
-        return
-    a = age[new][:, None]
-    z = np.where(a > 0.0, held_pos[new] + held_vel[new] * a, held_pos[new])  # dead-reckoned over the age
-    first = s.seen_tick[new] < 0
-    if alpha >= 1.0:
-        x, v = z, held_vel[new]
-        s.fix_left[new] = 0
-        s.vfix_left[new] = 0
-    else:
-        x, v = s.x[new], s.v[new]
-        fix = alpha * (z - x) / spread_ticks
-        ramp = min(spread_ticks, VELOCITY_RAMP_TICKS)
-        vfix = (held_vel[new] - v) / ramp
-        x = np.where(first[:, None], z, x + fix)  # a first message: taken as it is
-        v = np.where(first[:, None], held_vel[new], v + vfix)
-        s.fix[new] = fix
-        s.vfix[new] = vfix
-        s.fix_left[new] = np.where(first, 0, spread_ticks - 1)
-        s.vfix_left[new] = np.where(first, 0, ramp - 1)
-    s.x[new] = x
-    s.v[new] = v
-    s.seen_tick[new] = held_tick[new]
+    n = s.x.shape[0]
+    ramp = min(spread_ticks, VELOCITY_RAMP_TICKS)
+    for i in range(n):
+        for j in range(n):
+            if s.seen_tick[i, j] >= 0:  # a track that has a message: moved with its velocity
+                for c in range(3):
+                    s.x[i, j, c] += s.v[i, j, c] * period_s
+            if s.fix_left[i, j] > 0:  # a correction still spreading
+                for c in range(3):
+                    s.x[i, j, c] += s.fix[i, j, c]
+                s.fix_left[i, j] -= 1
+            if s.vfix_left[i, j] > 0:  # a velocity still ramping
+                for c in range(3):
+                    s.v[i, j, c] += s.vfix[i, j, c]
+                s.vfix_left[i, j] -= 1
+            ht = held_tick[i, j]
+            if ht < 0 or ht <= s.seen_tick[i, j]:
+                continue
+            a = age[i, j]
+            first = s.seen_tick[i, j] < 0  # a first message: taken as it is
+            for c in range(3):
+                z = held_pos[i, j, c] + held_vel[i, j, c] * a if a > 0.0 else held_pos[i, j, c]  # dead-reckoned
+                if alpha >= 1.0:
+                    s.x[i, j, c] = z
+                    s.v[i, j, c] = held_vel[i, j, c]
+                else:
+                    fix = alpha * (z - s.x[i, j, c]) / spread_ticks
+                    vfix = (held_vel[i, j, c] - s.v[i, j, c]) / ramp
+                    s.fix[i, j, c] = fix
+                    s.vfix[i, j, c] = vfix
+                    s.x[i, j, c] = z if first else s.x[i, j, c] + fix
+                    s.v[i, j, c] = held_vel[i, j, c] if first else s.v[i, j, c] + vfix
+            s.fix_left[i, j] = 0 if alpha >= 1.0 or first else spread_ticks - 1
+            s.vfix_left[i, j] = 0 if alpha >= 1.0 or first else ramp - 1
+            s.seen_tick[i, j] = ht
+
+
+@jit
+def track_step(
+    s: TrackState,
+    held_pos: np.ndarray,
+    held_vel: np.ndarray,
+    held_tick: np.ndarray,
+    age: np.ndarray,
+    period_s: float,
+    alpha: float,
+    spread_ticks: int,
+) -> None:  # pragma: no cover - compiled
+    """:func:`track_tick` for Python callers (a compiled call of the inlined stage)."""
+    track_tick(s, held_pos, held_vel, held_tick, age, period_s, alpha, spread_ticks)
