@@ -238,7 +238,15 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     references (pos_d, vel_d, acc_d) (n, 3) to fly, from the planner's (pos_d, vel_d, acc_d) (n, 3),
     the sensed ``positions`` and ``vel`` (n, 3) of time ``t``, ``dt`` s after the last call, for the
     drones flagged ``steer`` (n,). Updates the record's state; appends the relax events to its
-    buffer (the caller drains it)."""
+    buffer (the caller drains it).
+
+    With ``rec.own_row`` = i ≥ 0 (drone i's copy, swarm_mj/formation/own_view.py) only row i is
+    computed, bit for bit as with every row: the other rows are the planner's, their QPs unsolved,
+    their state (guarded, ref, ref_vel, escape, tallies: ``counts`` then counts drone i alone) left as
+    it was. That is exact because row i reads no other row's filter state: the others enter it through
+    their sensed state (``positions``, ``vel``, ``sensed_acc``) and whether they filter (``steer``, the
+    take-off gate's ``wait``/``waited``, computed for every row as before), never through their
+    references, nominals or filtered commands."""
     n = positions.shape[0]
     own = steer.copy()  # the drones this filter flies: the steered ones, and the leader with leader_filters
     if rec.leader_filters and n > 0:
@@ -255,6 +263,8 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
     for i in range(n):
+        if rec.own_row >= 0 and i != rec.own_row:
+            continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
         _tally(rec, i, t, active[i], relaxed[i])
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
@@ -313,12 +323,21 @@ class BarrierFilter:
         self.vehicle = vehicle
         self.radii = self.barrier.radii(vehicle)
         self.a_h = self.barrier.horizontal_limit(vehicle.g)
+        self.own_row = -1  # every drone's row (restrict_to: one drone's copy)
         self.reset(0)
 
     def reset(self, n: int) -> None:
         """Start of a run of n drones: every drone free."""
-        self._rec = new_record(self.barrier, self.vehicle, n, True)
+        self._rec = new_record(self.barrier, self.vehicle, n, True, self.own_row)
         self.events: list[dict] = []
+
+    def restrict_to(self, i: int) -> None:
+        """From now on compute drone i's row only (the record's ``own_row``, :func:`barrier_step`): the
+        filter of drone i's own copy of the rule (swarm_mj/formation/own_view.py), whose other rows are
+        thrown away. Row i is the same bit for bit; the other rows are the planner's references, and
+        the tallies (:attr:`active_periods`...) and events are drone i's alone."""
+        self.own_row = int(i)
+        self._rec = self._rec._replace(own_row=self.own_row)
 
     def record(self) -> BarrierRecord:
         """The filter's record (its arrays are the filter's state: :func:`barrier_step` updates them)."""

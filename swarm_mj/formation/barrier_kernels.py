@@ -136,7 +136,9 @@ def filter_accelerations(
 
     rec: the filter's record (:class:`BarrierRecord`), of which it reads the parameters only:
     ``radii`` (the filter's keep-out), ``gain`` (k), ``tiebreak``, ``relax_weight``,
-    ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``.
+    ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``, ``own_row`` (≥ 0: only that
+    drone's QP is solved, the others keep u_nom, unflagged; each row reads the nominals, never
+    another row's filtered command, so that row is the same bit for bit).
     pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal
@@ -167,8 +169,9 @@ def filter_accelerations(
     v = np.empty(3)
     a = np.empty(3)
     un = np.empty(3)
+    only = rec.own_row
     for i in range(n):
-        if not filters[i]:
+        if not filters[i] or (only >= 0 and i != only):
             continue
         for c in range(3):
             un[c] = u_nom[i, c]

@@ -220,6 +220,9 @@ class BarrierRecord(NamedTuple):
     escape_min_m: float  # m
     escape_height: float  # × the keep-out's vertical radius
     escape_done_m: float  # m
+    #: the one drone whose row the filter computes (its copy under a sensing model: swarm_mj/formation/own_view.py);
+    #: −1: every drone's. The other rows are returned as the planner's and their state is left as it was.
+    own_row: int
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -245,10 +248,10 @@ class BarrierRecord(NamedTuple):
 EVENTS_PER_DRONE = 8
 
 
-def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> BarrierRecord:
+def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row: int = -1) -> BarrierRecord:
     """A fresh record of n drones (every drone free, no state taken yet). Its scalar parameters are
     the fields of ``bp`` of the same name (as float or bool, their declared types); its ``lanes`` is
-    ``bp.guard_lanes``."""
+    ``bp.guard_lanes``; ``own_row``: the one drone whose row it computes (−1: every drone's)."""
     cast = {"float": float, "bool": bool}
     kw: dict[str, Any] = {
         f.name: cast[str(f.type)](getattr(bp, f.name)) for f in fields(bp) if f.name in BarrierRecord._fields
@@ -260,6 +263,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool) -> Barr
         lane_gains=guard_gains(bp),
         a_h=bp.horizontal_limit(vehicle.g),
         lanes=bool(bp.guard_lanes),
+        own_row=int(own_row),
         guarded=np.zeros(n, dtype=np.bool_),
         ref=np.zeros((n, 3)),
         ref_vel=np.zeros((n, 3)),
