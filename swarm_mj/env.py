@@ -366,7 +366,7 @@ class SwarmEnv(dm_env.Environment):
         self.physics.count_until(contacts_seen)
         if obs is None:
             return None
-        self._obs = self._observation(obs)
+        self._obs = self._observation(obs, sensed=True)
         if k >= self.n_steps:
             self._done = True
         return self._obs
@@ -382,10 +382,10 @@ class SwarmEnv(dm_env.Environment):
         from the field)."""
         return self._observation(self.physics.observe(self._refs))
 
-    def _observation(self, o: Obs) -> Observation:
+    def _observation(self, o: Obs, sensed: bool = False) -> Observation:
         """The observation dict of period ``self.k`` from its record ``o`` (see :meth:`observation_spec`);
         ``dist`` (n, n) is kept for the reward. Also what the chunk driver (:mod:`swarm_mj.pipeline.fast`)
-        hands back after a chunk."""
+        hands back after a chunk (``sensed``: the sensing stage already ticked period k there)."""
         self._dist = o.dist
         self.obs_record = o  #: the same arrays as a record (what the compiled stages read, e.g. the run log's row)
         obs = Observation(
@@ -408,7 +408,11 @@ class SwarmEnv(dm_env.Environment):
         obs.record = o
         if self.sensing is not None:
             k, r = self.k, self._refs
-            view = self.sensing.observe(k, o.pos, o.vel, (r.pos[k], r.vel[k], r.acc[k]), float(r.D[k]), r.unit_offsets)
+            if sensed:
+                view = self.sensing.view()
+            else:
+                plan = (r.pos[k], r.vel[k], r.acc[k])
+                view = self.sensing.observe(k, o.pos, o.vel, plan, float(r.D[k]), r.unit_offsets)
             obs.update(view_keys(view, self.scenario.sensing_range))
         return obs
 

@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import bind, python_body
+from .._jit import Bound, bind, python_body
 from ..env import Command
 from ..formation.anticollision import make_rule, resolve_rule
 from ..formation.barrier import BarrierFilter
@@ -21,12 +21,12 @@ from ..formation.own_view import OwnViewRule
 from ..formation.rules import Rule
 from ..formation.slots import min_slot_spacing
 from ..physics.params import DEFAULT_PARAMS, QuadParams
-from ..pipeline.period import command, feedforward_force
+from ..pipeline.period import command, feedforward_force, viewed_feedforward
 from ..pipeline.records import Control, Feedforward, Obs, Predictor
 from ..scenario import Scenario
 from ..sensing.channel import channel_config
 from ..sensing.margin import BarrierMargin, barrier_margin
-from ..sensing.payload import Payloads
+from ..sensing.payload import PayloadRecord, payload_record
 from ..sensing.stage import sensing_stage
 from .backstepping import Backstepping
 from .lag import AttitudePredictor
@@ -141,7 +141,8 @@ class BacksteppingPolicy:
             self.rule = OwnViewRule(self.rule)
         # the attitude and thrust packets the feedforward reads under a sensing model (swarm_mj.sensing.payload)
         self._payload_args = (self.n, channel_config(sc.sensing, sc.control_period).delay_ticks, sc.control_period)
-        self._payloads = Payloads(*self._payload_args, float(params.m * params.g))
+        self._payloads = payload_record(*self._payload_args, float(params.m * params.g))
+        self._viewed_ff = Bound(viewed_feedforward, records=2)  # the chunk driver's stage, bound to the records
         # rotor commands desaturated with attitude priority (ours, docs/interpretations.md §1), yaw first given
         # up with the "yaw_last" mixer (docs/vehicles.md, "Mixer")
         self.mixer = sc.mixer_flown
@@ -184,6 +185,10 @@ class BacksteppingPolicy:
         of the last command)."""
         return self._stage_records()[0]
 
+    def payload_record(self) -> PayloadRecord:
+        """The packets' payloads each drone holds under a sensing model (swarm_mj.sensing.payload)."""
+        return self._payloads
+
     def feedforward_record(self) -> Feedforward:
         """The downwash feedforward's record (a stand-in with ``on`` False where there is none)."""
         return self._stage_records()[1]
@@ -199,7 +204,7 @@ class BacksteppingPolicy:
 
     def reset(self) -> None:
         self.controller.reset()
-        self._payloads = Payloads(*self._payload_args, float(self.controller.params.m * self.controller.params.g))
+        self._payloads = payload_record(*self._payload_args, float(self.controller.params.m * self.controller.params.g))
         if self.predictor is not None:
             self.predictor.reset()
         self._started = False
@@ -284,7 +289,7 @@ class BacksteppingPolicy:
         """The command when each drone decides from its own view (the observation's ``view_*`` keys,
         swarm_mj.sensing.stage): drone i's references from its copy of the rule on its view, its
         controller on its own estimated position and velocity, its downwash feedforward from where it
-        believes the others are (:func:`viewed_feedforward`)."""
+        believes the others are (:func:`~swarm_mj.pipeline.period.viewed_feedforward_into`, the chunk driver's)."""
         rule = self.rule  # (reset at the first command from the starts: the flight plan's pads, known to all)
         assert isinstance(rule, OwnViewRule)
         vp = obs["view_pos"]
@@ -302,10 +307,11 @@ class BacksteppingPolicy:
             gains = self._stage_records()[0].gains
             thrust = self.U_last[:, 0].copy() if self.controller.started else np.full(self.n, gains.m * gains.g)
             k = int(round(float(obs["time"]) / self.controller.T))
-            held = self._payloads
-            held.push(k, o.quat, thrust)  # what each drone's next packet carries besides its state
-            quat, u = held.take(k, obs["view_mask"] > 0.5, obs["view_age"])
-            force = viewed_feedforward(self.downwash_ff, vp, quat, u, o.quat, thrust)
+            force, f8 = np.empty((self.n, 3)), np.ascontiguousarray
+            # what each drone's next packet carries besides its state, and its feedforward from its view
+            mask, age = f8(obs["view_mask"] > 0.5), f8(obs["view_age"], dtype=np.float64)
+            ff, held = self.downwash_ff.record(), self._payloads
+            self._viewed_ff(ff, held, k, f8(vp, dtype=np.float64), mask, age, o.quat, thrust, force)
             o = o._replace(wf=o.wf + force)
             return self._finish(o, pos_d, vel_d, acc_d, ff=self._no_ff)
         return self._finish(o, pos_d, vel_d, acc_d)
@@ -322,24 +328,3 @@ def _barrier_margin(sc: Scenario, params: QuadParams, filt: BarrierFilter) -> Ba
         sc.sensing, sc.control_period, 4.0 * float(params.f_max) / float(params.m), float(params.g), spacing,
         float(filt.radii[0]), filt.barrier.robust_confidence,
     )  # fmt: skip
-
-
-def viewed_feedforward(
-    ff: DownwashFeedforward,
-    view_pos: np.ndarray,
-    view_quat: np.ndarray,
-    view_thrust: np.ndarray,
-    own_quat: np.ndarray,
-    own_thrust: np.ndarray,
-) -> np.ndarray:
-    """(n, 3) each drone's downwash feedforward from its own view: row i of the jets' force at the positions
-    drone i believes (view_pos[i] (n, n, 3)), with the attitudes and thrusts of the packets it holds
-    (view_quat[i] (n, n, 4), view_thrust[i] (n, n); swarm_mj.sensing.payload), its own attitude
-    own_quat[i] and last thrust own_thrust[i]."""
-    n = view_pos.shape[0]
-    out = np.empty((n, 3))
-    for i in range(n):
-        q, u = view_quat[i].copy(), view_thrust[i].copy()
-        q[i], u[i] = own_quat[i], own_thrust[i]
-        out[i] = ff(view_pos[i], q, u)[i]
-    return out

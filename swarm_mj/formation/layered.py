@@ -353,6 +353,23 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
     that assigns slots, docs/barrier.md)."""
     n = pos.shape[0]
     pos_d = slotted(pos_d, rule.slot_of)
+    if formed_busy(rule, pos, pos_d, formation_alt):
+        return True, pos_d
+    dt = estimate_velocities(t, pos, rule.prev_pos, rule.vel, rule.prev_t, rule.dt)
+    if rule.vel_sensed[0]:  # a sensing model: the velocities of the drone's view
+        for i in range(n):
+            for j in range(3):
+                rule.vel[i, j] = rule.sensed_vel[i, j]
+    return False, formed_paths(rule, dt, pos_d, formation_alt, rule.offset)
+
+
+@jit(inline=True)
+def formed_busy(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, formation_alt: float) -> bool:
+    """Fig. 5 has work to do at the positions pos (n, 3), the slots pos_d (n, 3) already :func:`slotted` (an
+    offset held, drones within D̄ horizontally; for ``jet-aware`` also slots within D̄, or keep-outs
+    overlapping in plan view). Writes nothing but the jet-aware slot distances and formation altitude
+    (rule.slot_h, rule.formation_alt: the same values whenever it is asked again)."""
+    n = pos.shape[0]
     h = horizontal_distances(pos)
     if rule.jet_aware:
         sh = horizontal_distances(pos_d)
@@ -361,19 +378,22 @@ def formed_update(rule: FormedRecord, pos: np.ndarray, pos_d: np.ndarray, t: flo
                 rule.slot_h[i, j] = sh[i, j]
         rule.formation_alt[0] = formation_alt
         if any_below(rule.slot_h, rule.safety):
-            return True, pos_d
+            return True
         for i in range(1, n):
             for j in range(n):
                 if h[i, j] < rule.overlap:
-                    return True, pos_d
-    if react_needed(rule.offset, h, rule.safety):
-        return True, pos_d
-    dt = estimate_velocities(t, pos, rule.prev_pos, rule.vel, rule.prev_t, rule.dt)
-    if rule.vel_sensed[0]:  # a sensing model: the velocities of the drone's view
-        for i in range(n):
-            for j in range(3):
-                rule.vel[i, j] = rule.sensed_vel[i, j]
-    return False, formed_paths(rule, dt, pos_d, formation_alt, rule.offset)
+                    return True
+    return react_needed(rule.offset, h, rule.safety)
+
+
+@jit(inline=True)
+def formed_check(rule: FormedRecord, obs: Any) -> bool:
+    """The layered rule's registered check (:data:`swarm_mj.pipeline.registry.RULE_CHECKS`): its step
+    (:func:`formed_step`) would hand this period back, on the observation ``obs``; changes nothing a step
+    reads differently (:func:`formed_busy`)."""
+    if not rule.on:
+        return False
+    return formed_busy(rule, obs.pos, slotted(obs.sp, rule.slot_of), obs.pos[0, 2])
 
 
 @jit(inline=True)

@@ -91,6 +91,30 @@ class OwnViewRule:
             self._take_events(rule, i)
         return pos_d, vel_d, acc_d
 
+    # ------------------------------------------------------------------ the chunk driver's interface
+    def record(self) -> object:
+        """Copy 0's record: the type every copy's is (what the registry's checks look up)."""
+        return self.copies[0].record()
+
+    def records(self) -> tuple:
+        """Each copy's record, in drone order (the chunk driver's ``rules``)."""
+        return tuple(c.record() for c in self.copies)
+
+    def compiled_ready(self) -> bool:
+        """Every copy's compiled step is all it would do now."""
+        return all(c.compiled_ready() for c in self.copies)
+
+    def take_separation_events(self) -> None:
+        """After periods a compiled driver flew: each copy's separation filter's events into the copy's (its
+        ``take_events``, then the rule's), and drone i's of copy i into this rule's, as
+        :meth:`references_from_view` takes them."""
+        for i, c in enumerate(self.copies):
+            f = c.separation_filter
+            if f is not None:
+                f.take_events()
+            c.take_separation_events()
+            self._take_events(c, i)
+
     def _take_events(self, rule: Rule, i: int) -> None:
         """Copy i's events about drone i into this rule's; the rest (its predictions of the others) dropped."""
         if rule.events:

@@ -41,9 +41,13 @@ from .. import _jit
 from ..errors import UserError
 from ..formation.barrier import barrier_off
 from ..formation.layered import idle_record
+from ..formation.own_view import OwnViewRule
 from ..physics import _mjstep
+from ..sensing.log import ViewLog
+from ..sensing.payload import payload_record
+from ..sensing.stage import oracle_stage
 from . import registry
-from .records import Obs
+from .records import Feedforward, Obs, Viewing
 
 #: Control periods per call: Ctrl-C and the progress bar are served between calls.
 CHUNK = 100
@@ -86,6 +90,8 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
         return None
     if registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") is not None:
         return f"the {rule.name!r} rule has no compiled step"
+    if sensing is not None and registry.why_not_compiled(rule, registry.RULE_CHECKS, "rule", "check") is not None:
+        return f"the {rule.name!r} rule has no compiled check (each drone's copy is asked before any steps)"
     filt = getattr(rule, "separation_filter", None)
     if filt is not None and registry.why_not_compiled(filt, registry.FILTER_KERNELS, "filter", "step") is not None:
         return f"the {rule.name!r} rule's separation filter has no compiled step"
@@ -118,6 +124,8 @@ class FastLoop:
         self._filtered = self._ruled and getattr(policy.rule, "separation_filter", None) is not None
         self._idle_rule = idle_record(n)
         self._no_filter = barrier_off(n)
+        self._copies = self._ruled and isinstance(policy.rule, OwnViewRule)  # one copy per drone: its own view
+        self._view = self._viewing()
 
     @classmethod
     def build(cls, env, policy, log, *, compile: bool = False, announce=None) -> FastLoop | None:  # noqa: ANN001, A002
@@ -146,15 +154,44 @@ class FastLoop:
         ``reset`` or a period flown in Python may replace their arrays)."""
         env, policy = self.env, self.policy
         sim = env.sim
-        # the rule's and its filter's own records (over their arrays), or the run's stand-ins
-        rule = policy.rule.record() if self._ruled else self._idle_rule
-        filt = policy.rule.separation_filter.record() if self._filtered else self._no_filter
+        # the rule's and its filter's own records (over their arrays; one per drone's copy under a sensing
+        # model), or the run's stand-ins
+        if self._copies:
+            rules = policy.rule.records()
+            filts = tuple(
+                c.separation_filter.record() if self._filtered else self._no_filter for c in policy.rule.copies
+            )
+        else:
+            rules = (policy.rule.record() if self._ruled else self._idle_rule,)
+            filts = (policy.rule.separation_filter.record() if self._filtered else self._no_filter,)
         ff, pred = policy.feedforward_record(), policy.predictor_record()
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim.pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
+        view = self._view
+        if env.sensing is not None:  # the stage's and the policy's records now (a reset replaces them)
+            view = view._replace(sense=env.sensing.record(), rng=env.sensing.rng, pay=policy.payload_record())
         return (
-            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rule, filt, policy.control_record(), ff,
-            pred, self._log, sim.compiled_stages(), monitors,
+            k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rules, filts, view,
+            policy.control_record(), ff, pred, self._log, sim.compiled_stages(), monitors,
+        )  # fmt: skip
+
+    def _viewing(self) -> Viewing:
+        """The driver's :class:`~swarm_mj.pipeline.records.Viewing`: the run's sensing stage, its generator, the
+        policy's payloads and the log's view rows (their records read again at each call), or the oracle's
+        stand-ins (``on`` False; a stage for their types, never ticked)."""
+        env, n = self.env, self.env.n
+        views = self.log.views
+        if env.sensing is None:
+            stage, pay, on = oracle_stage(n, env.T), payload_record(n, 0, env.T, 0.0), False
+        else:
+            stage, pay, on = env.sensing, self.policy.payload_record(), True
+        if views is None:
+            views = ViewLog.allocate(1, n)
+        return Viewing(
+            on=on, sense=stage.record(), rng=stage.rng, pay=pay, no_ff=Feedforward.off(n),
+            feedforward=on and self.policy.downwash_ff is not None, log=on and self.log.views is not None,
+            log_pos=views.pos, log_mask=views.mask, log_age=views.age, log_held_pos=views.held_pos,
+            log_held_tick=views.held_tick,
         )  # fmt: skip
 
     def ready(self) -> bool:
@@ -215,6 +252,9 @@ class FastLoop:
         """The barrier filter's relax events of the periods flown, into the rule's ``events`` (as its
         Python call and the rule's ``references`` do: :meth:`~swarm_mj.formation.rules.Rule.take_separation_events`)."""
         rule = self.policy.rule
+        if self._copies:
+            rule.take_separation_events()
+            return
         f = rule.separation_filter if self._ruled else None
         if f is not None:
             f.take_events()

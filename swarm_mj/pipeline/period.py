@@ -59,6 +59,8 @@ from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
 from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
+from ..sensing.payload import payload_tick
+from ..sensing.stage import sense_tick
 from . import registry
 from .records import Obs
 
@@ -101,10 +103,135 @@ def _rule_period_compiled(rule, filt, obs, t):
     return impl_filtered
 
 
+def _rule_busy(rule, obs):  # pragma: no cover - replaced by the overload when compiled
+    """The rule's step would hand this period back (its registered check)."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _rule_busy_compiled(rule, obs):
+    """:data:`registry.RULE_CHECKS` ``[type(rule)]``, chosen when the driver is compiled (a copy of a rule is
+    asked before any copy steps, so that a period handed back leaves every copy as it was)."""
+    check = registry.RULE_CHECKS[rule.instance_class]
+
+    def impl(rule, obs):
+        return check(rule, obs)
+
+    return impl
+
+
+def _take_view_velocities(rule, vel):  # pragma: no cover - replaced by the overload when compiled
+    """The velocities (n, 3) of the copy's drone's view into its rule's record, where the rule takes them."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _take_view_velocities_compiled(rule, vel):
+    """A record with ``sensed_vel`` (the layered rule's: its ``sense_velocities``) takes them; another, not."""
+    if "sensed_vel" not in rule.instance_class._fields:
+        return lambda rule, vel: None
+
+    def impl(rule, vel):
+        rule.sensed_vel[:] = vel
+        rule.vel_sensed[0] = True
+
+    return impl
+
+
 if AVAILABLE:  # the rule's step found in the registry by its record's type when the driver is compiled
     from numba.extending import overload
 
     overload(_rule_period, inline="always")(_rule_period_compiled)
+    overload(_rule_busy, inline="always")(_rule_busy_compiled)
+    overload(_take_view_velocities, inline="always")(_take_view_velocities_compiled)
+
+
+@jit(inline=True)
+def _viewed(obs, sense, i):
+    """The observation as drone i sees it (its row of the view: where it believes each drone is, its setpoints
+    from its leader belief); the rest of ``obs`` as it is."""
+    return Obs(
+        pos=sense.pos[i], vel=obs.vel, quat=obs.quat, omega=obs.omega, rpy=obs.rpy, rpy_rate=obs.rpy_rate,
+        rel=obs.rel, mask=obs.mask, dist=obs.dist, sp=sense.sp[i], spv=sense.spv[i], spa=sense.spa, yaw=obs.yaw,
+        wf=obs.wf,
+    )  # fmt: skip
+
+
+@jit(inline=True)
+def _copies_period(rules, filts, view, obs, t):
+    """Each drone's references from its own copy of the rule on its own view (swarm_mj.formation.own_view: copy
+    i fed row i of the view, drone i flying row i of what it returns), each copy's separation filter after it.
+    Returns (react, pos_d, vel_d, acc_d); react True (a copy's check would hand the period back, or its filter's
+    event buffer could overflow): nothing has stepped, Python flies the period."""
+    n = obs.pos.shape[0]
+    sense = view.sense
+    for i in range(n):
+        if filts[i].on and filts[i].ev_count[0] + n > filts[i].ev_t.shape[0]:
+            return True, obs.sp, obs.spv, obs.spa
+        if _rule_busy(rules[i], _viewed(obs, sense, i)):
+            return True, obs.sp, obs.spv, obs.spa
+    pos_d, vel_d, acc_d = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    for i in range(n):
+        _take_view_velocities(rules[i], sense.vel[i])
+        _, p, v, a = _rule_period(rules[i], filts[i], _viewed(obs, sense, i), t)
+        for c in range(3):
+            pos_d[i, c] = p[i, c]
+            vel_d[i, c] = v[i, c]
+            acc_d[i, c] = a[i, c]
+    return False, pos_d, vel_d, acc_d
+
+
+@jit(inline=True)
+def viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:
+    """Each drone's downwash feedforward from its own view, into out (n, 3): the senders' attitude (n, 4) and
+    last thrust (n,) of period k into the payloads (:func:`~swarm_mj.sensing.payload.payload_tick`, with the
+    view's mask and ages (n, n)), then row i of :func:`feedforward_force` at the positions drone i believes
+    (view_pos[i] (n, 3)), with the attitudes and thrusts of the packets it holds and its own."""
+    n = thrust.shape[0]
+    payload_tick(pay, k, quat, thrust, mask, age)
+    q, u = np.empty((n, 4)), np.empty(n)
+    for i in range(n):
+        q[:] = pay.quat[i]
+        u[:] = pay.thrust[i]
+        q[i] = quat[i]
+        u[i] = thrust[i]
+        feedforward_force(ff, view_pos[i], q, u)
+        for c in range(3):
+            out[i, c] = ff.force[i, c]
+
+
+@jit(on_demand=True)
+def viewed_feedforward(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:  # pragma: no cover - compiled
+    """:func:`viewed_feedforward_into` for Python callers (the per-period path's policy)."""
+    viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out)
+
+
+@jit(inline=True)
+def view_command(ctl, ff, pred, view, obs, k, pos_d, vel_d, acc_d, thrust, first):
+    """The command when each drone decides from its own view: its controller on its own estimated position and
+    velocity, its downwash feedforward (``view.feedforward``) from where it believes the others are
+    (:func:`viewed_feedforward_into`) added to the known force; ``thrust`` (n,) each drone's last U1 (what its
+    next packet carries). :func:`command` with the feedforward record ``view.no_ff``."""
+    sense = view.sense
+    wf = obs.wf
+    if view.feedforward:
+        wf = np.empty_like(obs.wf)
+        viewed_feedforward_into(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)
+        wf += obs.wf
+    own = Obs(
+        pos=sense.own_pos, vel=sense.own_vel, quat=obs.quat, omega=obs.omega, rpy=obs.rpy, rpy_rate=obs.rpy_rate,
+        rel=obs.rel, mask=obs.mask, dist=obs.dist, sp=obs.sp, spv=obs.spv, spa=obs.spa, yaw=obs.yaw, wf=wf,
+    )  # fmt: skip
+    return command(ctl, view.no_ff, pred, own, pos_d, vel_d, acc_d, first)
+
+
+@jit(inline=True)
+def log_view(view, k) -> None:
+    """Row k of the run's view log (swarm_mj.sensing.log.ViewLog.record): what each drone believes and holds."""
+    s = view.sense
+    view.log_pos[k] = s.pos
+    view.log_mask[k] = s.mask
+    view.log_age[k] = s.age
+    view.log_held_pos[k] = s.ch.held_pos
+    view.log_held_tick[k] = s.ch.held_tick
 
 
 @jit(inline=True)
@@ -237,32 +364,45 @@ def observe_into(phys, refs, obs, k) -> None:
 
 
 @jit
-def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, pred, log, stages, monitors):
+def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors):
     """Fly control periods k .. k_end − 1 with the stages above, in the per-period path's order;
     returns (status, k, s): the period and physics step (0 = its start) where it stopped.
 
     ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
     resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
     still holds drones in contact, so every physics step goes back to it. ``stages``, ``monitors``:
-    the records of the simulator's compiled force stages and monitors, in its order. ``rule``: the rule's
-    record (its step: ``registry.RULE_KERNELS[type(rule)]``); ``filt``: the rule's barrier separation
-    filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on`` False: none), after the rule's
-    step as in ``LayeredRule.references``."""
+    the records of the simulator's compiled force stages and monitors, in its order. ``rules``: the rule's
+    record (its step: ``registry.RULE_KERNELS[type(rule)]``), a 1-tuple; ``filts``: the rule's barrier
+    separation filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on`` False: none), after the
+    rule's step as in ``LayeredRule.references``. ``view`` (:class:`~swarm_mj.pipeline.records.Viewing`), ``on``
+    under a sensing model: each period's view is the sensing stage's tick after the observation
+    (:func:`~swarm_mj.sensing.stage.sense_tick`), ``rules`` and ``filts`` hold one copy per drone, each deciding
+    its drone's references from that drone's view (:func:`_copies_period`), and the command is
+    :func:`view_command`."""
     n = phys.qpos.shape[0]
     kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
-            if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
-                return REACT, k, 0  # its event buffer could overflow: Python flies this period
-            react, pos_d, vel_d, acc_d = _rule_period(rule, filt, obs, t)
-            if react:
-                return REACT, k, 0
-            U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, False)
+            if view.on:
+                react, pos_d, vel_d, acc_d = _copies_period(rules, filts, view, obs, t)
+                if react:
+                    return REACT, k, 0
+                U = view_command(ctl, ff, pred, view, obs, k, pos_d, vel_d, acc_d, ctl.U_last[:, 0].copy(), False)
+            else:
+                filt = filts[0]
+                if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
+                    return REACT, k, 0  # its event buffer could overflow: Python flies this period
+                react, pos_d, vel_d, acc_d = _rule_period(rules[0], filt, obs, t)
+                if react:
+                    return REACT, k, 0
+                U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, False)
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0
             log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
+            if view.on and view.log:
+                log_view(view, k)
             for i in range(n):  # the wind force of period k, held over it
                 for j in range(3):
                     phys.wind[i, j] = refs.wind_force[k, j]
@@ -278,6 +418,9 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rule, filt, ctl, ff, p
         if unhealthy(phys):
             return UNHEALTHY, k, 0
         observe_into(phys, refs, obs, k)
+        if view.on:
+            sense_tick(view.sense, view.rng, k, obs.pos, obs.vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.D[k],
+                       refs.unit_offsets)  # fmt: skip
     return DONE, k, 0
 
 

@@ -19,7 +19,7 @@ This module imports no other module of the package (the records are plain data).
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -280,3 +280,21 @@ class LogRows(NamedTuple):
     wind_force: np.ndarray  # (K+1, n, 3)
     D: np.ndarray  # (K+1,)
     forces: np.ndarray  # (S, K+1, n, 3) each force stage's force, in the simulator's stage order
+
+
+class Viewing(NamedTuple):
+    """Each drone's own view in the chunk driver (swarm_mj.sensing, docs/sensing.md); ``on`` False: the
+    ``perfect`` oracle (stand-ins the driver neither reads nor writes)."""
+
+    on: bool
+    sense: Any  # the sensing stage's record (swarm_mj.sensing.stage.SenseRecord)
+    rng: Any  # its generator (numpy.random.Generator, the stage's own: the driver draws from it)
+    pay: Any  # the payloads held (swarm_mj.sensing.payload.PayloadRecord)
+    no_ff: Feedforward  # the command's feedforward switched off (the view's force is in the known force)
+    feedforward: bool  # the downwash feedforward, from each drone's view
+    log: bool  # the view log's rows are written
+    log_pos: np.ndarray  # (K, n, n, 3) the run's ViewLog (swarm_mj.sensing.log): what each drone believed
+    log_mask: np.ndarray  # (K, n, n) bool
+    log_age: np.ndarray  # (K, n, n)
+    log_held_pos: np.ndarray  # (K, n, n, 3)
+    log_held_tick: np.ndarray  # (K, n, n) int64

@@ -22,7 +22,9 @@ imported first.
   filter reads (``vel``, ``prev_t``, ``steer``: the layered rule's) has its filter run after the step;
   another rule flies without one (the driver passes the filter switched off);
 * :data:`FILTER_KERNELS`: a separation filter's record type → its compiled period;
-* :data:`SENSING_KERNELS`: a sensing stage's record type → its compiled tick (empty: none yet);
+* :data:`RULE_CHECKS`: a rule's record type → its compiled ``check(record, obs)``: the step would hand the
+  period back (under a sensing model every drone's copy of the rule is asked before any steps);
+* :data:`SENSING_KERNELS`: a sensing stage's record type → its compiled tick;
 * :data:`ANTI_COLLISION_RULES`: a rule's name (a scenario's ``formation.anti_collision``) → its class.
 
 Whether a run flies on the chunk driver is decided by capability: every force stage, monitor, the rule
@@ -43,7 +45,7 @@ from typing import Any
 from .. import _jit
 from ..formation.barrier import BarrierPlannerRule, BarrierRecord, barrier_step
 from ..formation.jet_aware import JetAwareRule
-from ..formation.layered import formed_step
+from ..formation.layered import formed_check, formed_step
 from ..formation.planner import LayeredRule
 from ..formation.rules import NoRule, PaperRule, Rule
 from ..formation.stagger import StaggerRecord, StaggerRule, stagger_step
@@ -51,6 +53,7 @@ from ..physics.aero.downwash import DownwashRecord, downwash_apply
 from ..physics.aero.ground import ground_track
 from ..physics.aero.ground_effect import GroundEffectRecord, ground_effect_apply
 from ..physics.aero.updraft import UpdraftRecord, updraft_apply
+from ..sensing.stage import SenseRecord, sense_tick
 from .records import GroundTrack
 from .records import Rule as FormedRecord
 
@@ -81,9 +84,17 @@ FILTER_KERNELS: dict[type, Callable[..., Any]] = {
     BarrierRecord: barrier_step,
 }
 
-#: sensing stage record → its compiled tick (none yet: a run with a sensing model flies step by step,
-#: swarm_mj.sensing.stage; the perfect oracle has no stage)
-SENSING_KERNELS: dict[type, Callable[..., Any]] = {}
+#: rule record → its compiled ``check(record, obs) -> bool``: its step would hand this period back, changing
+#: nothing (a rule flown from each drone's own view asks every copy before any steps: a rule without one flies
+#: such runs step by step)
+RULE_CHECKS: dict[type, Callable[..., Any]] = {
+    FormedRecord: formed_check,
+}
+
+#: sensing stage record → its compiled tick (swarm_mj.sensing.stage; the perfect oracle has no stage)
+SENSING_KERNELS: dict[type, Callable[..., Any]] = {
+    SenseRecord: sense_tick,
+}
 
 #: the named anti-collision rules, in the order the CLI lists them (``"auto"`` picks one: anticollision.AUTO)
 ANTI_COLLISION_RULES: dict[str, type[Rule]] = {
@@ -118,6 +129,7 @@ __all__ = [
     "FILTER_READS",
     "FORCE_KERNELS",
     "MONITOR_KERNELS",
+    "RULE_CHECKS",
     "RULE_KERNELS",
     "SENSING_KERNELS",
     "why_not_compiled",
