@@ -107,13 +107,15 @@ class OwnViewRule:
     def take_separation_events(self) -> None:
         """After periods a compiled driver flew: each copy's separation filter's events into the copy's (its
         ``take_events``, then the rule's), and drone i's of copy i into this rule's, as
-        :meth:`references_from_view` takes them."""
+        :meth:`references_from_view` takes them, in its order (by period, then drone)."""
+        start = len(self.events)
         for i, c in enumerate(self.copies):
             f = c.separation_filter
             if f is not None:
                 f.take_events()
             c.take_separation_events()
             self._take_events(c, i)
+        self.events[start:] = sorted(self.events[start:], key=lambda e: (e["t"], e["drone"]))
 
     def _take_events(self, rule: Rule, i: int) -> None:
         """Copy i's events about drone i into this rule's; the rest (its predictions of the others) dropped."""

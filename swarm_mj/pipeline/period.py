@@ -130,7 +130,9 @@ def _take_view_velocities_compiled(rule, vel):
         return lambda rule, vel: None
 
     def impl(rule, vel):
-        rule.sensed_vel[:] = vel
+        for i in range(vel.shape[0]):  # (loops, not slice copies: those compile slowly)
+            for c in range(3):
+                rule.sensed_vel[i, c] = vel[i, c]
         rule.vel_sensed[0] = True
 
     return impl
@@ -156,22 +158,29 @@ def _viewed(obs, sense, i):
 
 
 @jit(inline=True)
-def _copies_period(rules, filts, view, obs, t):
-    """Each drone's references from its own copy of the rule on its own view (swarm_mj.formation.own_view: copy
-    i fed row i of the view, drone i flying row i of what it returns), each copy's separation filter after it.
-    Returns (react, pos_d, vel_d, acc_d); react True (a copy's check would hand the period back, or its filter's
-    event buffer could overflow): nothing has stepped, Python flies the period."""
+def _rules_period(rules, filts, view, obs, t):
+    """The rule's period: its step and its separation filter (:func:`_rule_period`). For the oracle (``view.on``
+    False) ``rules`` and ``filts`` are 1-tuples, the rule fed the true observation. Under a sensing model they
+    hold one copy per drone (swarm_mj.formation.own_view): copy i is fed drone i's view (:func:`_viewed`) and
+    drone i flies row i of what it returns; every copy is asked first (its registered check, and whether its
+    filter's event buffer could overflow), so that a period handed back leaves every copy as it was.
+    Returns (react, pos_d, vel_d, acc_d); react True: Python flies the period."""
     n = obs.pos.shape[0]
-    sense = view.sense
-    for i in range(n):
+    m = len(rules)
+    for i in range(m):
         if filts[i].on and filts[i].ev_count[0] + n > filts[i].ev_t.shape[0]:
-            return True, obs.sp, obs.spv, obs.spa
-        if _rule_busy(rules[i], _viewed(obs, sense, i)):
+            return True, obs.sp, obs.spv, obs.spa  # its event buffer could overflow: Python flies this period
+        if view.on and _rule_busy(rules[i], _viewed(obs, view.sense, i)):
             return True, obs.sp, obs.spv, obs.spa
     pos_d, vel_d, acc_d = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    for i in range(n):
-        _take_view_velocities(rules[i], sense.vel[i])
-        _, p, v, a = _rule_period(rules[i], filts[i], _viewed(obs, sense, i), t)
+    for i in range(m):
+        seen = obs
+        if view.on:
+            _take_view_velocities(rules[i], view.sense.vel[i])
+            seen = _viewed(obs, view.sense, i)
+        react, p, v, a = _rule_period(rules[i], filts[i], seen, t)
+        if not view.on:  # the oracle's rule: every row
+            return react, p, v, a
         for c in range(3):
             pos_d[i, c] = p[i, c]
             vel_d[i, c] = v[i, c]
@@ -189,10 +198,11 @@ def viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out) 
     payload_tick(pay, k, quat, thrust, mask, age)
     q, u = np.empty((n, 4)), np.empty(n)
     for i in range(n):
-        q[:] = pay.quat[i]
-        u[:] = pay.thrust[i]
-        q[i] = quat[i]
-        u[i] = thrust[i]
+        for j in range(n):  # the packets drone i holds, and its own attitude and thrust
+            mine = j == i
+            for c in range(4):
+                q[j, c] = quat[i, c] if mine else pay.quat[i, j, c]
+            u[j] = thrust[i] if mine else pay.thrust[i, j]
         feedforward_force(ff, view_pos[i], q, u)
         for c in range(3):
             out[i, c] = ff.force[i, c]
@@ -205,33 +215,36 @@ def viewed_feedforward(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> No
 
 
 @jit(inline=True)
-def view_command(ctl, ff, pred, view, obs, k, pos_d, vel_d, acc_d, thrust, first):
-    """The command when each drone decides from its own view: its controller on its own estimated position and
-    velocity, its downwash feedforward (``view.feedforward``) from where it believes the others are
-    (:func:`viewed_feedforward_into`) added to the known force; ``thrust`` (n,) each drone's last U1 (what its
-    next packet carries). :func:`command` with the feedforward record ``view.no_ff``."""
+def own_observation(ff, view, obs, k, thrust):
+    """What drone i's controller is given when each drone decides from its own view: its own estimated position
+    and velocity, and, with the downwash feedforward (``view.feedforward``), the force predicted from where it
+    believes the others are (:func:`viewed_feedforward_into`, ``thrust`` (n,) each drone's last U1: what its
+    next packet carries) added to the known force; the command then runs with ``view.no_ff``."""
     sense = view.sense
     wf = obs.wf
     if view.feedforward:
         wf = np.empty_like(obs.wf)
         viewed_feedforward_into(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)
         wf += obs.wf
-    own = Obs(
+    return Obs(
         pos=sense.own_pos, vel=sense.own_vel, quat=obs.quat, omega=obs.omega, rpy=obs.rpy, rpy_rate=obs.rpy_rate,
         rel=obs.rel, mask=obs.mask, dist=obs.dist, sp=obs.sp, spv=obs.spv, spa=obs.spa, yaw=obs.yaw, wf=wf,
     )  # fmt: skip
-    return command(ctl, view.no_ff, pred, own, pos_d, vel_d, acc_d, first)
 
 
 @jit(inline=True)
 def log_view(view, k) -> None:
     """Row k of the run's view log (swarm_mj.sensing.log.ViewLog.record): what each drone believes and holds."""
     s = view.sense
-    view.log_pos[k] = s.pos
-    view.log_mask[k] = s.mask
-    view.log_age[k] = s.age
-    view.log_held_pos[k] = s.ch.held_pos
-    view.log_held_tick[k] = s.ch.held_tick
+    n = s.mask.shape[0]
+    for i in range(n):
+        for j in range(n):
+            view.log_mask[k, i, j] = s.mask[i, j]
+            view.log_age[k, i, j] = s.age[i, j]
+            view.log_held_tick[k, i, j] = s.ch.held_tick[i, j]
+            for c in range(3):
+                view.log_pos[k, i, j, c] = s.pos[i, j, c]
+                view.log_held_pos[k, i, j, c] = s.ch.held_pos[i, j, c]
 
 
 @jit(inline=True)
@@ -377,26 +390,20 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
     rule's step as in ``LayeredRule.references``. ``view`` (:class:`~swarm_mj.pipeline.records.Viewing`), ``on``
     under a sensing model: each period's view is the sensing stage's tick after the observation
     (:func:`~swarm_mj.sensing.stage.sense_tick`), ``rules`` and ``filts`` hold one copy per drone, each deciding
-    its drone's references from that drone's view (:func:`_copies_period`), and the command is
-    :func:`view_command`."""
+    its drone's references from that drone's view (:func:`_rules_period`), and the command is
+    :func:`command` on :func:`own_observation`."""
     n = phys.qpos.shape[0]
     kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
-            if view.on:
-                react, pos_d, vel_d, acc_d = _copies_period(rules, filts, view, obs, t)
-                if react:
-                    return REACT, k, 0
-                U = view_command(ctl, ff, pred, view, obs, k, pos_d, vel_d, acc_d, ctl.U_last[:, 0].copy(), False)
-            else:
-                filt = filts[0]
-                if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
-                    return REACT, k, 0  # its event buffer could overflow: Python flies this period
-                react, pos_d, vel_d, acc_d = _rule_period(rules[0], filt, obs, t)
-                if react:
-                    return REACT, k, 0
-                U = command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, False)
+            react, pos_d, vel_d, acc_d = _rules_period(rules, filts, view, obs, t)
+            if react:
+                return REACT, k, 0
+            seen, known = obs, ff
+            if view.on:  # each drone's controller on its own estimates (the feedforward: from its view)
+                seen, known = own_observation(ff, view, obs, k, ctl.U_last[:, 0].copy()), view.no_ff
+            U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0

@@ -210,8 +210,10 @@ def channel_tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age):
     _deliver(state, cfg, k)
     state.tick[0] = k
     n = pos.shape[0]
-    own_pos[:] = pos
-    own_vel[:] = vel
+    for i in range(n):
+        for j in range(3):
+            own_pos[i, j] = pos[i, j]
+            own_vel[i, j] = vel[i, j]
     if cfg.sigma_own_pos > 0:
         noise = rng.standard_normal((n, 3))
         for i in range(n):

@@ -1,0 +1,56 @@
+"""Each drone's own view on the chunk driver (docs/sensing.md, "Cost"): a run under a sensing model gives the
+same numbers bit for bit on the chunk driver as step by step (the sensing stage's tick, every drone's copy of
+the rule, the payloads and the viewed feedforward are the same compiled functions on both), through
+everything it hands back to Python, and it does fly a good part of the run in chunks.
+
+These tests FAIL where the chunk driver does not exist (no compiled ``mj_step``); only an explicit
+``SWARM_MJ_NO_JIT=1`` (Numba switched off on purpose) skips them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from swarm_mj import _jit
+from swarm_mj.experiments.runner import _SERIES, run
+from swarm_mj.scenario import load_scenario
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not _jit.ENABLED, reason="SWARM_MJ_NO_JIT set: Numba switched off on purpose"),
+]
+
+VIEWS = ("pos", "mask", "age", "held_pos", "held_tick")
+
+
+def _same(a, b) -> None:
+    for f in (*_SERIES, "stage_rows"):
+        assert np.array_equal(getattr(a.log, f), getattr(b.log, f), equal_nan=True), f"log.{f} differs"
+    for f in VIEWS:  # what each drone believed and held, period by period
+        assert np.array_equal(getattr(a.log.views, f), getattr(b.log.views, f), equal_nan=True), f"views.{f}"
+    sa, sb = dict(a.summary), dict(b.summary)
+    for s in (sa, sb):
+        s.pop("wall_time_s"), s.pop("real_time_factor")
+    assert sa == sb
+    assert a.events == b.events
+    assert a.contact_log == b.contact_log
+    assert repr(a.error) == repr(b.error)
+
+
+@pytest.mark.parametrize(
+    ("name", "rule", "sensing", "aero", "fused_share"),
+    [
+        ("anti_collision", "barrier", "mocap", "realistic", 0.5),  # relaxations and the viewed feedforward
+        ("anti_collision", "layers", "uwb", None, 0.2),  # Fig. 5 acting between chunks, 10-Hz messages
+    ],
+)
+def test_bit_identical_to_step_by_step(name, rule, sensing, aero, fused_share):
+    sc = load_scenario(name).with_overrides(duration=8.0, anti_collision=rule, sensing=sensing)
+    a = run(sc, progress=False, fused=False, aero=aero)
+    b = run(sc, progress=False, fused=True, aero=aero)
+    assert a.extra["fused_periods"] == 0
+    assert b.extra["fast_path"] == "on", b.extra  # the run qualified: the comparison is not vacuous
+    _same(a, b)
+    K = len(a.log.t) - 1
+    assert b.extra["fused_periods"] > fused_share * K, b.extra
