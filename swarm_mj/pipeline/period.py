@@ -192,20 +192,20 @@ def _rules_period(rules, filts, view, obs, t):
 def viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:
     """Each drone's downwash feedforward from its own view, into out (n, 3): the senders' attitude (n, 4) and
     last thrust (n,) of period k into the payloads (:func:`~swarm_mj.sensing.payload.payload_tick`, with the
-    view's mask and ages (n, n)), then row i of :func:`feedforward_force` at the positions drone i believes
-    (view_pos[i] (n, 3)), with the attitudes and thrusts of the packets it holds and its own."""
+    view's mask and ages (n, n)), then drone i's row of :func:`feedforward_force` at the positions it believes
+    (view_pos[i] (n, 3)), with the attitudes and thrusts of the packets it holds and its own
+    (:func:`~swarm_mj.physics.aero.downwash.downwash_on`: that row alone)."""
     n = thrust.shape[0]
     payload_tick(pay, k, quat, thrust, mask, age)
-    q, u = np.empty((n, 4)), np.empty(n)
+    q, rotor, torque = np.empty((n, 4)), np.empty((n, 4)), np.empty(3)
     for i in range(n):
-        for j in range(n):  # the packets drone i holds, and its own attitude and thrust
+        for j in range(n):  # the packets drone i holds, and its own attitude and thrust (shared over its rotors)
             mine = j == i
             for c in range(4):
                 q[j, c] = quat[i, c] if mine else pay.quat[i, j, c]
-            u[j] = thrust[i] if mine else pay.thrust[i, j]
-        feedforward_force(ff, view_pos[i], q, u)
-        for c in range(3):
-            out[i, c] = ff.force[i, c]
+                rotor[j, c] = (thrust[i] if mine else pay.thrust[i, j]) / 4.0
+        _downwash.downwash_on(i, view_pos[i], q, rotor, ff.L, ff.dirs, ff.rho, ff.r, ff.half_cda, ff.half_cda_body,
+                              ff.r, out[i], torque)  # fmt: skip
 
 
 @jit(on_demand=True)

@@ -207,6 +207,46 @@ def downwash_kernel(
             add_torque[j, c] += torque[j, c]
 
 
+@jit(inline=True)
+def downwash_on(
+    i: int,
+    pos: np.ndarray,
+    quat: np.ndarray,
+    rotor_thrust: np.ndarray,
+    arm: float,
+    dirs: np.ndarray,
+    rho: float,
+    rotor_r: float,
+    half_cda: float,
+    half_cda_body: float,
+    ramp: float,
+    force: np.ndarray,
+    torque: np.ndarray,
+) -> None:
+    """Set force, torque (3,) to the downwash of every other drone on drone ``i`` alone: row i of
+    :func:`downwash_kernel` for one copy of N drones (the same pairs, :func:`jet_on_drone`, in the same order:
+    the sources by index), at N − 1 pairs instead of N·(N − 1) (a drone's feedforward from its own view needs
+    its own row only: swarm_mj.pipeline.period.viewed_feedforward_into)."""
+    N = pos.shape[0]
+    l = 2.0 * arm
+    dst_axes, src_axes, off = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
+    body_axes(quat, i, dst_axes)
+    for c in range(3):
+        force[c] = 0.0
+        torque[c] = 0.0
+    for j in range(N):
+        if j == i:
+            continue
+        T = rotor_thrust[j, 0] + rotor_thrust[j, 1] + rotor_thrust[j, 2] + rotor_thrust[j, 3]
+        if T <= 0.0:
+            continue
+        u_h = induced_velocity(T, rho, rotor_r)
+        body_axes(quat, j, src_axes)
+        dx, dy, dz = -src_axes[2, 0], -src_axes[2, 1], -src_axes[2, 2]  # jet direction: −z of drone j
+        jet_on_drone(pos[j], dx, dy, dz, u_h, l, ramp, pos[i], dst_axes, dirs, arm, half_cda, half_cda_body, off,
+                     force, torque)  # fmt: skip
+
+
 @jit
 def jet_on_samples(
     src_pos: np.ndarray,
