@@ -1,7 +1,7 @@
 """Each drone's copy of the barrier rule computing its own row only (``OwnViewRule.own_rows``,
 swarm_mj/formation/own_view.py) flies every sensing run bit for bit as the copies computing every
-row: the log (the views included), the events and the summary, under ``mocap`` and ``uwb``, realistic
-air. tests/unit/test_own_row.py checks the filter itself over random states."""
+row: the log (the views included), the events and the summary, under ``uwb`` step by step and ``mocap``
+on the chunk driver, realistic air. tests/unit/test_own_row.py checks the filter itself over random states."""
 
 from __future__ import annotations
 
@@ -33,9 +33,10 @@ def _arrays(r: RunResult) -> dict[str, np.ndarray]:
 
 
 @pytest.mark.parametrize(
-    ("scenario", "duration", "sensing"), [("anti_collision", 6.0, "uwb"), ("circle", 10.0, "mocap")]
+    ("scenario", "duration", "sensing", "fused"),
+    [("anti_collision", 6.0, "uwb", False), ("circle", 10.0, "mocap", True)],  # step by step; the chunk driver
 )
-def test_own_rows_fly_bit_for_bit_as_every_row(monkeypatch, scenario, duration, sensing):
+def test_own_rows_fly_bit_for_bit_as_every_row(monkeypatch, scenario, duration, sensing, fused):
     sc = load_scenario(scenario).with_overrides(duration=duration, anti_collision="barrier", sensing=sensing)
     runs, policies = {}, {}
     for own_rows in (True, False):
@@ -45,7 +46,7 @@ def test_own_rows_fly_bit_for_bit_as_every_row(monkeypatch, scenario, duration, 
             policies[own_rows] = BacksteppingPolicy(*args)
             return policies[own_rows]
 
-        runs[own_rows] = run(sc, progress=False, aero="realistic", make_policy=make)
+        runs[own_rows] = run(sc, progress=False, aero="realistic", make_policy=make, fused=fused)
     copies = policies[True].rule.copies
     assert [c.separation_filter.own_row for c in copies] == list(range(len(copies)))  # restricted
     assert all(c.separation_filter.own_row == -1 for c in policies[False].rule.copies)
@@ -53,6 +54,7 @@ def test_own_rows_fly_bit_for_bit_as_every_row(monkeypatch, scenario, duration, 
     assert sum(c.separation_filter.active_periods for c in copies) > 0
     a, b = runs[True], runs[False]
     assert a.error is None and b.error is None and a.summary["sensing"]["own_view"] is True
+    assert (a.extra["fused_periods"] > 0) is fused, a.extra  # the restricted records on the driver asked for
     arrays_a, arrays_b = _arrays(a), _arrays(b)
     assert arrays_a.keys() == arrays_b.keys()
     for name, x in arrays_a.items():
