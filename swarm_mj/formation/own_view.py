@@ -16,6 +16,7 @@ offsets, the barrier filter's record). The events of drone i are copy i's events
 from __future__ import annotations
 
 import copy
+from typing import Any
 
 import numpy as np
 
@@ -94,15 +95,20 @@ class OwnViewRule:
     # ------------------------------------------------------------------ the chunk driver's interface
     def record(self) -> object:
         """Copy 0's record: the type every copy's is (what the registry's checks look up)."""
-        return self.copies[0].record()
+        return self._compiled[0].record()
 
     def records(self) -> tuple:
         """Each copy's record, in drone order (the chunk driver's ``rules``)."""
-        return tuple(c.record() for c in self.copies)
+        return tuple(c.record() for c in self._compiled)
 
     def compiled_ready(self) -> bool:
         """Every copy's compiled step is all it would do now."""
-        return all(c.compiled_ready() for c in self.copies)
+        return all(c.compiled_ready() for c in self._compiled)
+
+    @property
+    def _compiled(self) -> list[Any]:
+        """The copies as the chunk driver sees them: rules with a compiled step (``record``, ``compiled_ready``)."""
+        return self.copies
 
     def take_separation_events(self) -> None:
         """After periods a compiled driver flew: each copy's separation filter's events into the copy's (its
@@ -110,9 +116,9 @@ class OwnViewRule:
         :meth:`references_from_view` takes them, in its order (by period, then drone)."""
         start = len(self.events)
         for i, c in enumerate(self.copies):
-            f = c.separation_filter
-            if f is not None:
-                f.take_events()
+            take = getattr(c.separation_filter, "take_events", None)  # a filter with a record's event buffer
+            if take is not None:
+                take()
             c.take_separation_events()
             self._take_events(c, i)
         self.events[start:] = sorted(self.events[start:], key=lambda e: (e["t"], e["drone"]))
