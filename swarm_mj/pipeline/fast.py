@@ -44,8 +44,6 @@ from ..formation.layered import idle_record
 from ..formation.own_view import OwnViewRule
 from ..physics import _mjstep
 from ..sensing.log import ViewLog
-from ..sensing.payload import payload_record
-from ..sensing.stage import oracle_stage
 from . import registry
 from .records import Feedforward, Obs, Viewing
 
@@ -168,28 +166,24 @@ class FastLoop:
         monitors = tuple(mon.record() for mon in sim.monitors)
         python_each = bool(sim.pairs_in_contact) or any(mon.holds_steps() for mon in sim.monitors)
         view = self._view
-        if env.sensing is not None:  # the stage's and the policy's records now (a reset replaces them)
+        if view is not None and env.sensing is not None:  # the stage's and the policy's records now (a reset)
             view = view._replace(sense=env.sensing.record(), rng=env.sensing.rng, pay=policy.payload_record())
         return (
             k, 0, k_end, python_each, sim.record(), self._refs, self._obs, rules, filts, view,
             policy.control_record(), ff, pred, self._log, sim.compiled_stages(), monitors,
         )  # fmt: skip
 
-    def _viewing(self) -> Viewing:
-        """The driver's :class:`~swarm_mj.pipeline.records.Viewing`: the run's sensing stage, its generator, the
-        policy's payloads and the log's view rows (their records read again at each call), or the oracle's
-        stand-ins (``on`` False; a stage for their types, never ticked)."""
+    def _viewing(self) -> Viewing | None:
+        """The driver's :class:`~swarm_mj.pipeline.records.Viewing` under a sensing model (the run's sensing
+        stage, its generator, the policy's payloads and the log's view rows; the stage's and the policy's
+        records are read again at each call), None for the oracle."""
         env, n = self.env, self.env.n
-        views = self.log.views
         if env.sensing is None:
-            stage, pay, on = oracle_stage(n, env.T), payload_record(n, 0, env.T, 0.0), False
-        else:
-            stage, pay, on = env.sensing, self.policy.payload_record(), True
-        if views is None:
-            views = ViewLog.allocate(1, n)
+            return None
+        views = self.log.views if self.log.views is not None else ViewLog.allocate(1, n)
         return Viewing(
-            on=on, sense=stage.record(), rng=stage.rng, pay=pay, no_ff=Feedforward.off(n),
-            feedforward=on and self.policy.downwash_ff is not None, log=on and self.log.views is not None,
+            sense=env.sensing.record(), rng=env.sensing.rng, pay=self.policy.payload_record(),
+            no_ff=Feedforward.off(n), feedforward=self.policy.downwash_ff is not None, log=self.log.views is not None,
             log_pos=views.pos, log_mask=views.mask, log_age=views.age, log_held_pos=views.held_pos,
             log_held_tick=views.held_tick,
         )  # fmt: skip

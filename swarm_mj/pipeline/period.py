@@ -20,13 +20,16 @@ step, registered for its record's type (:data:`swarm_mj.pipeline.registry.RULE_K
 =========================  =====================================================================
 stage                      function
 =========================  =====================================================================
+each drone's copy          under a sensing model, :func:`_copies_period`: every copy asked first
+                           (``RULE_CHECKS[type(rule)]``), then copy i on drone i's view, its row i
 the rule's step            ``_rule_period``: ``RULE_KERNELS[type(rule)]``, chosen when the driver is
                            compiled (the layered rule's: :func:`~swarm_mj.formation.layered.formed_step`,
                            Fig. 5's check, the velocity estimate, the paths, the merge of rows)
 separation filter          then ``FILTER_KERNELS[type(filt)]`` (the barrier filter's period,
                            :func:`~swarm_mj.formation.barrier.barrier_step`, which ``BarrierFilter``
                            calls too), for a rule record with the fields it reads
-downwash feedforward       :func:`feedforward_force`
+downwash feedforward       :func:`feedforward_force`; from each drone's view: :func:`own_observation`
+                           (:func:`viewed_feedforward_into`, the payloads' ``payload_tick``)
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
                            :func:`~swarm_mj.physics.mixing.attitude_priority_kernel` (or
@@ -40,6 +43,8 @@ force stages               :func:`apply_forces` (drag + wind, then each register
 monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
 health check               :func:`~swarm_mj.physics.sim.unhealthy`
 observation                :func:`observe_into` (into the driver's buffers; :func:`observe` on new ones)
+each drone's view          :func:`~swarm_mj.sensing.stage.sense_tick` (the channel, the tracks, each
+                           drone's setpoints; ``SensingStage.observe`` calls it too), :func:`log_view`
 =========================  =====================================================================
 
 A compiled driver hands control back to Python for what the per-period path does in Python
@@ -60,7 +65,7 @@ from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
 from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
 from ..sensing.payload import payload_tick
-from ..sensing.stage import sense_tick
+from ..sensing.stage import sense_step
 from . import registry
 from .records import Obs
 
@@ -146,6 +151,83 @@ if AVAILABLE:  # the rule's step found in the registry by its record's type when
     overload(_take_view_velocities, inline="always")(_take_view_velocities_compiled)
 
 
+# --------------------------------------------------------------------------- the oracle or each drone's view
+# The chunk driver's stages that differ under a sensing model, chosen by the type of its ``view`` argument when
+# it is compiled: None (the ``perfect`` oracle: the run's rule on the true observation, no sensing code in the
+# compiled driver) or a :class:`~swarm_mj.pipeline.records.Viewing`.
+
+
+def _period_rules(rules, filts, view, obs, t):  # pragma: no cover - replaced by the overload when compiled
+    """(react, pos_d, vel_d, acc_d): the rule's period (the oracle's rule, or every drone's copy)."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _period_inputs(ff, view, obs, k, ctl):  # pragma: no cover - replaced by the overload when compiled
+    """(observation, feedforward record) the command runs on."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _period_sense(view, obs, refs, k):  # pragma: no cover - replaced by the overload when compiled
+    """Each drone's view of period k, after its observation (the sensing stage's tick)."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _period_view_log(view, k):  # pragma: no cover - replaced by the overload when compiled
+    """Row k of the run's view log."""
+    raise NotImplementedError("compiled code only (the chunk driver)")
+
+
+def _rules_compiled(rules, filts, view, obs, t):
+    if not isinstance(view, types.NoneType):
+        return lambda rules, filts, view, obs, t: _copies_period(rules, filts, view, obs, t)
+
+    def oracle(rules, filts, view, obs, t):
+        n = obs.pos.shape[0]
+        if filts[0].on and filts[0].ev_count[0] + n > filts[0].ev_t.shape[0]:
+            return True, obs.sp, obs.spv, obs.spa  # its event buffer could overflow: Python flies this period
+        return _rule_period(rules[0], filts[0], obs, t)
+
+    return oracle
+
+
+def _inputs_compiled(ff, view, obs, k, ctl):
+    if isinstance(view, types.NoneType):
+        return lambda ff, view, obs, k, ctl: (obs, ff)
+    # each drone's controller on its own estimates, its feedforward from its view (its last U1: its packet's)
+    return lambda ff, view, obs, k, ctl: (own_observation(ff, view, obs, k, ctl.U_last[:, 0].copy()), view.no_ff)
+
+
+def _sense_compiled(view, obs, refs, k):
+    if isinstance(view, types.NoneType):
+        return lambda view, obs, refs, k: None
+
+    def tick(view, obs, refs, k):  # (a call of the stage compiled once: the Python path's too)
+        sense_step(view.sense, view.rng, k, obs.pos, obs.vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.D[k],
+                   refs.unit_offsets)  # fmt: skip
+
+    return tick
+
+
+def _view_log_compiled(view, k):
+    if isinstance(view, types.NoneType):
+        return lambda view, k: None
+
+    def row(view, k):
+        if view.log:
+            log_view(view, k)
+
+    return row
+
+
+if AVAILABLE:
+    from numba.core import types
+
+    overload(_period_rules, inline="always")(_rules_compiled)
+    overload(_period_inputs, inline="always")(_inputs_compiled)
+    overload(_period_sense, inline="always")(_sense_compiled)
+    overload(_period_view_log, inline="always")(_view_log_compiled)
+
+
 @jit(inline=True)
 def _viewed(obs, sense, i):
     """The observation as drone i sees it (its row of the view: where it believes each drone is, its setpoints
@@ -157,30 +239,25 @@ def _viewed(obs, sense, i):
     )  # fmt: skip
 
 
-@jit(inline=True)
-def _rules_period(rules, filts, view, obs, t):
-    """The rule's period: its step and its separation filter (:func:`_rule_period`). For the oracle (``view.on``
-    False) ``rules`` and ``filts`` are 1-tuples, the rule fed the true observation. Under a sensing model they
-    hold one copy per drone (swarm_mj.formation.own_view): copy i is fed drone i's view (:func:`_viewed`) and
-    drone i flies row i of what it returns; every copy is asked first (its registered check, and whether its
-    filter's event buffer could overflow), so that a period handed back leaves every copy as it was.
+@jit
+def _copies_period(rules, filts, view, obs, t):
+    """The rule's period under a sensing model (swarm_mj.formation.own_view): ``rules`` and ``filts`` hold one
+    copy per drone; copy i is fed drone i's view (:func:`_viewed`), its step and filter (:func:`_rule_period`),
+    and drone i flies row i of what it returns. Every copy is asked first (its registered check, and whether
+    its filter's event buffer could overflow), so that a period handed back leaves every copy as it was.
     Returns (react, pos_d, vel_d, acc_d); react True: Python flies the period."""
     n = obs.pos.shape[0]
-    m = len(rules)
-    for i in range(m):
-        if filts[i].on and filts[i].ev_count[0] + n > filts[i].ev_t.shape[0]:
+    for i in range(n):
+        rule, filt = rules[i], filts[i]  # (each once: an element of a tuple is a switch over its n)
+        if filt.on and filt.ev_count[0] + n > filt.ev_t.shape[0]:
             return True, obs.sp, obs.spv, obs.spa  # its event buffer could overflow: Python flies this period
-        if view.on and _rule_busy(rules[i], _viewed(obs, view.sense, i)):
+        if _rule_busy(rule, _viewed(obs, view.sense, i)):
             return True, obs.sp, obs.spv, obs.spa
     pos_d, vel_d, acc_d = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
-    for i in range(m):
-        seen = obs
-        if view.on:
-            _take_view_velocities(rules[i], view.sense.vel[i])
-            seen = _viewed(obs, view.sense, i)
-        react, p, v, a = _rule_period(rules[i], filts[i], seen, t)
-        if not view.on:  # the oracle's rule: every row
-            return react, p, v, a
+    for i in range(n):
+        rule, filt = rules[i], filts[i]
+        _take_view_velocities(rule, view.sense.vel[i])
+        _, p, v, a = _rule_period(rule, filt, _viewed(obs, view.sense, i), t)
         for c in range(3):
             pos_d[i, c] = p[i, c]
             vel_d[i, c] = v[i, c]
@@ -224,7 +301,7 @@ def own_observation(ff, view, obs, k, thrust):
     wf = obs.wf
     if view.feedforward:
         wf = np.empty_like(obs.wf)
-        viewed_feedforward_into(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)
+        viewed_feedforward(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)  # (a call)
         wf += obs.wf
     return Obs(
         pos=sense.own_pos, vel=sense.own_vel, quat=obs.quat, omega=obs.omega, rpy=obs.rpy, rpy_rate=obs.rpy_rate,
@@ -387,29 +464,27 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
     the records of the simulator's compiled force stages and monitors, in its order. ``rules``: the rule's
     record (its step: ``registry.RULE_KERNELS[type(rule)]``), a 1-tuple; ``filts``: the rule's barrier
     separation filter (:class:`~swarm_mj.formation.barrier.BarrierRecord`; ``on`` False: none), after the
-    rule's step as in ``LayeredRule.references``. ``view`` (:class:`~swarm_mj.pipeline.records.Viewing`), ``on``
-    under a sensing model: each period's view is the sensing stage's tick after the observation
+    rule's step as in ``LayeredRule.references``. ``view``: None for the oracle, or under a sensing model a
+    :class:`~swarm_mj.pipeline.records.Viewing` (the driver compiled for it): each period's view is the
+    sensing stage's tick after the observation
     (:func:`~swarm_mj.sensing.stage.sense_tick`), ``rules`` and ``filts`` hold one copy per drone, each deciding
-    its drone's references from that drone's view (:func:`_rules_period`), and the command is
+    its drone's references from that drone's view (:func:`_copies_period`), and the command is
     :func:`command` on :func:`own_observation`."""
     n = phys.qpos.shape[0]
     kin, xf, xtorque = drone_views(phys)
     while k < k_end:
         if s0 == 0:
             t = k * phys.T
-            react, pos_d, vel_d, acc_d = _rules_period(rules, filts, view, obs, t)
+            react, pos_d, vel_d, acc_d = _period_rules(rules, filts, view, obs, t)
             if react:
                 return REACT, k, 0
-            seen, known = obs, ff
-            if view.on:  # each drone's controller on its own estimates (the feedforward: from its view)
-                seen, known = own_observation(ff, view, obs, k, ctl.U_last[:, 0].copy()), view.no_ff
+            seen, known = _period_inputs(ff, view, obs, k, ctl)
             U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
             for x in U.flat:
                 if not np.isfinite(x):
                     return BAD_ACTION, k, 0
             log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
-            if view.on and view.log:
-                log_view(view, k)
+            _period_view_log(view, k)
             for i in range(n):  # the wind force of period k, held over it
                 for j in range(3):
                     phys.wind[i, j] = refs.wind_force[k, j]
@@ -425,9 +500,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
         if unhealthy(phys):
             return UNHEALTHY, k, 0
         observe_into(phys, refs, obs, k)
-        if view.on:
-            sense_tick(view.sense, view.rng, k, obs.pos, obs.vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.D[k],
-                       refs.unit_offsets)  # fmt: skip
+        _period_sense(view, obs, refs, k)
     return DONE, k, 0
 
 

@@ -283,10 +283,9 @@ class LogRows(NamedTuple):
 
 
 class Viewing(NamedTuple):
-    """Each drone's own view in the chunk driver (swarm_mj.sensing, docs/sensing.md); ``on`` False: the
-    ``perfect`` oracle (stand-ins the driver neither reads nor writes)."""
+    """Each drone's own view in the chunk driver under a sensing model (swarm_mj.sensing, docs/sensing.md; the
+    ``perfect`` oracle passes None instead)."""
 
-    on: bool
     sense: Any  # the sensing stage's record (swarm_mj.sensing.stage.SenseRecord)
     rng: Any  # its generator (numpy.random.Generator, the stage's own: the driver draws from it)
     pay: Any  # the payloads held (swarm_mj.sensing.payload.PayloadRecord)

@@ -229,14 +229,6 @@ def _f8(x) -> np.ndarray:  # noqa: ANN001 - an array or a tuple of arrays
     return np.ascontiguousarray(x, dtype=np.float64)
 
 
-def oracle_stage(n: int, period_s: float) -> SensingStage:
-    """A stage of the ``perfect`` preset, reset: the types a compiled driver takes for a run without sensing
-    (its stand-in, never ticked)."""
-    stage = SensingStage(SensingParams(), period_s, n)
-    stage.reset(np.zeros((n, 3)), 0)
-    return stage
-
-
 def is_oracle(params: SensingParams) -> bool:
     """The ``perfect`` preset, whatever its range: no sensing stage, the rules read the true state and
     apply their own ``sensing_range`` (which a range on the ``perfect`` channel would only repeat: the
