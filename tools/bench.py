@@ -43,8 +43,8 @@ Rows:
   barrier`` beside the same run with ``jet-aware`` (the "raw" column), wall time of the loop; the
   ratio is the median of the paired repeats' ``barrier / jet-aware`` (issue 29's bar: 1.3×);
 * sensing: the same circle with ``barrier`` under the ``mocap`` sensing model beside ``perfect`` (the
-  "raw" column), the median paired ratio (issue 49's bar: 1.15× on the chunk driver; a sensing model
-  flies step by step today, docs/sensing.md).
+  "raw" column), the median paired ratio (issue 49's bar: 1.15× on the chunk driver; docs/sensing.md,
+  "Cost"), and the chunk driver's own time per period under each.
 
 ``tools/bench_peers.py`` adds swarm-mj beside its peers: crazyflow's ``Sim`` (64 worlds x 6 drones,
 state control) beside ``SwarmVectorEnv(64)`` with constant commands and with the backstepping
@@ -835,6 +835,7 @@ def bench_sensing(quick: bool, repeats: int) -> None:
     loop, notes = _interleaved_runs({p: sc.with_overrides(sensing=p) for p in ("perfect", "mocap")}, repeats)
     ratio = paired(loop["mocap"], loop["perfect"])
     s, x = notes["mocap"].summary, notes["mocap"].extra
+    per = {p: 1e6 * r.extra["fused_seconds"] / max(r.extra["fused_periods"], 1) for p, r in notes.items()}
     row(
         "sensing",
         f"mocap vs perfect sensing, realistic circle, barrier (6 drones, {dur:g} s)",
@@ -844,7 +845,9 @@ def bench_sensing(quick: bool, repeats: int) -> None:
         unit="× perfect",
         note=f"bar 1.15× on the chunk driver; mocap: {x['fused_periods']} periods fused ({x['fast_path']}), "
         f"keep-out {s['keepout_time_s']:.2f} s, contacts {s['contacts']}; perfect: "
-        f"{notes['perfect'].extra['fused_periods']} fused; best of {repeats}; ratio: median of the paired repeats",
+        f"{notes['perfect'].extra['fused_periods']} fused; on the chunk driver {per['mocap']:.0f} µs a period "
+        f"against {per['perfect']:.0f} ({per['mocap'] / per['perfect']:.2f}×, the last repeat); best of {repeats}; "
+        "ratio: median of the paired repeats",
         ratio=ratio,
     )
 

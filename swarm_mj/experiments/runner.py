@@ -247,7 +247,11 @@ def run(
     if error is not None:
         summary["stopped"] = f"{type(error).__name__}: {error}".rstrip(": ")
     # of the K flown, the periods the chunk driver flew (swarm_mj/pipeline/fast.py); why none could, if so
-    extra = {"fused_periods": fast.periods if fast is not None else 0, "fast_path": reason or "on"}
+    extra = {
+        "fused_periods": fast.periods if fast is not None else 0,
+        "fused_seconds": fast.seconds if fast is not None else 0.0,  # wall-clock seconds of those periods
+        "fast_path": reason or "on",
+    }
     return RunResult(
         scenario=sc,
         log=log,
@@ -351,14 +355,18 @@ def _closed(log: RunLog, env: SwarmEnv, k: int, error: BaseException | None) -> 
 
 
 def preset_signatures() -> list[tuple]:
-    """The chunk driver's compile signatures for the physics presets (paper, realistic), from the
-    records of a short circle under each (what ``swarm-mj warm-up`` compiles)."""
+    """The chunk driver's compile signatures for the physics presets (paper, realistic), and realistic under a
+    sensing model (every preset's is the same signature for six drones), from the records of a short circle
+    under each (what ``swarm-mj warm-up`` compiles)."""
     out = []
-    for aero in ("paper", "realistic"):
-        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05), aero)
+    for aero, sensing in (("paper", "perfect"), ("realistic", "perfect"), ("realistic", "mocap")):
+        sc = with_aero(load_scenario("circle").with_overrides(duration=0.05, sensing=sensing), aero)
         env = SwarmEnv(sc, terminate_on_contact=False, raise_on_divergence=True)
         policy = BacksteppingPolicy(sc, env.params)
         log = RunLog.allocate(env.names, env.n_steps + 1, [st.name for st in env.sim.force_stages])
+        if env.sensing is not None:
+            log.views = ViewLog.allocate(env.n_steps + 1, env.n)
+            env.reset()  # (the sensing stage's record exists from a reset on)
         out.append(signature(FastLoop(env, policy, log)._args(0, 0)))
     return out
 

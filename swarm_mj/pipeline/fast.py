@@ -111,6 +111,7 @@ class FastLoop:
         n = env.n
         self.status = 0
         self.periods = 0  # control periods flown by the chunk driver so far
+        self.seconds = 0.0  # wall-clock seconds spent in it (its share of a run's time)
         self._cool = 0
         self._obs = Obs.empty(n)
         self._handed: dict | None = None  # the observation the last chunk handed back (its buffers hold it)
@@ -207,6 +208,13 @@ class FastLoop:
         """Fly from the environment's period to ``k_end`` (or to where the driver hands back); returns the
         period reached, with the environment, policy and log as the per-period path leaves them (where
         it stopped on an error, the period that failed: then :meth:`raise_if_stopped` raises it)."""
+        t0 = time.perf_counter()
+        try:
+            return self._run(k_end)
+        finally:
+            self.seconds += time.perf_counter() - t0
+
+    def _run(self, k_end: int) -> int:
         from .period import BAD_ACTION, CONTACT, REACT, UNHEALTHY
 
         env, policy, sim = self.env, self.policy, self.env.sim
