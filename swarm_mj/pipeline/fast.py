@@ -7,9 +7,11 @@ numbers bit for bit either way (``tests/integration/test_fast_path.py``). This m
 whether a run can use it and gathers the records from the run's objects:
 
 * **Whether a run flies fast is one question** (:func:`why_not`): has every stage, monitor, the
-  rule and its separation filter of this run a compiled step? Each has when its ``record()`` returns
-  a record type the registry holds (:mod:`swarm_mj.pipeline.registry`: ``FORCE_KERNELS``,
-  ``MONITOR_KERNELS``, ``RULE_KERNELS``, ``FILTER_KERNELS``). Otherwise the run flies step by step and
+  rule and its separation filter of this run a compiled step, and under a sensing model the sensing
+  stage a compiled tick and the rule a compiled check (each drone's copy is asked before any steps)?
+  Each has when its ``record()`` returns a record type the registry holds
+  (:mod:`swarm_mj.pipeline.registry`: ``FORCE_KERNELS``, ``MONITOR_KERNELS``, ``RULE_KERNELS``,
+  ``FILTER_KERNELS``, ``SENSING_KERNELS``, ``RULE_CHECKS``). Otherwise the run flies step by step and
   ``RunResult.extra["fast_path"]`` names what refused it (the run also says so on stderr).
 * **Compiling.** The driver's signature comes from the records themselves (Numba types them), one
   per set of force stages and monitors. Compiling it takes Numba 10–20 s, more than a run saves,
