@@ -118,7 +118,7 @@ def test_a_fresh_interpreter_finds_the_new_rules_step_from_the_pickled_signature
         "import inspect, pickle, sys; from swarm_mj.pipeline import fast, period; "
         "sig = pickle.loads(open(sys.argv[1], 'rb').read()); "
         "names = list(inspect.signature(fast._driver().py_func).parameters); "
-        "rule, filt = sig[names.index('rule')], sig[names.index('filt')]; "
+        "rule, filt = sig[names.index('rules')].dtype, sig[names.index('filts')].dtype; "
         "period._rule_period_compiled(rule, filt, None, None); print(rule.instance_class.__name__)"
     )
     out = subprocess.run(
