@@ -256,7 +256,7 @@ class FastLoop:
         """The barrier filter's relax events of the periods flown, into the rule's ``events`` (as its
         Python call and the rule's ``references`` do: :meth:`~swarm_mj.formation.rules.Rule.take_separation_events`)."""
         rule = self.policy.rule
-        if self._copies:
+        if isinstance(rule, OwnViewRule):  # each copy's filter's, drone i's of copy i
             rule.take_separation_events()
             return
         f = rule.separation_filter if self._ruled else None

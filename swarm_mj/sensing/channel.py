@@ -129,7 +129,15 @@ def _broadcasts(cfg, phase, s, k):
     return now > before
 
 
-@jit(samples=lambda: [(ChannelConfig(0.01, 2.5, 0, np.inf, True, 0.0, 0.0, 0.0, 0.0, 0.0), np.zeros(2), 3)])
+def _senders_samples() -> list:
+    cfg = ChannelConfig(
+        period_s=0.01, interval_ticks=2.5, delay_ticks=0, range_m=np.inf, leader_in_range=True, sigma_pos=0.0,
+        sigma_vel=0.0, loss=0.0, sigma_own_pos=0.0, sigma_own_vel=0.0,
+    )  # fmt: skip
+    return [(cfg, np.zeros(2), 3)]
+
+
+@jit(samples=_senders_samples)
 def senders_at(cfg: ChannelConfig, phase: np.ndarray, k: int) -> np.ndarray:
     """(n,) bool: the senders that broadcast at tick ``k`` (≥ 0) (:func:`_broadcasts`)."""
     out = np.empty(phase.shape[0], dtype=np.bool_)
