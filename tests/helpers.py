@@ -62,3 +62,23 @@ def start_until_progress(args: list[str], cwd: Path, stdout: int | None, poll: f
         os.close(master)
         raise
     return proc, master, err
+
+
+def assert_same_runs(a, b) -> None:  # noqa: ANN001 - two swarm_mj.experiments.runner.RunResult
+    """Two runs of the same scenario gave the same numbers bit for bit (the drivers' parity): every log
+    series, the force rows, the summary but its timing, the events, the contacts and the error."""
+    import numpy as np
+
+    from swarm_mj.experiments.runner import _SERIES
+
+    for f in (*_SERIES, "stage_rows"):
+        x, y = getattr(a.log, f), getattr(b.log, f)
+        assert np.array_equal(x, y, equal_nan=True), f"log.{f} differs"
+    assert list(a.log.forces) == list(b.log.forces)
+    sa, sb = dict(a.summary), dict(b.summary)
+    for s in (sa, sb):
+        s.pop("wall_time_s"), s.pop("real_time_factor")
+    assert sa == sb
+    assert a.events == b.events
+    assert a.contact_log == b.contact_log
+    assert repr(a.error) == repr(b.error)

@@ -14,10 +14,11 @@ import pickle
 
 import numpy as np
 import pytest
+from helpers import assert_same_runs
 
 from swarm_mj import _jit
 from swarm_mj.env import SwarmEnv
-from swarm_mj.experiments.runner import _SERIES, preset_signatures, run
+from swarm_mj.experiments.runner import preset_signatures, run
 from swarm_mj.experiments.stress import StressCase, stress_scenario
 from swarm_mj.physics import _mjstep
 from swarm_mj.physics.aero.updraft import UpdraftStage
@@ -42,18 +43,7 @@ def _both(sc, **kw):
     return a, b
 
 
-def _assert_same(a, b) -> None:
-    for f in (*_SERIES, "stage_rows"):
-        x, y = getattr(a.log, f), getattr(b.log, f)
-        assert np.array_equal(x, y, equal_nan=True), f"log.{f} differs"
-    assert list(a.log.forces) == list(b.log.forces)
-    sa, sb = dict(a.summary), dict(b.summary)
-    for s in (sa, sb):
-        s.pop("wall_time_s"), s.pop("real_time_factor")
-    assert sa == sb
-    assert a.events == b.events
-    assert a.contact_log == b.contact_log
-    assert repr(a.error) == repr(b.error)
+_assert_same = assert_same_runs
 
 
 @pytest.mark.parametrize("name", ["circle", "scenario1", "anti_collision"])

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import assert_same_runs
 
 from swarm_mj import _jit
-from swarm_mj.experiments.runner import _SERIES, run
+from swarm_mj.experiments.runner import run
 from swarm_mj.scenario import load_scenario
 
 pytestmark = [
@@ -25,17 +26,9 @@ VIEWS = ("pos", "mask", "age", "held_pos", "held_tick")
 
 
 def _same(a, b) -> None:
-    for f in (*_SERIES, "stage_rows"):
-        assert np.array_equal(getattr(a.log, f), getattr(b.log, f), equal_nan=True), f"log.{f} differs"
+    assert_same_runs(a, b)
     for f in VIEWS:  # what each drone believed and held, period by period
         assert np.array_equal(getattr(a.log.views, f), getattr(b.log.views, f), equal_nan=True), f"views.{f}"
-    sa, sb = dict(a.summary), dict(b.summary)
-    for s in (sa, sb):
-        s.pop("wall_time_s"), s.pop("real_time_factor")
-    assert sa == sb
-    assert a.events == b.events
-    assert a.contact_log == b.contact_log
-    assert repr(a.error) == repr(b.error)
 
 
 @pytest.mark.parametrize(
