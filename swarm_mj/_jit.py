@@ -285,6 +285,11 @@ class Bound:
         self._ids: tuple[int, ...] = ()
         self._keep: tuple[Any, ...] = ()
 
+    def __deepcopy__(self, memo: dict) -> Bound:
+        """A copy not bound yet (it binds at its first call): the dispatcher is shared, never copied (a copy
+        would pickle it; e.g. each drone's copy of a rule under a sensing model, swarm_mj.formation.own_view)."""
+        return Bound(self.fn, self.records)
+
     def __call__(self, *args: Any) -> Any:
         ids = tuple(map(id, args[: self.records]))
         if ids != self._ids:
