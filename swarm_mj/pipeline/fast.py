@@ -90,6 +90,8 @@ def why_not(env, policy) -> str | None:  # noqa: ANN001 - SwarmEnv, Backstepping
         return None
     if registry.why_not_compiled(rule, registry.RULE_KERNELS, "rule", "step") is not None:
         return f"the {rule.name!r} rule has no compiled step"
+    if (sensing is not None) != isinstance(rule, OwnViewRule):
+        return "the policy's rule and the environment disagree on the sensing model (one copy per drone or none)"
     if sensing is not None and registry.why_not_compiled(rule, registry.RULE_CHECKS, "rule", "check") is not None:
         return f"the {rule.name!r} rule has no compiled check (each drone's copy is asked before any steps)"
     filt = getattr(rule, "separation_filter", None)

@@ -47,3 +47,18 @@ def test_bit_identical_to_step_by_step(name, rule, sensing, aero, fused_share):
     _same(a, b)
     K = len(a.log.t) - 1
     assert b.extra["fused_periods"] > fused_share * K, b.extra
+
+
+def test_a_policy_that_reads_the_truth_does_not_fly_a_sensing_env_in_chunks():
+    # the chunk driver runs one copy of the rule per drone under a sensing model: a policy built without it
+    # (one rule on the true state) beside an environment with it is refused, saying why, not flown wrong
+    from swarm_mj.control.policy import BacksteppingPolicy
+    from swarm_mj.env import SwarmEnv
+    from swarm_mj.pipeline import fast
+
+    sc = load_scenario("circle").with_overrides(duration=0.1)
+    env = SwarmEnv(sc, sensing="mocap", terminate_on_contact=False)
+    env.reset()
+    why = fast.why_not(env, BacksteppingPolicy(sc, env.params))
+    assert why is not None and "disagree on the sensing model" in why
+    assert fast.why_not(env, BacksteppingPolicy(env.scenario, env.params)) is None
