@@ -289,7 +289,7 @@ class BacksteppingPolicy:
         """The command when each drone decides from its own view (the observation's ``view_*`` keys,
         swarm_mj.sensing.stage): drone i's references from its copy of the rule on its view, its
         controller on its own estimated position and velocity, its downwash feedforward from where it
-        believes the others are (:func:`~swarm_mj.pipeline.period.viewed_feedforward_into`, the chunk driver's)."""
+        believes the others are (:func:`~swarm_mj.pipeline.period.viewed_feedforward`, the chunk driver's)."""
         rule = self.rule  # (reset at the first command from the starts: the flight plan's pads, known to all)
         assert isinstance(rule, OwnViewRule)
         vp = obs["view_pos"]

@@ -29,7 +29,7 @@ separation filter          then ``FILTER_KERNELS[type(filt)]`` (the barrier filt
                            :func:`~swarm_mj.formation.barrier.barrier_step`, which ``BarrierFilter``
                            calls too), for a rule record with the fields it reads
 downwash feedforward       :func:`feedforward_force`; from each drone's view: :func:`own_observation`
-                           (:func:`viewed_feedforward_into`, the payloads' ``payload_tick``)
+                           (:func:`viewed_feedforward`, the payloads' ``payload_tick``)
 lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
                            :func:`~swarm_mj.physics.mixing.attitude_priority_kernel` (or
@@ -43,7 +43,7 @@ force stages               :func:`apply_forces` (drag + wind, then each register
 monitors                   :func:`~swarm_mj.physics.sim.track_monitors` (the steps without a contact)
 health check               :func:`~swarm_mj.physics.sim.unhealthy`
 observation                :func:`observe_into` (into the driver's buffers; :func:`observe` on new ones)
-each drone's view          :func:`~swarm_mj.sensing.stage.sense_tick` (the channel, the tracks, each
+each drone's view          :func:`~swarm_mj.sensing.stage.sense_step` (the channel, the tracks, each
                            drone's setpoints; ``SensingStage.observe`` calls it too), :func:`log_view`
 =========================  =====================================================================
 
@@ -201,7 +201,7 @@ def _sense_compiled(view, obs, refs, k):
     if isinstance(view, types.NoneType):
         return lambda view, obs, refs, k: None
 
-    def tick(view, obs, refs, k):  # (a call of the stage compiled once: the Python path's too)
+    def tick(view, obs, refs, k):
         sense_step(view.sense, view.rng, k, obs.pos, obs.vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.D[k],
                    refs.unit_offsets)  # fmt: skip
 
@@ -266,13 +266,14 @@ def _copies_period(rules, filts, view, obs, t):
     return False, pos_d, vel_d, acc_d
 
 
-@jit(inline=True)
-def viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:
+@jit(on_demand=True)
+def viewed_feedforward(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:
     """Each drone's downwash feedforward from its own view, into out (n, 3): the senders' attitude (n, 4) and
     last thrust (n,) of period k into the payloads (:func:`~swarm_mj.sensing.payload.payload_tick`, with the
     view's mask and ages (n, n)), then drone i's row of :func:`feedforward_force` at the positions it believes
     (view_pos[i] (n, 3)), with the attitudes and thrusts of the packets it holds and its own
-    (:func:`~swarm_mj.physics.aero.downwash.downwash_on`: that row alone)."""
+    (:func:`~swarm_mj.physics.aero.downwash.downwash_on`: that row alone). A call from the chunk driver, and the
+    per-period path's policy calls it too."""
     n = thrust.shape[0]
     payload_tick(pay, k, quat, thrust, mask, age)
     q, rotor, torque = np.empty((n, 4)), np.empty((n, 4)), np.empty(3)
@@ -286,23 +287,17 @@ def viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out) 
                               ff.r, out[i], torque)  # fmt: skip
 
 
-@jit(on_demand=True)
-def viewed_feedforward(ff, pay, k, view_pos, mask, age, quat, thrust, out) -> None:  # pragma: no cover - compiled
-    """:func:`viewed_feedforward_into` for Python callers (the per-period path's policy)."""
-    viewed_feedforward_into(ff, pay, k, view_pos, mask, age, quat, thrust, out)
-
-
 @jit(inline=True)
 def own_observation(ff, view, obs, k, thrust):
     """What drone i's controller is given when each drone decides from its own view: its own estimated position
     and velocity, and, with the downwash feedforward (``view.feedforward``), the force predicted from where it
-    believes the others are (:func:`viewed_feedforward_into`, ``thrust`` (n,) each drone's last U1: what its
+    believes the others are (:func:`viewed_feedforward`, ``thrust`` (n,) each drone's last U1: what its
     next packet carries) added to the known force; the command then runs with ``view.no_ff``."""
     sense = view.sense
     wf = obs.wf
     if view.feedforward:
         wf = np.empty_like(obs.wf)
-        viewed_feedforward(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)  # (a call)
+        viewed_feedforward(ff, view.pay, k, sense.pos, sense.mask, sense.age, obs.quat, thrust, wf)
         wf += obs.wf
     return Obs(
         pos=sense.own_pos, vel=sense.own_vel, quat=obs.quat, omega=obs.omega, rpy=obs.rpy, rpy_rate=obs.rpy_rate,
@@ -468,7 +463,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
     rule's step as in ``LayeredRule.references``. ``view``: None for the oracle, or under a sensing model a
     :class:`~swarm_mj.pipeline.records.Viewing` (the driver compiled for it): each period's view is the
     sensing stage's tick after the observation
-    (:func:`~swarm_mj.sensing.stage.sense_tick`), ``rules`` and ``filts`` hold one copy per drone, each deciding
+    (:func:`~swarm_mj.sensing.stage.sense_step`), ``rules`` and ``filts`` hold one copy per drone, each deciding
     its drone's references from that drone's view (:func:`_copies_period`), and the command is
     :func:`command` on :func:`own_observation`."""
     n = phys.qpos.shape[0]

@@ -53,7 +53,7 @@ from ..physics.aero.downwash import DownwashRecord, downwash_apply
 from ..physics.aero.ground import ground_track
 from ..physics.aero.ground_effect import GroundEffectRecord, ground_effect_apply
 from ..physics.aero.updraft import UpdraftRecord, updraft_apply
-from ..sensing.stage import SenseRecord, sense_tick
+from ..sensing.stage import SenseRecord, sense_step
 from .records import GroundTrack
 from .records import Rule as FormedRecord
 
@@ -93,7 +93,7 @@ RULE_CHECKS: dict[type, Callable[..., Any]] = {
 
 #: sensing stage record → its compiled tick (swarm_mj.sensing.stage; the perfect oracle has no stage)
 SENSING_KERNELS: dict[type, Callable[..., Any]] = {
-    SenseRecord: sense_tick,
+    SenseRecord: sense_step,
 }
 
 #: the named anti-collision rules, in the order the CLI lists them (``"auto"`` picks one: anticollision.AUTO)

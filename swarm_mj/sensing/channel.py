@@ -241,13 +241,13 @@ def channel_tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age):
 def channel_step(
     state: ChannelState, cfg: ChannelConfig, k: int, pos: np.ndarray, vel: np.ndarray, rng: np.random.Generator
 ) -> View:
-    """:func:`channel_tick` (compiled) at tick ``k`` (> the last), with the view of every drone. Updates
-    ``state`` in place and draws from ``rng``."""
+    """:func:`channel_tick` (compiled on its own for Python callers) at tick ``k`` (> the last), with the view
+    of every drone. Updates ``state`` in place and draws from ``rng``."""
     if k <= int(state.tick[0]):
         raise ValueError(f"tick {k} is not after the last one ({int(state.tick[0])})")
     n = pos.shape[0]
     own_pos, own_vel, age = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, n))
-    _tick(state, cfg, k, np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), rng,
+    channel_tick(state, cfg, k, np.ascontiguousarray(pos, dtype=float), np.ascontiguousarray(vel, dtype=float), rng,
           own_pos, own_vel, age)  # fmt: skip
     view_pos = state.held_pos.copy()
     view_vel = state.held_vel.copy()
@@ -255,12 +255,6 @@ def channel_step(
     view_pos[diag, diag] = own_pos
     view_vel[diag, diag] = own_vel
     return View(pos=view_pos, vel=view_vel, mask=state.held_tick >= 0, age=age, own_pos=own_pos, own_vel=own_vel)
-
-
-@jit
-def _tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age) -> None:  # pragma: no cover - compiled
-    """:func:`channel_tick` for Python callers (a compiled call of the inlined stage)."""
-    channel_tick(state, cfg, k, pos, vel, rng, own_pos, own_vel, age)
 
 
 def sensing_rng(seed: int, copy: int = 0) -> np.random.Generator:

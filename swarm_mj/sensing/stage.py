@@ -27,7 +27,7 @@ from ..formation.slots import setpoints_into
 from .channel import Channel, ChannelConfig, ChannelState, channel_tick
 from .margin import age_bound
 from .params import SensingParams, sensing_preset
-from .tracker import TrackState, start_tracks, track_gain, track_tick
+from .tracker import TrackState, start_tracks, track_gain, track_step
 
 #: Where a rule is told a drone is that its observer has no entry of (out of range): this far beyond
 #: the observer, in x (m), beyond any sensing range a scenario may set.
@@ -78,14 +78,15 @@ class SenseRecord(NamedTuple):
     yaw: np.ndarray  # (n,) the yaw references (zero; scratch)
 
 
-@jit(inline=True)
-def sense_tick(rec, rng, k, pos, vel, ref_pos, ref_vel, ref_acc, D, unit_offsets):
+@jit(on_demand=True, samples=lambda: _tick_samples())
+def sense_step(rec, rng, k, pos, vel, ref_pos, ref_vel, ref_acc, D, unit_offsets) -> None:
     """The view of period k (≥ 0, increasing) into ``rec`` from the true pos, vel (n, 3), drawing from the
     run's generator ``rng``: each drone's velocity estimate (its position's difference over the last period,
     paper §4's, zeros at the first), the channel's tick, every track's, the diagonal set to each drone's own
     estimate, entries dropped or never heard from moved out of sight (:data:`UNSEEN_M`), and each drone's
     formation setpoints from where it believes the leader is (``ref_*`` (3,): the leader's plan of period k,
-    D and the unit offsets (n − 1, 3) of the slots). Both drivers of the control period run it."""
+    D and the unit offsets (n − 1, 3) of the slots). Both drivers of the control period call it (a call, not
+    inlined: compiled once for every driver's signature)."""
     n = pos.shape[0]
     T = rec.T
     t = k * T
@@ -100,7 +101,7 @@ def sense_tick(rec, rng, k, pos, vel, ref_pos, ref_vel, ref_acc, D, unit_offsets
         rec.k0[0] = k
     channel_tick(rec.ch, rec.cfg, k - rec.k0[0], pos, rec.est_vel, rng, rec.own_pos, rec.chan_vel, rec.age)
     ch, tr = rec.ch, rec.tr
-    track_tick(tr, ch.held_pos, ch.held_vel, ch.held_tick, rec.age, T, rec.alpha, rec.spread)
+    track_step(tr, ch.held_pos, ch.held_vel, ch.held_tick, rec.age, T, rec.alpha, rec.spread)
     for i in range(n):
         for c in range(3):
             tr.x[i, i, c] = rec.own_pos[i, c]
@@ -136,15 +137,9 @@ def _tick_samples():
     return [(stage.rec, stage.rng, 0, z, z, z1, z1, z1, 0.5, np.zeros((2, 3)))]
 
 
-@jit(on_demand=True, samples=_tick_samples)
-def sense_step(rec, rng, k, pos, vel, ref_pos, ref_vel, ref_acc, D, unit_offsets) -> None:  # pragma: no cover
-    """:func:`sense_tick` for Python callers (a compiled call of the inlined stage)."""
-    sense_tick(rec, rng, k, pos, vel, ref_pos, ref_vel, ref_acc, D, unit_offsets)
-
-
 class SensingStage:
     """One run's sensing: the channel, the tracks and the leader estimates of every drone, as one record
-    (:class:`SenseRecord`, :meth:`record`) that :func:`sense_tick` advances. ``reset(starts, seed, copy)`` at
+    (:class:`SenseRecord`, :meth:`record`) that :func:`sense_step` advances. ``reset(starts, seed, copy)`` at
     the start of an episode, then :meth:`observe` once per period (or the chunk driver's ticks)."""
 
     def __init__(self, params: SensingParams, period_s: float, n: int) -> None:
@@ -208,7 +203,7 @@ class SensingStage:
     ) -> OwnView:
         """The view of period k (≥ 0, increasing) from the true pos, vel (n, 3); ``leader_plan``: the
         leader's reference (pos, vel, acc) (3,) of period k (its row of every drone's setpoints), D and the
-        unit offsets (n − 1, 3) of the slots: :func:`sense_tick`, then :meth:`view`."""
+        unit offsets (n − 1, 3) of the slots: :func:`sense_step`, then :meth:`view`."""
         rec = self.record()
         p, v, o, (rp, rv, ra) = (_f8(x) for x in (pos, vel, unit_offsets, leader_plan))
         self._step(rec, self.rng, int(k), p, v, rp, rv, ra, float(D), o)

@@ -87,7 +87,7 @@ def start_tracks(starts: np.ndarray) -> TrackState:
 
 
 @jit(inline=True)
-def track_tick(
+def track_step(
     s: TrackState,
     held_pos: np.ndarray,
     held_vel: np.ndarray,
@@ -100,7 +100,8 @@ def track_tick(
     """One control tick of every track, from what the receivers hold now (the channel's held_pos,
     held_vel (n, n, 3), held_tick (n, n) (−1: nothing) and age (n, n) s): predict with v·T, take in
     each new message (held_tick past seen_tick) with the gain ``alpha`` spread over ``spread_ticks``
-    (≥ 1); ``alpha`` 1 sets the belief to the message dead-reckoned over its age. In place."""
+    (≥ 1); ``alpha`` 1 sets the belief to the message dead-reckoned over its age. In place. Inlined in the
+    sensing stage's tick; compiled on its own for Python callers."""
     n = s.x.shape[0]
     ramp = min(spread_ticks, VELOCITY_RAMP_TICKS)
     for i in range(n):
@@ -136,18 +137,3 @@ def track_tick(
             s.fix_left[i, j] = 0 if alpha >= 1.0 or first else spread_ticks - 1
             s.vfix_left[i, j] = 0 if alpha >= 1.0 or first else ramp - 1
             s.seen_tick[i, j] = ht
-
-
-@jit
-def track_step(
-    s: TrackState,
-    held_pos: np.ndarray,
-    held_vel: np.ndarray,
-    held_tick: np.ndarray,
-    age: np.ndarray,
-    period_s: float,
-    alpha: float,
-    spread_ticks: int,
-) -> None:  # pragma: no cover - compiled
-    """:func:`track_tick` for Python callers (a compiled call of the inlined stage)."""
-    track_tick(s, held_pos, held_vel, held_tick, age, period_s, alpha, spread_ticks)

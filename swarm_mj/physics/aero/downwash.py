@@ -226,7 +226,7 @@ def downwash_on(
     """Set force, torque (3,) to the downwash of every other drone on drone ``i`` alone: row i of
     :func:`downwash_kernel` for one copy of N drones (the same pairs, :func:`jet_on_drone`, in the same order:
     the sources by index), at N − 1 pairs instead of N·(N − 1) (a drone's feedforward from its own view needs
-    its own row only: swarm_mj.pipeline.period.viewed_feedforward_into)."""
+    its own row only: swarm_mj.pipeline.period.viewed_feedforward)."""
     N = pos.shape[0]
     l = 2.0 * arm
     dst_axes, src_axes, off = np.empty((3, 3)), np.empty((3, 3)), np.empty(3)
