@@ -24,9 +24,9 @@ import numpy as np
 from .choices import GainsChoice, VehicleLike, choose_gains, relag, resolve_vehicle
 from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
-from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule
+from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule, rule_record
 from .formation.barrier import BarrierParams
-from .formation.rule_params import PARAM_TABLE, PRESETS, RuleParams, check_overrides
+from .formation.rule_params import PARAM_TABLE, LayersParams, RuleRecord, check_overrides
 from .formation.slots import DiameterSchedule
 from .physics.aero.presets import PAPER, AeroConfig, parse_aero, preset, vehicle_lag, with_aero
 from .physics.mixing import MIXERS
@@ -74,9 +74,10 @@ _TOP_KEYS = {
 _LEADER_KEYS = {"trajectory", "params", "start", "yaw_deg"}
 _FOLLOWER_KEYS = {"count", "start", "random_start"}
 _RANDOM_KEYS = {"radius", "min_spacing", "seed", "max_tries"}
-#: ``[formation]``: the D schedule, the rule, and the fields of the rule's parameter record
-#: (:class:`~swarm_mj.formation.rule_params.RuleParams`) but the ones asked of the controller,
-#: which are ``[controller]`` keys.
+#: ``[formation]``: the D schedule, the rule, and the fields of every rule's parameter record (the
+#: union, :data:`~swarm_mj.formation.rule_params.PARAM_KEYS`, whatever the rule: a key only another
+#: rule reads is accepted); ``[controller]``: the ones asked of the controller
+#: (:class:`~swarm_mj.formation.rule_params.ControllerParams`).
 _RULE_KEYS = {t: {k for k, tk in PARAM_TABLE.items() if tk == t} for t in ("formation", "controller")}
 _FORMATION_KEYS = {"diameter", "anti_collision", "barrier", *_RULE_KEYS["formation"]}
 _CONTROLLER_KEYS = {"gains", "wind_feedforward", "attitude_map", "mixer", "lag_compensation", *_RULE_KEYS["controller"]}
@@ -139,13 +140,12 @@ class Scenario:
         return resolve_rule(self.anti_collision, self.aero.downwash)
 
     @property
-    def rule_params(self) -> RuleParams:
-        """The parameter record the rule flies with: :attr:`rule`'s preset with its sizes scaled to the
-        vehicle (:meth:`~swarm_mj.formation.rule_params.RuleParams.for_vehicle`), then the scenario's
-        ``[formation]`` fields (and its ``sensing_range``), as
-        :func:`~swarm_mj.formation.anticollision.make_rule` builds it."""
-        preset = PRESETS[self.rule].for_vehicle(self.params)
-        return preset.with_overrides({**self.anti_collision_params, "sensing_range": self.sensing_range})
+    def rule_params(self) -> RuleRecord:
+        """The parameter record the rule flies with, its own record type: :attr:`rule`'s preset with its
+        sizes scaled to the vehicle, then the scenario's ``[formation]`` keys that are its fields (and its
+        ``sensing_range``), as :func:`~swarm_mj.formation.anticollision.make_rule` builds it
+        (:func:`~swarm_mj.formation.anticollision.rule_record`)."""
+        return rule_record(self.rule, self.params, {**self.anti_collision_params, "sensing_range": self.sensing_range})
 
     @property
     def mixer_flown(self) -> str:
@@ -538,7 +538,7 @@ def _parse_formation(data: dict, w: str, path: str) -> _Formation:
     rules = (AUTO, *ANTI_COLLISION_RULES)
     rule = choice(form, "anti_collision", AUTO, rules, wf, "unknown rule {v!r}; choose one of {choices}")
     params = check_overrides({k: v for k, v in form.items() if k in _RULE_KEYS["formation"]}, where=f"{w}formation")
-    sensing = float(params.pop("sensing_range", RuleParams().sensing_range))
+    sensing = float(params.pop("sensing_range", LayersParams().sensing_range))
     barrier = subtable(form, "barrier", {}, wf, "must be a table of the barrier filter's parameters")
     barrier = check_overrides(barrier, where=f"{wf}barrier", record=BarrierParams)
     try:

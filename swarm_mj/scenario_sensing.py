@@ -4,7 +4,7 @@ sensing_range``, and what ``Scenario.with_overrides(sensing=...)`` and ``--sensi
 The alias (docs/sensing.md, "The alias"): a file that sets ``[formation] sensing_range = r`` and no
 ``[sensing] range_m`` reads as ``range_m = r``; ``[sensing] range_m = r`` (finite) is the rules'
 ``Scenario.sensing_range`` too; neither leaves the channel without a range (inf) and the rules with
-their own 4 m (:class:`~swarm_mj.formation.rule_params.RuleParams`); both set is one error naming
+their own 4 m (:class:`~swarm_mj.formation.rule_params.LayersParams`); both set is one error naming
 ``sensing.range_m``.
 """
 
@@ -14,7 +14,7 @@ import math
 from typing import Any
 
 from .errors import UserError
-from .formation.rule_params import RuleParams
+from .formation.rule_params import LayersParams
 from .sensing.params import PRESETS, TABLE_KEYS, SensingParams, parse_sensing_table
 from .table_fields import check_keys
 
@@ -64,7 +64,7 @@ def sensing_overrides(sc: Any, sensing: SensingLike, where: str = "sensing") -> 
     if math.isfinite(record.range_m):
         rules_range = record.range_m
     elif isinstance(raw.get("sensing"), dict) and "range_m" in raw["sensing"]:
-        rules_range = RuleParams().sensing_range  # the replaced table gave the rules their range
+        rules_range = LayersParams().sensing_range  # the replaced table gave the rules their range
     else:
         rules_range = sc.sensing_range
     if alias is None and isinstance(formation, dict) and "sensing_range" in formation:

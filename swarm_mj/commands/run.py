@@ -145,10 +145,12 @@ def _main(args: argparse.Namespace, interrupt: CooperativeInterrupt) -> int:
     out = None
     if not args.no_record:
         # imported here: Rerun's import costs ~0.3 s of start-up, needed only when recording
+        from ..formation.rule_params import PaperParams
         from ..output.recording import write_recording
 
         out = Path(args.output) if args.output else Path(f"{sc.name}.rrd")
-        write_recording(result, out, safety_distance=sc.rule_params.safety_distance)
+        d_bar = getattr(sc.rule_params, "safety_distance", PaperParams().safety_distance)  # off has none: Fig. 5's
+        write_recording(result, out, safety_distance=d_bar)
         if not args.quiet:
             print(f"recording: {out}  (open with: swarm-mj view {out})", file=sys.stderr)
         if args.spawn:  # after the file is complete, so that the recording is kept whatever happens

@@ -167,9 +167,11 @@ def main(args: argparse.Namespace) -> int:
         print("swarm-mj: interrupted", file=sys.stderr)
         return 130
     if args.record:
+        from ..formation.rule_params import PaperParams
         from ..output.recording import write_recording
 
-        write_recording(result, Path(args.record), safety_distance=sc.rule_params.safety_distance)
+        d_bar = getattr(sc.rule_params, "safety_distance", PaperParams().safety_distance)  # off has none: Fig. 5's
+        write_recording(result, Path(args.record), safety_distance=d_bar)
         if not args.quiet:
             print(f"recording: {args.record}  (open with: rerun {args.record})", file=sys.stderr)
     if result.error is not None:

@@ -7,19 +7,23 @@ so that either can be imported first).
 
 from .barrier import BarrierFilter
 from .planner import LayeredRule
-from .rule_params import PRESETS, RuleParams
+from .rule_params import PRESETS, BaseParams, ControllerParams, JetAwareParams, LayersParams, PaperParams
 from .rules import NoRule, PaperRule, Rule
 from .separation import Sensed, SeparationFilter
 from .slots import DiameterSchedule, polygon_offsets, slot_positions
 
 __all__ = [
     "BarrierFilter",
+    "BaseParams",
+    "ControllerParams",
+    "JetAwareParams",
+    "LayersParams",
     "LayeredRule",
     "NoRule",
     "PRESETS",
+    "PaperParams",
     "PaperRule",
     "Rule",
-    "RuleParams",
     "Sensed",
     "SeparationFilter",
     "DiameterSchedule",

@@ -2,9 +2,10 @@
 docs/anticollision.md): ``"auto"`` and :func:`make_rule` (the named rules are
 :data:`swarm_mj.pipeline.registry.ANTI_COLLISION_RULES`, re-exported here).
 
-The parts: one parameter record (:mod:`.rule_params`, :class:`RuleParams`, whose presets the
-named rules are), the rules' interface and the paper's rule (:mod:`.rules`), the planner's phase
-machine, layers and limited paths (:mod:`.planner`, :class:`LayeredRule`), the separation step
+The parts: each rule's parameter record (:mod:`.rule_params`: :class:`PaperParams`,
+:class:`LayersParams`, :class:`JetAwareParams`, the named rules' :data:`PRESETS`), the rules'
+interface and the paper's rule (:mod:`.rules`), the planner's phase machine, layers and limited
+paths (:mod:`.planner`, :class:`LayeredRule`), the separation step
 (:mod:`.separation`: Fig. 5, the jet-aware offsets, never-through, early hold, and the
 :class:`~.separation.SeparationFilter` interface), the jet-aware rule (:mod:`.jet_aware`) and the
 compiled kernels (:mod:`.layered`). This module re-exports what the chunk driver reads.
@@ -12,6 +13,7 @@ compiled kernels (:mod:`.layered`). This module re-exports what the chunk driver
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 from ..errors import UserError
@@ -20,12 +22,22 @@ from ..pipeline.registry import ANTI_COLLISION_RULES
 from .jet_aware import JetAwareRule
 from .layered import any_below, horizontal_distances, idle_record, merge_rows, react_needed
 from .planner import CLIMB, CROSS, FORMED, CompensatedRule, G, LayeredRule
-from .rule_params import PRESETS, RuleParams
+from .rule_params import (
+    CONTROLLER_KEYS,
+    PRESETS,
+    BaseParams,
+    JetAwareParams,
+    LayersParams,
+    PaperParams,
+    RuleRecord,
+    check_overrides,
+    record_keys,
+)
 from .rules import NoRule, PaperRule, Rule
 
 #: Centre distance (m) under which two paper drones' keep-out discs overlap in plan view (the
-#: default record: :meth:`RuleParams.overlap`): a stand-in only; a rule's own is ``rule.overlap``.
-OVERLAP_M = RuleParams().overlap(DEFAULT_PARAMS)
+#: planner's default record: :meth:`LayersParams.overlap`): a stand-in only; a rule's own is ``rule.overlap``.
+OVERLAP_M = LayersParams().overlap(DEFAULT_PARAMS)
 
 AntiCollision = LayeredRule | PaperRule | NoRule | JetAwareRule
 
@@ -41,13 +53,15 @@ __all__ = [
     "OVERLAP_M",
     "G",
     "CompensatedRule",
+    "JetAwareParams",
     "JetAwareRule",
     "LayeredRule",
+    "LayersParams",
     "NoRule",
     "PRESETS",
+    "PaperParams",
     "PaperRule",
     "Rule",
-    "RuleParams",
     "any_below",
     "horizontal_distances",
     "idle_record",
@@ -55,6 +69,7 @@ __all__ = [
     "merge_rows",
     "react_needed",
     "resolve_rule",
+    "rule_record",
 ]
 
 
@@ -88,6 +103,19 @@ def resolve_rule(name: str, downwash: bool) -> str:
     return name
 
 
+def rule_record(name: str, vehicle: QuadParams = DEFAULT_PARAMS, values: dict[str, Any] | None = None) -> RuleRecord:
+    """The parameter record rule ``name`` (a key of :data:`ANTI_COLLISION_RULES`) flies with: its own
+    record type, its preset (:data:`PRESETS`; a rule outside them, its class's ``Params()``) with its
+    sizes scaled to ``vehicle`` (:meth:`~.rule_params.BaseParams.for_vehicle`), then those of
+    ``values`` that are its fields (validated already: :func:`~.rule_params.check_overrides`). The
+    other keys of ``values`` (another rule's, the controller's) are not its: they are left out."""
+    base = PRESETS[name].for_vehicle(vehicle) if name in PRESETS else ANTI_COLLISION_RULES[name].Params()
+    own = {k: v for k, v in (values or {}).items() if k in record_keys(base)}
+    if not own:
+        return base
+    return replace(base, **own) if isinstance(base, BaseParams) else base._replace(**own)
+
+
 def make_rule(
     name: str,
     n: int,
@@ -99,21 +127,21 @@ def make_rule(
 ) -> Rule:
     """Build an anti-collision rule by name (``layers``, ``paper``, ``off``, ``jet-aware``; resolve
     ``"auto"`` first with :func:`resolve_rule`) for drones of parameters ``vehicle`` (the run's,
-    ``Scenario.params``): its preset (:data:`PRESETS`) with its sizes scaled to the vehicle
-    (:meth:`RuleParams.for_vehicle`), then ``params``, any fields of :class:`RuleParams` in metres
-    as written (a scenario's ``[formation]`` keys and ``[controller] downwash_feedforward``;
-    :class:`UserError` naming ``where`` for an unknown one). ``barrier``: a scenario's
-    ``[formation.barrier]`` table, for the rules with a barrier filter (``takes_barrier_params``:
-    ``barrier``; docs/barrier.md); another rule has no use for it and flies without it
-    (a scenario with the table may fly ``--anti-collision jet-aware`` or a sweep over the rules)."""
+    ``Scenario.params``). ``params``: a scenario's ``[formation]`` keys (in metres as written) and
+    ``[controller] downwash_feedforward``, validated against every rule's keys (:class:`UserError`
+    naming ``where``'s table for an unknown one or a bad value); the rule's record is
+    :func:`rule_record` (its preset with the keys that are its fields: a key only another rule reads
+    is accepted and left out) and the controller's keys its ``controller_params``. ``barrier``: a
+    scenario's ``[formation.barrier]`` table, for the rules with a barrier filter
+    (``takes_barrier_params``: ``barrier``; docs/barrier.md); another rule has no use for it and
+    flies without it (a scenario with the table may fly ``--anti-collision jet-aware`` or a sweep
+    over the rules)."""
     if name not in ANTI_COLLISION_RULES:
         raise UserError(f"unknown rule {name!r}; choose one of {', '.join(ANTI_COLLISION_RULES)}", where=where)
-    table = where.rsplit(".", 1)[0]
-    record = PRESETS.get(name, RuleParams()).for_vehicle(vehicle).with_overrides(params, where=table)
+    values = check_overrides(params, where=where.rsplit(".", 1)[0])
+    record = rule_record(name, vehicle, values)
+    asked = {k: values[k] for k in CONTROLLER_KEYS if k in values}
     cls: Any = ANTI_COLLISION_RULES[name]
-    own = getattr(cls, "Params", None)  # a rule's own parameter record: its fields, today's keys (stagger.py)
-    if own is not None:
-        return cls(n, own(**{k: getattr(record, k) for k in own._fields}), vehicle=vehicle)
-    if not barrier or not getattr(cls, "takes_barrier_params", False):
-        return cls(n, record, vehicle=vehicle)
-    return cls(n, record, vehicle=vehicle, barrier=barrier)
+    if barrier and getattr(cls, "takes_barrier_params", False):
+        return cls(n, record, vehicle=vehicle, barrier=barrier, **asked)
+    return cls(n, record, vehicle=vehicle, **asked)

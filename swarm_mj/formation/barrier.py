@@ -91,7 +91,7 @@ kernels: :mod:`.barrier_kernels`; one period of the filter and :class:`BarrierFi
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -110,7 +110,7 @@ from .barrier_params import (
 from .barrier_qp import project_polyhedron
 from .jet_aware import JetAwareRule
 from .keepout import DOWNWASH_MULTIPLE, keepout_radii, pair_constraint
-from .rule_params import PRESETS, RuleParams
+from .rule_params import CONTROLLER_KEYS, PRESETS, JetAwareParams
 from .slots import capt_assignment
 
 
@@ -120,24 +120,25 @@ class BarrierPlannerRule(JetAwareRule):
     separation, a formed follower held ``transit_hold`` × the keep-out's height above a drone in
     transit under it) with :class:`BarrierFilter` as its separation step, its followers flying to
     slots assigned at the first update (``assign_slots``: :func:`~.slots.capt_assignment`, so that
-    no two straight paths cross). The filter's own parameters are :class:`BarrierParams` (keys of it
-    among ``overrides`` set them)."""
+    no two straight paths cross). Its record is its planner's, :class:`~.rule_params.JetAwareParams`;
+    the filter's own parameters are :class:`BarrierParams` (keys of it among ``overrides`` set them)."""
 
     name = "barrier"
     #: a scenario's ``[formation.barrier]`` table sets its filter (:func:`~.anticollision.make_rule`)
     takes_barrier_params = True
 
     def __init__(
-        self, n: int, params: RuleParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
+        self, n: int, params: JetAwareParams | None = None, *, barrier: dict[str, Any] | None = None, **overrides: Any
     ) -> None:
         """As :class:`~.jet_aware.JetAwareRule`; ``barrier`` and the keys only :class:`BarrierParams`
         has among ``overrides`` set the filter (:func:`barrier_params`)."""
         own = own_keys(overrides)
-        vehicle = overrides.get("vehicle", DEFAULT_PARAMS)  # the run's vehicle: its keep-out (Rule keeps it too)
-        record = PRESETS[self.name].for_vehicle(vehicle) if params is None else params
-        record = record.with_overrides({k: v for k, v in overrides.items() if k != "vehicle"}, where="")
+        vehicle = overrides.pop("vehicle", DEFAULT_PARAMS)  # the run's vehicle: its keep-out (Rule keeps it too)
+        asked = {k: overrides.pop(k) for k in CONTROLLER_KEYS if k in overrides}  # the controller's (Rule's)
+        record = cast(JetAwareParams, PRESETS[self.name]).for_vehicle(vehicle) if params is None else params
+        record = record.with_overrides(overrides, where="")
         self.barrier_filter = BarrierFilter(barrier_params(record, {**own, **(barrier or {})}), vehicle)
-        super().__init__(n, record, vehicle=vehicle)
+        super().__init__(n, record, vehicle=vehicle, **asked)
         self.separation_filter = self.barrier_filter
         bp = self.barrier_filter.barrier
         # the hold over a drone in transit, out of the filter's keep-out (docs/barrier.md, "the planner's hold")

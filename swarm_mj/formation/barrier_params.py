@@ -5,18 +5,18 @@ state, what :func:`~.barrier_filter.barrier_step` reads and updates on either dr
 from __future__ import annotations
 
 from dataclasses import dataclass, fields
-from typing import Any, NamedTuple
+from typing import Any, ClassVar, NamedTuple
 
 import numpy as np
 
 from ..errors import UserError
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .keepout import DOWNWASH_MULTIPLE, keepout_radii
-from .rule_params import RuleParams, check_overrides
+from .rule_params import PARAM_KEYS, LayersParams, check_overrides
 from .rule_params import param_field as _p
 
 #: Where a scenario sets the filter's parameters (:class:`BarrierParams`): a table of its own, because
-#: two of its names (``max_tilt_deg``, ``sensing_range``) are also the planner's (:class:`RuleParams`).
+#: two of its names (``max_tilt_deg``, ``sensing_range``) are also the planner's (:class:`~.rule_params.LayersParams`).
 BARRIER_TABLE = "formation.barrier"
 
 
@@ -25,8 +25,11 @@ class BarrierParams:
     """The filter's parameters: each field's unit, admissible range and one-line reason in its
     metadata (docs/barrier.md, "parameters", gives the long reasons and the measurements). A
     scenario sets any of them in its ``[formation.barrier]`` table (:data:`BARRIER_TABLE`), validated
-    from the metadata like :class:`RuleParams` (:func:`~.rule_params.check_overrides`); a bad value
+    from the metadata like the rules' records (:func:`~.rule_params.check_overrides`); a bad value
     is one :class:`UserError` naming the key."""
+
+    #: where an unknown key's message points (:func:`~.rule_params.check_overrides`)
+    DOCS: ClassVar[str] = "docs/barrier.md"
 
     downwash_multiple: float = _p(
         DOWNWASH_MULTIPLE, "–", "keep-out vertical / horizontal radius (Crazyswarm 2.5, Crazyflie 3)"
@@ -166,12 +169,13 @@ def guard_gains(bp: BarrierParams) -> np.ndarray:
 
 def own_keys(overrides: dict[str, Any]) -> dict[str, Any]:
     """The keys of ``overrides`` that only :class:`BarrierParams` has (popped); the names it shares
-    with :class:`RuleParams` (``max_tilt_deg``, ``sensing_range``) stay the planner's."""
-    own = set(BarrierParams.__dataclass_fields__) - set(RuleParams.__dataclass_fields__)
+    with the rules' records (:data:`~.rule_params.PARAM_KEYS`: ``max_tilt_deg``, ``sensing_range``)
+    stay the planner's."""
+    own = set(BarrierParams.__dataclass_fields__) - set(PARAM_KEYS)
     return {k: overrides.pop(k) for k in list(overrides) if k in own}
 
 
-def barrier_params(record: RuleParams, table: dict[str, Any]) -> BarrierParams:
+def barrier_params(record: LayersParams, table: dict[str, Any]) -> BarrierParams:
     """The filter's parameters: the defaults of :class:`BarrierParams` with ``table`` (a scenario's
     ``[formation.barrier]``, validated: one :class:`UserError` naming the key), its ``sensing_range``
     the rule's (``record``, the scenario's ``sensing_range``) unless the table sets it."""

@@ -4,10 +4,13 @@ separation of :mod:`.separation` and its preset's gentler paths."""
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .layered import any_below, react_needed
 from .planner import CROSS, FORMED, LayeredRule, PlanStep
+from .rule_params import JetAwareParams
 from .rules import pair_distances
 from .separation import (
     closing_only,
@@ -26,8 +29,10 @@ class JetAwareRule(LayeredRule):
 
     **What is the paper's** (Fig. 5, §4): as in :class:`~.planner.LayeredRule`. **What is the
     layered rule's** (ours): climb in place to a layer of its own, cross on it along a limited
-    path, drop over the slot. **What is new here** (ours); 1., 5. and 6. are its preset's values
-    (:data:`~.rule_params.PRESETS`), 2.–4. and 7. its separation:
+    path, drop over the slot. **What is new here** (ours); 5. and 6. are its preset's values
+    (:data:`~.rule_params.PRESETS`), 1. what it asks of the controller
+    (:data:`~.rule_params.CONTROLLER_PRESETS`), 2.–4. and 7. its separation (their numbers: the fields
+    :class:`~.rule_params.JetAwareParams` adds to the planner's):
 
     1. *feedforward* — ``downwash_feedforward``: the controller compensates the downwash force
        it predicts (:class:`~swarm_mj.control.policy.DownwashFeedforward`), as it does the wind.
@@ -46,7 +51,12 @@ class JetAwareRule(LayeredRule):
     """
 
     name = "jet-aware"
+    Params = JetAwareParams
+    params: JetAwareParams
     jet_aware_checks = True  # the formed step hands slots within D̄ and overlapping keep-outs to Python
+
+    def __init__(self, n: int, params: JetAwareParams | None = None, **overrides: Any) -> None:
+        super().__init__(n, params, **overrides)
 
     def update(
         self, t: float, positions: np.ndarray, pos_d: np.ndarray, formation_alt: float

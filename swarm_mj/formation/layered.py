@@ -6,7 +6,7 @@ both drivers of the control period call) and the pairwise helpers of the separat
 Each follower the rule steers flies a horizontal path (p, v, a (n, 2)) and an altitude path
 (zp, zv, za (n,)) whose position, velocity and acceleration go to the controller; the paths
 are limited in speed, acceleration (and tilt) and jerk (:class:`PathLimits`, from the rule's
-:class:`~swarm_mj.formation.rule_params.RuleParams`). Ours, not the paper's (see the rule's
+:class:`~swarm_mj.formation.rule_params.LayersParams`). Ours, not the paper's (see the rule's
 docstring and docs/interpretations.md §4).
 """
 
@@ -18,12 +18,12 @@ import numpy as np
 
 from .._jit import jit
 from ..pipeline.records import Rule as FormedRecord
-from .rule_params import RuleParams
+from .rule_params import LayersParams
 
 
 class PathLimits(NamedTuple):
     """What the path kernels read (m, s): built once per rule by :func:`path_limits`. A field named
-    as a field of :class:`~swarm_mj.formation.rule_params.RuleParams` is that field's value; the
+    as a field of :class:`~swarm_mj.formation.rule_params.LayersParams` is that field's value; the
     others are derived by the rule (:class:`~swarm_mj.formation.planner.LayeredRule`)."""
 
     max_accel: float  # (m/s²) horizontal path acceleration
@@ -42,7 +42,7 @@ class PathLimits(NamedTuple):
     thrust_floor: float  # (m/s²) least vertical specific force the tilt limit is taken from
 
 
-def path_limits(params: RuleParams, **derived: float) -> PathLimits:
+def path_limits(params: LayersParams, **derived: float) -> PathLimits:
     """The :class:`PathLimits` of a rule: each field named as a field of ``params`` from it, the
     others from ``derived`` (a missing one is a KeyError: a new field is either a parameter or
     derived by the rule)."""
@@ -85,7 +85,7 @@ def idle_record(n: int) -> FormedRecord:
 
 
 def _limits_sample() -> PathLimits:
-    return path_limits(RuleParams(), v_max=4.0, tan_tilt=0.5, g=9.81, v_up=4.0, a_down_formed=5.0)
+    return path_limits(LayersParams(), v_max=4.0, tan_tilt=0.5, g=9.81, v_up=4.0, a_down_formed=5.0)
 
 
 def _formed_samples():

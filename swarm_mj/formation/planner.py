@@ -23,7 +23,7 @@ from .layered import (
     path_limits,
     slotted,
 )
-from .rule_params import RuleParams
+from .rule_params import LayersParams
 from .rules import PaperRule, pair_distances, rownorm
 from .separation import Sensed, closest_approach, descending_onto, hold_above, seen_within
 
@@ -112,8 +112,10 @@ class LayeredRule(PaperRule):
     """
 
     name = "layers"
+    Params = LayersParams
+    params: LayersParams
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+    def __init__(self, n: int, params: LayersParams | None = None, **overrides: Any) -> None:
         super().__init__(n, params, **overrides)
         p = self.params
         self.arrive = p.arrive

@@ -15,8 +15,10 @@ and returns the controller's references (pos_d, vel_d, acc_d) (n, 3), the steere
 rows taken from the rule (what the policy calls; for the formed swarm the layered rule does
 it in one compiled kernel). Each rule appends its decisions to ``rule.events`` as dicts
 ``{t, drone, other, action}``: up, down, release (Fig. 5); cross, hold, aside, drop (the
-layered rule's transition). Every rule reads its numbers from ``rule.params``, one
-:class:`~swarm_mj.formation.rule_params.RuleParams` record.
+layered rule's transition). Every rule reads its numbers from ``rule.params``, its own record
+(:mod:`~swarm_mj.formation.rule_params`: :class:`~.rule_params.PaperParams` for ``paper``, and so on),
+and what it asks of the controller from ``rule.controller_params``
+(:class:`~.rule_params.ControllerParams`).
 
 Decentralised (docs/interpretations.md §4): a drone's decision uses only its own state, the leader's position
 (through its slot and the formation altitude) and the positions of drones within its
@@ -29,14 +31,21 @@ its altitude (a formed drone flies at the formation altitude).
 
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..pipeline.records import Rule as FormedRecord
 from .layered import horizontal_distances, idle_record, merge_rows
-from .rule_params import PRESETS, RuleParams
+from .rule_params import (
+    CONTROLLER_KEYS,
+    CONTROLLER_PRESETS,
+    PRESETS,
+    BaseParams,
+    ControllerParams,
+    PaperParams,
+)
 from .separation import SeparationFilter, fig5_react
 
 
@@ -46,7 +55,14 @@ class Rule:
     A new rule subclasses it with ``name``, ``events``, ``vel_d``, ``acc_d`` (n, 3), ``reset(positions)``
     and ``update(t, positions, pos_d, formation_alt) -> (pos_d, steer)`` (see the module docstring),
     and is registered in :data:`ANTI_COLLISION_RULES` (which makes it a scenario's
-    ``formation.anti_collision`` value and a ``--anti-collision`` choice)."""
+    ``formation.anti_collision`` value and a ``--anti-collision`` choice). Its parameter record is
+    ``Params`` (the fields it reads; its default is :data:`~.rule_params.PRESETS`' entry of its
+    name, else ``Params()``)."""
+
+    #: the rule's parameter record type (a scenario's keys that are its fields fill it: make_rule)
+    Params: ClassVar[type] = BaseParams
+    params: BaseParams
+    controller_params: ControllerParams
 
     name: str
     n: int
@@ -57,16 +73,20 @@ class Rule:
     separation_filter: SeparationFilter | None = None
 
     def __init__(
-        self, n: int, params: RuleParams | None = None, *, vehicle: QuadParams = DEFAULT_PARAMS, **overrides: Any
+        self, n: int, params: BaseParams | None = None, *, vehicle: QuadParams = DEFAULT_PARAMS, **overrides: Any
     ) -> None:
-        """``params``: the record (default: the preset named ``name``, :data:`PRESETS`, its sizes
-        scaled to ``vehicle`` by :meth:`RuleParams.for_vehicle`), with ``overrides`` (any of its
-        fields; :class:`UserError` for an unknown key or a bad value). ``vehicle``: the drones'
-        parameters, whose rotor span the keep-out is built from (``rule.vehicle``)."""
+        """``params``: the rule's record (default: :data:`PRESETS`' entry of its ``name``, else
+        ``Params()``, its sizes scaled to ``vehicle`` by :meth:`~.rule_params.BaseParams.for_vehicle`),
+        with ``overrides`` (any of its fields, and of :class:`~.rule_params.ControllerParams`;
+        :class:`UserError` for another key or a bad value). ``vehicle``: the drones' parameters, whose
+        rotor span the keep-out is built from (``rule.vehicle``)."""
         self.n = n
         self.vehicle = vehicle
-        base = PRESETS[self.name].for_vehicle(vehicle) if params is None else params
-        self.params = base.with_overrides(overrides, where="")
+        asked = {k: overrides.pop(k) for k in CONTROLLER_KEYS if k in overrides}
+        self.controller_params = CONTROLLER_PRESETS.get(self.name, ControllerParams()).with_overrides(asked, where="")
+        if params is None:
+            params = (PRESETS[self.name] if self.name in PRESETS else self.Params()).for_vehicle(vehicle)
+        self.params = params.with_overrides(overrides, where="")
 
     def reset(self, positions: np.ndarray) -> None:
         """Start of a run with the drones at positions (n, 3)."""
@@ -89,8 +109,9 @@ class Rule:
     @property
     def downwash_feedforward(self) -> bool:
         """Whether the controller is to compensate the downwash of the other drones (when the physics
-        has one; see :class:`~swarm_mj.control.policy.DownwashFeedforward`): the record's field."""
-        return self.params.downwash_feedforward
+        has one; see :class:`~swarm_mj.control.policy.DownwashFeedforward`): the rule's
+        :class:`~.rule_params.ControllerParams` (its default :data:`~.rule_params.CONTROLLER_PRESETS`')."""
+        return self.controller_params.downwash_feedforward
 
     def references(
         self,
@@ -110,8 +131,9 @@ class NoRule(Rule):
     """No anti-collision (``anti_collision = "off"``): setpoints pass through unchanged."""
 
     name = "off"
+    Params = BaseParams  # it reads nothing
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+    def __init__(self, n: int, params: BaseParams | None = None, **overrides: Any) -> None:
         super().__init__(n, params, **overrides)
         self.events: list[dict] = []
         self.vel_d = np.zeros((n, 3))
@@ -175,8 +197,10 @@ class PaperRule(Rule):
     """
 
     name = "paper"
+    Params = PaperParams
+    params: PaperParams
 
-    def __init__(self, n: int, params: RuleParams | None = None, **overrides: Any) -> None:
+    def __init__(self, n: int, params: PaperParams | None = None, **overrides: Any) -> None:
         super().__init__(n, params, **overrides)
         p = self.params
         self.safety = p.safety_distance

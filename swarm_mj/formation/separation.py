@@ -11,7 +11,7 @@ with each decision appended to ``events`` as ``{t, drone, other, action}``. The 
 Fig. 5: drone i yields to drone j < i (a follower always yields to the leader).
 
 The keep-out shape is a vertical cylinder around each drone: radius ``keep_out`` (arm + rotor
-radius + a margin, :meth:`~swarm_mj.formation.rule_params.RuleParams.keep_out`) in plan view;
+radius + a margin, :meth:`~swarm_mj.formation.rule_params.LayersParams.keep_out`) in plan view;
 two drones' cylinders overlap under the centre distance ``overlap``. Vertically a drone keeps
 ``hop`` from any drone whose cylinder overlaps its own.
 """

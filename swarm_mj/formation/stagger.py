@@ -76,7 +76,7 @@ class StaggerRule(Rule):
     name = "stagger"
     Params = StaggerParams  # make_rule fills it from a scenario's keys of the same names
     downwash_feedforward = False
-    params: StaggerParams  # type: ignore[assignment]  # its own record where Rule's are RuleParams
+    params: StaggerParams  # type: ignore[assignment]  # its own record (compiled: a NamedTuple), not a BaseParams
 
     def __init__(self, n: int, params: StaggerParams | None = None, **_: Any) -> None:  # vehicle=: unused
         self.n, self.params = n, params or StaggerParams()

@@ -36,7 +36,7 @@ from swarm_mj.scenario import parse_scenario
 pytestmark = pytest.mark.skipif(not _jit.ENABLED, reason="SWARM_MJ_NO_JIT set: Numba switched off on purpose")
 
 REPO = Path(__file__).resolve().parents[2]
-HOP, SAFETY, HYST = 0.4, 0.8, 0.05  # the rule's defaults (RuleParams' safety_distance, hop, hysteresis)
+HOP, SAFETY, HYST = 0.4, 0.8, 0.05  # the rule's defaults (StaggerParams' safety_distance, hop, hysteresis)
 #: the slots of the pentagon at D = 1 m (scenarios/anti_collision.toml starts its followers opposite them)
 SLOTS = -np.array([[0.0, -1.5], [1.4266, -0.4635], [0.8817, 1.2135], [-0.8817, 1.2135], [-1.4266, -0.4635]]) / 1.5
 

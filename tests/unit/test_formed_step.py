@@ -15,7 +15,7 @@ import pytest
 from swarm_mj.control.policy import BacksteppingPolicy
 from swarm_mj.formation.anticollision import FORMED, JetAwareRule, LayeredRule
 from swarm_mj.formation.layered import PathLimits, formed_update
-from swarm_mj.formation.rule_params import PARAM_KEYS, RuleParams
+from swarm_mj.formation.rule_params import PARAM_KEYS, LayersParams
 from swarm_mj.pipeline import registry
 from swarm_mj.pipeline.records import Obs
 from swarm_mj.scenario import parse_scenario
@@ -98,7 +98,7 @@ def test_every_path_limit_is_read_by_a_kernel_and_the_tunables_come_from_the_rec
     [("braking_share", 0.5), ("path_approach_gain", 1.0), ("altitude_approach_gain", 1.0), ("thrust_floor", 12.0)],
 )
 def test_a_path_tunable_set_by_a_scenario_reaches_the_formed_step_on_both_drivers(key, value):
-    assert getattr(RuleParams(), key) != value
+    assert getattr(LayersParams(), key) != value
     slots = _slots(4)
 
     def rule(**formation) -> LayeredRule:

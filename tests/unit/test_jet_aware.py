@@ -16,11 +16,11 @@ from swarm_mj.formation.anticollision import (
     make_rule,
     resolve_rule,
 )
-from swarm_mj.formation.rule_params import RuleParams
+from swarm_mj.formation.rule_params import JetAwareParams
 from swarm_mj.physics.mixing import MIX, attitude_priority
 
 HOP = 0.4
-HOLD = RuleParams().crossing_hold  # 7. of JetAwareRule: how far beyond D̄ the early hold starts
+HOLD = JetAwareParams().crossing_hold  # 7. of JetAwareRule: how far beyond D̄ the early hold starts
 FAR = np.array([[0.0, 0.0, 2.0], [10.0, 0.0, 2.0], [0.0, 10.0, 2.0]])  # setpoints far apart
 
 

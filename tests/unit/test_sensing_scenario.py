@@ -18,7 +18,7 @@ from swarm_mj.scenario import bundled_scenarios, flown, load_scenario, parse_sce
 from swarm_mj.sensing.params import PRESETS, SensingParams
 
 MINIMAL = {"duration": 5.0, "leader": {"trajectory": "hover"}}
-#: The rules' own decision range where nothing sets one (docs/anticollision.md, RuleParams.sensing_range).
+#: The rules' own decision range where nothing sets one (docs/anticollision.md, LayersParams.sensing_range).
 RULES_DEFAULT_M = 4.0
 COMMANDS = ("run", "stress", "sweep", "video")
 

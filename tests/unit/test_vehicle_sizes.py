@@ -12,7 +12,7 @@ import pytest
 
 from swarm_mj.control.policy import BacksteppingPolicy, DownwashFeedforward
 from swarm_mj.formation.anticollision import make_rule
-from swarm_mj.formation.rule_params import SIZE_KEYS, RuleParams
+from swarm_mj.formation.rule_params import SIZE_KEYS, JetAwareParams, LayersParams
 from swarm_mj.metrics import in_jet, jet_geometry
 from swarm_mj.physics.aero.downwash import S0, SPREAD, DownwashStage, downwash_kernel
 from swarm_mj.physics.params import DEFAULT_PARAMS
@@ -31,7 +31,7 @@ def test_paper_rule_keeps_its_keep_out_bit_for_bit() -> None:
         r = make_rule(name, 6)
         assert r.footprint == 0.25 + 0.09 + 0.01 and r.overlap == 2.0 * (0.25 + 0.09 + 0.01) + 0.02
         assert r.vehicle is DEFAULT_PARAMS
-    assert RuleParams().for_vehicle(DEFAULT_PARAMS) == RuleParams()
+    assert LayersParams().for_vehicle(DEFAULT_PARAMS) == LayersParams()
     assert load_vehicle("paper").params() == DEFAULT_PARAMS  # so paper.toml's runs are the same
 
 
@@ -45,7 +45,7 @@ def test_crazyflie_rule_keep_out_is_its_rotor_span() -> None:
         assert r.overlap < 0.15  # under half the paper drone's 0.72 m
     p = make_rule("layers", 6, vehicle=CFP).params
     for key in SIZE_KEYS:
-        assert getattr(p, key) == pytest.approx(getattr(RuleParams(), key) * k, rel=1e-12)
+        assert getattr(p, key) == pytest.approx(getattr(LayersParams(), key) * k, rel=1e-12)
 
 
 def test_size_fields_are_the_lateral_margins_only() -> None:
@@ -53,10 +53,10 @@ def test_size_fields_are_the_lateral_margins_only() -> None:
     the layers, altitudes, braking margins and the step aside (beyond D̄ + approach_margin from a
     moving leader; more than ``at_start``) are not vehicle sizes (docs/anticollision.md)."""
     assert set(SIZE_KEYS) == {"outline_margin", "overlap_spare", "hover_pass_margin"}
-    p = make_rule("layers", 6, vehicle=CFP).params
+    p = make_rule("jet-aware", 6, vehicle=CFP).params
     keys = ("safety_distance", "hop", "clearance", "floor_clearance", "approach_margin", "arrive", "aside_margin")
     for key in keys:
-        assert getattr(p, key) == getattr(RuleParams(), key)
+        assert getattr(p, key) == getattr(JetAwareParams(), key)
 
 
 def test_a_scenario_override_is_in_metres_as_written() -> None:
