@@ -158,6 +158,9 @@ class SwarmEnv(dm_env.Environment):
     ``force_stages``: extra :class:`~swarm_mj.physics.sim.ForceStage` s of the simulator, applied after
     drag and wind (e.g. aerodynamic effects between drones)."""
 
+    _applied: tuple | None = None  # (time, references) of the last period flown (last_applied)
+    _applied_record: StepRecord | None = None
+
     def __init__(
         self,
         scenario: Scenario | str,
@@ -221,7 +224,7 @@ class SwarmEnv(dm_env.Environment):
         self._refs = ph.refs()  # the references as a record, shared with the chunk driver
         if self.sensing is not None:
             self.sensing.reset(ph.starts[: self.n], self.seed)
-        self.last_applied: StepRecord | None = None
+        self._applied = self._applied_record = None  # nothing flown yet this episode (last_applied)
         if self._setpoint_ctl is not None:
             self._setpoint_ctl.reset()
         self._done = False
@@ -271,19 +274,7 @@ class SwarmEnv(dm_env.Environment):
         k = int(ph.k[0])  # the period flown now (self.k)
         t = k * self.T
         healthy = ph.step(U)[0] == HEALTHY
-        force = ph.wind_now.copy()  # (n, 3)
-        pos_d, vel_d, acc_d, att_d = refs if refs is not None else (None, None, None, None)
-        self.last_applied = StepRecord(
-            time=t,
-            U=sim.ctrl.copy(),
-            rotor_thrust=sim.rotor_thrust.copy(),
-            wind_force=force,
-            pos_d=pos_d,
-            vel_d=vel_d,
-            acc_d=acc_d,
-            att_d=att_d,
-            aero_forces=sim.stage_forces(),
-        )
+        self._applied, self._applied_record = (t, refs), None  # last_applied, built when asked
         diverged = None
         if not healthy:
             try:
@@ -330,6 +321,31 @@ class SwarmEnv(dm_env.Environment):
         return self.k * self.T
 
     @property
+    def last_applied(self) -> StepRecord | None:
+        """What the last period flown applied (None before the first of an episode): copies of the simulator's
+        held inputs, produced rotor thrusts, wind force and stage forces, which stay as that period left them
+        until the next (built at the first read after it), and the references of the :class:`Command` it was
+        given (None for a plain U array or a period flown by the chunk driver)."""
+        if self._applied is None:
+            return None
+        if self._applied_record is None:
+            t, refs = self._applied
+            sim = self.sim
+            pos_d, vel_d, acc_d, att_d = refs if refs is not None else (None, None, None, None)
+            self._applied_record = StepRecord(
+                time=t,
+                U=sim.ctrl.copy(),
+                rotor_thrust=sim.rotor_thrust.copy(),
+                wind_force=sim.wind.force.copy(),
+                pos_d=pos_d,
+                vel_d=vel_d,
+                acc_d=acc_d,
+                att_d=att_d,
+                aero_forces=sim.stage_forces(),
+            )
+        return self._applied_record
+
+    @property
     def last_wind_force(self) -> np.ndarray:
         """(n, 3) the wind force applied over the last control period (zeros before the first)."""
         rec = self.last_applied
@@ -367,6 +383,8 @@ class SwarmEnv(dm_env.Environment):
         if obs is None:
             return None
         self._obs = self._observation(obs, sensed=True)
+        if k > 0:  # the last period the driver flew: what it applied (last_applied), with no references
+            self._applied, self._applied_record = ((k - 1) * self.T, None), None
         if k >= self.n_steps:
             self._done = True
         return self._obs

@@ -2,7 +2,7 @@
 
 ``run(scenario)`` steps the environment with the backstepping policy, keeps every
 control-period sample in preallocated arrays (:class:`RunLog`, time axis first, filled from
-each observation and each :class:`~swarm_mj.env.StepRecord` the environment returns), and
+each observation and from what the simulator applied over each period), and
 returns them with the summary of docs/interpretations.md §7. A Ctrl-C or a divergence stops
 the loop; the log of what ran is kept (``RunResult.error`` says why it stopped) so that the
 recording can still be written. Ctrl-C is cooperative: while the loop runs, SIGINT only sets
@@ -23,7 +23,7 @@ import numpy as np
 from .._jit import CompileClock, python_body, warm_up
 from ..choices import gains_name
 from ..control.policy import BacksteppingPolicy
-from ..env import Command, StepRecord, SwarmEnv
+from ..env import Command, SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..formation.anticollision import AUTO, AUTO_CHOICE
 from ..formation.barrier import keepout_radii
@@ -44,7 +44,7 @@ from ..output.interrupt import CooperativeInterrupt
 from ..output.progress import Progress
 from ..physics.aero.presets import with_aero
 from ..physics.params import QuadParams
-from ..physics.sim import ForceStage
+from ..physics.sim import ForceStage, Sim
 from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
 from ..pipeline.period import log_inputs
 from ..pipeline.records import LogRows, Obs
@@ -132,14 +132,16 @@ class RunLog:
         :attr:`rows` (compiled for Python callers it would cost a first run seconds of compiling)."""
         _log_inputs(self.rows, k, t, obs, cmd.pos_d, cmd.att_d, wind_speed, D)
 
-    def applied(self, k: int, rec: StepRecord) -> None:
-        """What the environment applied over the period after sample k (each force stage by its name)."""
-        self.U[k] = rec.U
-        self.rotor[k] = rec.rotor_thrust
-        self.wind_force[k] = rec.wind_force
-        for name, f in (rec.aero_forces or {}).items():
-            if name in self.forces:
-                self.forces[name][k] = f
+    def applied(self, k: int, sim: Sim) -> None:
+        """What the simulator applied over the period after sample k, as that period left it: the held U1..U4,
+        the produced rotor thrusts, the wind force, and each extra stage's force by its name (the chunk
+        driver's row: swarm_mj.pipeline.period.log_outputs)."""
+        self.U[k] = sim.ctrl
+        self.rotor[k] = sim.rotor_thrust
+        self.wind_force[k] = sim.wind.force
+        for stage in sim.stages[2:]:
+            if stage.name in self.forces and hasattr(stage, "force"):
+                self.forces[stage.name][k] = stage.force
 
     def hold_last(self, k: int) -> None:
         """Sample k (the last, with no following period) holds the inputs of k − 1 (zero-order hold)."""
@@ -332,9 +334,7 @@ def _fly(
             if interrupt.requested:
                 raise KeyboardInterrupt
             ts = env.step(cmd)
-            rec = env.last_applied
-            assert rec is not None
-            log.applied(k, rec)
+            log.applied(k, env.sim)
             obs = ts.observation
             k += 1
             if k % 50 == 0:

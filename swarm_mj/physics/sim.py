@@ -499,13 +499,15 @@ class Sim:
         if parked:
             U = self._hold_parked(U)
         self.wind.set(wind_force)
-        calls = self._bound()
-        bound = U.shape == self.ctrl.shape  # else the dispatcher types U (and its shape is the caller's)
-        if bound:
+        calls = self._calls or self._bound()
+        if U.shape == self.ctrl.shape:  # else the dispatcher types U (and its shape is the caller's)
+            period = calls.period
             U = np.ascontiguousarray(U)  # (N, 4) C order: the bound calls' type
+        else:
+            period = calls.any_shape()
         saved = timer_pause()  # MuJoCo's profiling clock: off while we step (swarm_mj/physics/_mjstep.py)
         try:
-            self._fly_period(calls, calls.period if bound else calls.any_shape(), U)
+            self._fly_period(calls, period, U)
         finally:
             timer_resume(saved)
         if self.motor_lag:

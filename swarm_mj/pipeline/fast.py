@@ -251,7 +251,6 @@ class FastLoop:
         self._handed = env.after_chunk(
             k, sim.contact_events, Obs(**{k: b.copy() for k, b in self._obs._asdict().items()})
         )
-        self._record(k)
         return k
 
     def _take_filter_events(self) -> None:
@@ -265,24 +264,6 @@ class FastLoop:
         if f is not None:
             f.take_events()
             rule.take_separation_events()
-
-    def _record(self, k: int) -> None:
-        """The environment's record of the last period flown (as :meth:`SwarmEnv.step` leaves it)."""
-        from ..env import StepRecord
-
-        log, j, env = self.log, k - 1, self.env
-        if j >= 0:
-            env.last_applied = StepRecord(
-                time=j * env.T,
-                U=log.U[j].copy(),
-                rotor_thrust=log.rotor[j].copy(),
-                wind_force=log.wind_force[j].copy(),
-                pos_d=None,
-                vel_d=None,
-                acc_d=None,
-                att_d=None,
-                aero_forces=env.sim.stage_forces(),
-            )
 
     def raise_if_stopped(self) -> None:
         """Raise what the per-period path raises where the last :meth:`run` stopped: the simulator's

@@ -83,6 +83,9 @@ class Block:
         self.copies = slice(c0, c0 + b)  # in (m, ...) arrays
         self.rows = slice(c0 * n, (c0 + b) * n)  # in (m·n, ...) arrays
         self.n_log = 0  # contact_log entries already counted
+        self.whole = False  # the only block: its rows are every row
+        self.wind_rows = np.zeros((b * n, 3))  # its rows of SwarmPhysics.wind_now, and of health (views, set there)
+        self.health_rows = np.zeros(b, dtype=np.int8)
 
 
 class SwarmPhysics:
@@ -194,6 +197,9 @@ class SwarmPhysics:
         self.wind_obs = np.zeros((m, n, 3))  # the known wind force on the relative airspeed (the observation)
         # bound once (no re-typing per step, _jit.bind): these arrays are this object's, written only in place
         self._copy_winds = bind(copy_winds, self.wind, self.k, K, n, self.wind_now)
+        for blk in self.blocks:  # each block's views of them (the arrays are written only in place)
+            blk.whole = len(self.blocks) == 1
+            blk.wind_rows, blk.health_rows = self.wind_now[blk.rows], self.health[blk.copies]
 
     def _shared_refs(self, sensing_range: float) -> CopyRefs:
         """The references every copy shares (the task's record): the leader trajectory, D(t), the wind's roles."""
@@ -295,7 +301,7 @@ class SwarmPhysics:
         :attr:`contacts`), k + 1. The copies of ``restart`` (m,) bool (begun, see :meth:`begin`) fly it from
         their starts with zero input and are put back after it: k 0, no contacts, healthy. Returns
         :attr:`health`."""
-        n, health, new = self.n, self.health, self.new_contacts
+        n, new = self.n, self.new_contacts
         if restart is not None:
             self.put_back(restart)
             U = U.copy()
@@ -304,19 +310,12 @@ class SwarmPhysics:
             self._relative(self.wind_now)
         else:
             self._copy_winds(self.wind, self.k, self.n_steps, n, self.wind_now)
-        new[:] = 0
-        wind = self.wind_now
-
-        def fly(group: list[Block]) -> None:  # one thread's blocks: their simulators and health rows only
-            for blk in group:
-                blk.sim.step(U[blk.rows], wind[blk.rows])
-                blk.sim.health(health[blk.copies])
-
+        new.fill(0)
         if self.threads == 1:  # on this thread, where each Sim.step pauses MuJoCo's profiling clock itself
-            fly(self.blocks)
+            self._fly(self.blocks, U)
         else:  # the clock is one global: paused here, once, rather than by each thread's Sim.step
             with profiler_paused():
-                self.team.run(fly, self.groups)
+                self.team.run(lambda group: self._fly(group, U), self.groups)
         for blk in self.blocks:  # then the contacts, in block order
             log = blk.sim.contact_log
             if len(log) > blk.n_log:
@@ -324,14 +323,23 @@ class SwarmPhysics:
                     new[blk.c0 + i // n] += 1
                     self.contacts[blk.c0 + i // n] += 1
                 blk.n_log = len(log)
-        self.k += self._ones
+        if self.m == 1:
+            self.k[0] += 1  # (a tenth of the ufunc's cost)
+        else:
+            self.k += self._ones
         if restart is not None:
             self.put_back(restart)
             self.k[restart] = 0
             new[restart] = 0
             self.contacts[restart] = 0  # begun: none before this step, and this step's are not theirs
-            health[restart] = 0
-        return health
+            self.health[restart] = 0
+        return self.health
+
+    def _fly(self, group: list[Block], U: np.ndarray) -> None:
+        """One thread's blocks through the period: their simulators and their rows of :attr:`health` only."""
+        for blk in group:
+            blk.sim.step(U if blk.whole else U[blk.rows], blk.wind_rows)
+            blk.sim.health(blk.health_rows)
 
     def close(self) -> None:
         """End the threads of :attr:`team` (a later :meth:`step` starts them again)."""
