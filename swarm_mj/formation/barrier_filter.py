@@ -76,18 +76,14 @@ def _nominals(rec, own, steer, positions, vel, pos_d, vel_d, acc_d):
     vel_d, acc_d) (n, 3) for a free drone; for a guarded one (g (n,)), its own reference (r, ṙ) and the
     guarded nominal (:func:`~.barrier_kernels.lane_nominal_kernel` towards the planner's reference, an
     escaping drone's raised), within the limits. The leader (``own``, not ``steer``) is guarded from where
-    it is while its trajectory's reference is beyond ``leader_guard_m``. With ``rec.own_row`` ≥ 0 that row
-    alone (the others: the planner's, unguarded; :func:`barrier_step` says why that is exact)."""
+    it is while its trajectory's reference is beyond ``leader_guard_m``."""
     n = positions.shape[0]
     g = np.zeros(n, dtype=np.bool_)
     ref = pos_d.copy()
     ref_vel = vel_d.copy()
     u_nom = acc_d.copy()
     any_g = False
-    only = rec.own_row
     for i in range(n):
-        if only >= 0 and i != only:
-            continue  # not this record's drone
         g[i] = rec.guarded[i] and own[i]
         if own[i] and not steer[i] and not g[i]:  # the leader, with leader_filters
             far2 = 0.0
@@ -128,22 +124,18 @@ def _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d):
     """Which drones filter and take a share of the pairs' constraints, each drone's input limits (a_h,
     a_up, a_down) (n, 3), the ground band's and the ground envelope's included (docs/barrier.md, "near the
     ground"), and its QP metric (a follower the planner descends is changed vertically first):
-    (filters, pair_filters, limits, hcost). With ``rec.own_row`` ≥ 0 the limits and metric of that row
-    alone (the others' zero and one), the flags of every row (:func:`barrier_step`)."""
+    (filters, pair_filters, limits, hcost)."""
     n = positions.shape[0]
     filters = np.empty(n, dtype=np.bool_)
-    limits = np.zeros((n, 3))  # each drone's (a_h, a_up, a_down)
+    limits = np.empty((n, 3))  # each drone's (a_h, a_up, a_down)
     pair_filters = np.empty(n, dtype=np.bool_)  # the drones that take a share of the pairs' constraints
     hcost = np.ones(n)  # the QP's metric: a follower the planner descends is changed vertically first
-    only = rec.own_row
     for i in range(n):
+        if steer[i] and vel_d[i, 2] < -rec.descent_vz:
+            hcost[i] = rec.descent_horizontal_cost
         filters[i] = own[i] and not wait[i]
         # the leader (own, not steered) only with leader_yields: else it flies its nominal, the followers take all
         pair_filters[i] = filters[i] and (steer[i] or rec.leader_yields)
-        if only >= 0 and i != only:
-            continue  # not this record's drone: its limits and metric enter its own QP only
-        if steer[i] and vel_d[i, 2] < -rec.descent_vz:
-            hcost[i] = rec.descent_horizontal_cost
         limits[i, 0] = rec.a_h
         limits[i, 1] = rec.accel_up
         limits[i, 2] = rec.accel_down
@@ -249,15 +241,15 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     buffer (the caller drains it).
 
     With ``rec.own_row`` = i ≥ 0 (drone i's copy, swarm_mj/formation/own_view.py) only row i is
-    computed, bit for bit as with every row: the other rows are the planner's, their nominals, limits
-    and QPs not computed, their state (guarded, ref, ref_vel, escape, tallies: ``counts`` then counts
-    drone i alone) left as it was. That is exact because row i reads no other row's filter state: the
-    others enter its QP (:func:`~.barrier_kernels.filter_accelerations`) through their sensed state
-    (``positions``, ``vel``, ``sensed_acc``) and whether they filter (``steer``, the take-off gate's
-    ``wait``/``waited``), never through their references, nominals, limits, metric or filtered
-    commands, and what row j ≠ i of the record holds is read by row j alone, which no later period
-    of this record computes (the same function whichever driver calls it). So ``_sense`` and the gate,
-    which row i reads of every drone and which carry state, run for every row; the rest for row i."""
+    computed, bit for bit as with every row: the other rows are the planner's, their QPs unsolved,
+    their state (guarded, ref, ref_vel, escape, tallies: ``counts`` then counts drone i alone) left as
+    it was. That is exact because row i reads no other row's filter state: the others enter its QP
+    (:func:`~.barrier_kernels.filter_accelerations`) through their sensed state (``positions``, ``vel``,
+    ``sensed_acc``) and whether they filter (``steer``, the take-off gate's ``wait``/``waited``, computed
+    for every row as before), never through their references, nominals, limits or filtered commands;
+    and row j ≠ i of the record is read by row j alone, which no later period of it computes. The
+    nominals and limits of rows j ≠ i are still computed: restricting them too is exact but measured
+    no faster (docs/performance.md); ``_sense`` and the gate must run for every row."""
     n = positions.shape[0]
     own = steer.copy()  # the drones this filter flies: the steered ones, and the leader with leader_filters
     if rec.leader_filters and n > 0:

@@ -18,7 +18,7 @@ from swarm_mj.physics.params import DEFAULT_PARAMS
 
 _ROW_STATE = ("guarded", "ref", "ref_vel", "escaping", "pressed_s", "best_m", "was_relaxed", "active", "prev_acc")
 #: the state row i reads of every drone (the sensed accelerations, the take-off gate's held drones): a restricted
-#: filter keeps every row of it as the full filter does (its nominals, limits and QPs are row i's only)
+#: filter keeps every row of it as the full filter does (its QP and its state updates are row i's only)
 _SHARED_STATE = ("sensed_acc", "prev_vel", "start", "waited", "flags")
 
 
