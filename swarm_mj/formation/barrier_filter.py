@@ -243,10 +243,13 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     With ``rec.own_row`` = i ≥ 0 (drone i's copy, swarm_mj/formation/own_view.py) only row i is
     computed, bit for bit as with every row: the other rows are the planner's, their QPs unsolved,
     their state (guarded, ref, ref_vel, escape, tallies: ``counts`` then counts drone i alone) left as
-    it was. That is exact because row i reads no other row's filter state: the others enter it through
-    their sensed state (``positions``, ``vel``, ``sensed_acc``) and whether they filter (``steer``, the
-    take-off gate's ``wait``/``waited``, computed for every row as before), never through their
-    references, nominals or filtered commands."""
+    it was. That is exact because row i reads no other row's filter state: the others enter its QP
+    (:func:`~.barrier_kernels.filter_accelerations`) through their sensed state (``positions``, ``vel``,
+    ``sensed_acc``) and whether they filter (``steer``, the take-off gate's ``wait``/``waited``, computed
+    for every row as before), never through their references, nominals, limits or filtered commands;
+    and row j ≠ i of the record is read by row j alone, which no later period of it computes. The
+    nominals and limits of rows j ≠ i are still computed: restricting them too is exact but measured
+    no faster (docs/performance.md); ``_sense`` and the gate must run for every row."""
     n = positions.shape[0]
     own = steer.copy()  # the drones this filter flies: the steered ones, and the leader with leader_filters
     if rec.leader_filters and n > 0:

@@ -137,8 +137,9 @@ def filter_accelerations(
     rec: the filter's record (:class:`BarrierRecord`), of which it reads the parameters only:
     ``radii`` (the filter's keep-out), ``gain`` (k), ``tiebreak``, ``relax_weight``,
     ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``, ``own_row`` (≥ 0: only that
-    drone's QP is solved, the others keep u_nom, unflagged; each row reads the nominals, never
-    another row's filtered command, so that row is the same bit for bit).
+    drone's QP is solved, the others keep u_nom, unflagged; row i reads its own pos, vel, u_nom,
+    limits and hcost, and of the others their sensed state and ``filters`` only, never their
+    filtered commands, so that row is the same bit for bit).
     pos, vel (n, 3): each drone's own (reference) state; sensed_pos, sensed_vel, sensed_acc (n, 3):
     what the others sense of it (the acceleration only enters the constraint against a drone that
     does not filter, A·u_i ≥ b + A·a_j, as it does not give way); u_nom (n, 3) nominal

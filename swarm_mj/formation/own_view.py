@@ -34,9 +34,9 @@ class OwnViewRule:
     With :attr:`own_rows` (the default) the separation filter of copy i computes row i only (its
     ``restrict_to``, e.g. :meth:`~.barrier_filter.BarrierFilter.restrict_to`): the rows it would
     compute for the others are thrown away here, and row i does not depend on them (the barrier's
-    QP of drone i reads the others' nominals and sensed state, never their filtered commands), so
-    every run is the same bit for bit, for a sixth of the QPs with 6 drones
-    (tests/unit/test_own_row.py checks it)."""
+    QP of drone i reads the others' sensed state and whether they filter, never their nominals or
+    filtered commands: :func:`~.barrier_filter.barrier_step`), so every run is the same bit for bit,
+    for a sixth of the QPs with 6 drones (tests/unit/test_own_row.py checks it)."""
 
     #: copy i's separation filter computes drone i's row only (False: every row, as the rule itself)
     own_rows: bool = True

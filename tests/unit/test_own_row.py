@@ -1,8 +1,9 @@
 """The barrier filter restricted to one drone's row (``own_row``, swarm_mj/formation/barrier_filter.py's
 ``barrier_step``; what each drone's own copy of the rule flies under a sensing model,
 swarm_mj/formation/own_view.py) gives that row bit for bit as the filter of every row: its references,
-its state and its relax events, period after period, over random states (hypothesis); the other rows
-are the planner's. tests/integration/test_own_row_runs.py flies it (own rows on and off: the same runs).
+its state and its relax events, period after period, over random states (hypothesis), and every row of
+the state it reads of the others; the other rows are the planner's. tests/integration/test_own_row_runs.py
+flies it (own rows on and off: the same runs).
 """
 
 from __future__ import annotations
@@ -16,6 +17,9 @@ from swarm_mj.formation.barrier_params import BarrierParams, new_record
 from swarm_mj.physics.params import DEFAULT_PARAMS
 
 _ROW_STATE = ("guarded", "ref", "ref_vel", "escaping", "pressed_s", "best_m", "was_relaxed", "active", "prev_acc")
+#: the state row i reads of every drone (the sensed accelerations, the take-off gate's held drones): a restricted
+#: filter keeps every row of it as the full filter does (its QP and its state updates are row i's only)
+_SHARED_STATE = ("sensed_acc", "prev_vel", "start", "waited", "flags")
 
 
 def _bits(a: np.ndarray) -> np.ndarray:
@@ -88,6 +92,8 @@ def test_a_filter_restricted_to_one_row_gives_that_row_bit_for_bit(
                 assert np.array_equal(_bits(o[c][others]), _bits(refs[c][others]))
             for name in _ROW_STATE:
                 assert np.array_equal(getattr(rec, name)[i], getattr(full, name)[i]), name
+            for name in _SHARED_STATE:
+                assert np.array_equal(_bits(getattr(rec, name)), _bits(getattr(full, name))), name
             assert ev == [e for e in events if e[1] == i]
 
 
