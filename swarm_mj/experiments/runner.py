@@ -139,9 +139,9 @@ class RunLog:
         self.U[k] = sim.ctrl
         self.rotor[k] = sim.rotor_thrust
         self.wind_force[k] = sim.wind.force
-        for stage in sim.stages[2:]:
-            if stage.name in self.forces and hasattr(stage, "force"):
-                self.forces[stage.name][k] = stage.force
+        for name, force in sim.kept_forces():
+            if name in self.forces:
+                self.forces[name][k] = force
 
     def hold_last(self, k: int) -> None:
         """Sample k (the last, with no following period) holds the inputs of k − 1 (zero-order hold)."""

@@ -296,7 +296,12 @@ class Sim:
         downwash, ground effect) over the last physics step; None when there is no extra stage."""
         if len(self.stages) <= 2:
             return None
-        return {s.name: s.force.copy() for s in self.stages[2:] if hasattr(s, "force")}
+        return {name: f.copy() for name, f in self.kept_forces()}
+
+    def kept_forces(self) -> list[tuple[str, np.ndarray]]:
+        """(name, force (N, 3)) of each extra stage that keeps its force (after drag and wind), the
+        stage's own array (no copy: it holds the last physics step's until the next)."""
+        return [(s.name, s.force) for s in self.stages[2:] if hasattr(s, "force")]
 
     def add_monitor(self, monitor: Monitor) -> None:
         """Append a monitor (run after every physics step); it is reset now."""

@@ -83,9 +83,11 @@ class Block:
         self.copies = slice(c0, c0 + b)  # in (m, ...) arrays
         self.rows = slice(c0 * n, (c0 + b) * n)  # in (m·n, ...) arrays
         self.n_log = 0  # contact_log entries already counted
-        self.whole = False  # the only block: its rows are every row
-        self.wind_rows = np.zeros((b * n, 3))  # its rows of SwarmPhysics.wind_now, and of health (views, set there)
-        self.health_rows = np.zeros(b, dtype=np.int8)
+        # set by SwarmPhysics once its arrays exist: the only block (its rows every row), and its views of
+        # SwarmPhysics.wind_now and .health
+        self.whole = False
+        self.wind_rows: np.ndarray
+        self.health_rows: np.ndarray
 
 
 class SwarmPhysics:
@@ -181,7 +183,6 @@ class SwarmPhysics:
         # per-copy state
         N = m * n
         self.k = np.zeros(m, dtype=np.int64)  # control periods flown this episode
-        self._ones = np.ones(m, dtype=np.int64)
         self.seeds = np.zeros(m, dtype=np.int64)  # each copy's episode seed (its wind, its starts)
         self.starts = np.tile(start, (m, 1))  # (N, 3)
         self.yaws = np.tile(self._yaws, m)  # (N,)
@@ -323,10 +324,7 @@ class SwarmPhysics:
                     new[blk.c0 + i // n] += 1
                     self.contacts[blk.c0 + i // n] += 1
                 blk.n_log = len(log)
-        if self.m == 1:
-            self.k[0] += 1  # (a tenth of the ufunc's cost)
-        else:
-            self.k += self._ones
+        self.k += 1
         if restart is not None:
             self.put_back(restart)
             self.k[restart] = 0
