@@ -166,6 +166,8 @@ def _swarm_lines(s: dict, paper: bool, downwash: bool) -> list[str]:
         )
     a = s["anti_collision"]
     relaxed = f", {a['relaxations']} barrier relaxations (docs/barrier.md)" if a.get("relaxations") else ""
+    if a.get("reserve_periods"):
+        relaxed += f", {a['reserve_periods']} drone-periods on the barrier's reserve"
     lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields{relaxed}")
     auto = s.get("anti_collision_auto")
     if auto is not None:

@@ -484,7 +484,13 @@ def _swarm(log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, dist: np.ndar
             "min_separation_m": None,
             "formation": None,
             "downwash_dip_worst_m": 0.0,
-            "anti_collision": {"rule": policy.rule.name, "events": 0, "yields": 0, "relaxations": 0},
+            "anti_collision": {
+                "rule": policy.rule.name,
+                "events": 0,
+                "yields": 0,
+                "relaxations": 0,
+                "reserve_periods": 0,
+            },
         }
     t = log.t
     sim_time = float(t[-1]) if len(t) else 0.0
@@ -522,14 +528,17 @@ def _formation(log: RunLog, changes: np.ndarray, on_ground: bool) -> dict:
 
 
 def _events(policy: BacksteppingPolicy) -> dict:
-    """The anti-collision rule's events: all, the altitude yields and the barrier filter's relaxations
-    (constraints infeasible within the limits, docs/barrier.md)."""
+    """The anti-collision rule's events: all, the altitude yields, the barrier filter's relaxations
+    (constraints infeasible within the limits) and its drone-periods on the reserve (docs/barrier.md)."""
     ev = policy.events
+    rule = policy.rule
+    filters = [getattr(c, "separation_filter", None) for c in getattr(rule, "copies", [rule])]  # each drone's copy
     return {
-        "rule": policy.rule.name,
+        "rule": rule.name,
         "events": len(ev),
         "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
         "relaxations": sum(1 for e in ev if e["action"] == "relax"),
+        "reserve_periods": sum(int(getattr(f, "reserve_periods", 0)) for f in filters),
     }
 
 

@@ -91,6 +91,7 @@ def fly_case(case: StressCase) -> dict:
         "settling_s": float(settle),
         "yields": int(s["anti_collision"]["yields"]),
         "relaxations": int(s["anti_collision"]["relaxations"]),
+        "reserve_periods": int(s["anti_collision"].get("reserve_periods", 0)),
         "stopped": s.get("stopped"),
         "crashes": int(s.get("crashes", 0)),
         "ground_contacts": int(s.get("ground_contacts", 0)),
@@ -137,6 +138,9 @@ def summarize_rule(rows: list[dict]) -> dict:
         # the barrier filter's relaxations (constraints infeasible within the limits, docs/barrier.md)
         "relaxations": sum(r.get("relaxations", 0) for r in rows),
         "seeds_relaxed": [r["seed"] for r in rows if r.get("relaxations", 0) > 0],
+        # … and its drone-periods on the reserve's wider tilt (docs/barrier.md, "the reserve")
+        "reserve_periods": sum(r.get("reserve_periods", 0) for r in rows),
+        "starts_with_reserve": sum(r.get("reserve_periods", 0) > 0 for r in rows),
         "path_per_follower_median_m": float(np.median([r.get("path_per_follower_m", np.nan) for r in rows]))
         if rows
         else float("nan"),
@@ -229,6 +233,11 @@ def format_table(table: dict, followers: int, sensing: str = "perfect") -> str:
             lines.append(
                 f"           barrier relaxations: {r['relaxations']} in {len(seeds)} of {r['starts']} starts "
                 f"({_seed_list(seeds)}; docs/barrier.md)"
+            )
+        if r.get("reserve_periods"):
+            lines.append(
+                f"           barrier reserve: {r['reserve_periods']} drone-periods in {r['starts_with_reserve']} of "
+                f"{r['starts']} starts (a tilt up to the reserve's; docs/barrier.md)"
             )
     return "\n".join(lines)
 

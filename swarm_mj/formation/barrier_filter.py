@@ -261,7 +261,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                         rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way, rec.waited)  # fmt: skip
     rec.waited[:] = wait
     filters, pair_filters, limits, hcost = _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d)
-    u, active, relaxed, _ = filter_accelerations(
+    u, active, relaxed, _, reserve = filter_accelerations(
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
@@ -269,6 +269,8 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         if rec.own_row >= 0 and i != rec.own_row:
             continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
         _tally(rec, i, t, active[i], relaxed[i])
+        if reserve[i]:
+            rec.counts[5] += 1
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
             _hold_at_gate(rec, i, positions)
@@ -380,6 +382,12 @@ class BarrierFilter:
     def guarded_periods(self) -> int:
         """Drone-periods flown on the filter's own reference."""
         return int(self._rec.counts[2])
+
+    @property
+    def reserve_periods(self) -> int:
+        """Drone-periods in which no input within the limits met the constraints and the reserve's wider tilt
+        was tried (docs/barrier.md, "the reserve"); those it did not rescue are relaxed too."""
+        return int(self._rec.counts[5])
 
     @property
     def escapes(self) -> int:

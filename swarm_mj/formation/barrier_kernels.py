@@ -57,8 +57,8 @@ def _neighbour_rows(rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom,
             if not filters[j]:
                 bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
             lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
-            if lhs >= bs and min_over_limits(a, limits[i, 0], limits[i, 1], limits[i, 2]) >= bs:
-                continue  # no input within the limits can violate it, nor does the nominal: redundant
+            if lhs >= bs and min_over_limits(a, max(limits[i, 0], rec.reserve_a_h), limits[i, 1], limits[i, 2]) >= bs:
+                continue  # no input within the limits (the reserve's) can violate it, nor does the nominal: redundant
             if lhs < bs:
                 violated = True
                 if tiebreak > 0.0 and not turned:  # keep right: ẑ × n̂, n̂ from j to i (horizontal)
@@ -75,11 +75,14 @@ def _neighbour_rows(rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom,
 
 
 @jit(inline=True)
-def _project_command(A, b, m, ml, un, hcost_i, relax_weight, A4, b4):
-    """One drone's QP over its m barrier rows and ml limit rows of A·u ≥ b, in its metric diag(√c, √c, 1)
-    (c = ``hcost_i``; the rows and ``un`` scaled in place): the projection of its nominal ``un``, or,
-    when no input satisfies every row, the relaxed one (A4 (m_max + 1, 4), b4: work buffers). Returns
-    (w, relaxed, sh): the solution in the metric (w = (sh·u_x, sh·u_y, u_z)), whether it was relaxed, √c."""
+def _project_command(A, b, m, ml, un, hcost_i, relax_weight, A4, b4, lim, reserve_a_h):
+    """One drone's QP over its m barrier rows and ml limit rows of A·u ≥ b (its limits ``lim`` (3,) = (a_h,
+    a_up, a_down)), in its metric diag(√c, √c, 1) (c = ``hcost_i``; the rows and ``un`` scaled in place):
+    the projection of its nominal ``un``; where no input satisfies every row and ``reserve_a_h`` > a_h,
+    the same rows with the horizontal limit ``reserve_a_h`` (the reserve, docs/barrier.md); where none
+    does still, the relaxed one within the widest limits tried (A4 (m_max + 1, 4), b4: work buffers).
+    Returns (w, relaxed, sh, reserve): the solution in the metric (w = (sh·u_x, sh·u_y, u_z)), whether it
+    was relaxed, √c, and whether the reserve was needed."""
     sh = np.sqrt(hcost_i)  # the metric diag(sh, sh, 1): w = (sh·u_x, sh·u_y, u_z)
     if sh != 1.0:
         for k in range(m + ml):
@@ -88,6 +91,14 @@ def _project_command(A, b, m, ml, un, hcost_i, relax_weight, A4, b4):
         un[0] *= sh
         un[1] *= sh
     w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
+    reserve = False
+    if not ok and reserve_a_h > lim[0]:  # the reserve: the same rows within the wider tilt
+        limit_rows(A[m:], b[m:], reserve_a_h, lim[1], lim[2])
+        for k in range(m, m + ml):
+            A[k, 0] /= sh
+            A[k, 1] /= sh
+        w, ok = project_polyhedron(un, A[: m + ml], b[: m + ml])
+        reserve = True
     relaxed = False
     if not ok:
         # relaxation: A·u + ‖A‖·δ ≥ b, δ ≥ 0, cost ‖u − un‖² + w·δ², in w = (u, √w·δ); the rows
@@ -108,7 +119,7 @@ def _project_command(A, b, m, ml, un, hcost_i, relax_weight, A4, b4):
         relaxed = True
         for c in range(3):
             w[c] = w4[c]
-    return w, relaxed, sh
+    return w, relaxed, sh, reserve
 
 
 def _filter_samples():
@@ -136,7 +147,7 @@ def filter_accelerations(
 
     rec: the filter's record (:class:`BarrierRecord`), of which it reads the parameters only:
     ``radii`` (the filter's keep-out), ``gain`` (k), ``tiebreak``, ``relax_weight``,
-    ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``, ``own_row`` (≥ 0: only that
+    ``sensing_range``, ``floor_m``, ``priority_share``, ``both_states``, ``reserve_a_h``, ``own_row`` (≥ 0: only that
     drone's QP is solved, the others keep u_nom, unflagged; row i reads its own pos, vel, u_nom,
     limits and hcost, and of the others their sensed state and ``filters`` only, never their
     filtered commands, so that row is the same bit for bit).
@@ -154,12 +165,14 @@ def filter_accelerations(
     constraint is also imposed on the drone's sensed state (sensed_pos[i], sensed_vel[i]), so that a
     drone that lags its reference is kept out too (docs/barrier.md, "tracking").
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
-    constraints were infeasible within the limits and relaxed), n_constraints (n,) (the neighbour
-    constraints kept after the exact pruning)."""
+    constraints were infeasible within the limits, the reserve's included, and relaxed), n_constraints
+    (n,) (the neighbour constraints kept after the exact pruning), reserve (n,) (infeasible within the
+    limits, the horizontal one widened to ``reserve_a_h``: the reserve, docs/barrier.md)."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
     relaxed = np.zeros(n, dtype=np.bool_)
+    reserve = np.zeros(n, dtype=np.bool_)
     kept = np.zeros(n, dtype=np.int64)
     m_max = 2 * n + 10
     A = np.zeros((m_max, 3))
@@ -184,12 +197,14 @@ def filter_accelerations(
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
         ml = limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
-        w, relaxed_i, sh = _project_command(A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4)
+        w, relaxed_i, sh, reserve[i] = _project_command(
+            A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4, limits[i], rec.reserve_a_h
+        )
         relaxed[i] = relaxed_i
         u[i, 0] = w[0] / sh
         u[i, 1] = w[1] / sh
         u[i, 2] = w[2]
-    return u, active, relaxed, kept
+    return u, active, relaxed, kept, reserve
 
 
 def apply_filter(
@@ -202,13 +217,13 @@ def apply_filter(
     vehicle: QuadParams = DEFAULT_PARAMS,
     limits: np.ndarray | None = None,
     hcost: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
     the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
     (default: ``bp``'s for every drone); hcost (n,): each drone's cost of a horizontal change
-    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints)."""
+    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints, reserve)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
     n = pos.shape[0]

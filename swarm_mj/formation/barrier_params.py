@@ -46,6 +46,14 @@ class BarrierParams:
     )
     gain: float = _p(3.0, "1/s", "k of (B): α(s) = k·s for both orders (critically damped)")
     max_tilt_deg: float = _p(30.0, "deg", "horizontal limit (g − accel_down)·tan(this)", 0.0, 89.0)
+    reserve_tilt_deg: float = _p(
+        0.0,
+        "deg",
+        "where nothing within max_tilt_deg meets the constraints, this tilt is tried before relaxing (0: off)",
+        0.0,
+        89.0,
+        open_lo=False,
+    )
     accel_up: float = _p(3.0, "m/s²", "vertical acceleration limit up")
     accel_down: float = _p(2.0, "m/s²", "vertical acceleration limit down (below g)", 0.0, 9.8)
     tiebreak: float = _p(0.25, "m/s²", "keep-right acceleration of the deadlock tie-break", 0.0, open_lo=False)
@@ -152,10 +160,18 @@ class BarrierParams:
         """The filter's keep-out radii (3,): the vehicle's, inflated by the tracking margin."""
         return keepout_radii(vehicle, downwash_multiple=self.downwash_multiple, margin=self.tracking_margin_m)
 
-    def horizontal_limit(self, g: float = 9.81) -> float:
-        """Radius of the horizontal acceleration disc (m/s²): (g − a_down)·tan θ_max, what the tilt
-        limit allows at the lowest thrust the vertical limit leaves."""
-        return float((g - self.accel_down) * np.tan(np.radians(self.max_tilt_deg)))
+    def horizontal_limit(self, g: float = 9.81, tilt_deg: float | None = None) -> float:
+        """Radius of the horizontal acceleration disc (m/s²): (g − a_down)·tan θ, what the tilt limit θ
+        (``max_tilt_deg`` unless given) allows at the lowest thrust the vertical limit leaves."""
+        tilt = self.max_tilt_deg if tilt_deg is None else tilt_deg
+        return float((g - self.accel_down) * np.tan(np.radians(tilt)))
+
+    def reserve_horizontal_limit(self, g: float = 9.81) -> float:
+        """The reserve's horizontal limit (m/s²): (g − accel_down)·tan(reserve_tilt_deg), at least the
+        nominal one; 0 without a reserve (``reserve_tilt_deg`` 0)."""
+        if self.reserve_tilt_deg <= 0.0:
+            return 0.0
+        return max(self.horizontal_limit(g, self.reserve_tilt_deg), self.horizontal_limit(g))
 
 
 def guard_gains(bp: BarrierParams) -> np.ndarray:
@@ -193,6 +209,7 @@ class BarrierRecord(NamedTuple):
     radii: np.ndarray  # (3,) the filter's keep-out radii (m)
     lane_gains: np.ndarray  # (7,) lane_nominal_kernel's gains (guard_gains: the guarded nominal's PD)
     a_h: float  # horizontal acceleration limit (m/s²)
+    reserve_a_h: float  # the reserve's horizontal limit (m/s²; 0: no reserve)
     accel_up: float  # vertical limits (m/s²)
     accel_down: float
     gain: float  # k of (B) (1/s)
@@ -241,7 +258,7 @@ class BarrierRecord(NamedTuple):
     escaping: np.ndarray  # (n,) bool: the drone escapes up (its nominal's altitude raised)
     pressed_s: np.ndarray  # (n,) s the drone has been pressed without progress (0: not counting)
     best_m: np.ndarray  # (n,) m its least horizontal distance to the planner's reference since then
-    counts: np.ndarray  # (5,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes
+    counts: np.ndarray  # (6,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes; reserve
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
     ev_count: np.ndarray  # (1,) int64 events held
@@ -266,6 +283,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row
         radii=bp.radii(vehicle),
         lane_gains=guard_gains(bp),
         a_h=bp.horizontal_limit(vehicle.g),
+        reserve_a_h=bp.reserve_horizontal_limit(vehicle.g),
         lanes=bool(bp.guard_lanes),
         own_row=int(own_row),
         guarded=np.zeros(n, dtype=np.bool_),
@@ -282,7 +300,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row
         escaping=np.zeros(n, dtype=np.bool_),
         pressed_s=np.zeros(n),
         best_m=np.zeros(n),
-        counts=np.zeros(5, dtype=np.int64),
+        counts=np.zeros(6, dtype=np.int64),
         ev_t=np.zeros(cap),
         ev_drone=np.zeros(cap, dtype=np.int64),
         ev_count=np.zeros(1, dtype=np.int64),

@@ -55,7 +55,7 @@ def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     # (docs/barrier.md, "Infeasible under the limits: relaxation"), and the run says how often, on
     # both drivers
     data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
-    data["formation"]["barrier"] = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
+    data["formation"]["barrier"] = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6, "reserve_tilt_deg": 0.0}
     sc = parse_scenario(data, "<test>")
     runs = [run(sc, progress=False, fused=fused) for fused in (False, True)]
     for res in runs:
@@ -73,3 +73,27 @@ def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     # a rule without the filter never relaxes
     plain = run(stress_scenario(StressCase("jet-aware", 100033, 5, 3.0, 0.6, 6.0, aero="realistic")), progress=False)
     assert plain.summary["anti_collision"]["relaxations"] == 0
+
+
+def test_the_reserve_is_counted_in_the_summary_and_the_stress_row(monkeypatch):
+    # the same start and small limits, with the reserve at 45° (docs/barrier.md, "Infeasible under the
+    # limits: the reserve"): it is used, counted the same on both drivers, said in the summary's line and
+    # the stress row and table, and it leaves fewer relaxations than the same start without it
+    data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
+    limits = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
+    relaxations = {}
+    for reserve in (0.0, 45.0):
+        data["formation"]["barrier"] = {**limits, "reserve_tilt_deg": reserve}
+        sc = parse_scenario(data, "<test>")
+        runs = [run(sc, progress=False, fused=fused) for fused in (False, True)]
+        counts = [r.summary["anti_collision"]["reserve_periods"] for r in runs]
+        assert counts[0] == counts[1] and (counts[0] > 0) == (reserve > 0)
+        relaxations[reserve] = runs[0].summary["anti_collision"]["relaxations"]
+    assert relaxations[45.0] < relaxations[0.0]
+    res = runs[0]
+    assert f"{counts[0]} drone-periods on the barrier's reserve" in format_summary(res.summary, res.scenario)
+    monkeypatch.setattr(stress, "stress_scenario", lambda case: sc)
+    row = stress.fly_case(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0))
+    assert row["reserve_periods"] == counts[0]
+    table = {"barrier": stress.summarize_rule([row])}
+    assert f"barrier reserve: {counts[0]} drone-periods in 1 of 1 starts" in stress.format_table(table, 5)

@@ -181,6 +181,22 @@ def _limits_ok(u: np.ndarray, a_h: float, a_up: float, a_down: float) -> bool:
     return bool(np.all(np.cos(ang) * u[0] + np.sin(ang) * u[1] <= face + tol) and -a_down - tol <= u[2] <= a_up + tol)
 
 
+def _feasibility_margin(rows, a_h, a_up, a_down) -> float:
+    """The largest t with A·u ≥ b + t for every row (A, b) and u within the limits of :func:`_limits_ok` (a
+    linear programme, SciPy's HiGHS): ≥ 0 where some input meets every row."""
+    ang = np.arange(8) * np.pi / 4
+    lim_A = np.vstack([np.stack([np.cos(ang), np.sin(ang), 0 * ang], 1), [[0, 0, 1.0], [0, 0, -1.0]]])
+    lim_b = np.concatenate([np.full(8, a_h * np.cos(np.pi / 8)), [a_up, a_down]])
+    A = np.array([r[0] for r in rows])
+    b = np.array([r[1] for r in rows])
+    # variables (u, t): −A·u + t ≤ −b; the limits lim_A·u ≤ lim_b; maximise t (t ≤ 100 keeps it bounded)
+    A_ub = np.vstack([np.c_[-A, np.ones(len(rows))], np.c_[lim_A, np.zeros(10)]])
+    b_ub = np.concatenate([-b, lim_b])
+    res = scipy_optimize.linprog([0, 0, 0, -1.0], A_ub=A_ub, b_ub=b_ub, bounds=[(None, None)] * 3 + [(None, 100.0)])
+    assert res.success
+    return float(-res.fun)
+
+
 def _constraint(pi, vi, pj, vj, radii, k, share):
     """(B) for drone i, written here again from docs/barrier.md: A·u_i ≥ share(b)·b."""
     S = 1.0 / radii
@@ -213,12 +229,14 @@ vec = st.tuples(*[st.floats(-2.0, 2.0)] * 3).map(np.array)
     prio=st.floats(0.0, 1.0),
     track=st.sampled_from([0.0, 0.05, 0.2]),
     cost=st.sampled_from([1.0, 4.0, 16.0, 100.0]),
+    reserve=st.sampled_from([0.0, 45.0, 70.0]),
 )
-def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, cost):
-    """docs/barrier.md, "Tests": every constraint reported feasible holds, the limits hold, the nominal
-    exactly when no constraint is active, and nothing within the constraints is closer to the nominal
-    in the drone's metric (diag(√c, √c, 1) for the drones given a horizontal cost c, else I) than the
-    filter's answer, by a reference QP solver."""
+def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, cost, reserve):
+    """docs/barrier.md, "Tests": every constraint reported feasible holds, the limits hold (the reserve's
+    where it was used, and it was used only where no input within the limits meets the constraints, by a
+    linear programme), the nominal exactly when no constraint is active, and nothing within the
+    constraints is closer to the nominal in the drone's metric (diag(√c, √c, 1) for the drones given a
+    horizontal cost c, else I) than the filter's answer, by a reference QP solver."""
     rng = np.random.default_rng(seed)
     pos = rng.normal(scale=spread, size=(n, 3)) + np.array([0, 0, 3.0])
     vel = rng.normal(scale=1.5, size=(n, 3))
@@ -233,12 +251,14 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, c
         sensing_range=1e9,
         floor_m=-1e6,  # below every sampled altitude: no pair is "both on the ground" (the filter skips those)
         priority_share=prio,
+        reserve_tilt_deg=reserve,
     )
-    radii, a_h = bp.radii(), bp.horizontal_limit()
+    radii, a_nominal = bp.radii(), bp.horizontal_limit()
+    a_reserve = bp.reserve_horizontal_limit() or a_nominal
     # what the others sense: each drone off its own (reference) state by a tracking error
     sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
     hcost = np.where(rng.random(n) < 0.5, cost, 1.0)  # the descent's metric on some of the drones
-    u, active, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
+    u, active, relaxed, _, used = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
     for i in range(n):
         rows = [
             _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
@@ -253,7 +273,13 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, c
             np.testing.assert_array_equal(u[i], u_nom[i])
             continue
         assert active[i]
+        assert not used[i] or a_reserve > a_nominal
+        a_h = a_reserve if used[i] else a_nominal
         assert _limits_ok(u[i], a_h, up, down)
+        if used[i]:  # the reserve only where the limits leave nothing
+            assert _feasibility_margin(rows, a_nominal, up, down) < 1e-7
+        if relaxed[i]:  # the relaxation only where the widest limits leave nothing
+            assert _feasibility_margin(rows, a_h, up, down) < 1e-7
         if not relaxed[i]:
             for A, b in rows:
                 assert A @ u[i] >= b - 1e-8 * (1 + abs(b))
@@ -275,8 +301,8 @@ def test_relaxation_is_used_and_flagged():
     halves (``priority_share`` 0.5), so that both drones have a share to relax."""
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
-    bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5)
-    u, active, relaxed, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
+    bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0)
+    u, active, relaxed, _, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
     assert active.all() and relaxed.all()
     for i in range(2):
         assert _limits_ok(u[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
@@ -300,7 +326,7 @@ def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
         nh = np.linalg.norm(u_nom[:, :2], axis=1, keepdims=True)
         u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        u, _, relaxed, _ = apply_filter(bp, pos, vel, u_nom, filters)
+        u, _, relaxed, _, _ = apply_filter(bp, pos, vel, u_nom, filters)
         n_relaxed += int(relaxed.sum())
         vel += u * dt
         pos += vel * dt
@@ -485,8 +511,9 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     test_relaxation_is_used_and_flagged): the filter relaxes both, and each gets one relax event
     at the first period of the stretch (t of that call), not one per period; the counters count
     drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``
-    (the burden split in halves, so that both relax)."""
-    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, priority_share=0.5))
+    (the burden split in halves, so that both relax). No reserve: with it they would not relax
+    (test_filter_uses_the_reserve_before_it_relaxes)."""
+    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0))
     f.reset(3)
     pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
@@ -497,6 +524,29 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     assert f.relaxed_periods == 4 and f.active_periods == 4
     assert f.events == [{"t": 0.0, "drone": d, "other": -1, "action": "relax"} for d in (1, 2)]
     assert f.record().ev_count[0] == 0  # the buffer was emptied into events
+
+
+def test_filter_uses_the_reserve_before_it_relaxes():
+    """The same two followers, the tilt limited to 5° and the reserve at 45° (docs/barrier.md, "the
+    reserve"): braking within 5° cannot satisfy (B), within 45° it can, so no drone relaxes, both use the
+    reserve (counted per drone-period), (B) written out here holds, and each command is within the
+    reserve's limits and beyond the nominal's."""
+    bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=45.0, tiebreak=0.0, both_states=False)
+    f = BarrierFilter(bp)
+    f.reset(3)
+    pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
+    vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    steer = np.array([False, True, True])
+    z = np.zeros((3, 3))
+    for k in range(2):
+        _, _, a = f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
+    assert f.relaxed_periods == 0 and f.reserve_periods == 4 and f.events == []
+    radii = bp.radii()
+    for i, j in ((1, 2), (2, 1)):
+        A, b = _constraint(pos[i], vel[i], pos[j], vel[j], radii, bp.gain, lambda _: 0.5)
+        assert A @ a[i] >= b - 1e-8 * (1 + abs(b))
+        assert _limits_ok(a[i], bp.reserve_horizontal_limit(), bp.accel_up, bp.accel_down)
+        assert not _limits_ok(a[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
 
 
 def test_filter_flies_the_leader_with_leader_filters():
