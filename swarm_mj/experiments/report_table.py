@@ -165,7 +165,10 @@ def _swarm_lines(s: dict, paper: bool, downwash: bool) -> list[str]:
             f"time with a drone in a jet {dw['time_in_jet_s']:.2f} s"
         )
     a = s["anti_collision"]
-    relaxed = f", {a['relaxations']} barrier relaxations (docs/barrier.md)" if a.get("relaxations") else ""
+    relaxed = ""
+    if a.get("relaxations"):
+        vs = a.get("relaxations_vs_leader", 0)
+        relaxed = f", {a['relaxations']} barrier relaxations ({vs} against the leader; docs/barrier.md)"
     if a.get("reserve_periods"):
         relaxed += f", {a['reserve_periods']} drone-periods on the barrier's reserve"
     lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields{relaxed}")

@@ -489,6 +489,7 @@ def _swarm(log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, dist: np.ndar
                 "events": 0,
                 "yields": 0,
                 "relaxations": 0,
+                "relaxations_vs_leader": 0,
                 "reserve_periods": 0,
             },
         }
@@ -538,6 +539,8 @@ def _events(policy: BacksteppingPolicy) -> dict:
         "events": len(ev),
         "yields": sum(1 for e in ev if e["action"] in ("up", "down")),
         "relaxations": sum(1 for e in ev if e["action"] == "relax"),
+        # … of which the row that asked most beyond the drone's limits was its pair with the leader
+        "relaxations_vs_leader": sum(1 for e in ev if e["action"] == "relax" and e.get("other") == 0),
         "reserve_periods": sum(int(getattr(f, "reserve_periods", 0)) for f in filters),
     }
 

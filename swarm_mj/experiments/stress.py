@@ -91,6 +91,7 @@ def fly_case(case: StressCase) -> dict:
         "settling_s": float(settle),
         "yields": int(s["anti_collision"]["yields"]),
         "relaxations": int(s["anti_collision"]["relaxations"]),
+        "relaxations_vs_leader": int(s["anti_collision"].get("relaxations_vs_leader", 0)),
         "reserve_periods": int(s["anti_collision"].get("reserve_periods", 0)),
         "stopped": s.get("stopped"),
         "crashes": int(s.get("crashes", 0)),
@@ -138,6 +139,7 @@ def summarize_rule(rows: list[dict]) -> dict:
         # the barrier filter's relaxations (constraints infeasible within the limits, docs/barrier.md)
         "relaxations": sum(r.get("relaxations", 0) for r in rows),
         "seeds_relaxed": [r["seed"] for r in rows if r.get("relaxations", 0) > 0],
+        "relaxations_vs_leader": sum(r.get("relaxations_vs_leader", 0) for r in rows),
         # … and its drone-periods on the reserve's wider tilt (docs/barrier.md, "the reserve")
         "reserve_periods": sum(r.get("reserve_periods", 0) for r in rows),
         "starts_with_reserve": sum(r.get("reserve_periods", 0) > 0 for r in rows),
@@ -231,8 +233,8 @@ def format_table(table: dict, followers: int, sensing: str = "perfect") -> str:
         if r.get("relaxations"):
             seeds = r["seeds_relaxed"]
             lines.append(
-                f"           barrier relaxations: {r['relaxations']} in {len(seeds)} of {r['starts']} starts "
-                f"({_seed_list(seeds)}; docs/barrier.md)"
+                f"           barrier relaxations: {r['relaxations']} in {len(seeds)} of {r['starts']} starts, "
+                f"{r.get('relaxations_vs_leader', 0)} against the leader ({_seed_list(seeds)}; docs/barrier.md)"
             )
         if r.get("reserve_periods"):
             lines.append(

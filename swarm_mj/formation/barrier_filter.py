@@ -154,9 +154,10 @@ def _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d):
 
 
 @jit(inline=True)
-def _tally(rec, i, t, active, relaxed):
+def _tally(rec, i, t, active, relaxed, against):
     """Drone i's period in the counts (active, relaxed) and the record's flags; the first period of a
-    relaxed stretch is a relax event in the record's buffer."""
+    relaxed stretch is a relax event in the record's buffer, with the neighbour whose row asked most
+    (``against``)."""
     if active:
         rec.counts[0] += 1
     if relaxed:
@@ -166,6 +167,7 @@ def _tally(rec, i, t, active, relaxed):
             if k < rec.ev_t.shape[0]:
                 rec.ev_t[k] = t
                 rec.ev_drone[k] = i
+                rec.ev_other[k] = against
                 rec.ev_count[0] = k + 1
     rec.was_relaxed[i] = relaxed
     rec.active[i] = active
@@ -261,14 +263,14 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                         rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way, rec.waited)  # fmt: skip
     rec.waited[:] = wait
     filters, pair_filters, limits, hcost = _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d)
-    u, active, relaxed, _, reserve = filter_accelerations(
+    u, active, relaxed, _, reserve, against = filter_accelerations(
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
     for i in range(n):
         if rec.own_row >= 0 and i != rec.own_row:
             continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
-        _tally(rec, i, t, active[i], relaxed[i])
+        _tally(rec, i, t, active[i], relaxed[i], against[i])
         if reserve[i]:
             rec.counts[5] += 1
         g[i] = (g[i] or active[i]) and filters[i]
@@ -349,12 +351,13 @@ class BarrierFilter:
         return self._rec
 
     def take_events(self) -> None:
-        """Move the relax events of the record's buffer to :attr:`events` (``{t, drone, other: -1,
-        action: "relax"}``)."""
+        """Move the relax events of the record's buffer to :attr:`events` (``{t, drone, other, action:
+        "relax"}``, ``other`` the neighbour whose row asked most beyond the drone's limits)."""
         rec = self._rec
         k = int(rec.ev_count[0])
         for j in range(k):
-            self.events.append({"t": float(rec.ev_t[j]), "drone": int(rec.ev_drone[j]), "other": -1, "action": "relax"})
+            t, drone, other = float(rec.ev_t[j]), int(rec.ev_drone[j]), int(rec.ev_other[j])
+            self.events.append({"t": t, "drone": drone, "other": other, "action": "relax"})
         rec.ev_count[0] = 0
 
     @property

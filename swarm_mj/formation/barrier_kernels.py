@@ -16,12 +16,15 @@ from .keepout import pair_row
 
 
 @jit(inline=True)
-def _neighbour_rows(rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, A, b, un, p, v, a):
+def _neighbour_rows(
+    rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, A, b, rj, un, p, v, a
+):
     """Drone i's barrier constraints (B) against each drone within ``sensing_range`` (on its reference
     state, and with ``both_states`` on its sensed one) as rows 0 .. m − 1 of A·u ≥ b (its share of each,
     :func:`filter_accelerations`), those no input within its limits can violate pruned; the keep-right
-    tie-break added to its nominal ``un`` (3,) once per neighbour it pushes into. p, v, a (3,): work
-    buffers. Returns (m, violated): the rows written, and whether the nominal violates one of them."""
+    tie-break added to its nominal ``un`` (3,) once per neighbour it pushes into; ``rj`` (≥ m,) the
+    neighbour of each row. p, v, a (3,): work buffers. Returns (m, violated): the rows written, and
+    whether the nominal violates one of them."""
     radii, gain, tiebreak = rec.radii, rec.gain, rec.tiebreak
     floor, priority_share, both_states = rec.floor_m, rec.priority_share, rec.both_states
     n = pos.shape[0]
@@ -70,8 +73,27 @@ def _neighbour_rows(rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom,
             for c in range(3):
                 A[m, c] = a[c]
             b[m] = bs
+            rj[m] = j
             m += 1
     return m, violated
+
+
+@jit(inline=True)
+def _most_asked(A, b, rj, m, lim, reserve_a_h, na):
+    """The neighbour whose row of A·u ≥ b (rows 0 .. m − 1, neighbours ``rj``) asks most beyond what the
+    drone's limits give along its normal ((b − max_U A·u)/‖A‖, U the limits ``lim`` (3,) widened to the
+    reserve's horizontal ``reserve_a_h`` if larger): where a relaxation comes from (−1 without rows).
+    na (3,): a work buffer."""
+    worst, who = -np.inf, -1
+    a_h = max(lim[0], reserve_a_h)
+    for k in range(m):
+        norm = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2)
+        for c in range(3):
+            na[c] = -A[k, c]
+        excess = (b[k] + min_over_limits(na, a_h, lim[1], lim[2])) / max(norm, 1e-12)
+        if excess > worst:
+            worst, who = excess, rj[k]
+    return who
 
 
 @jit(inline=True)
@@ -167,16 +189,20 @@ def filter_accelerations(
     Returns u (n, 3), active (n,) (a barrier constraint changed the command), relaxed (n,) (the
     constraints were infeasible within the limits, the reserve's included, and relaxed), n_constraints
     (n,) (the neighbour constraints kept after the exact pruning), reserve (n,) (infeasible within the
-    limits, the horizontal one widened to ``reserve_a_h``: the reserve, docs/barrier.md)."""
+    limits, the horizontal one widened to ``reserve_a_h``: the reserve, docs/barrier.md), against (n,)
+    int (a relaxed drone's neighbour whose row asked most beyond its limits, :func:`_most_asked`; −1
+    where not relaxed)."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
     relaxed = np.zeros(n, dtype=np.bool_)
     reserve = np.zeros(n, dtype=np.bool_)
+    against = np.full(n, -1, dtype=np.int64)
     kept = np.zeros(n, dtype=np.int64)
     m_max = 2 * n + 10
     A = np.zeros((m_max, 3))
     b = np.zeros(m_max)
+    rj = np.zeros(m_max, dtype=np.int64)
     A4 = np.zeros((m_max + 1, 4))
     b4 = np.zeros(m_max + 1)
     p = np.empty(3)
@@ -190,21 +216,24 @@ def filter_accelerations(
         for c in range(3):
             un[c] = u_nom[i, c]
         m, violated = _neighbour_rows(
-            rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, A, b, un, p, v, a
+            rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, A, b, rj, un, p, v, a
         )
         kept[i] = m
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
+        who = _most_asked(A, b, rj, m, limits[i], rec.reserve_a_h, p)  # before the metric scales the rows
         ml = limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
         w, relaxed_i, sh, reserve[i] = _project_command(
             A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4, limits[i], rec.reserve_a_h
         )
         relaxed[i] = relaxed_i
+        if relaxed_i:
+            against[i] = who
         u[i, 0] = w[0] / sh
         u[i, 1] = w[1] / sh
         u[i, 2] = w[2]
-    return u, active, relaxed, kept, reserve
+    return u, active, relaxed, kept, reserve, against
 
 
 def apply_filter(
@@ -217,13 +246,13 @@ def apply_filter(
     vehicle: QuadParams = DEFAULT_PARAMS,
     limits: np.ndarray | None = None,
     hcost: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
     the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
     (default: ``bp``'s for every drone); hcost (n,): each drone's cost of a horizontal change
-    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints, reserve)."""
+    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints, reserve, against)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
     n = pos.shape[0]

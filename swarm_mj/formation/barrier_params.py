@@ -261,6 +261,7 @@ class BarrierRecord(NamedTuple):
     counts: np.ndarray  # (6,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes; reserve
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
+    ev_other: np.ndarray  # (cap,) int64 the neighbour whose row asked most beyond the drone's limits
     ev_count: np.ndarray  # (1,) int64 events held
 
 
@@ -303,6 +304,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row
         counts=np.zeros(6, dtype=np.int64),
         ev_t=np.zeros(cap),
         ev_drone=np.zeros(cap, dtype=np.int64),
+        ev_other=np.full(cap, -1, dtype=np.int64),
         ev_count=np.zeros(1, dtype=np.int64),
         **kw,
     )

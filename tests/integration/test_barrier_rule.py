@@ -61,15 +61,21 @@ def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     for res in runs:
         relax = [e for e in res.events if e["action"] == "relax"]
         assert res.summary["anti_collision"]["relaxations"] == len(relax) > 0
-        assert all(e["other"] == -1 and 1 <= e["drone"] <= 5 for e in relax)
-        assert f"{len(relax)} barrier relaxations" in format_summary(res.summary, res.scenario)
+        assert all(0 <= e["other"] <= 5 and e["other"] != e["drone"] and 1 <= e["drone"] <= 5 for e in relax)
+        vs = sum(e["other"] == 0 for e in relax)
+        assert res.summary["anti_collision"]["relaxations_vs_leader"] == vs
+        assert f"{len(relax)} barrier relaxations ({vs} against the leader" in format_summary(res.summary, res.scenario)
     assert runs[0].events == runs[1].events
     # the stress row carries the count (the same run: fly_case flies the case's scenario)
     monkeypatch.setattr(stress, "stress_scenario", lambda case: sc)
     row = stress.fly_case(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0))
     assert row["relaxations"] == len(relax)
     table = {"barrier": stress.summarize_rule([row])}
-    assert f"barrier relaxations: {len(relax)} in 1 of 1 starts (100033;" in stress.format_table(table, 5)
+    assert row["relaxations_vs_leader"] == vs
+    assert (
+        f"barrier relaxations: {len(relax)} in 1 of 1 starts, {vs} against the leader (100033;"
+        in stress.format_table(table, 5)
+    )
     # a rule without the filter never relaxes
     plain = run(stress_scenario(StressCase("jet-aware", 100033, 5, 3.0, 0.6, 6.0, aero="realistic")), progress=False)
     assert plain.summary["anti_collision"]["relaxations"] == 0

@@ -258,7 +258,7 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, c
     # what the others sense: each drone off its own (reference) state by a tracking error
     sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
     hcost = np.where(rng.random(n) < 0.5, cost, 1.0)  # the descent's metric on some of the drones
-    u, active, relaxed, _, used = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
+    u, active, relaxed, _, used, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
     for i in range(n):
         rows = [
             _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
@@ -302,7 +302,7 @@ def test_relaxation_is_used_and_flagged():
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
     bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0)
-    u, active, relaxed, _, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
+    u, active, relaxed, _, _, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
     assert active.all() and relaxed.all()
     for i in range(2):
         assert _limits_ok(u[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
@@ -326,7 +326,7 @@ def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
         nh = np.linalg.norm(u_nom[:, :2], axis=1, keepdims=True)
         u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        u, _, relaxed, _, _ = apply_filter(bp, pos, vel, u_nom, filters)
+        u, _, relaxed, _, _, _ = apply_filter(bp, pos, vel, u_nom, filters)
         n_relaxed += int(relaxed.sum())
         vel += u * dt
         pos += vel * dt
@@ -522,8 +522,36 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     for k in range(2):
         f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
     assert f.relaxed_periods == 4 and f.active_periods == 4
-    assert f.events == [{"t": 0.0, "drone": d, "other": -1, "action": "relax"} for d in (1, 2)]
+    assert f.events == [{"t": 0.0, "drone": d, "other": 3 - d, "action": "relax"} for d in (1, 2)]  # each other
     assert f.record().ev_count[0] == 0  # the buffer was emptied into events
+
+
+def _max_over_limits(a: np.ndarray, a_h: float, a_up: float, a_down: float) -> float:
+    """max of a·u over the limits of :func:`_limits_ok`, by its 16 vertices written out here."""
+    ang = (np.arange(8) + 0.5) * np.pi / 4  # the octagon's vertices, inscribed in the disc of radius a_h
+    xy = a_h * np.stack([np.cos(ang), np.sin(ang)], 1)
+    return max(float(a[:2] @ v + a[2] * z) for v in xy for z in (a_up, -a_down))
+
+
+def test_a_relaxation_names_the_neighbour_that_asked_most():
+    """A follower between the leader (which does not filter) accelerating straight at it at 8 m/s²
+    and a follower above it closing slowly: no input within its limits meets both rows, the filter
+    relaxes, and names as ``against`` the neighbour whose row asks most beyond its limits, (b −
+    max_U A·u)/‖A‖, each written out here: the leader's."""
+    pos = np.array([[-0.9, 0.0, 2.0], [0.0, 0.0, 2.0], [0.0, 0.0, 3.9]])
+    vel = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, -0.2]])
+    acc = np.array([[8.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    filters = np.array([False, True, True])
+    bp = BarrierParams(tiebreak=0.0, priority_share=0.5)
+    u, active, relaxed, _, _, against = apply_filter(bp, pos, vel, np.zeros((3, 3)), filters, (pos, vel, acc))
+    assert relaxed[1] and against[1] == 0 and against[0] == -1
+    radii, a_h = bp.radii(), bp.horizontal_limit()
+    excess = {}
+    for j, share in ((0, lambda b: 1.0), (2, lambda b: 0.5)):  # all against the leader; halves (priority_share)
+        A, b = _constraint(pos[1], vel[1], pos[j], vel[j], radii, bp.gain, share)
+        b += A @ acc[j]  # a drone that does not filter: its acceleration too
+        excess[j] = (b - _max_over_limits(A, a_h, bp.accel_up, bp.accel_down)) / np.linalg.norm(A)
+    assert excess[0] > 0 and excess[0] > excess[2]  # the leader's row alone is beyond the limits
 
 
 def test_filter_uses_the_reserve_before_it_relaxes():
@@ -772,10 +800,10 @@ def test_the_chunk_drivers_relax_events_become_the_rules_events():
     rule = make_rule("barrier", 3)
     rule.reset(np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]]))
     rec = rule.separation_filter.record()
-    rec.ev_t[:2], rec.ev_drone[:2], rec.ev_count[0] = (1.25, 1.5), (2, 1), 2
+    rec.ev_t[:2], rec.ev_drone[:2], rec.ev_other[:2], rec.ev_count[0] = (1.25, 1.5), (2, 1), (0, 2), 2
     FastLoop._take_filter_events(SimpleNamespace(policy=SimpleNamespace(rule=rule), _ruled=True))
     assert [e for e in rule.events if e["action"] == "relax"] == [
-        {"t": 1.25, "drone": 2, "other": -1, "action": "relax"},
-        {"t": 1.5, "drone": 1, "other": -1, "action": "relax"},
+        {"t": 1.25, "drone": 2, "other": 0, "action": "relax"},
+        {"t": 1.5, "drone": 1, "other": 2, "action": "relax"},
     ]
     assert rule.separation_filter.events == [] and rec.ev_count[0] == 0
