@@ -506,6 +506,20 @@ def test_filter_take_off_gate():
     assert o_a[2, 2] > 0.0
 
 
+def _two_closing_followers(bp: BarrierParams):
+    """Two followers closing head-on at 4 m/s, 0.9 m apart, the leader far: the filter of ``bp`` flown two
+    periods on them. Returns (filter, positions, velocities, the last acceleration references)."""
+    f = BarrierFilter(bp)
+    f.reset(3)
+    pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
+    vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
+    steer = np.array([False, True, True])
+    z = np.zeros((3, 3))
+    for k in range(2):
+        _, _, a = f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
+    return f, pos, vel, a
+
+
 def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     """Two followers closing at 4 m/s, 0.9 m apart, the tilt limited to 5° (the case of
     test_relaxation_is_used_and_flagged): the filter relaxes both, and each gets one relax event
@@ -513,14 +527,7 @@ def test_filter_counts_a_relaxation_once_per_stretch_as_an_event():
     drone-periods. The events go through the compiled step's buffer (barrier_step) to ``events``
     (the burden split in halves, so that both relax). No reserve: with it they would not relax
     (test_filter_uses_the_reserve_before_it_relaxes)."""
-    f = BarrierFilter(BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0))
-    f.reset(3)
-    pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
-    vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
-    steer = np.array([False, True, True])
-    z = np.zeros((3, 3))
-    for k in range(2):
-        f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
+    f, _, _, _ = _two_closing_followers(BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0))
     assert f.relaxed_periods == 4 and f.active_periods == 4
     assert f.events == [{"t": 0.0, "drone": d, "other": 3 - d, "action": "relax"} for d in (1, 2)]  # each other
     assert f.record().ev_count[0] == 0  # the buffer was emptied into events
@@ -560,14 +567,7 @@ def test_filter_uses_the_reserve_before_it_relaxes():
     reserve (counted per drone-period), (B) written out here holds, and each command is within the
     reserve's limits and beyond the nominal's."""
     bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=45.0, tiebreak=0.0, both_states=False)
-    f = BarrierFilter(bp)
-    f.reset(3)
-    pos = np.array([[20.0, 0.0, 2.0], [0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
-    vel = np.array([[0.0, 0.0, 0.0], [2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
-    steer = np.array([False, True, True])
-    z = np.zeros((3, 3))
-    for k in range(2):
-        _, _, a = f(_sensed(0.01 * k, pos, vel, 0.01 if k else 0.0), pos, vel, z, steer)
+    f, pos, vel, a = _two_closing_followers(bp)
     assert f.relaxed_periods == 0 and f.reserve_periods == 4 and f.events == []
     radii = bp.radii()
     for i, j in ((1, 2), (2, 1)):
