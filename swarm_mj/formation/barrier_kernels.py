@@ -79,17 +79,16 @@ def _neighbour_rows(
 
 
 @jit(inline=True)
-def _most_asked(A, b, rj, m, lim, reserve_a_h, na):
-    """The neighbour whose row of A·u ≥ b (rows 0 .. m − 1, neighbours ``rj``) asks most beyond what the
-    drone's limits give along its normal ((b − max_U A·u)/‖A‖, U the limits ``lim`` (3,) widened to the
-    reserve's horizontal ``reserve_a_h`` if larger): where a relaxation comes from (−1 without rows).
-    na (3,): a work buffer."""
+def _most_asked(A, b, rj, m, lim, reserve_a_h, sh, na):
+    """The neighbour whose row of A·u ≥ b (rows 0 .. m − 1, neighbours ``rj``; their horizontal columns
+    divided by ``sh``, the QP's metric) asks most beyond what the drone's limits give along its normal
+    ((b − max_U A·u)/‖A‖, U the limits ``lim`` (3,) widened to the reserve's horizontal ``reserve_a_h``
+    if larger): where a relaxation comes from (−1 without rows). na (3,): a work buffer."""
     worst, who = -np.inf, -1
     a_h = max(lim[0], reserve_a_h)
     for k in range(m):
-        norm = np.sqrt(A[k, 0] ** 2 + A[k, 1] ** 2 + A[k, 2] ** 2)
-        for c in range(3):
-            na[c] = -A[k, c]
+        na[0], na[1], na[2] = -A[k, 0] * sh, -A[k, 1] * sh, -A[k, 2]
+        norm = np.sqrt(na[0] ** 2 + na[1] ** 2 + na[2] ** 2)
         excess = (b[k] + min_over_limits(na, a_h, lim[1], lim[2])) / max(norm, 1e-12)
         if excess > worst:
             worst, who = excess, rj[k]
@@ -222,14 +221,13 @@ def filter_accelerations(
         if not violated:
             continue  # the nominal satisfies every barrier constraint: unchanged
         active[i] = True
-        who = _most_asked(A, b, rj, m, limits[i], rec.reserve_a_h, p)  # before the metric scales the rows
         ml = limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
         w, relaxed_i, sh, reserve[i] = _project_command(
             A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4, limits[i], rec.reserve_a_h
         )
         relaxed[i] = relaxed_i
-        if relaxed_i:
-            against[i] = who
+        if relaxed_i:  # the neighbour that asked most (the rows as the metric scaled them)
+            against[i] = _most_asked(A, b, rj, m, limits[i], rec.reserve_a_h, sh, p)
         u[i, 0] = w[0] / sh
         u[i, 1] = w[1] / sh
         u[i, 2] = w[2]
