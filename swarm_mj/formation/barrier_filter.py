@@ -154,12 +154,14 @@ def _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d):
 
 
 @jit(inline=True)
-def _tally(rec, i, t, active, relaxed, against):
-    """Drone i's period in the counts (active, relaxed) and the record's flags; the first period of a
-    relaxed stretch is a relax event in the record's buffer, with the neighbour whose row asked most
-    (``against``)."""
+def _tally(rec, i, t, active, relaxed, reserve, against):
+    """Drone i's period in the counts (active, relaxed, on the reserve) and the record's flags; the first
+    period of a relaxed stretch is a relax event in the record's buffer, with the neighbour whose row
+    asked most (``against``)."""
     if active:
         rec.counts[0] += 1
+    if reserve:
+        rec.counts[5] += 1
     if relaxed:
         rec.counts[1] += 1
         if not rec.was_relaxed[i]:  # the first period of a relaxed stretch: an event
@@ -270,9 +272,7 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     for i in range(n):
         if rec.own_row >= 0 and i != rec.own_row:
             continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
-        _tally(rec, i, t, active[i], relaxed[i], against[i])
-        if reserve[i]:
-            rec.counts[5] += 1
+        _tally(rec, i, t, active[i], relaxed[i], reserve[i], against[i])
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
             _hold_at_gate(rec, i, positions)
