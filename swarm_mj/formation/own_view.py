@@ -93,9 +93,11 @@ class OwnViewRule:
         return pos_d, vel_d, acc_d
 
     # ------------------------------------------------------------------ the chunk driver's interface
-    def record(self) -> object:
-        """Copy 0's record: the type every copy's is (what the registry's checks look up)."""
-        return self._compiled[0].record()
+    def record(self) -> object | None:
+        """Copy 0's record: the type every copy's is (what the registry's checks look up); None for a rule
+        with no record (no compiled step: the registry's check then says so)."""
+        make = getattr(self._compiled[0], "record", None)
+        return make() if callable(make) else None
 
     def records(self) -> tuple:
         """Each copy's record, in drone order (the chunk driver's ``rules``)."""

@@ -28,6 +28,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from .._jit import jit, warm_module
+from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..pipeline.records import Obs
 from .rules import Rule
 
@@ -78,8 +79,10 @@ class StaggerRule(Rule):
     downwash_feedforward = False
     params: StaggerParams  # type: ignore[assignment]  # its own record (compiled: a NamedTuple), not a BaseParams
 
-    def __init__(self, n: int, params: StaggerParams | None = None, **_: Any) -> None:  # vehicle=: unused
-        self.n, self.params = n, params or StaggerParams()
+    def __init__(
+        self, n: int, params: StaggerParams | None = None, *, vehicle: QuadParams = DEFAULT_PARAMS, **_: Any
+    ) -> None:
+        self.n, self.params, self.vehicle = n, params or StaggerParams(), vehicle
         self._record = StaggerRecord(params=self.params, raised=np.zeros(n, dtype=np.bool_))
         self.vel_d, self.acc_d = np.zeros((n, 3)), np.zeros((n, 3))
         self.events: list[dict] = []

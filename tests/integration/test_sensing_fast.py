@@ -62,3 +62,24 @@ def test_a_policy_that_reads_the_truth_does_not_fly_a_sensing_env_in_chunks():
     why = fast.why_not(env, BacksteppingPolicy(sc, env.params))
     assert why is not None and "disagree on the sensing model" in why
     assert fast.why_not(env, BacksteppingPolicy(env.scenario, env.params)) is None
+
+
+@pytest.mark.parametrize("rule", ["paper", "off", "stagger", "layers", "jet-aware", "barrier"])
+def test_every_rule_under_a_sensing_model_is_answered(rule):
+    # each drone's copy of any named rule: the chunk driver says whether it flies it (paper has no compiled
+    # step, stagger no compiled check: a reason each; the others none), never an AttributeError from a rule
+    # without a record
+    from swarm_mj.control.policy import BacksteppingPolicy
+    from swarm_mj.env import SwarmEnv
+    from swarm_mj.pipeline import fast
+
+    sc = load_scenario("circle").with_overrides(duration=0.1, anti_collision=rule)
+    env = SwarmEnv(sc, sensing="mocap", terminate_on_contact=False)
+    env.reset()
+    why = fast.why_not(env, BacksteppingPolicy(env.scenario, env.params))
+    if rule == "paper":
+        assert why == "the 'paper' rule has no compiled step"
+    elif rule == "stagger":
+        assert why is not None and "the 'stagger' rule has no compiled check" in why
+    else:
+        assert why is None, why
