@@ -420,23 +420,25 @@ def observe(phys, refs, k):
         yaw=np.empty(n),
         wf=np.empty((n, 3)),
     )
-    observe_into(phys, refs, obs, k)
+    observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k)
     return obs
 
 
 @jit(inline=True)
-def observe_into(phys, refs, obs, k) -> None:
-    """The observation of period k into the buffers of ``obs`` (the chunk driver's; :func:`observe` new ones):
-    the state, the neighbours within sensing range, the formation setpoints (the leader's velocity
-    estimated, paper §4; refs.prev_leader, refs.leader_vel updated), the known wind force
-    (refs.wind_force[k] on every drone when the controller is given it, else zero)."""
-    n = phys.qpos.shape[0]
+def observe_into(qpos, qvel, T, refs, obs, k) -> None:
+    """The observation of period k into the buffers of ``obs`` (the chunk driver's; :func:`observe` new ones)
+    from the simulator's qpos (n, 7), qvel (n, 6) and control period T (its record's fields, passed alone:
+    a Python caller's bound call then unboxes three values, not the record's 33): the state, the neighbours
+    within sensing range, the formation setpoints (the leader's velocity estimated, paper §4;
+    refs.prev_leader, refs.leader_vel updated), the known wind force (refs.wind_force[k] on every drone
+    when the controller is given it, else zero)."""
+    n = qpos.shape[0]
     observe_kernel_into(
-        phys.qpos, phys.qvel, refs.sensing_range, obs.pos, obs.vel, obs.quat, obs.omega, obs.rpy, obs.rpy_rate,
+        qpos, qvel, refs.sensing_range, obs.pos, obs.vel, obs.quat, obs.omega, obs.rpy, obs.rpy_rate,
         obs.rel, obs.mask, obs.dist,
     )  # fmt: skip
     setpoints_into(
-        k, phys.T, obs.pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
+        k, T, obs.pos[0], refs.prev_leader, refs.leader_vel, refs.pos[k], refs.vel[k], refs.acc[k], refs.yaw[k],
         refs.D[k], refs.unit_offsets, obs.sp, obs.spv, obs.spa, obs.yaw,
     )  # fmt: skip
     obs.wf[:] = 0.0
@@ -495,7 +497,7 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
         k += 1
         if unhealthy(phys):
             return UNHEALTHY, k, 0
-        observe_into(phys, refs, obs, k)
+        observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k)
         _period_sense(view, obs, refs, k)
     return DONE, k, 0
 

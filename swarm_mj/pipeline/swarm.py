@@ -135,7 +135,8 @@ class SwarmPhysics:
         self._ref = (c(ref.pos, dtype=float), c(ref.vel, dtype=float), c(ref.acc, dtype=float), c(ref.yaw, dtype=float))
         self.relative_wind = bool(sc.wind.enabled and sc.wind.relative_airspeed)
         self.wind_known = bool(sc.wind.enabled and sc.wind_feedforward)
-        self._observe = Bound(observe_into, records=2)  # bound to the records: no re-typing per call (_jit.py)
+        # bound to the simulator's arrays and the references: no re-typing per call (_jit.py)
+        self._observe = Bound(observe_into, records=4)
         self._copy_refs = self._shared_refs(float(sc.sensing_range))
         self._yaws = np.r_[np.deg2rad(sc.leader_yaw_deg), np.zeros(n - 1)]  # (n,)
         aero = sc.aero
@@ -367,11 +368,12 @@ class SwarmPhysics:
     # ------------------------------------------------------------------ observation
     def observe(self, refs: Refs) -> Obs:
         """The observation of copy 0 of a one-copy physics at its period k (fresh arrays):
-        :func:`~swarm_mj.pipeline.period.observe_into` (the chunk driver's stage) on its simulator's record and
+        :func:`~swarm_mj.pipeline.period.observe_into` (the chunk driver's stage) on its simulator's state and
         ``refs`` (:meth:`refs`, kept by the caller: the chunk driver shares it), with the known wind on the
         relative airspeed from :meth:`drone_wind`."""
         o = Obs.empty(self.n, fill=False)  # new buffers (observe_into writes each): the environments hand them out
-        self._observe(self.blocks[0].sim.record(), refs, o, int(self.k[0]))
+        rec = self.blocks[0].sim.record()
+        self._observe(rec.qpos, rec.qvel, rec.T, refs, o, int(self.k[0]))
         if self.wind_known and self.relative_wind:
             o = o._replace(wf=self.drone_wind(0, o.vel))
         return o
