@@ -308,7 +308,10 @@ def check_duration(duration: Any, control_period: float, n_drones: int, where: s
             f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would be simulated",
             where=where,
         )
-    n_steps = round(d / control_period)
+    steps = d / control_period
+    if not np.isfinite(steps):  # d near the largest float (1e308 s): round() would raise
+        raise UserError(f"{d:g} s at {control_period:g} s per step is too many steps: shorten the run", where=where)
+    n_steps = round(steps)
     need = run_log_bytes(n_steps, n_drones)
     avail = available_memory_bytes()
     if avail is not None and need > MEMORY_SHARE * avail:
