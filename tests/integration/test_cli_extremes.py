@@ -44,3 +44,24 @@ def test_a_duration_near_the_largest_float_is_too_long(tmp_path, monkeypatch, ca
     monkeypatch.chdir(tmp_path)
     line = cli_error(capsys, argv)
     assert "duration" in line and "too many steps" in line, line
+
+
+@pytest.mark.parametrize(
+    "extra, field, problem",
+    [
+        ("[formation]\nmax_hops_down = inf", "formation.max_hops_down", "finite"),  # an integer field
+        ("[formation]\nmax_hops_up = nan", "formation.max_hops_up", "finite"),
+        ("control_period = 100000000000000000000", "control_period", "longer than the duration"),  # > int64
+        ("[formation]\nhop = 1" + "0" * 400, "formation.hop", "finite"),  # beyond a float's range
+        ("steady_after = 1" + "0" * 400, "steady_after", "finite"),
+        ('[aero]\nmodel = "realistic"\nmotor_tau = 1' + "0" * 400, "aero.motor_tau", "time constant"),
+    ],
+)
+def test_non_finite_and_huge_numbers_in_a_file(tmp_path, monkeypatch, capsys, no_flight, extra, field, problem):
+    """TOML reads nan, inf and integers of any size: an integer field given nan or inf, and an integer
+    beyond int64 (which ``np.isfinite`` cannot take), are each the field's one line."""
+    monkeypatch.chdir(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'duration = 1.0\n{extra}\n[leader]\ntrajectory = "hover"\n')
+    line = cli_error(capsys, ["run", f, "--no-record"])
+    assert f"{f}: {field}" in line and problem in line, line
