@@ -54,6 +54,7 @@ def test_a_duration_near_the_largest_float_is_too_long(tmp_path, monkeypatch, ca
         ("control_period = 100000000000000000000", "control_period", "longer than the duration"),  # > int64
         ("[formation]\nhop = 1" + "0" * 400, "formation.hop", "finite"),  # beyond a float's range
         ("steady_after = 1" + "0" * 400, "steady_after", "finite"),
+        ('[aero]\nmodel = ["realistic"]', "aero.model", "unknown aero model"),  # not a string: unhashable
         ('[aero]\nmodel = "realistic"\nmotor_tau = 1' + "0" * 400, "aero.motor_tau", "time constant"),
     ],
 )
@@ -65,3 +66,11 @@ def test_non_finite_and_huge_numbers_in_a_file(tmp_path, monkeypatch, capsys, no
     f.write_text(f'duration = 1.0\n{extra}\n[leader]\ntrajectory = "hover"\n')
     line = cli_error(capsys, ["run", f, "--no-record"])
     assert f"{f}: {field}" in line and problem in line, line
+
+
+def test_more_seeds_than_there_are_is_one_line(tmp_path, monkeypatch, capsys, no_flight):
+    """``sweep --seeds N`` flies seeds 0..N-1, each at most MAX_SEED: a larger N is refused, not an
+    OverflowError from range()."""
+    monkeypatch.chdir(tmp_path)
+    line = cli_error(capsys, ["sweep", "step", "--seeds", 10**23, "--workers", "1"])
+    assert "--seeds" in line and "<= 4294967296" in line, line

@@ -66,7 +66,7 @@ PAPER = PRESETS["paper"]
 
 def preset(name: str, where: str = "--aero") -> AeroConfig:
     """The named preset (``paper`` or ``realistic``)."""
-    if name not in PRESETS:
+    if not isinstance(name, str) or name not in PRESETS:
         raise UserError(f"unknown aero model {name!r}; choose one of {', '.join(AERO_MODELS)}", where=where)
     return PRESETS[name]
 
