@@ -44,7 +44,7 @@ from .starts import (  # noqa: F401 - re-exported: the checks of where drones st
     check_start_spacing,
     random_follower_starts,
 )
-from .table_fields import check_keys, choice, flag, number, only_numbers, subtable, vec
+from .table_fields import check_keys, choice, finite, flag, number, only_numbers, subtable, vec
 from .trajectories import TRAJECTORIES, make_trajectory
 
 #: The controller's ``[controller] lag_compensation`` choices (:attr:`Scenario.lag_horizons`).
@@ -308,7 +308,10 @@ def check_duration(duration: Any, control_period: float, n_drones: int, where: s
             f"{d:g} s is shorter than one control period ({control_period:g} s): nothing would be simulated",
             where=where,
         )
-    n_steps = round(d / control_period)
+    steps = d / control_period
+    if not np.isfinite(steps):  # d near the largest float (1e308 s): round() would raise
+        raise UserError(f"{d:g} s at {control_period:g} s per step is too many steps: shorten the run", where=where)
+    n_steps = round(steps)
     need = run_log_bytes(n_steps, n_drones)
     avail = available_memory_bytes()
     if avail is not None and need > MEMORY_SHARE * avail:
@@ -341,12 +344,12 @@ def check_trajectory_params(name: str, params: dict, where: str) -> None:
                 or any(isinstance(x, bool) or not isinstance(x, (int, float)) for x in v)
             ):
                 raise UserError(f"must be a list of {m} numbers, got {v!r}", where=f"{where}.{key}")
-            if not all(np.isfinite(x) for x in v):
+            if not all(finite(x) for x in v):
                 raise UserError(f"must be finite numbers, got {v!r}", where=f"{where}.{key}")
         else:
             if isinstance(v, bool) or not isinstance(v, (int, float)):
                 raise UserError(f"must be a number, got {v!r}", where=f"{where}.{key}")
-            if not np.isfinite(v):
+            if not finite(v):
                 raise UserError(f"must be finite, got {v!r}", where=f"{where}.{key}")
 
 

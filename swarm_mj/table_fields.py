@@ -8,6 +8,7 @@ key, the default (None: required) and ``where``, the prefix of the field's name 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any
 
@@ -25,6 +26,15 @@ def check_keys(table: Any, allowed: set[str], where: str, see: str | None = None
         if key not in allowed:
             raise unknown_key(key, allowed, where=where, see=see)
     return table
+
+
+def finite(v: Any) -> bool:
+    """A number ``v`` is finite: NaN and infinities are not, nor an integer beyond a float's range (TOML
+    reads integers of any size, and ``np.isfinite`` takes none beyond int64's)."""
+    try:
+        return math.isfinite(v)
+    except OverflowError:
+        return False
 
 
 def number(
@@ -46,7 +56,7 @@ def number(
     v = table[key]
     if isinstance(v, bool) or not isinstance(v, (int, float)) or (integer and not isinstance(v, int)):
         raise UserError(f"must be {'an integer' if integer else 'a number'}, got {v!r}", where=f"{where}{key}")
-    if not np.isfinite(v):
+    if not finite(v):
         raise UserError(f"must be finite, got {v!r}", where=f"{where}{key}")
     if positive and v <= 0:
         raise UserError(f"must be positive, got {v!r}", where=f"{where}{key}")

@@ -110,10 +110,11 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
 def main(args: argparse.Namespace) -> int:
     from ..experiments.sweep import format_sweep, sweep
     from ..output.atomic import write_json_atomic
+    from ..scenario import MAX_SEED
     from . import flown_scenario
 
-    if args.seeds < 1:
-        raise UserError(f"--seeds must be >= 1, got {args.seeds}")
+    if not 1 <= args.seeds <= MAX_SEED + 1:  # the seeds are 0..N-1
+        raise UserError(f"--seeds must be >= 1 and <= {MAX_SEED + 1}, got {args.seeds}")
     if args.workers is not None and args.workers < 1:
         raise UserError(f"--workers must be >= 1, got {args.workers}")
     param, values = parse_param(args.param) if args.param else (None, None)

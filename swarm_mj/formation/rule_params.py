@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import UserError, unknown_key
 from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..table_fields import finite
 
 
 def _p(
@@ -246,10 +247,10 @@ def check_overrides(overrides: dict[str, Any], where: str = "formation", record:
         integer = f.type in ("int", int)
         if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
             raise UserError(f"must be {'an integer' if integer else 'a number'}, got {v!r}", where=w)
+        if not finite(v):
+            raise UserError(f"must be finite, got {v!r}", where=w)
         if integer and float(v) != int(v):
             raise UserError(f"must be an integer, got {v!r}", where=w)
-        if not np.isfinite(v):
-            raise UserError(f"must be finite, got {v!r}", where=w)
         lo, hi = m["lo"], m["hi"]
         unit = f" {m['unit']}" if m["unit"] else ""
         if lo is not None and (v <= lo if m["open_lo"] else v < lo):

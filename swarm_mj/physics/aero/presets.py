@@ -19,9 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 from typing import Any
 
-import numpy as np
-
 from ...errors import UserError
+from ...table_fields import finite
 from .constants import AIR_DENSITY, DISC_DRAG_COEFFICIENT, ROTOR_PLANE_Z, ROTOR_RADIUS  # noqa: F401 (re-exported)
 
 AERO_MODELS = ("paper", "realistic")
@@ -67,7 +66,7 @@ PAPER = PRESETS["paper"]
 
 def preset(name: str, where: str = "--aero") -> AeroConfig:
     """The named preset (``paper`` or ``realistic``)."""
-    if name not in PRESETS:
+    if not isinstance(name, str) or name not in PRESETS:
         raise UserError(f"unknown aero model {name!r}; choose one of {', '.join(AERO_MODELS)}", where=where)
     return PRESETS[name]
 
@@ -93,7 +92,7 @@ def parse_aero(table: Any, where: str = "aero") -> AeroConfig:
             kw[key] = v
     if "motor_tau" in table:
         v = table["motor_tau"]
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v < 0:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not finite(v) or v < 0:
             raise UserError(f"must be a time constant >= 0 s, got {v!r}", where=f"{where}.motor_tau")
         kw["motor_tau"] = float(v)
     return replace(cfg, **kw) if kw else cfg

@@ -1,0 +1,76 @@
+"""Extreme values found by fuzzing the CLI: each is one ``swarm-mj: error:`` line and exit status 2,
+before anything flies, never a traceback. The CLI's ``main()`` runs in this process; "before anything
+flies" is checked by replacing the runner's entry point with a function that fails the test."""
+
+from __future__ import annotations
+
+import pytest
+
+from swarm_mj import cli
+
+
+@pytest.fixture
+def no_flight(monkeypatch):
+    """Fail the test if anything is flown."""
+    from swarm_mj.experiments import runner
+
+    def boom(*a, **k):
+        raise AssertionError("a simulation started before the bad input was refused")
+
+    monkeypatch.setattr(runner, "run", boom)
+
+
+def cli_error(capsys, argv: list) -> str:
+    """``swarm-mj ARGV`` in this process: exit status 2 and one ``swarm-mj: error:`` line."""
+    rc = cli.main([str(a) for a in argv])
+    err = capsys.readouterr().err
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert rc == 2 and len(lines) == 1 and lines[0].startswith("swarm-mj: error: "), (rc, err)
+    return lines[0]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["run", "step", "--duration", "1e308", "--no-record"],
+        ["stress", "--duration", "1e308", "--starts", "1", "--workers", "1"],
+        ["sweep", "step", "--seeds", "1", "--workers", "1", "--param", "duration=1e308"],
+    ],
+)
+def test_a_duration_near_the_largest_float_is_too_long(tmp_path, monkeypatch, capsys, no_flight, argv):
+    """1e308 s over a 0.01-s control period overflows to inf steps: refused as too many steps, not an
+    OverflowError from round()."""
+    monkeypatch.chdir(tmp_path)
+    line = cli_error(capsys, argv)
+    assert "duration" in line and "too many steps" in line, line
+
+
+@pytest.mark.parametrize(
+    "extra, field, problem",
+    [
+        ("[formation]\nmax_hops_down = inf", "formation.max_hops_down", "finite"),  # an integer field
+        ("[formation]\nmax_hops_up = nan", "formation.max_hops_up", "finite"),
+        ("control_period = 100000000000000000000", "control_period", "longer than the duration"),  # > int64
+        ("[formation]\nhop = 1" + "0" * 400, "formation.hop", "finite"),  # beyond a float's range
+        ("steady_after = 1" + "0" * 400, "steady_after", "finite"),
+        ('[aero]\nmodel = ["realistic"]', "aero.model", "unknown aero model"),  # not a string: unhashable
+        ('[aero]\nmodel = "realistic"\nmotor_tau = 1' + "0" * 400, "aero.motor_tau", "time constant"),
+    ],
+)
+def test_non_finite_and_huge_numbers_in_a_file(tmp_path, monkeypatch, capsys, no_flight, extra, field, problem):
+    """TOML reads nan, inf and integers of any size: an integer field given nan or inf, and an integer
+    beyond int64 (which ``np.isfinite`` cannot take), are each the field's one line."""
+    monkeypatch.chdir(tmp_path)
+    f = tmp_path / "s.toml"
+    f.write_text(f'duration = 1.0\n{extra}\n[leader]\ntrajectory = "hover"\n')
+    line = cli_error(capsys, ["run", f, "--no-record"])
+    assert f"{f}: {field}" in line and problem in line, line
+
+
+def test_more_seeds_than_there_are_is_one_line(tmp_path, monkeypatch, capsys, no_flight):
+    """``sweep --seeds N`` flies seeds 0..N-1, each at most MAX_SEED: a larger N is refused, not an
+    OverflowError from range()."""
+    monkeypatch.chdir(tmp_path)
+    line = cli_error(capsys, ["sweep", "step", "--seeds", 10**23, "--workers", "1"])
+    assert "--seeds" in line and "<= 4294967296" in line, line
