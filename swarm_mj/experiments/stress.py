@@ -23,6 +23,7 @@ from ..formation.anticollision import ANTI_COLLISION_RULES, resolve_rule
 from ..output.progress import Progress
 from ..physics.aero.presets import preset
 from ..scenario import RandomStart, check_random_start_feasible
+from ..starts import MAX_RANGE_M
 from .parallel import map_ordered
 
 RULES = tuple(ANTI_COLLISION_RULES)  # layers, paper, off, jet-aware ("auto" picks one)
@@ -182,8 +183,8 @@ def check_stress_case(case: StressCase, starts: int = 1, workers: int | None = N
         raise UserError("--starts and --followers must be at least 1")
     if case.duration <= 0:
         raise UserError("--duration must be positive")
-    if case.sensing_range <= 0:
-        raise UserError("--sensing-range must be positive")
+    if not 0 < case.sensing_range <= MAX_RANGE_M:  # as a scenario's [formation] sensing_range
+        raise UserError(f"--sensing-range must be positive and <= {MAX_RANGE_M:g} m, got {case.sensing_range:g}")
     if not (np.isfinite(case.diameter) and case.diameter > 0):
         raise UserError(f"--diameter must be positive, got {case.diameter:g}")
     if workers is not None and workers < 1:

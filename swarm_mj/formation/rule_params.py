@@ -40,6 +40,7 @@ import numpy as np
 
 from ..errors import UserError, unknown_key
 from ..physics.params import DEFAULT_PARAMS, QuadParams
+from ..starts import MAX_RANGE_M
 from ..table_fields import finite
 
 
@@ -106,7 +107,9 @@ class LayersParams(PaperParams):
     """The planner's (ours, docs/interpretations.md §4): what ``layers`` reads beside Fig. 5's."""
 
     # --- sensing and prediction
-    sensing_range: float = _p(4.0, "m", "a drone decides from the drones within this 3D distance (and the leader)")
+    sensing_range: float = _p(
+        4.0, "m", "a drone decides from the drones within this 3D distance (and the leader)", 0.0, MAX_RANGE_M
+    )
     horizon: float = _p(1.0, "s", "closest approach predicted over this horizon (straight-line relative motion)")
     hover_speed: float = _p(0.5, "m/s", "a drone slower than this horizontally counts as hovering")
     # --- the planner's limited paths

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from ..errors import UserError
+from ..starts import MAX_RANGE_M
 
 
 class _FromPreset(float):
@@ -152,9 +153,14 @@ def _checked(key: str, v: Any, meta: dict[str, Any], where: str | None = None) -
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise UserError(f"must be a number ({meta['unit'] or 'a probability'}), got {v!r}", where=w)
-    x = float(v)
+    try:
+        x = float(v)
+    except OverflowError:  # an integer beyond a float's range (TOML reads integers of any size)
+        raise UserError(f"must be finite, got {v!r}", where=w) from None
     if math.isnan(x) or (math.isinf(x) and not (key == "range_m" and x > 0)):
         raise UserError(f"must be finite, got {v!r}", where=w)
+    if key == "range_m" and MAX_RANGE_M < x < math.inf:  # the rules square it (overflow); the world is 1 km
+        raise UserError(f"must be <= {MAX_RANGE_M:g} m, or inf (no limit), got {v!r}", where=w)
     lo_bad = x <= meta["lo"] if meta["open_lo"] else x < meta["lo"]
     hi_bad = x >= meta["hi"] if meta["open_hi"] else x > meta["hi"]
     if lo_bad or hi_bad:

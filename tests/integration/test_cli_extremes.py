@@ -56,6 +56,9 @@ def test_a_duration_near_the_largest_float_is_too_long(tmp_path, monkeypatch, ca
         ("steady_after = 1" + "0" * 400, "steady_after", "finite"),
         ('[aero]\nmodel = ["realistic"]', "aero.model", "unknown aero model"),  # not a string: unhashable
         ('[aero]\nmodel = "realistic"\nmotor_tau = 1' + "0" * 400, "aero.motor_tau", "time constant"),
+        ("[formation]\nsensing_range = 1e200", "formation.sensing_range", "<= 1000 m"),  # squared: overflow
+        ("[sensing]\nrange_m = 1e200", "sensing.range_m", "<= 1000 m, or inf"),
+        ("[sensing]\nrange_m = 1" + "0" * 400, "sensing.range_m", "finite"),  # float() overflows
     ],
 )
 def test_non_finite_and_huge_numbers_in_a_file(tmp_path, monkeypatch, capsys, no_flight, extra, field, problem):
@@ -74,3 +77,11 @@ def test_more_seeds_than_there_are_is_one_line(tmp_path, monkeypatch, capsys, no
     monkeypatch.chdir(tmp_path)
     line = cli_error(capsys, ["sweep", "step", "--seeds", 10**23, "--workers", "1"])
     assert "--seeds" in line and "<= 4294967296" in line, line
+
+
+def test_a_sensing_range_beyond_the_world_is_one_line(tmp_path, monkeypatch, capsys, no_flight):
+    """``stress --sensing-range`` is limited as a scenario's ``sensing_range`` is (the 1-km world,
+    ``starts.MAX_RANGE_M``): 1e308 is refused, not an OverflowError from squaring it in flight."""
+    monkeypatch.chdir(tmp_path)
+    line = cli_error(capsys, ["stress", "--sensing-range", "1e308", "--starts", "1", "--workers", "1"])
+    assert "--sensing-range" in line and "<= 1000 m" in line, line
