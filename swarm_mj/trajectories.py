@@ -112,11 +112,20 @@ TRAJECTORIES: dict[str, Callable[..., Callable[[np.ndarray], Reference]]] = {
 }
 
 
+def _floats(v):
+    """An integer (not a bool) as a float, and those of a list; anything else as it is."""
+    if isinstance(v, list):
+        return [_floats(x) for x in v]
+    return float(v) if isinstance(v, int) and not isinstance(v, bool) else v
+
+
 def make_trajectory(name: str, params: dict | None = None, where: str = "trajectory"):
-    """Build a trajectory by name with keyword parameters from a scenario file."""
+    """Build a trajectory by name with keyword parameters from a scenario file (its integers as floats:
+    TOML reads integers of any size, and numpy keeps one beyond int64 as an object, which its
+    functions refuse)."""
     if name not in TRAJECTORIES:
         raise UserError(f"unknown trajectory {name!r}; choose one of {', '.join(sorted(TRAJECTORIES))}", where=where)
     try:
-        return TRAJECTORIES[name](**(params or {}))
-    except TypeError as exc:
+        return TRAJECTORIES[name](**{k: _floats(v) for k, v in (params or {}).items()})
+    except (TypeError, OverflowError) as exc:
         raise UserError(f"bad parameters for trajectory {name!r}: {exc}", where=where) from None

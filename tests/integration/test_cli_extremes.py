@@ -85,3 +85,21 @@ def test_a_sensing_range_beyond_the_world_is_one_line(tmp_path, monkeypatch, cap
     monkeypatch.chdir(tmp_path)
     line = cli_error(capsys, ["stress", "--sensing-range", "1e308", "--starts", "1", "--workers", "1"])
     assert "--sensing-range" in line and "<= 1000 m" in line, line
+
+
+@pytest.mark.parametrize("trajectory, key", [("step", "yaw_deg"), ("hover", "yaw_deg"), ("lemniscate", "altitude")])
+def test_an_integer_trajectory_parameter_beyond_int64_is_read_as_its_float(tmp_path, trajectory, key):
+    """TOML reads integers of any size and numpy keeps one beyond int64 as an object, which deg2rad and
+    sqrt refuse (TypeError): the trajectory takes the integer as a float, as 1e30 written."""
+    from swarm_mj.errors import UserError
+    from swarm_mj.scenario import load_scenario
+
+    refs = []
+    for value in (10**30, 1e30):
+        f = tmp_path / f"{type(value).__name__}.toml"
+        f.write_text(f'duration = 1.0\n[leader]\ntrajectory = "{trajectory}"\n[leader.params]\n{key} = {value}\n')
+        try:
+            refs.append(load_scenario(f).make_trajectory()([0.0, 0.5]).yaw.tolist())
+        except UserError as exc:  # the altitude: 1e30 m is beyond the 1-km world, one line for both
+            refs.append(str(exc).split(": ", 1)[1])
+    assert refs[0] == refs[1], refs
