@@ -70,6 +70,28 @@ def check_count(name: str, v: Any) -> int:
     return int(v)
 
 
+#: Memory (bytes) one run of a many-run request holds to the end: its item (a stress case, a sweep
+#: task) and its result row, about 2.5 KiB each measured (tracemalloc), with room for a contact log
+#: and the JSON written at the end.
+BYTES_PER_RUN = 16 * 1024
+
+
+def check_run_count(n_runs: int, where: str) -> None:
+    """``n_runs`` runs' items and results (:data:`BYTES_PER_RUN` each) fit in the share of the available
+    memory a run's log may take (:data:`~swarm_mj.scenario.MEMORY_SHARE`), checked before they are
+    built: one :class:`UserError` naming ``where`` otherwise (``stress --starts 4000000000``)."""
+    from ..scenario import MEMORY_SHARE, available_memory_bytes
+
+    need = n_runs * BYTES_PER_RUN
+    avail = available_memory_bytes()
+    if avail is not None and need > MEMORY_SHARE * avail:
+        raise UserError(
+            f"{n_runs:.3g} runs would hold about {need / 2**30:.3g} GiB to the end, more than "
+            f"{MEMORY_SHARE:.0%} of the {avail / 2**30:.3g} GiB of memory available: fly fewer",
+            where=where,
+        )
+
+
 class ThreadTeam:
     """``threads`` threads running one function over parts (module docstring): :meth:`run` calls
     ``fn(part)`` for each part, the first on the calling thread and the others on a pool of

@@ -22,9 +22,9 @@ from ..errors import UserError
 from ..formation.anticollision import ANTI_COLLISION_RULES, resolve_rule
 from ..output.progress import Progress
 from ..physics.aero.presets import preset
-from ..scenario import RandomStart, check_random_start_feasible
+from ..scenario import MAX_SEED, RandomStart, check_random_start_feasible, check_seed
 from ..starts import MAX_RANGE_M
-from .parallel import map_ordered
+from .parallel import check_run_count, map_ordered
 
 RULES = tuple(ANTI_COLLISION_RULES)  # layers, paper, off, jet-aware ("auto" picks one)
 
@@ -169,6 +169,7 @@ def stress(
     check_stress_case(case, starts, workers)
     # "auto" flies, and is reported as, the rule it stands for under this physics
     rules = list(dict.fromkeys(resolve_rule(r, preset(case.aero).downwash) for r in rules))
+    check_run_count(len(rules) * starts, "--starts")
     check_rules_fit(rules, case)
     cases = [replace(case, rule=rule, seed=case.seed + k) for rule in rules for k in range(starts)]
     with Progress(len(cases), "stress", None if progress else False, unit="starts") as bar:
@@ -181,6 +182,9 @@ def check_stress_case(case: StressCase, starts: int = 1, workers: int | None = N
     """One :class:`UserError` line for a request that cannot fly, before anything flies."""
     if starts < 1 or case.followers < 1:
         raise UserError("--starts and --followers must be at least 1")
+    check_seed(case.seed, "--seed0")
+    if case.seed + starts - 1 > MAX_SEED:  # the seeds flown are seed0 .. seed0 + starts - 1
+        raise UserError(f"--seed0 {case.seed} + --starts {starts} - 1 is beyond the largest seed, {MAX_SEED}")
     if case.duration <= 0:
         raise UserError("--duration must be positive")
     if not 0 < case.sensing_range <= MAX_RANGE_M:  # as a scenario's [formation] sensing_range

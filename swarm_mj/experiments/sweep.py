@@ -41,7 +41,7 @@ from ..errors import UserError
 from ..output.progress import Progress
 from ..scenario import Scenario, load_scenario, parse_scenario
 from .outcome import failure_line
-from .parallel import backend_name, map_ordered, resolve_workers
+from .parallel import backend_name, check_run_count, map_ordered, resolve_workers
 
 #: (key, label, worst, swarm only). ``worst`` is "max" (an error: bigger is worse) or "min".
 METRICS: list[tuple[str, str, str, bool]] = [
@@ -292,6 +292,8 @@ def sweep(
     terminal (:class:`~swarm_mj.output.progress.Progress`).
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    if isinstance(seeds, (int, np.integer)):  # before the seeds' list is built
+        check_run_count(int(seeds) * len(values or [None]), "--seeds")
     seed_list = list(range(int(seeds))) if isinstance(seeds, (int, np.integer)) else [int(s) for s in seeds]
     if not seed_list:
         raise UserError(f"--seeds must be >= 1, got {seeds}")

@@ -103,3 +103,25 @@ def test_an_integer_trajectory_parameter_beyond_int64_is_read_as_its_float(tmp_p
         except UserError as exc:  # the altitude: 1e30 m is beyond the 1-km world, one line for both
             refs.append(str(exc).split(": ", 1)[1])
     assert refs[0] == refs[1], refs
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["stress", "--starts", 10**14], "beyond the largest seed, 4294967295"),  # seed0 + starts - 1
+        (["stress", "--seed0", 2**32 - 1, "--starts", 2], "beyond the largest seed"),
+        (["stress", "--seed0", -1, "--starts", 1], "--seed0: must be >= 0"),
+        (["stress", "--starts", 4 * 10**9], "--starts: 8e+09 runs would hold"),  # two rules' cases and rows
+        (["sweep", "step", "--seeds", 4 * 10**9], "--seeds: 4e+09 runs would hold"),  # list(range(seeds))
+    ],
+)
+def test_more_starts_or_seeds_than_fit_is_one_line(tmp_path, monkeypatch, capsys, no_flight, argv, says):
+    """The stress starts' seeds are seed0 .. seed0 + starts - 1, each at most MAX_SEED; and a request's
+    cases or tasks and result rows must fit in memory (16 GiB here): each is refused before the
+    cases are built, not a MemoryError (or the machine's memory exhausted) minutes later."""
+    from swarm_mj import scenario
+
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(scenario, "available_memory_bytes", lambda: 16 * 2**30)
+    line = cli_error(capsys, [*argv, "--workers", "1"])
+    assert says in line, line
