@@ -14,7 +14,6 @@ marked "to fly").
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +22,7 @@ from typing import Any
 from ..errors import UserError, unknown_key
 from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..resources import SCENARIOS_DIR
+from ..table_fields import finite
 
 _HERE = Path(__file__).resolve().parent
 #: The bundled gains files a vehicle file's ``gains`` may name without a path (their file stems).
@@ -116,7 +116,7 @@ def resolve_gains(value: str, vehicle_file: str | Path) -> Path:
 
 
 def _is_number(v: Any) -> bool:
-    return not isinstance(v, bool) and isinstance(v, int | float) and math.isfinite(v)
+    return not isinstance(v, bool) and isinstance(v, int | float) and finite(v)
 
 
 def check_value(key: str, v: Any, where: str) -> None:
@@ -152,7 +152,7 @@ class Vehicle:
         v = self.extra.get(key, default)
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v <= 0:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not finite(v) or v <= 0:
             raise UserError(f"vehicle key {key!r} must be a positive number ({unit}), got {v!r}", where=self.path)
         return float(v)
 
@@ -253,7 +253,7 @@ class Vehicle:
         v = self.extra.get("hub_area")
         if v is None:
             return None
-        if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v) or v < 0:
+        if isinstance(v, bool) or not isinstance(v, int | float) or not finite(v) or v < 0:
             raise UserError(f"{self.path}: vehicle key 'hub_area' must be a number >= 0 (m²), got {v!r}")
         return float(v)
 

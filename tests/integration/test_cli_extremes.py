@@ -125,3 +125,19 @@ def test_more_starts_or_seeds_than_fit_is_one_line(tmp_path, monkeypatch, capsys
     monkeypatch.setattr(scenario, "available_memory_bytes", lambda: 16 * 2**30)
     line = cli_error(capsys, [*argv, "--workers", "1"])
     assert says in line, line
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [("mass", "1" + "0" * 400), ("inertia", "[1" + "0" * 400 + ", 1, 1]"), ("hub_area", "1" + "0" * 400)],
+)
+def test_a_vehicle_number_beyond_a_float_is_one_line(tmp_path, monkeypatch, capsys, no_flight, key, value):
+    """A vehicle file's integer beyond a float's range is its key's one line (table_fields.finite), not
+    math.isfinite's OverflowError."""
+    from swarm_mj.vehicles import _HERE
+
+    monkeypatch.chdir(tmp_path)
+    lines = [ln for ln in (_HERE / "paper.toml").read_text().splitlines() if not ln.startswith(f"{key} =")]
+    (tmp_path / "v.toml").write_text("\n".join([*lines, f"{key} = {value}", ""]))
+    line = cli_error(capsys, ["run", "step", "--vehicle", "v.toml", "--no-record"])
+    assert f"vehicle key {key!r} must be" in line, line
