@@ -50,12 +50,14 @@ def check_output_path(path: str | Path, suffixes: Sequence[str], option: str) ->
     return p
 
 
-def check_video_args(args) -> None:
+def check_video_args(args, video_option: str = "--video") -> None:
     """Check the rendering options of ``swarm-mj run`` / ``swarm-mj video`` before simulating.
 
     Reads ``args.video``, ``args.snapshot``, ``args.snapshot_time``, ``args.fps``, ``args.size``
     and, where present, ``args.duration`` / ``args.scenario`` (to check the still's time and
-    the video's window against the run's length). Raises :class:`UserError`.
+    the video's window against the run's length). ``video_option``: the option that gave
+    ``args.video``, as a message names it (``run --video``, ``video -o/--output``). Raises
+    :class:`UserError`.
     """
     video = getattr(args, "video", None)
     snapshot = getattr(args, "snapshot", None)
@@ -67,7 +69,7 @@ def check_video_args(args) -> None:
             raise UserError(f"--fps {fps} is more than 1000 frames per second")
         w, h = parse_size(getattr(args, "size", "1280x720"))
         if video is not None:
-            check_output_path(video, (".mp4",), "--video")
+            check_output_path(video, (".mp4",), video_option)
             if w % 2 or h % 2:
                 raise UserError(f"--size {w}x{h}: H.264 video needs an even width and height")
         if snapshot is not None:
@@ -151,7 +153,7 @@ def main(args: argparse.Namespace) -> int:
     args.video = args.output or f"{sc.name}.mp4"
     if args.duration is None:
         args.duration = sc.duration
-    check_video_args(args)
+    check_video_args(args, "-o/--output")
     if args.record:
         check_output_path(args.record, (".rrd",), "--record")
     if args.seed is not None:

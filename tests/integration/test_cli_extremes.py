@@ -141,3 +141,18 @@ def test_a_vehicle_number_beyond_a_float_is_one_line(tmp_path, monkeypatch, caps
     (tmp_path / "v.toml").write_text("\n".join([*lines, f"{key} = {value}", ""]))
     line = cli_error(capsys, ["run", "step", "--vehicle", "v.toml", "--no-record"])
     assert f"vehicle key {key!r} must be" in line, line
+
+
+@pytest.mark.parametrize(
+    "argv, says",
+    [
+        (["video", "step", "-o", "nope/x.mp4"], "-o/--output nope/x.mp4: folder nope does not exist"),
+        (["video", "step", "--output", "x.avi"], "-o/--output x.avi: the file name must end in .mp4"),
+        (["run", "step", "--video", "nope/x.mp4", "--no-record"], "--video nope/x.mp4: folder nope does not exist"),
+    ],
+)
+def test_a_bad_video_path_names_the_commands_own_option(tmp_path, monkeypatch, capsys, no_flight, argv, says):
+    """``video`` takes its path as ``-o/--output`` and ``run`` as ``--video``: the line names the one given."""
+    monkeypatch.chdir(tmp_path)
+    line = cli_error(capsys, argv)
+    assert says in line, line
