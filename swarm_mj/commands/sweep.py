@@ -145,7 +145,8 @@ def main(args: argparse.Namespace) -> int:
     failed = [r for r in res.runs if r.get("flight_failed")]
     if failed:  # flew to the end, but not as asked (EXIT_EPILOG)
         r = failed[0]
-        print(f"swarm-mj: {len(failed)} of {len(res.runs)} runs failed; seed {r['seed']}: {r['flight_failed']}")
+        what = f"{res.param}={res.values[r['value_index']]!r} " if res.param else ""  # as its progress line
+        print(f"swarm-mj: {len(failed)} of {len(res.runs)} runs failed; {what}seed {r['seed']}: {r['flight_failed']}")
     if any(r["stopped"] for r in res.runs):
         return EXIT_ERROR
     return EXIT_FLIGHT_FAILED if failed else 0

@@ -156,3 +156,24 @@ def test_a_bad_video_path_names_the_commands_own_option(tmp_path, monkeypatch, c
     monkeypatch.chdir(tmp_path)
     line = cli_error(capsys, argv)
     assert says in line, line
+
+
+def test_a_sweeps_failed_run_is_named_by_its_value_and_seed(tmp_path, monkeypatch, capsys):
+    """The closing line of a sweep with a failed flight names the run as its progress line does: the
+    value swept and the seed (``seed 0`` alone is every value's first run)."""
+    from swarm_mj.experiments import sweep
+
+    real = sweep.run_task
+
+    def second_value_fails(task):
+        r = real(task)
+        r["flight_failed"] = "flight failed: follower5 was lost" if task.value_index == 1 else None
+        return r
+
+    monkeypatch.setattr(sweep, "run_task", second_value_fails)
+    monkeypatch.chdir(tmp_path)
+    argv = ["sweep", "anti_collision", "--param", "formation.anti_collision=off,paper", "--seeds", "1"]
+    rc = cli.main([*argv, "--duration", "0.2", "--workers", "1", "--quiet"])
+    out = capsys.readouterr().out
+    assert rc == 3, out
+    assert "1 of 2 runs failed; formation.anti_collision='paper' seed 0: flight failed: follower5 was lost" in out, out
