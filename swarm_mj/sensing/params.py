@@ -17,6 +17,7 @@ from typing import Any
 
 from ..errors import UserError
 from ..starts import MAX_RANGE_M
+from ..table_fields import finite
 
 
 class _FromPreset(float):
@@ -153,12 +154,9 @@ def _checked(key: str, v: Any, meta: dict[str, Any], where: str | None = None) -
         return None
     if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise UserError(f"must be a number ({meta['unit'] or 'a probability'}), got {v!r}", where=w)
-    try:
-        x = float(v)
-    except OverflowError:  # an integer beyond a float's range (TOML reads integers of any size)
-        raise UserError(f"must be finite, got {v!r}", where=w) from None
-    if math.isnan(x) or (math.isinf(x) and not (key == "range_m" and x > 0)):
+    if not finite(v) and not (key == "range_m" and v == math.inf):  # range_m = inf: no limit
         raise UserError(f"must be finite, got {v!r}", where=w)
+    x = float(v)
     if key == "range_m" and MAX_RANGE_M < x < math.inf:  # the rules square it (overflow); the world is 1 km
         raise UserError(f"must be <= {MAX_RANGE_M:g} m, or inf (no limit), got {v!r}", where=w)
     lo_bad = x <= meta["lo"] if meta["open_lo"] else x < meta["lo"]
