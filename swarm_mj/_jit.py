@@ -298,11 +298,15 @@ class Bound:
         return self._call(*args)
 
 
-def python_body(fn: Callable[..., Any]) -> Callable[..., Any]:
+def python_body(fn: Callable[..., Any], stages: dict[str, Callable[..., Any]] | None = None) -> Callable[..., Any]:
     """``fn``'s Python body (a Numba dispatcher's ``py_func``) as a function of its own whose calls of
     compiled functions run compiled: the same orchestration as the compiled ``fn``, called from Python
     without compiling ``fn`` for Python callers (docs/design.md, "The control period, written once").
-    Without Numba, ``fn`` itself.
+    Without Numba, ``fn`` itself (or, with ``stages``, its Python function with them).
+
+    ``stages``: callees of ``fn`` by name, replaced in the new function by these Python callables (the
+    step-by-step period's stages that have no compiled step, or whose owner runs them in Python); each
+    name must be one ``fn`` calls.
 
     Each compiled callee is bound (:func:`bind`) at its first call, to that call's argument types, and
     called through the bound overload from then on (no dispatcher, no per-call check). **Invariant** (that
@@ -312,13 +316,17 @@ def python_body(fn: Callable[..., Any]) -> Callable[..., Any]:
     its own bindings, so each caller keeps its own. The module's other globals are those of ``fn``'s
     module when it is made."""
     py = getattr(fn, "py_func", fn)
-    if not AVAILABLE or py is fn:
+    if not stages and (not AVAILABLE or py is fn):
         return fn
+    unknown = set(stages or ()) - set(py.__code__.co_names)
+    if unknown:
+        raise ValueError(f"{py.__qualname__} calls no {', '.join(sorted(unknown))}")
     names = dict(py.__globals__)
     for name in py.__code__.co_names:
         callee: Any = names.get(name)
-        if hasattr(callee, "overloads") and hasattr(callee, "py_func"):  # a Numba dispatcher
+        if AVAILABLE and hasattr(callee, "overloads") and hasattr(callee, "py_func"):  # a Numba dispatcher
             names[name] = _BindAtFirstCall(names, name, callee)
+    names.update(stages or {})
     body = types.FunctionType(py.__code__, names, py.__name__, py.__defaults__, py.__closure__)
     body.__doc__, body.__qualname__ = py.__doc__, py.__qualname__
     return body

@@ -78,13 +78,15 @@ import dm_env
 import numpy as np
 from dm_env import specs
 
-from ._jit import bind, jit
+from ._jit import bind
 from .choices import VehicleLike
 from .control.backstepping import Backstepping
 from .errors import SimulationDiverged, UserError
 from .physics.sim import HEALTHY, ForceStage
 from .physics.wind import WindSeries
+from .pipeline.period import UNHEALTHY, all_finite
 from .pipeline.records import Obs, Refs
+from .pipeline.stepper import GivenPeriod
 from .pipeline.swarm import SwarmPhysics
 from .scenario import Scenario, flown
 from .sensing import SensingParams
@@ -136,15 +138,6 @@ class Observation(dict):
 
 #: The one copy of SwarmEnv's physics (SwarmPhysics.begin's mask).
 _ONE = np.ones(1, dtype=bool)
-
-
-@jit(samples=lambda: [(np.zeros((2, 4)),)])
-def all_finite(a: np.ndarray) -> bool:
-    """True if every entry of a (any shape) is finite."""
-    for x in a.flat:
-        if not np.isfinite(x):
-            return False
-    return True
 
 
 class SwarmEnv(dm_env.Environment):
@@ -199,6 +192,7 @@ class SwarmEnv(dm_env.Environment):
         #: each drone's own view (swarm_mj.sensing.stage; None: the ``perfect`` oracle, the true state)
         self.sensing: SensingStage | None = sensing_stage(sc.sensing, self.T, n)
         self._setpoint_ctl: Backstepping | None = None
+        self._period = GivenPeriod(n, self.T, self.fly, self.observe_next)  # step's: the period with the action given
         self._reward_call: Callable[..., float] | None = None  # copy_reward bound (_reward)
         if action == "setpoint":
             self._setpoint_ctl = Backstepping(
@@ -266,27 +260,20 @@ class SwarmEnv(dm_env.Environment):
         else:
             if a.shape != (self.n, 4):
                 raise UserError(f"thrust action must have shape ({self.n}, 4), got {a.shape}")
-            if not all_finite(a):
-                raise UserError("action contains NaN or inf")
-            U = a
-        # the wind force of the coming period, held over it (zero-order hold), and the period itself
-        ph, sim = self.physics, self.sim
-        k = int(ph.k[0])  # the period flown now (self.k)
-        t = k * self.T
-        healthy = ph.step(U)[0] == HEALTHY
-        self._applied, self._applied_record = (t, refs), None  # last_applied, built when asked
+            U = a  # (a non-finite one is refused by the period, before anything flies)
+        k = self.k  # the period flown now (swarm_mj.pipeline.stepper.GivenPeriod: the period with U given)
         diverged = None
-        if not healthy:
+        if self._period.fly(U, refs) == UNHEALTHY:
             try:
-                sim.check()  # raises SimulationDiverged, naming why
+                self.sim.check()  # raises SimulationDiverged, naming why
             except SimulationDiverged as exc:
                 if self.raise_on_divergence:
                     raise
                 diverged = exc
-        if diverged is None or np.isfinite(sim.qpos).all():
-            self._obs = self._observe()
+            if diverged is None or np.isfinite(self.sim.qpos).all():
+                self.observe_next()
         obs = self._obs  # after a non-finite divergence: the last finite observation
-        new_contacts = int(ph.new_contacts[0])
+        new_contacts = int(self.physics.new_contacts[0])
         # the task's reward and termination (swarm_mj/task.py), as for every copy of the vector env
         reward, terminated, truncated = copy_outcome(
             self._reward(obs, new_contacts), diverged is not None, new_contacts, k + 1, self.n_steps,
@@ -314,6 +301,23 @@ class SwarmEnv(dm_env.Environment):
 
     def reward_spec(self):
         return specs.Array((), np.float64, "reward")
+
+    # ------------------------------------------------------------------ the period's physics and observation
+    def fly(self, U: np.ndarray, refs: tuple | None = None) -> bool:
+        """The physics of the period ``self.k`` with U (n, 4) (the step-by-step period's physics stage,
+        swarm_mj.pipeline.stepper): the wind force of the period held over it (zero-order hold), the
+        simulator's period (:meth:`swarm_mj.pipeline.swarm.SwarmPhysics.step`: contacts counted, k + 1);
+        ``refs`` (pos_d, vel_d, acc_d, att_d) what :attr:`last_applied` names. Returns whether the
+        simulator is healthy after it."""
+        t = self.k * self.T
+        healthy = self.physics.step(U)[0] == HEALTHY
+        self._applied, self._applied_record = (t, refs), None  # last_applied, built when asked
+        return bool(healthy)
+
+    def observe_next(self) -> dict:
+        """The observation of period ``self.k`` after a period flown by :meth:`fly` (its sensing stage ticked)."""
+        self._obs = self._observe()
+        return self._obs
 
     # ------------------------------------------------------------------ internals
     @property

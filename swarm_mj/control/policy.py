@@ -253,24 +253,59 @@ class BacksteppingPolicy:
 
     def command(self, obs: dict) -> Command:
         """U1..U4 (n, 4) for the observation, with the references (n, 3) and attitude (n, 3) behind them:
-        the rule's references, then :func:`swarm_mj.pipeline.period.command` (the function the chunk
-        driver calls) on this policy's records."""
+        the control period's first three stages (swarm_mj.pipeline.period.period): :meth:`references`,
+        :meth:`inputs`, then :meth:`finish`."""
+        pos_d, vel_d, acc_d = self.references(obs)
+        o, ff = self.inputs(obs)
+        return self.finish(o, pos_d, vel_d, acc_d, ff)
+
+    def references(self, obs: dict) -> tuple[Any, Any, Any]:
+        """The references (n, 3) of the period (the rule's stage): the formation setpoints adjusted by the
+        anti-collision rule (docs/interpretations.md §4; for the drones it steers also the velocity and
+        acceleration references, zero = hold x, y), or under a sensing model each drone's copy of the rule
+        on its own view (the observation's ``view_*`` keys, swarm_mj.sensing.stage)."""
         if not self._started:
-            self.rule.reset(obs["pos"])
+            self.rule.reset(obs["pos"])  # (the flight plan's pads, known to all)
             self._started = True
         if self.own_view:
-            return self._command_from_view(obs)
+            rule = self.rule
+            assert isinstance(rule, OwnViewRule)
+            vp = obs["view_pos"]
+            return rule.references_from_view(
+                float(obs["time"]), vp, obs["view_setpoint"], obs["view_setpoint_vel"], obs["setpoint_acc"],
+                vp[:, 0, 2], obs["view_vel"],
+            )  # fmt: skip
         pos_d, vel_d, acc_d = obs["setpoint"], obs["setpoint_vel"], obs["setpoint_acc"]
         if self.n > 1:
-            # Anti-collision (docs/interpretations.md §4): the rule adjusts the setpoints (n, 3) and,
-            # for the drones it steers, also hands the velocity/acceleration references (zero = hold x, y).
             assert isinstance(self.rule, Rule)
             pos_d, vel_d, acc_d = self.rule.references(
                 float(obs["time"]), obs["pos"], pos_d, vel_d, acc_d, float(obs["leader_pos"][2])
             )
-        return self._finish(self._obs_record(obs), pos_d, vel_d, acc_d)
+        return pos_d, vel_d, acc_d
 
-    def _finish(self, o: Obs, pos_d: Any, vel_d: Any, acc_d: Any, ff: Feedforward | None = None) -> Command:
+    def inputs(self, obs: dict) -> tuple[Obs, Feedforward | None]:
+        """What the controller is given (the inputs' stage): the observation's record and this policy's
+        feedforward (None), or under a sensing model each drone's own estimated position and velocity and
+        its downwash feedforward from where it believes the others are
+        (:func:`~swarm_mj.pipeline.period.viewed_feedforward`, the chunk driver's), added to the known force
+        (the feedforward's record then a stand-in that is off)."""
+        o = self._obs_record(obs)
+        if not self.own_view:
+            return o, None
+        o = o._replace(pos=_f8(obs["own_pos"], (self.n, 3)), vel=_f8(obs["own_vel"], (self.n, 3)))
+        if self.downwash_ff is None:
+            return o, None
+        gains = self._stage_records()[0].gains
+        thrust = self.U_last[:, 0].copy() if self.controller.started else np.full(self.n, gains.m * gains.g)
+        k = int(round(float(obs["time"]) / self.controller.T))
+        force, f8 = np.empty((self.n, 3)), np.ascontiguousarray
+        # what each drone's next packet carries besides its state, and its feedforward from its view
+        mask, age = f8(obs["view_mask"] > 0.5), f8(obs["view_age"], dtype=np.float64)
+        ff, held = self.downwash_ff.record(), self._payloads
+        self._viewed_ff(ff, held, k, f8(obs["view_pos"], dtype=np.float64), mask, age, o.quat, thrust, force)
+        return o._replace(wf=o.wf + force), self._no_ff
+
+    def finish(self, o: Obs, pos_d: Any, vel_d: Any, acc_d: Any, ff: Feedforward | None = None) -> Command:
         """The command stage (:func:`swarm_mj.pipeline.period.command`) on the observation record ``o`` and
         the references (n, 3); ``ff``: the feedforward's record (default: this policy's)."""
         ctl, n3 = self.controller, (self.n, 3)
@@ -284,37 +319,6 @@ class BacksteppingPolicy:
             U = U.copy()
         ctl.U = U
         return Command(U=U, pos_d=pos_d, vel_d=vel_d, acc_d=acc_d, att_d=ctl.att_d.copy())
-
-    def _command_from_view(self, obs: dict) -> Command:
-        """The command when each drone decides from its own view (the observation's ``view_*`` keys,
-        swarm_mj.sensing.stage): drone i's references from its copy of the rule on its view, its
-        controller on its own estimated position and velocity, its downwash feedforward from where it
-        believes the others are (:func:`~swarm_mj.pipeline.period.viewed_feedforward`, the chunk driver's)."""
-        rule = self.rule  # (reset at the first command from the starts: the flight plan's pads, known to all)
-        assert isinstance(rule, OwnViewRule)
-        vp = obs["view_pos"]
-        pos_d, vel_d, acc_d = rule.references_from_view(
-            float(obs["time"]),
-            vp,
-            obs["view_setpoint"],
-            obs["view_setpoint_vel"],
-            obs["setpoint_acc"],
-            vp[:, 0, 2],
-            obs["view_vel"],
-        )
-        o = self._obs_record(obs)._replace(pos=_f8(obs["own_pos"], (self.n, 3)), vel=_f8(obs["own_vel"], (self.n, 3)))
-        if self.downwash_ff is not None:
-            gains = self._stage_records()[0].gains
-            thrust = self.U_last[:, 0].copy() if self.controller.started else np.full(self.n, gains.m * gains.g)
-            k = int(round(float(obs["time"]) / self.controller.T))
-            force, f8 = np.empty((self.n, 3)), np.ascontiguousarray
-            # what each drone's next packet carries besides its state, and its feedforward from its view
-            mask, age = f8(obs["view_mask"] > 0.5), f8(obs["view_age"], dtype=np.float64)
-            ff, held = self.downwash_ff.record(), self._payloads
-            self._viewed_ff(ff, held, k, f8(vp, dtype=np.float64), mask, age, o.quat, thrust, force)
-            o = o._replace(wf=o.wf + force)
-            return self._finish(o, pos_d, vel_d, acc_d, ff=self._no_ff)
-        return self._finish(o, pos_d, vel_d, acc_d)
 
     def __call__(self, obs: dict) -> np.ndarray:
         return self.command(obs).U

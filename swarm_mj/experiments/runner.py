@@ -20,10 +20,10 @@ from typing import Any
 
 import numpy as np
 
-from .._jit import CompileClock, python_body, warm_up
+from .._jit import CompileClock, warm_up
 from ..choices import gains_name
 from ..control.policy import BacksteppingPolicy
-from ..env import Command, SwarmEnv
+from ..env import SwarmEnv
 from ..errors import SimulationDiverged, UserError
 from ..formation.anticollision import AUTO, AUTO_CHOICE
 from ..formation.barrier import keepout_radii
@@ -46,8 +46,8 @@ from ..physics.aero.presets import with_aero
 from ..physics.params import QuadParams
 from ..physics.sim import ForceStage, Sim
 from ..pipeline.fast import CHUNK, FastLoop, signature, why_not
-from ..pipeline.period import log_inputs
-from ..pipeline.records import LogRows, Obs
+from ..pipeline.records import LogRows
+from ..pipeline.stepper import StepPeriod
 from ..scenario import Scenario, load_scenario
 from ..sensing.log import ViewLog, view_summary
 from .outcome import flight_outcome
@@ -60,9 +60,6 @@ __all__ = [
     "summarize",
 ]
 
-
-#: the log's input row of a period (the chunk driver's stage), its Python body (_jit.python_body)
-_log_inputs = python_body(log_inputs)
 
 _SERIES = ("t", "pos", "vel", "quat", "rpy", "pos_d", "slot", "att_d", "U", "rotor", "wind_speed", "wind_force", "D")
 
@@ -125,12 +122,6 @@ class RunLog:
         """The series as one record (what the compiled log rows write: swarm_mj.pipeline.period.log_inputs)."""
         series = {f: getattr(self, f) for f in _SERIES}
         return LogRows(**series, forces=self.stage_rows)
-
-    def observe(self, k: int, t: float, obs: Obs, cmd: Command, wind_speed: np.ndarray, D: float) -> None:
-        """Sample k (time t) from the observation and the command computed from it (before the step):
-        :func:`swarm_mj.pipeline.period.log_inputs`, the chunk driver's log row, its Python body on
-        :attr:`rows` (compiled for Python callers it would cost a first run seconds of compiling)."""
-        _log_inputs(self.rows, k, t, obs, cmd.pos_d, cmd.att_d, wind_speed, D)
 
     def applied(self, k: int, sim: Sim) -> None:
         """What the simulator applied over the period after sample k, as that period left it: the held U1..U4,
@@ -230,14 +221,14 @@ def run(
         bar = Progress(env.n_steps, sc.name, progress)
         wall0 = _time.perf_counter()
         compiling = CompileClock().start()  # what Numba compiles in the run is left out of its speed figure
-        obs = env.reset().observation
+        env.reset()
         # the chunk driver (swarm_mj/pipeline/fast.py) flies chunks of formed flight, when every stage compiles
         reason = "fused=False" if fused is False else (getattr(policy, "not_compiled", None) or why_not(env, policy))
         if reason is not None and fused is not False and say is not None:
             say(f"flying step by step: {reason}")
         fast = FastLoop.build(env, policy, log, compile=bool(fused), announce=say) if reason is None else None
         try:
-            k, error = _fly(env, policy, log, fast, obs, bar, interrupt)
+            k, error = _fly(env, policy, log, fast, bar, interrupt)
         finally:
             bar.close()
             compiling.stop()
@@ -305,37 +296,31 @@ def _fly(
     policy: BacksteppingPolicy,
     log: RunLog,
     fast: FastLoop | None,
-    obs: dict,
     bar: Progress,
     interrupt: CooperativeInterrupt,
 ) -> tuple[int, BaseException | None]:
-    """Fly the reset ``env`` from its observation ``obs`` to its last period, logging each sample in ``log``:
-    chunks of formed flight on the chunk driver ``fast`` where it is ready, every other period step by step.
+    """Fly the reset ``env`` to its last period, logging each sample in ``log``: chunks of formed flight on the
+    chunk driver ``fast`` where it is ready, every other period step by step (:class:`StepPeriod`: the same
+    period in Python).
     Returns the periods flown and what stopped the run early (a Ctrl-C, a divergence) or None."""
     K, k = env.n_steps, 0
-    wind_speed = env.wind.speed
+    step = StepPeriod(env, policy, log)  # the periods the chunk driver does not fly: the same period, in Python
     try:
         while True:
             if fast is not None and k < K and fast.ready():
                 k = fast.run(min(K, k + CHUNK))
                 fast.raise_if_stopped()
-                obs = env._obs
                 bar.update(k)
                 if interrupt.requested:
                     raise KeyboardInterrupt
                 if fast.status == 0:  # done: the chunk flew to its end
                     continue
-            cmd = policy.command(obs)
-            log.observe(k, obs["time"], env.obs_record, cmd, wind_speed[k], env.D[k])
-            if log.views is not None and env.sensing is not None:
-                log.views.record(k, env.sensing)
-            if k >= K:
+            if k >= K:  # the last sample: its observation and the command computed from it, nothing flown
+                step.sample()
                 return k, None
             if interrupt.requested:
                 raise KeyboardInterrupt
-            ts = env.step(cmd)
-            log.applied(k, env.sim)
-            obs = ts.observation
+            step.fly_next()
             k += 1
             if k % 50 == 0:
                 bar.update(k)

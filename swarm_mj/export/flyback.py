@@ -20,7 +20,6 @@ from typing import Any
 import numpy as np
 
 from ..control.policy import BacksteppingPolicy
-from ..env import Command
 from ..errors import UserError
 from ..physics.params import QuadParams
 from ..scenario import Scenario, parse_scenario
@@ -69,14 +68,14 @@ class PiecesPolicy(BacksteppingPolicy):
             raise UserError(f"{len(pieces)} drones' pieces for {self.n} drones")
         self.reference = PiecesReference(pieces)
 
-    def command(self, obs: dict) -> Command:
+    def references(self, obs: dict) -> tuple[Any, Any, Any]:
         pos, vel, acc, yaw = self.reference(float(obs["time"]))
         # in place: the observation's own arrays, which the run's log reads as each drone's reference
         obs["setpoint"][...] = pos
         obs["setpoint_vel"][...] = vel
         obs["setpoint_acc"][...] = acc
         obs["setpoint_yaw"][...] = yaw
-        return super().command(obs)
+        return super().references(obs)
 
 
 @dataclass(frozen=True)

@@ -1,21 +1,11 @@
-"""The stages of one control period as compiled functions over the records of :mod:`swarm_mj.pipeline.records`,
-and the chunk driver that flies many periods in one compiled call (docs/design.md, "The control
-period, written once").
-
-:func:`fly_chunk` calls these stage functions, in the per-period path's order. The per-period path
-(:meth:`swarm_mj.env.SwarmEnv.step`, :meth:`swarm_mj.physics.sim.Sim.step`,
-:class:`swarm_mj.control.policy.BacksteppingPolicy`, :class:`swarm_mj.experiments.runner.RunLog`) calls the
-same ones: compiled, each bound to its records (:func:`swarm_mj._jit.bind`), for the observation
-(:func:`observe`), saturation and the physics steps (:func:`~swarm_mj.physics.sim.period_physics`:
-:func:`~swarm_mj.physics.sim.hold_inputs`, then :func:`~swarm_mj.physics.sim.physics_steps`, which
-:func:`fly_chunk` calls too), the health check (:func:`~swarm_mj.physics.sim.unhealthy`) and the
-feedforward (:func:`feedforward_force`); as their Python bodies (:func:`swarm_mj._jit.python_body`: the
-orchestration run by the interpreter, its kernels compiled and bound to the caller's records) for the
-command (:func:`command`, in ``BacksteppingPolicy.command`` after the rule's references) and the log's
-input row (:func:`log_inputs`, in ``RunLog.observe``), since compiling those two for Python callers
-would add 8-13 s and 3-4 s to a first run (docs/design.md). The rule's step is the rule's own compiled
-step, registered for its record's type (:data:`swarm_mj.pipeline.registry.RULE_KERNELS`), which its Python
-``update`` calls too, and the barrier filter's period is one compiled function its Python call shares:
+"""One control period, written once (docs/design.md, "The control period, written once"): :func:`period`
+composes it from the stages below, compiled functions over the records of :mod:`swarm_mj.pipeline.records`,
+and returns its status. Every driver runs it: :func:`fly_chunk` loops over it compiled (the chunk driver);
+:meth:`swarm_mj.env.SwarmEnv.step` and a run's other periods run its Python body
+(:mod:`swarm_mj.pipeline.stepper`: :func:`swarm_mj._jit.python_body` with the owners' Python stages in place
+of some callees, the others compiled and bound to the caller's records). The rule's step is the rule's own
+compiled step, registered for its record's type (:data:`swarm_mj.pipeline.registry.RULE_KERNELS`), which its
+Python ``update`` calls too, and the barrier filter's period is one compiled function its Python call shares:
 
 =========================  =====================================================================
 stage                      function
@@ -34,8 +24,11 @@ lag prediction             :func:`~swarm_mj.control.lag.predict_kernel`
 backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_kernel`,
                            :func:`~swarm_mj.physics.mixing.attitude_priority_kernel` (or
                            :func:`~swarm_mj.physics.mixing.yaw_last_kernel`)
+the command's check        :func:`all_finite`
 log rows                   :func:`log_inputs`, :func:`log_outputs`
-saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
+the wind                   :func:`hold_wind` (period k's, held over it)
+the period's physics       :func:`~swarm_mj.physics.sim.period_physics` (``Sim.step``'s too):
+saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`, then
 physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
                            :data:`swarm_mj.pipeline.registry.FORCE_KERNELS`, in the simulator's order)
@@ -47,7 +40,7 @@ each drone's view          :func:`~swarm_mj.sensing.stage.sense_step` (the chann
                            drone's setpoints; ``SensingStage.observe`` calls it too), :func:`log_view`
 =========================  =====================================================================
 
-A compiled driver hands control back to Python for what the per-period path does in Python
+A compiled driver hands control back to Python for what the step path does in Python
 (Fig. 5 acting, a contact, an unhealthy state, a non-finite command): :data:`REACT`,
 :data:`CONTACT`, :data:`UNHEALTHY`, :data:`BAD_ACTION`.
 """
@@ -63,7 +56,7 @@ from ..formation.slots import setpoints_into
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
-from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
+from ..physics.sim import log_stage_forces, period_physics, unhealthy, unmix_kernel
 from ..sensing.payload import payload_tick
 from ..sensing.stage import sense_step
 from . import registry
@@ -451,10 +444,60 @@ def observe_into(qpos, qvel, T, refs, obs, k) -> None:
 # --------------------------------------------------------------------------- the chunk driver
 
 
+@jit(inline=True)
+def period(k, s0, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors):
+    """Control period k, written once: every driver runs this function (docs/design.md, "The control
+    period, written once"). :func:`fly_chunk` loops over it compiled; the step-by-step path runs its Python
+    body (:mod:`swarm_mj.pipeline.stepper`), with the run's Python stages where they have no compiled step.
+    Returns (status, s): :data:`DONE` (``obs`` holds period k + 1's observation), :data:`REACT` (the rule
+    hands the period back before anything acted), :data:`BAD_ACTION` (a non-finite command, nothing
+    applied), :data:`CONTACT` (physics step s − 1 had a contact: Python counts it, then calls again with
+    ``s0`` = s), :data:`UNHEALTHY` (after the period's physics). ``s0`` > 0 resumes the period's physics."""
+    U = ctl.U_last  # (what a resumed period's physics reads: the command holds, and saturation is done)
+    if s0 == 0:
+        t = k * phys.T
+        react, pos_d, vel_d, acc_d = _period_rules(rules, filts, view, obs, t)
+        if react:
+            return REACT, 0
+        seen, known = _period_inputs(ff, view, obs, k, ctl)
+        U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
+        if not all_finite(U):
+            return BAD_ACTION, 0
+        log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
+        _period_view_log(view, k)
+        hold_wind(phys, refs, k)
+    s = period_physics(phys, stages, monitors, U, s0, python_each)
+    if s > 0:
+        return CONTACT, s
+    log_outputs(log, k, phys, stages)
+    if unhealthy(phys):
+        return UNHEALTHY, 0
+    observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k + 1)
+    _period_sense(view, obs, refs, k + 1)
+    return DONE, 0
+
+
+@jit(inline=True, samples=lambda: [(np.zeros((2, 4)),)])
+def all_finite(a: np.ndarray) -> bool:
+    """True if every entry of a (any shape) is finite (the period's check of its command)."""
+    for x in a.flat:
+        if not np.isfinite(x):
+            return False
+    return True
+
+
+@jit(inline=True)
+def hold_wind(phys, refs, k) -> None:
+    """The wind force of period k (refs.wind_force[k], uniform) on every drone, held over the period."""
+    for i in range(phys.wind.shape[0]):
+        for j in range(3):
+            phys.wind[i, j] = refs.wind_force[k, j]
+
+
 @jit
 def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors):
-    """Fly control periods k .. k_end − 1 with the stages above, in the per-period path's order;
-    returns (status, k, s): the period and physics step (0 = its start) where it stopped.
+    """Fly control periods k .. k_end − 1 (:func:`period` each); returns (status, k, s): the period and
+    physics step (0 = its start) where it stopped (after an unhealthy period, the period after it).
 
     ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
     resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
@@ -468,44 +511,25 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
     (:func:`~swarm_mj.sensing.stage.sense_step`), ``rules`` and ``filts`` hold one copy per drone, each deciding
     its drone's references from that drone's view (:func:`_copies_period`), and the command is
     :func:`command` on :func:`own_observation`."""
-    n = phys.qpos.shape[0]
-    kin, xf, xtorque = drone_views(phys)
     while k < k_end:
-        if s0 == 0:
-            t = k * phys.T
-            react, pos_d, vel_d, acc_d = _period_rules(rules, filts, view, obs, t)
-            if react:
-                return REACT, k, 0
-            seen, known = _period_inputs(ff, view, obs, k, ctl)
-            U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
-            for x in U.flat:
-                if not np.isfinite(x):
-                    return BAD_ACTION, k, 0
-            log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
-            _period_view_log(view, k)
-            for i in range(n):  # the wind force of period k, held over it
-                for j in range(3):
-                    phys.wind[i, j] = refs.wind_force[k, j]
-            hold_inputs(phys, U)
-            log.U[k] = phys.ctrl
-            log.wind_force[k] = phys.wind
-        s = physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
-        if s > 0:
-            return CONTACT, k, s
+        status, s = period(
+            k, s0, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors
+        )
+        if status == UNHEALTHY:
+            return UNHEALTHY, k + 1, 0
+        if status != DONE:
+            return status, k, s
         s0 = 0
-        log_outputs(log, k, phys, stages)
         k += 1
-        if unhealthy(phys):
-            return UNHEALTHY, k, 0
-        observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k)
-        _period_sense(view, obs, refs, k)
     return DONE, k, 0
 
 
 @jit(inline=True)
 def log_outputs(log, k, phys, stages) -> None:
-    """Row k of the log from what the period applied (RunLog.applied): the produced rotor thrusts
-    (read from the lagged rotors' states) and each force stage's force."""
+    """Row k of the log from what the period applied (RunLog.applied): the held U1..U4, the wind force,
+    the produced rotor thrusts (read from the lagged rotors' states) and each force stage's force."""
+    log.U[k] = phys.ctrl
+    log.wind_force[k] = phys.wind
     if phys.lag:
         unmix_kernel(phys.act, phys.unmix_t, phys.rotor_thrust)
     log.rotor[k] = phys.rotor_thrust

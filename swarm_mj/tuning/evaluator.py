@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -69,6 +69,7 @@ from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..physics.sim import Sim
 from ..physics.world import INTEGRATORS, build_world
 from ..pipeline.period import command as period_command
+from ..pipeline.period import period
 from ..pipeline.records import Feedforward, Obs, Predictor
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
@@ -363,55 +364,17 @@ class BatchEvaluator:
 
     def _fly(self, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
         """Fly one group's copies through the step: gains g (m, 12) and alive (m,), tilt (m,) of the
-        whole batch (the group's rows are written). The loop of the module docstring."""
-        s, rows = self.settings, grp.rows
-        m_g = rows.stop - rows.start
-        g, alive, tilt, diverged_at = g[rows], alive[rows], tilt[rows], self.diverged_at[rows]  # views
-        # The command of every run (period.command's Python body, its kernels compiled), over records of this
-        # group's copies: backstepping with the copies' gains (m_g, 12) in its Gains record, no wind force and
-        # no feedforward; with rotor lag the controller of a lagged run (Scenario.lag_horizons, mixer "auto";
-        # docs/vehicles.md): the attitude predicted τ + T ahead and the attitude-priority mixer (or the mixer
-        # the settings name: a vehicle's).
-        ctl = Backstepping(
-            m_g, g, params=s.params, control_period=s.control_period, wind_feedforward=False,
-            attitude_map=s.attitude_map,
-        )  # fmt: skip
-        T, lagged = s.control_period, s.motor_tau > 0
-        mixer = s.mixer_flown
-        rec = ctl.control_record(np.zeros((m_g, 4)), priority=mixer != "clip", yaw_last=mixer == "yaw_last")
-        pred = AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T).record() if lagged else Predictor.off(m_g)
-        ff, obs, command = Feedforward.off(m_g), Obs.empty(m_g), self._command
-        pos_d, zero3, yaw_d = self._pos_d[rows], self._zero3[rows], self._yaw_d[rows]
-        obs.yaw[:] = yaw_d  # ψ_d (m_g,); the known wind force obs.wf stays zero
-        errors, track = self._errors, grp.track
-        blocks = grp.blocks
-        must_park = not alive.all()  # invalid gains: parked from the start
-        for k in range(self.K + 1):
+        whole batch (the group's rows are written). Each control period is the period every run flies
+        (:class:`_GroupPeriod`: ``period.period``'s Python body with the tuner's stages)."""
+        flight = _GroupPeriod(self, grp, g, alive, tilt)
+        flight.observe(0)
+        for k in range(self.K):
             if self._stop:
                 return
-            qpos, qvel = self._gather(grp)
-            # Angles and rates, the record of x, y, z, ψ and the health mask (docs/interpretations.md
-            # §6) at every sample and at the end of the run.
-            rpy, rate = attitude_kernel(qpos, qvel)
-            record_kernel(qpos, rpy, k, track, tilt)
-            bad = self._health(grp)
-            if k == self.K:
-                self._kill(alive, bad, k, diverged_at)
-                break
-            obs.pos[:], obs.vel[:], obs.omega[:] = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
-            obs.rpy[:], obs.rpy_rate[:] = rpy, rate
-            U = command(rec, ff, pred, obs, pos_d, zero3, zero3, k == 0)  # (m_g, 4)
-            error_kernel(pos_d, qpos, ctl.att_d, rpy, yaw_d, U, errors[k, rows], bad)
-            if self._kill(alive, bad, k, diverged_at) or must_park:
-                if not alive.any():
-                    break
-                for sim, sl in blocks:  # no input, held at the start
-                    if not alive[sl].all():
-                        sim.park(~alive[sl])
-                must_park = False
-            for sim, sl in blocks:
-                if alive[sl].any():  # a block of diverged copies only: nothing left to fly
-                    sim.step(U[sl])
+            flight.fly(k)
+            if flight.over:  # every copy diverged: nothing left to fly or sample
+                return
+        flight.kill(self.K)
 
     def _fly_or_stop(self, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
         """:meth:`_fly`; an exception (or Ctrl-C) in it stops the other threads at their next period."""
@@ -469,6 +432,143 @@ class BatchEvaluator:
 
 
 _EVALUATORS: dict[tuple[StepCostSettings, int, int], BatchEvaluator] = {}
+
+
+class _Clock(NamedTuple):
+    """What the period reads of the simulator where a group of blocks flies it: T (the copies' qpos and
+    qvel are gathered by the observation stage)."""
+
+    T: float
+    qpos: None = None
+    qvel: None = None
+
+
+class _Step(NamedTuple):
+    """What the period reads of a run's references where the tuner flies the step: no wind, no D."""
+
+    wind_speed: np.ndarray  # (K+1, 3) zeros
+    D: np.ndarray  # (K+1,) zeros
+
+
+class _GroupPeriod:
+    """One group's flight of the step, a control period at a time: ``period.period``'s Python body
+    (docs/design.md, "The control period, written once") with the tuner's stages, by the name the
+    period calls: the references are the step's set-point; the command is ``period.command``'s Python
+    body on records of the group's copies (backstepping with their gains (m_g, 12), no wind force, no
+    feedforward; under rotor lag the controller of a lagged run: the attitude predicted τ + T ahead and
+    the attitude-priority mixer, or the mixer the settings name; docs/vehicles.md); the input row is
+    eq. (25)'s errors (:func:`error_kernel`, a copy with a non-finite input marked bad); the physics
+    parks the copies newly bad, then steps each block with a live copy; the observation gathers the
+    blocks' states, records x, y, z, ψ and the tilt (:func:`record_kernel`) and their health. No copy
+    stops the period (each is parked instead), so the period is never unhealthy nor its command
+    refused."""
+
+    def __init__(self, ev: BatchEvaluator, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
+        s, rows = ev.settings, grp.rows
+        m_g = rows.stop - rows.start
+        self.ev, self.grp, self.rows = ev, grp, rows
+        self.alive, self.tilt, self.diverged_at = alive[rows], tilt[rows], ev.diverged_at[rows]  # views
+        ctl = Backstepping(
+            m_g, g[rows], params=s.params, control_period=s.control_period, wind_feedforward=False,
+            attitude_map=s.attitude_map,
+        )  # fmt: skip
+        T = s.control_period
+        mixer = s.mixer_flown
+        self.ctl = ctl.control_record(np.zeros((m_g, 4)), priority=mixer != "clip", yaw_last=mixer == "yaw_last")
+        self.pred = (
+            AttitudePredictor(m_g, s.motor_tau + T, s.motor_tau, T).record() if s.motor_tau > 0 else Predictor.off(m_g)
+        )
+        self.ff, self.obs = Feedforward.off(m_g), Obs.empty(m_g)
+        self.pos_d, self.zero3, self.yaw_d = ev._pos_d[rows], ev._zero3[rows], ev._yaw_d[rows]
+        self.obs.yaw[:] = self.yaw_d  # ψ_d (m_g,); the known wind force obs.wf stays zero
+        self.must_park = not self.alive.all()  # invalid gains: parked from the start
+        self.over = False  # every copy diverged
+        self._k = 0  # the period flown
+        self.U: np.ndarray = self.ctl.U_last
+        self.qpos = self.rpy = self.bad = np.empty(0)
+        self._clock = _Clock(T=T)
+        self._refs = _Step(wind_speed=np.zeros((ev.K + 1, 3)), D=np.zeros(ev.K + 1))
+        self._body = python_body(
+            period,
+            {
+                "_period_rules": self._references,
+                "_period_inputs": self._inputs,
+                "command": self._command,
+                "all_finite": _always,  # (a copy with a non-finite input is parked, not refused)
+                "log_inputs": self._errors,
+                "_period_view_log": _always,
+                "hold_wind": _always,
+                "period_physics": self._physics,
+                "log_outputs": _always,
+                "unhealthy": _never,  # (each copy's health is the observation's; a bad copy is parked)
+                "observe_into": self._observe,
+                "_period_sense": _always,
+            },
+        )
+
+    def fly(self, k: int) -> None:
+        """Control period k of the group's copies."""
+        self._k = k  # (what the command's first period and the physics' parking read)
+        self._body(k, 0, False, self._clock, self._refs, self.obs, None, None, None, self.ctl, self.ff, self.pred,
+                   None, None, None)  # fmt: skip
+
+    def observe(self, k: int) -> None:
+        """Sample k: the copies' states gathered, x, y, z, ψ and the tilt recorded, their health."""
+        ev, grp, obs = self.ev, self.grp, self.obs
+        qpos, qvel = ev._gather(grp)
+        # Angles and rates, the record of x, y, z, ψ and the health mask (docs/interpretations.md §6)
+        rpy, rate = attitude_kernel(qpos, qvel)
+        record_kernel(qpos, rpy, k, grp.track, self.tilt)
+        self.qpos, self.rpy, self.bad = qpos, rpy, ev._health(grp)
+        obs.pos[:], obs.vel[:], obs.omega[:] = qpos[:, 0:3], qvel[:, 0:3], qvel[:, 3:6]
+        obs.rpy[:], obs.rpy_rate[:] = rpy, rate
+
+    def kill(self, k: int) -> bool:
+        """The copies newly bad marked diverged at period k; True if there were any."""
+        return self.ev._kill(self.alive, self.bad, k, self.diverged_at)
+
+    # ------------------------------------------------------------------ the stages
+    def _references(self, rules, filts, view, obs, t):  # noqa: ANN001, ANN202, ARG002
+        return False, self.pos_d, self.zero3, self.zero3
+
+    def _inputs(self, ff, view, obs, k, ctl):  # noqa: ANN001, ANN202, ARG002
+        return obs, ff
+
+    def _command(self, ctl, known, pred, seen, pos_d, vel_d, acc_d, first):  # noqa: ANN001, ANN202, ARG002
+        self.U = self.ev._command(ctl, known, pred, seen, pos_d, vel_d, acc_d, self._k == 0)  # (m_g, 4)
+        return self.U
+
+    def _errors(self, log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:  # noqa: ANN001, ARG002
+        error_kernel(pos_d, self.qpos, att_d, self.rpy, self.yaw_d, self.U, self.ev._errors[k, self.rows], self.bad)
+
+    def _physics(self, phys, stages, monitors, U, s0, python_each) -> int:  # noqa: ANN001, ARG002
+        alive, blocks = self.alive, self.grp.blocks
+        if self.kill(self._k) or self.must_park:
+            if not alive.any():
+                self.over = True
+                return 0
+            for sim, sl in blocks:  # no input, held at the start
+                if not alive[sl].all():
+                    sim.park(~alive[sl])
+            self.must_park = False
+        for sim, sl in blocks:
+            if alive[sl].any():  # a block of diverged copies only: nothing left to fly
+                sim.step(U[sl])
+        return 0
+
+    def _observe(self, qpos, qvel, T, refs, obs, k) -> None:  # noqa: ANN001, ARG002
+        if not self.over:
+            self.observe(k)
+
+
+def _always(*args: Any) -> bool:  # noqa: ARG001
+    """A stage the tuner has no part in (or a check every command passes: a bad copy is parked instead)."""
+    return True
+
+
+def _never(*args: Any) -> bool:  # noqa: ARG001
+    """The period's health check where each copy's health is the observation's."""
+    return False
 
 
 def _evaluator(m: int, settings: StepCostSettings, threads: int = 1) -> BatchEvaluator:

@@ -110,6 +110,7 @@ from ..env import all_finite
 from ..errors import UserError
 from ..experiments.parallel import check_count, default_workers
 from ..physics.sim import HEALTH_NAMES, HEALTHY
+from ..pipeline.stepper import GivenPeriod
 from ..pipeline.swarm import BLOCK_DRONES, Block, SwarmPhysics
 from ..scenario import Scenario, flown
 from ..sensing import SensingParams
@@ -233,6 +234,18 @@ class SwarmVectorEnv(VectorEnv):
         self._autoreset = np.zeros(m, dtype=bool)
         self._started = False
         self._all = np.arange(m, dtype=np.int64)
+        # step's period, the actions given (swarm_mj.pipeline.stepper): its physics and observation are these
+        self._restart: np.ndarray | None = None  # the copies the coming period restarts
+        self._health = np.zeros(m, dtype=np.int8)  # each copy's health code after it
+        self._period = GivenPeriod(m * n, self.T, self._fly_copies, lambda: self._observe(self._all))
+
+    def _fly_copies(self, U: np.ndarray, refs: None) -> bool:  # noqa: ARG002
+        """The period's physics: every copy's (:meth:`SwarmPhysics.step`, the copies of ``_restart`` from their
+        starts with zero input). Each copy's health is its own (the task's), never the whole batch's: True."""
+        ph = self.physics
+        self._health = ph.step(U, self._restart).copy()
+        ph.forget_warnings()  # a block MuJoCo reset: its copies all terminate now, then fly on
+        return True
 
     # ------------------------------------------------------------------ episodes
     def _copy_seed(self, c: int) -> int:
@@ -340,11 +353,12 @@ class SwarmVectorEnv(VectorEnv):
         if resetting.any():
             self._begin(resetting, None)
             restart = resetting
-        # the physics of every copy (the copies being reset fly from their starts with zero input)
+        # the period with the actions given (swarm_mj.pipeline.stepper.GivenPeriod): the physics of every copy
+        # (the copies being reset fly from their starts with zero input), then the observation of every copy
         ph = self.physics
-        health = ph.step(U, restart).copy()
-        ph.forget_warnings()  # a block MuJoCo reset: its copies all terminate now, then fly on
-        self._observe(self._all)
+        self._restart = restart
+        self._period.fly(U)
+        health = self._health
         diverged = health != HEALTHY
         # the task's reward and termination (swarm_mj/task.py), as SwarmEnv's
         rewards, terminated, truncated = outcomes(

@@ -21,6 +21,7 @@ from swarm_mj.env import Command, Observation, SwarmEnv
 from swarm_mj.experiments.runner import RunLog
 from swarm_mj.physics.aero.presets import with_aero
 from swarm_mj.physics.mixing import attitude_priority, yaw_last
+from swarm_mj.pipeline.stepper import StepPeriod
 from swarm_mj.scenario import load_scenario
 
 needs_numba = pytest.mark.skipif(not _jit.AVAILABLE, reason="Numba is off (SWARM_MJ_NO_JIT) or not installed")
@@ -158,18 +159,23 @@ def test_python_body_without_numba_is_the_function(monkeypatch):
 
 
 def test_the_logs_input_row_is_the_observation_and_the_command():
-    sc = load_scenario("circle").with_overrides(duration=0.2)
+    """The step-by-step period's last sample (nothing flown) writes the log's input row: the observation,
+    the command computed from it, the wind speed and D of that instant."""
+    sc = load_scenario("wind_circle").with_overrides(duration=0.2)
     env = SwarmEnv(sc, terminate_on_contact=False)
     policy = BacksteppingPolicy(sc, env.params)
     log = RunLog.allocate(env.names, env.n_steps + 1)
-    ts = env.reset()
-    cmd = policy.command(ts.observation)
+    env.reset()
     o = env.obs_record
-    log.observe(0, 0.0, o, cmd, np.array([1.0, 2.0, 3.0]), 1.5)
+    StepPeriod(env, policy, log).sample()
+    cmd = BacksteppingPolicy(sc, env.params).command(env.observation)  # another policy, on the same observation
     for series, want in [
         (log.pos, o.pos), (log.vel, o.vel), (log.quat, o.quat), (log.rpy, o.rpy), (log.slot, o.sp),
         (log.pos_d, cmd.pos_d), (log.att_d, cmd.att_d),
     ]:  # fmt: skip
         np.testing.assert_array_equal(series[0], want)
-    assert log.t[0] == 0.0 and log.D[0] == 1.5 and list(log.wind_speed[0]) == [1.0, 2.0, 3.0]
+    assert log.t[0] == 0.0 and log.D[0] == env.D[0]
+    np.testing.assert_array_equal(log.wind_speed[0], env.wind.speed[0])
+    assert np.abs(log.wind_speed[0]).sum() > 0  # (a wind scenario: the row's wind is not a zero by chance)
+    assert env.k == 0 and np.isnan(log.U[0]).all()  # nothing flown, no output row
     assert np.isnan(log.pos[1]).all()  # one row written
