@@ -43,7 +43,7 @@ def _recording(monkeypatch, module) -> list[str]:
         wrapped = {}
         for name in names:
             stage = stages.get(name, getattr(period_mod, name))  # (a compiled callee: typed at each call)
-            wrapped[name] = (lambda *a, _n=name, _s=stage: (calls.append(_n), _s(*a))[1])
+            wrapped[name] = lambda *a, _n=name, _s=stage: (calls.append(_n), _s(*a))[1]
         return make(fn, wrapped)
 
     monkeypatch.setattr(module, "python_body", recorded)
