@@ -154,7 +154,7 @@ def drone_views(phys):
     return kin, rows[:, 0:3], rows[:, 3:6]
 
 
-@jit(inline=True)
+@jit
 def period_physics(phys, stages, monitors, U, s0, python_each) -> int:
     """:meth:`Sim.step`'s one compiled call per control period: from its start (``s0`` = 0) saturation
     and the floor gate (:func:`hold_inputs`, U (N, 4)), then :func:`physics_steps` from step ``s0``; returns

@@ -1,7 +1,8 @@
-"""One control period, written once (docs/design.md, "The control period, written once"): :func:`period`
-composes it from the stages below, compiled functions over the records of :mod:`swarm_mj.pipeline.records`,
-and returns its status. Every driver runs it: :func:`fly_chunk` loops over it compiled (the chunk driver);
-:meth:`swarm_mj.env.SwarmEnv.step` and a run's other periods run its Python body
+"""The control period, written once (docs/design.md, "The control period, written once"): :func:`fly_chunk`
+composes periods k .. k_end − 1 from the stages below, compiled functions over the records of
+:mod:`swarm_mj.pipeline.records`, and returns where and why it stopped. Every driver runs it: the chunk driver
+compiled, for up to ``CHUNK`` periods a call; :meth:`swarm_mj.env.SwarmEnv.step`, the vector env's step, a
+run's other periods and the tuner its Python body for one period
 (:mod:`swarm_mj.pipeline.stepper`: :func:`swarm_mj._jit.python_body` with the owners' Python stages in place
 of some callees, the others compiled and bound to the caller's records). The rule's step is the rule's own
 compiled step, registered for its record's type (:data:`swarm_mj.pipeline.registry.RULE_KERNELS`), which its
@@ -27,9 +28,9 @@ backstepping, mixer        :func:`~swarm_mj.control.backstepping.backstepping_ke
 the command's check        :func:`all_finite`
 log rows                   :func:`log_inputs`, :func:`log_outputs`
 the wind                   :func:`hold_wind` (period k's, held over it)
-the period's physics       :func:`~swarm_mj.physics.sim.period_physics` (``Sim.step``'s too):
-saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`, then
-physics steps              :func:`~swarm_mj.physics.sim.physics_steps`, per step:
+saturation, floor gate     :func:`~swarm_mj.physics.sim.hold_inputs`
+physics steps              :func:`~swarm_mj.physics.sim.physics_steps` (``Sim.step`` calls both through
+                           :func:`~swarm_mj.physics.sim.period_physics`), per step:
 force stages               :func:`apply_forces` (drag + wind, then each registered stage's kernel,
                            :data:`swarm_mj.pipeline.registry.FORCE_KERNELS`, in the simulator's order)
 ``mj_step``                MuJoCo's C function through :func:`swarm_mj.physics._mjstep.step_call`
@@ -56,7 +57,7 @@ from ..formation.slots import setpoints_into
 from ..physics.aero import downwash as _downwash
 from ..physics.mixing import attitude_priority_kernel, yaw_last_kernel
 from ..physics.observation import observe_kernel_into
-from ..physics.sim import log_stage_forces, period_physics, unhealthy, unmix_kernel
+from ..physics.sim import drone_views, hold_inputs, log_stage_forces, physics_steps, unhealthy, unmix_kernel
 from ..sensing.payload import payload_tick
 from ..sensing.stage import sense_step
 from . import registry
@@ -444,39 +445,6 @@ def observe_into(qpos, qvel, T, refs, obs, k) -> None:
 # --------------------------------------------------------------------------- the chunk driver
 
 
-@jit(inline=True)
-def period(k, s0, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors):
-    """Control period k, written once: every driver runs this function (docs/design.md, "The control
-    period, written once"). :func:`fly_chunk` loops over it compiled; the step-by-step path runs its Python
-    body (:mod:`swarm_mj.pipeline.stepper`), with the run's Python stages where they have no compiled step.
-    Returns (status, s): :data:`DONE` (``obs`` holds period k + 1's observation), :data:`REACT` (the rule
-    hands the period back before anything acted), :data:`BAD_ACTION` (a non-finite command, nothing
-    applied), :data:`CONTACT` (physics step s − 1 had a contact: Python counts it, then calls again with
-    ``s0`` = s), :data:`UNHEALTHY` (after the period's physics). ``s0`` > 0 resumes the period's physics."""
-    U = ctl.U_last  # (what a resumed period's physics reads: the command holds, and saturation is done)
-    if s0 == 0:
-        t = k * phys.T
-        react, pos_d, vel_d, acc_d = _period_rules(rules, filts, view, obs, t)
-        if react:
-            return REACT, 0
-        seen, known = _period_inputs(ff, view, obs, k, ctl)
-        U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
-        if not all_finite(U):
-            return BAD_ACTION, 0
-        log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
-        _period_view_log(view, k)
-        hold_wind(phys, refs, k)
-    s = period_physics(phys, stages, monitors, U, s0, python_each)
-    if s > 0:
-        return CONTACT, s
-    log_outputs(log, k, phys, stages)
-    if unhealthy(phys):
-        return UNHEALTHY, 0
-    observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k + 1)
-    _period_sense(view, obs, refs, k + 1)
-    return DONE, 0
-
-
 @jit(inline=True, samples=lambda: [(np.zeros((2, 4)),)])
 def all_finite(a: np.ndarray) -> bool:
     """True if every entry of a (any shape) is finite (the period's check of its command)."""
@@ -496,8 +464,12 @@ def hold_wind(phys, refs, k) -> None:
 
 @jit
 def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors):
-    """Fly control periods k .. k_end − 1 (:func:`period` each); returns (status, k, s): the period and
-    physics step (0 = its start) where it stopped (after an unhealthy period, the period after it).
+    """Control periods k .. k_end − 1, written once (module docstring): the chunk driver calls it compiled for
+    up to ``CHUNK`` periods, the step path runs its Python body for one (:mod:`swarm_mj.pipeline.stepper`).
+    Returns (status, k, s): :data:`DONE` at k_end (``obs`` holds its observation), or where it stopped:
+    :data:`REACT` (the rule hands period k back before anything acted), :data:`BAD_ACTION` (a non-finite
+    command, nothing applied), :data:`CONTACT` (physics step s − 1 of period k had a contact: Python counts
+    it, then calls again with ``s0`` = s), :data:`UNHEALTHY` (after period k − 1's physics, not observed).
 
     ``obs`` holds the observation of period k (in) and of the period where it stops (out). ``s0`` > 0
     resumes period k after physics step s0 − 1 (a contact Python counted); ``python_each``: Python
@@ -511,16 +483,31 @@ def fly_chunk(k, s0, k_end, python_each, phys, refs, obs, rules, filts, view, ct
     (:func:`~swarm_mj.sensing.stage.sense_step`), ``rules`` and ``filts`` hold one copy per drone, each deciding
     its drone's references from that drone's view (:func:`_copies_period`), and the command is
     :func:`command` on :func:`own_observation`."""
+    kin, xf, xtorque = drone_views(phys)
     while k < k_end:
-        status, s = period(
-            k, s0, python_each, phys, refs, obs, rules, filts, view, ctl, ff, pred, log, stages, monitors
-        )
-        if status == UNHEALTHY:
-            return UNHEALTHY, k + 1, 0
-        if status != DONE:
-            return status, k, s
+        if s0 == 0:
+            t = k * phys.T
+            react, pos_d, vel_d, acc_d = _period_rules(rules, filts, view, obs, t)
+            if react:
+                return REACT, k, 0
+            seen, known = _period_inputs(ff, view, obs, k, ctl)
+            U = command(ctl, known, pred, seen, pos_d, vel_d, acc_d, False)
+            if not all_finite(U):
+                return BAD_ACTION, k, 0
+            log_inputs(log, k, t, obs, pos_d, ctl.att_d, refs.wind_speed[k], refs.D[k])
+            _period_view_log(view, k)
+            hold_wind(phys, refs, k)
+            hold_inputs(phys, U)
+        s = physics_steps(phys, stages, monitors, kin, xf, xtorque, s0, python_each)
+        if s > 0:
+            return CONTACT, k, s
         s0 = 0
+        log_outputs(log, k, phys, stages)
         k += 1
+        if unhealthy(phys):
+            return UNHEALTHY, k, 0
+        observe_into(phys.qpos, phys.qvel, phys.T, refs, obs, k)
+        _period_sense(view, obs, refs, k)
     return DONE, k, 0
 
 

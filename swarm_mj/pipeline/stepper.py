@@ -1,10 +1,10 @@
-"""The step-by-step control period: :func:`swarm_mj.pipeline.period.period`'s Python body (docs/design.md,
-"The control period, written once").
+"""The step-by-step control period: :func:`swarm_mj.pipeline.period.fly_chunk`'s Python body, one period a
+call (docs/design.md, "The control period, written once").
 
-The chunk driver loops over :func:`~swarm_mj.pipeline.period.period` compiled. Every other period runs the same
-function's body in Python (:func:`swarm_mj._jit.python_body`), with the stages below in place of its compiled
-ones: the owners' Python objects, which also run where no compiled step exists (a rule without one, a force
-stage or monitor in Python, no Numba). Its other callees run compiled.
+The chunk driver calls :func:`~swarm_mj.pipeline.period.fly_chunk` compiled, for up to ``CHUNK`` periods a
+call. Every other period runs the same function's body in Python (:func:`swarm_mj._jit.python_body`), with
+the stages below in place of its compiled ones: the owners' Python objects, which also run where no compiled
+step exists (a rule without one, a force stage or monitor in Python, no Numba). Its other callees run compiled.
 
 * :class:`GivenPeriod`, :meth:`swarm_mj.env.SwarmEnv.step` and :meth:`swarm_mj.wrappers.vector.SwarmVectorEnv.step`:
   the action given (U, a :class:`~swarm_mj.env.Command`, the setpoint controller's U) is the period's command;
@@ -13,7 +13,7 @@ stage or monitor in Python, no Numba). Its other callees run compiled.
   every period of a run that cannot fly it): the built-in policy decides, the run's log takes the rows.
 
 ======================================  ===================================================================
-stage of ``period``                     :class:`GivenPeriod` / :class:`StepPeriod`
+stage of ``fly_chunk``                  :class:`GivenPeriod` / :class:`StepPeriod`
 ======================================  ===================================================================
 ``_period_rules``                       the action's references / the policy's ``references`` (the rule in
                                         Python: Fig. 5 reacts here; under a sensing model each drone's copy
@@ -23,8 +23,8 @@ stage of ``period``                     :class:`GivenPeriod` / :class:`StepPerio
 ``command``                             the action's U / the policy's ``finish`` (``period.command``'s body)
 ``log_inputs``, ``_period_view_log``    nothing / ``period.log_inputs``' Python body on the run log's rows,
                                         the view log's row
-``hold_wind``, ``period_physics``       the owner's physics (:meth:`~swarm_mj.env.SwarmEnv.fly`: the wind
-                                        held, uniform or on the airspeed; ``Sim.step``, its contacts and
+``hold_wind``, ``hold_inputs``,         the owner's physics (:meth:`~swarm_mj.env.SwarmEnv.fly`: the wind
+``drone_views``, ``physics_steps``      held, uniform or on the airspeed; ``Sim.step``, its contacts and
                                         monitors counted; k + 1)
 ``log_outputs``                         nothing / ``RunLog.applied`` (what the simulator applied)
 ``unhealthy``                           what the owner's physics returned (the vector env: never, each copy's
@@ -85,10 +85,10 @@ class GivenPeriod:
         self._flying = True
         self._given = _Given(U_last=np.zeros((n, 4)), att_d=np.zeros((n, 3)))
         self._clock, self._no_refs = _Clock(T=float(T)), _NoRefs()
-        self._body = python_body(_period.period, self.stages())
+        self._body = python_body(_period.fly_chunk, self.stages())
 
     def stages(self) -> dict[str, Any]:
-        """The Python stages of the period (module docstring's table), by the name ``period`` calls."""
+        """The Python stages of the period (module docstring's table), by the name ``fly_chunk`` calls."""
         return {
             "_period_rules": _no_references,
             "_period_inputs": _as_observed,
@@ -96,8 +96,10 @@ class GivenPeriod:
             "all_finite": _period.all_finite,  # (typed at each call: a given command has any layout)
             "log_inputs": _nothing,
             "_period_view_log": _nothing,
+            "drone_views": _no_views,
             "hold_wind": _nothing,  # (the owner's physics holds the wind, uniform or on the airspeed)
-            "period_physics": self._physics,
+            "hold_inputs": _nothing,  # (and saturates the command)
+            "physics_steps": self._physics,
             "log_outputs": _nothing,
             "unhealthy": self._unhealthy,
             "observe_into": self._observe,
@@ -112,7 +114,9 @@ class GivenPeriod:
         return self._run(0, self._clock, self._no_refs, None, self._given, None)
 
     def _run(self, k: int, phys: Any, refs: Any, obs: Any, ctl: Any, log: Any) -> int:
-        status, _ = self._body(k, 0, False, phys, refs, obs, None, None, None, ctl, None, None, log, None, None)
+        status, _, _ = self._body(
+            k, 0, k + 1, False, phys, refs, obs, None, None, None, ctl, None, None, log, None, None
+        )
         if status == _period.BAD_ACTION:
             raise UserError("action contains NaN or inf")
         if status not in (_period.DONE, _period.UNHEALTHY):
@@ -123,9 +127,9 @@ class GivenPeriod:
     def _command(self, ctl, known, pred, seen, pos_d, vel_d, acc_d, first):  # noqa: ANN001, ANN202, ARG002
         return self._U
 
-    def _physics(self, phys, stages, monitors, U, s0, python_each) -> int:  # noqa: ANN001, ARG002
+    def _physics(self, phys, stages, monitors, kin, xf, xtorque, s0, python_each) -> int:  # noqa: ANN001, ARG002
         if self._flying:
-            self._healthy = self._fly(U, self._refs)
+            self._healthy = self._fly(self._U, self._refs)
         return 0
 
     def _unhealthy(self, phys) -> bool:  # noqa: ANN001, ARG002
@@ -190,7 +194,7 @@ class StepPeriod(GivenPeriod):
 
     def _command(self, ctl, known, pred, seen, pos_d, vel_d, acc_d, first):  # noqa: ANN001, ANN202, ARG002
         cmd = self.policy.finish(seen, pos_d, vel_d, acc_d, known)
-        self._refs = (cmd.pos_d, cmd.vel_d, cmd.acc_d, cmd.att_d)
+        self._U, self._refs = cmd.U, (cmd.pos_d, cmd.vel_d, cmd.acc_d, cmd.att_d)
         return cmd.U
 
     def _view_row(self, view, k) -> None:  # noqa: ANN001, ARG002
@@ -211,6 +215,11 @@ def _no_references(rules, filts, view, obs, t):  # noqa: ANN001, ANN202, ARG001
 def _as_observed(ff, view, obs, k, ctl):  # noqa: ANN001, ANN202, ARG001
     """The inputs' stage where the action is given: the observation, no feedforward."""
     return obs, None
+
+
+def _no_views(phys):  # noqa: ANN001, ANN202, ARG001
+    """The drones' rows the compiled physics reads: none, where the owner flies the physics."""
+    return None, None, None
 
 
 def _nothing(*args: Any) -> None:  # noqa: ARG001

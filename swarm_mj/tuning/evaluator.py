@@ -69,7 +69,7 @@ from ..physics.params import DEFAULT_PARAMS, QuadParams
 from ..physics.sim import Sim
 from ..physics.world import INTEGRATORS, build_world
 from ..pipeline.period import command as period_command
-from ..pipeline.period import period
+from ..pipeline.period import fly_chunk
 from ..pipeline.records import Feedforward, Obs, Predictor
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
@@ -365,7 +365,7 @@ class BatchEvaluator:
     def _fly(self, grp: _Group, g: np.ndarray, alive: np.ndarray, tilt: np.ndarray) -> None:
         """Fly one group's copies through the step: gains g (m, 12) and alive (m,), tilt (m,) of the
         whole batch (the group's rows are written). Each control period is the period every run flies
-        (:class:`_GroupPeriod`: ``period.period``'s Python body with the tuner's stages)."""
+        (:class:`_GroupPeriod`: ``period.fly_chunk``'s Python body, one period a call, with the tuner's stages)."""
         flight = _GroupPeriod(self, grp, g, alive, tilt)
         flight.observe(0)
         for k in range(self.K):
@@ -451,7 +451,7 @@ class _Step(NamedTuple):
 
 
 class _GroupPeriod:
-    """One group's flight of the step, a control period at a time: ``period.period``'s Python body
+    """One group's flight of the step, a control period at a time: ``period.fly_chunk``'s Python body
     (docs/design.md, "The control period, written once") with the tuner's stages, by the name the
     period calls: the references are the step's set-point; the command is ``period.command``'s Python
     body on records of the group's copies (backstepping with their gains (m_g, 12), no wind force, no
@@ -489,7 +489,7 @@ class _GroupPeriod:
         self._clock = _Clock(T=T)
         self._refs = _Step(wind_speed=np.zeros((ev.K + 1, 3)), D=np.zeros(ev.K + 1))
         self._body = python_body(
-            period,
+            fly_chunk,
             {
                 "_period_rules": self._references,
                 "_period_inputs": self._inputs,
@@ -497,8 +497,10 @@ class _GroupPeriod:
                 "all_finite": _always,  # (a copy with a non-finite input is parked, not refused)
                 "log_inputs": self._errors,
                 "_period_view_log": _always,
+                "drone_views": _no_views,
                 "hold_wind": _always,
-                "period_physics": self._physics,
+                "hold_inputs": _always,  # (each block's Sim.step saturates its copies' command)
+                "physics_steps": self._physics,
                 "log_outputs": _always,
                 "unhealthy": _never,  # (each copy's health is the observation's; a bad copy is parked)
                 "observe_into": self._observe,
@@ -509,8 +511,8 @@ class _GroupPeriod:
     def fly(self, k: int) -> None:
         """Control period k of the group's copies."""
         self._k = k  # (what the command's first period and the physics' parking read)
-        self._body(k, 0, False, self._clock, self._refs, self.obs, None, None, None, self.ctl, self.ff, self.pred,
-                   None, None, None)  # fmt: skip
+        self._body(k, 0, k + 1, False, self._clock, self._refs, self.obs, None, None, None, self.ctl, self.ff,
+                   self.pred, None, None, None)  # fmt: skip
 
     def observe(self, k: int) -> None:
         """Sample k: the copies' states gathered, x, y, z, ψ and the tilt recorded, their health."""
@@ -541,8 +543,8 @@ class _GroupPeriod:
     def _errors(self, log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:  # noqa: ANN001, ARG002
         error_kernel(pos_d, self.qpos, att_d, self.rpy, self.yaw_d, self.U, self.ev._errors[k, self.rows], self.bad)
 
-    def _physics(self, phys, stages, monitors, U, s0, python_each) -> int:  # noqa: ANN001, ARG002
-        alive, blocks = self.alive, self.grp.blocks
+    def _physics(self, phys, stages, monitors, kin, xf, xtorque, s0, python_each) -> int:  # noqa: ANN001, ARG002
+        alive, blocks, U = self.alive, self.grp.blocks, self.U
         if self.kill(self._k) or self.must_park:
             if not alive.any():
                 self.over = True
@@ -559,6 +561,11 @@ class _GroupPeriod:
     def _observe(self, qpos, qvel, T, refs, obs, k) -> None:  # noqa: ANN001, ARG002
         if not self.over:
             self.observe(k)
+
+
+def _no_views(phys):  # noqa: ANN001, ANN202, ARG001
+    """The drones' rows the compiled physics reads: none, where each block's Sim.step flies the physics."""
+    return None, None, None
 
 
 def _always(*args: Any) -> bool:  # noqa: ARG001

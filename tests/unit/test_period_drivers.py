@@ -1,12 +1,14 @@
-"""One composition of the control period (issue 48): every driver flies ``period.period``.
+"""One composition of the control period (issue 48): every driver flies ``period.fly_chunk``.
 
-The chunk driver loops over it compiled (its bit-identity with the step path: test_fast_path.py). The other
+The chunk driver calls it compiled (its bit-identity with the step path: test_fast_path.py). The other
 drivers run its Python body with their own stages (swarm_mj/pipeline/stepper.py, the tuner's
 ``_GroupPeriod``): here each driver's stages are recorded as they are called over its periods, and the order
 must be the period's, the same for every driver.
 """
 
 from __future__ import annotations
+
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -22,12 +24,12 @@ from swarm_mj.scenario import load_scenario
 from swarm_mj.tuning import evaluator as evaluator_mod
 from swarm_mj.tuning.evaluator import BatchEvaluator, StepCostSettings
 
-#: The stages of one period, in the order ``period.period`` calls them (its composition, as a user of it
+#: The stages of one period, in the order ``period.fly_chunk`` calls them (its composition, as a user of it
 #: relies on: the references before the command, the input rows before the physics, the output rows
 #: before the health check, the observation last).
 ORDER = [
     "_period_rules", "_period_inputs", "command", "all_finite", "log_inputs", "_period_view_log", "hold_wind",
-    "period_physics", "log_outputs", "unhealthy", "observe_into", "_period_sense",
+    "hold_inputs", "physics_steps", "log_outputs", "unhealthy", "observe_into", "_period_sense",
 ]  # fmt: skip
 
 
@@ -37,14 +39,14 @@ def _recording(monkeypatch, module) -> list[str]:
     make = _jit.python_body
 
     def recorded(fn, stages=None):
-        if stages is None or fn is not period_mod.period:
+        if stages is None or fn is not period_mod.fly_chunk:
             return make(fn, stages)
         names = [name for name in fn.py_func.__code__.co_names if name in ORDER]
         wrapped = {}
         for name in names:
             stage = stages.get(name, getattr(period_mod, name))  # (a compiled callee: typed at each call)
             wrapped[name] = lambda *a, _n=name, _s=stage: (calls.append(_n), _s(*a))[1]
-        return make(fn, wrapped)
+        return make(fn, {**stages, **wrapped})
 
     monkeypatch.setattr(module, "python_body", recorded)
     return calls
@@ -61,9 +63,8 @@ def _periods(calls: list[str]) -> list[list[str]]:
 
 
 def test_the_period_calls_its_stages_in_the_order_the_drivers_rely_on():
-    code = period_mod.period.py_func.__code__
+    code = period_mod.fly_chunk.py_func.__code__
     assert [n for n in code.co_names if n in ORDER] == ORDER
-    assert "period" in period_mod.fly_chunk.py_func.__code__.co_names  # the chunk driver loops over it
 
 
 def test_the_environment_flies_the_period(monkeypatch):
@@ -126,11 +127,19 @@ def test_python_body_takes_stages_by_name_and_refuses_a_name_the_function_never_
     body = _jit.python_body(period_mod.all_finite)
     assert body(np.ones(3)) and not body(np.array([1.0, np.nan]))
     with pytest.raises(ValueError, match="calls no hold_wnd"):
-        _jit.python_body(period_mod.period, {"hold_wnd": lambda *a: None})
-    stepped = _jit.python_body(period_mod.fly_chunk, {"period": lambda *a: (seen.append("period"), (1, 0))[1]})
-    assert stepped(0, 0, 5, *[None] * 13) == (1, 0, 0)  # REACT at period 0, from the stage given
-    assert seen == ["period"]
+        _jit.python_body(period_mod.fly_chunk, {"hold_wnd": lambda *a: None})
+    react = {
+        "drone_views": lambda *a: (None, None, None),
+        "_period_rules": lambda *a: (seen.append("r"), (True,) * 4)[1],
+    }
+    stepped = _jit.python_body(period_mod.fly_chunk, react)
+    clock = SimpleNamespace(T=0.01)  # (what the period reads of the simulator before the rule)
+    assert stepped(3, 0, 5, False, clock, *[None] * 11) == (period_mod.REACT, 3, 0)  # REACT at 3, from the stage
+    assert seen == ["r"]
     monkeypatch.setattr(_jit, "AVAILABLE", False)  # without Numba too
-    stepped = _jit.python_body(period_mod.fly_chunk, {"period": lambda *a: (seen.append("period"), (0, 0))[1]})
-    assert stepped(0, 0, 2, *[None] * 13) == (0, 2, 0)
-    assert seen == ["period"] * 3
+    assert _jit.python_body(period_mod.fly_chunk, react)(0, 0, 2, False, clock, *[None] * 11) == (
+        period_mod.REACT,
+        0,
+        0,
+    )
+    assert seen == ["r", "r"]
