@@ -56,7 +56,7 @@ class _Given(NamedTuple):
     att_d: np.ndarray  # (n, 3)
 
 
-class _Clock(NamedTuple):
+class Clock(NamedTuple):
     """What the period reads of the simulator where its owner flies the physics: the control period T."""
 
     T: float
@@ -64,8 +64,8 @@ class _Clock(NamedTuple):
     qvel: None = None
 
 
-class _NoRefs(NamedTuple):
-    """What the period reads of the references where nothing is logged (its k is then 0: no stage reads it)."""
+class NoRefs(NamedTuple):
+    """What the period reads of the references where no stage logs them: rows of zeros (one, for k = 0)."""
 
     wind_speed: np.ndarray = np.zeros((1, 3))
     D: np.ndarray = np.zeros(1)
@@ -84,7 +84,7 @@ class GivenPeriod:
         self._healthy = True
         self._flying = True
         self._given = _Given(U_last=np.zeros((n, 4)), att_d=np.zeros((n, 3)))
-        self._clock, self._no_refs = _Clock(T=float(T)), _NoRefs()
+        self._clock, self._no_refs = Clock(T=float(T)), NoRefs()
         self._body = python_body(_period.fly_chunk, self.stages())
 
     def stages(self) -> dict[str, Any]:
@@ -94,16 +94,16 @@ class GivenPeriod:
             "_period_inputs": _as_observed,
             "command": self._command,
             "all_finite": _period.all_finite,  # (typed at each call: a given command has any layout)
-            "log_inputs": _nothing,
-            "_period_view_log": _nothing,
-            "drone_views": _no_views,
-            "hold_wind": _nothing,  # (the owner's physics holds the wind, uniform or on the airspeed)
-            "hold_inputs": _nothing,  # (and saturates the command)
+            "log_inputs": nothing,
+            "_period_view_log": nothing,
+            "drone_views": no_views,
+            "hold_wind": nothing,  # (the owner's physics holds the wind, uniform or on the airspeed)
+            "hold_inputs": nothing,  # (and saturates the command)
             "physics_steps": self._physics,
-            "log_outputs": _nothing,
+            "log_outputs": nothing,
             "unhealthy": self._unhealthy,
             "observe_into": self._observe,
-            "_period_sense": _nothing,  # (the observation ticks the sensing stage)
+            "_period_sense": nothing,  # (the observation ticks the sensing stage)
         }
 
     def fly(self, U: np.ndarray, refs: tuple | None = None) -> int:
@@ -217,10 +217,10 @@ def _as_observed(ff, view, obs, k, ctl):  # noqa: ANN001, ANN202, ARG001
     return obs, None
 
 
-def _no_views(phys):  # noqa: ANN001, ANN202, ARG001
-    """The drones' rows the compiled physics reads: none, where the owner flies the physics."""
+def no_views(phys):  # noqa: ANN001, ANN201, ARG001
+    """The ``drone_views`` stage where the owner flies the physics: no rows for the compiled physics."""
     return None, None, None
 
 
-def _nothing(*args: Any) -> None:  # noqa: ARG001
+def nothing(*args: Any) -> None:  # noqa: ARG001
     """A stage the owner does elsewhere, or not at all (module docstring)."""

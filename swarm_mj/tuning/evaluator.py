@@ -51,7 +51,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 
@@ -71,6 +71,7 @@ from ..physics.world import INTEGRATORS, build_world
 from ..pipeline.period import command as period_command
 from ..pipeline.period import fly_chunk
 from ..pipeline.records import Feedforward, Obs, Predictor
+from ..pipeline.stepper import Clock, NoRefs, no_views, nothing
 from .constraints import AXES, StepBars, ranked_cost, step_violation
 
 __all__ = [
@@ -434,22 +435,6 @@ class BatchEvaluator:
 _EVALUATORS: dict[tuple[StepCostSettings, int, int], BatchEvaluator] = {}
 
 
-class _Clock(NamedTuple):
-    """What the period reads of the simulator where a group of blocks flies it: T (the copies' qpos and
-    qvel are gathered by the observation stage)."""
-
-    T: float
-    qpos: None = None
-    qvel: None = None
-
-
-class _Step(NamedTuple):
-    """What the period reads of a run's references where the tuner flies the step: no wind, no D."""
-
-    wind_speed: np.ndarray  # (K+1, 3) zeros
-    D: np.ndarray  # (K+1,) zeros
-
-
 class _GroupPeriod:
     """One group's flight of the step, a control period at a time: ``period.fly_chunk``'s Python body
     (docs/design.md, "The control period, written once") with the tuner's stages, by the name the
@@ -486,25 +471,25 @@ class _GroupPeriod:
         self._k = 0  # the period flown
         self.U: np.ndarray = self.ctl.U_last
         self.qpos = self.rpy = self.bad = np.empty(0)
-        self._clock = _Clock(T=T)
-        self._refs = _Step(wind_speed=np.zeros((ev.K + 1, 3)), D=np.zeros(ev.K + 1))
+        self._clock = Clock(T=T)
+        self._refs = NoRefs(wind_speed=np.zeros((ev.K + 1, 3)), D=np.zeros(ev.K + 1))  # (no wind, no D)
         self._body = python_body(
             fly_chunk,
             {
                 "_period_rules": self._references,
                 "_period_inputs": self._inputs,
                 "command": self._command,
-                "all_finite": _always,  # (a copy with a non-finite input is parked, not refused)
+                "all_finite": _every_command,
                 "log_inputs": self._errors,
-                "_period_view_log": _always,
-                "drone_views": _no_views,
-                "hold_wind": _always,
-                "hold_inputs": _always,  # (each block's Sim.step saturates its copies' command)
+                "_period_view_log": nothing,
+                "drone_views": no_views,
+                "hold_wind": nothing,
+                "hold_inputs": nothing,  # (each block's Sim.step saturates its copies' command)
                 "physics_steps": self._physics,
-                "log_outputs": _always,
+                "log_outputs": nothing,
                 "unhealthy": _never,  # (each copy's health is the observation's; a bad copy is parked)
                 "observe_into": self._observe,
-                "_period_sense": _always,
+                "_period_sense": nothing,
             },
         )
 
@@ -563,13 +548,8 @@ class _GroupPeriod:
             self.observe(k)
 
 
-def _no_views(phys):  # noqa: ANN001, ANN202, ARG001
-    """The drones' rows the compiled physics reads: none, where each block's Sim.step flies the physics."""
-    return None, None, None
-
-
-def _always(*args: Any) -> bool:  # noqa: ARG001
-    """A stage the tuner has no part in (or a check every command passes: a bad copy is parked instead)."""
+def _every_command(U: np.ndarray) -> bool:  # noqa: ARG001
+    """The period's check of its command where a copy with a non-finite input is parked, not refused."""
     return True
 
 
