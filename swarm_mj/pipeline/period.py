@@ -380,7 +380,7 @@ def command(ctl, ff, pred, obs, pos_d, vel_d, acc_d, first):
 @jit(inline=True)
 def log_inputs(log, k, t, obs, pos_d, att_d, wind_speed, D) -> None:
     """Row k of the log from the observation, the command computed from it (pos_d, att_d (n, 3)), the
-    wind speed (3,) and D of that instant (RunLog.observe calls this function's Python body)."""
+    wind speed (3,) and D of that instant (the step path runs this function's Python body: pipeline/stepper.py)."""
     log.t[k] = t
     log.pos[k] = obs.pos
     log.vel[k] = obs.vel
