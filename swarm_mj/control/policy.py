@@ -253,7 +253,7 @@ class BacksteppingPolicy:
 
     def command(self, obs: dict) -> Command:
         """U1..U4 (n, 4) for the observation, with the references (n, 3) and attitude (n, 3) behind them:
-        the control period's first three stages (swarm_mj.pipeline.period.period): :meth:`references`,
+        the control period's first three stages (swarm_mj.pipeline.period.fly_chunk): :meth:`references`,
         :meth:`inputs`, then :meth:`finish`."""
         pos_d, vel_d, acc_d = self.references(obs)
         o, ff = self.inputs(obs)
