@@ -103,6 +103,47 @@ def ascending_orbit(
     return circle(radius, omega, altitude, climb_rate, center)
 
 
+def _quintic_from_rest(p0: np.ndarray, p1: np.ndarray, v1: np.ndarray, a1: np.ndarray, T: float, t: np.ndarray):
+    """The quintic from rest at p0 (zero velocity and acceleration) at time 0 to the state (p1, v1, a1)
+    at time T, per axis, at the times t (k,) in [0, T]: (pos, vel, acc), each (k, d)."""
+    s = (t / T)[:, None]
+    d, V, A = p1 - p0, v1 * T, a1 * T * T  # the end state in units of T
+    c3 = 10.0 * d - 4.0 * V + 0.5 * A
+    c4 = -15.0 * d + 7.0 * V - A
+    c5 = 6.0 * d - 3.0 * V + 0.5 * A
+    pos = p0 + c3 * s**3 + c4 * s**4 + c5 * s**5
+    vel = (3.0 * c3 * s**2 + 4.0 * c4 * s**3 + 5.0 * c5 * s**4) / T
+    acc = (6.0 * c3 * s + 12.0 * c4 * s**2 + 20.0 * c5 * s**3) / T**2
+    return pos, vel, acc
+
+
+def joined_from_rest(
+    f: Callable[[np.ndarray], Reference], start: np.ndarray, horizontal_s: float, vertical_s: float
+) -> Callable[[np.ndarray], Reference]:
+    """The trajectory ``f`` joined from rest at ``start`` (3,): the leader's take-off plan
+    (docs/barrier.md, "the leader's start"). Its horizontal position follows the quintic from rest at
+    ``start`` to f's state at ``horizontal_s``, its altitude the one to f's at ``vertical_s``; from each
+    time on, f's own. Position, velocity and acceleration are continuous (the quintic meets f's state);
+    a duration of 0 leaves that axis f's from the first instant (a step from ``start``, as the paper's
+    trajectories start)."""
+    start = np.asarray(start, dtype=float)
+
+    def g(t):
+        t = _t(t)
+        r = f(t)
+        pos, vel, acc = r.pos.copy(), r.vel.copy(), r.acc.copy()
+        for axes, T in ((slice(0, 2), horizontal_s), (slice(2, 3), vertical_s)):
+            early = t < T
+            if T > 0.0 and early.any():
+                end = f(np.array([T]))
+                pos[early, axes], vel[early, axes], acc[early, axes] = _quintic_from_rest(
+                    start[axes], end.pos[0, axes], end.vel[0, axes], end.acc[0, axes], T, t[early]
+                )
+        return Reference(pos=pos, vel=vel, acc=acc, yaw=r.yaw, yaw_rate=r.yaw_rate, yaw_acc=r.yaw_acc)
+
+    return g
+
+
 TRAJECTORIES: dict[str, Callable[..., Callable[[np.ndarray], Reference]]] = {
     "step": step,
     "hover": hover,

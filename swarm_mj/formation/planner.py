@@ -5,6 +5,7 @@ the separation it applies comes from :mod:`.separation`.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -13,6 +14,7 @@ import numpy as np
 from .._jit import Bound
 from ..physics.params import DEFAULT_PARAMS
 from ..pipeline.records import Rule as FormedRecord
+from ..trajectories import Reference, joined_from_rest
 from .layered import (
     advance_altitude_kernel,
     advance_paths_kernel,
@@ -38,6 +40,16 @@ def _stoppable_speed(room: float, accel: float, lag: float, room_min: float, sha
 
 CLIMB, CROSS, FORMED = 0, 1, 2
 G = DEFAULT_PARAMS.g  # m/s², paper Table 1 (docs/interpretations.md §1)
+
+
+def leader_start(p: LayersParams, trajectory: Callable[[np.ndarray], Reference], start: np.ndarray):
+    """The reference the planner has the leader fly from ``start`` (3,) (docs/barrier.md, "the leader's
+    start"): ``trajectory`` joined from rest (:func:`~swarm_mj.trajectories.joined_from_rest`), its
+    position over ``p.leader_join_s`` and its altitude over ``p.leader_climb_s``; with both 0 the
+    trajectory itself, from the first period (the paper's step)."""
+    if p.leader_join_s <= 0.0 and p.leader_climb_s <= 0.0:
+        return trajectory
+    return joined_from_rest(trajectory, start, p.leader_join_s, p.leader_climb_s)
 
 
 @dataclass

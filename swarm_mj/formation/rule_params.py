@@ -147,6 +147,17 @@ class LayersParams(PaperParams):
     crossing_brake: bool = _p(
         True, "", "a crossing follower brakes for a drone it gives way to (off: a separation filter separates)", None
     )
+    # --- the leader's start (docs/barrier.md, "the leader's start")
+    leader_join_s: float = _p(
+        0.0,
+        "s",
+        "the leader's position joins its trajectory from rest over this (0: a step, the paper's)",
+        0.0,
+        open_lo=False,
+    )
+    leader_climb_s: float = _p(
+        0.0, "s", "the leader's altitude joins its trajectory's from rest over this (0: a step)", 0.0, open_lo=False
+    )
     # --- the vehicle's outline
     outline_margin: float = _p(
         0.01, "m", "keep-out radius = arm + rotor radius + this (a size)", 0.0, open_lo=False, size=True
@@ -276,8 +287,10 @@ PRESETS: dict[str, BaseParams] = {
     # descents at 0.75 m/s, not 1.5 (docs/barrier.md, "the planner's descent": a follower descending
     # past its ring neighbours is pushed sideways by their tall keep-outs, less the slower it goes),
     # without the crossing brake (docs/barrier.md, "the planner's crossing brake": the filter
-    # separates, and the brake's on-off chatter drove the lagged drones' limit cycle)
-    "barrier": replace(_JET_AWARE, descent_speed=0.75, crossing_brake=False),
+    # separates, and the brake's on-off chatter drove the lagged drones' limit cycle), the leader's
+    # start joined from rest, its altitude over 2.5 s and its position over 4 s (docs/barrier.md, "the
+    # leader's start": its dash at the limits made the filter infeasible for followers lifting off)
+    "barrier": replace(_JET_AWARE, descent_speed=0.75, crossing_brake=False, leader_join_s=4.0, leader_climb_s=2.5),
     "off": BaseParams(),
 }
 #: What each rule asks of the controller unless a scenario's ``[controller]`` says otherwise: the

@@ -39,7 +39,7 @@ def check_formation_fits(n_followers: int, D: float, width: float, what: str, wh
     hold the drones off their slots for ever. One :class:`UserError` naming the smallest D that fits."""
     spacing = min_slot_spacing(n_followers, D)
     if spacing < width:
-        need = width / min_slot_spacing(n_followers, 1.0)
+        need = np.ceil(100.0 * width / min_slot_spacing(n_followers, 1.0)) / 100.0  # rounded up: the D named fits
         raise UserError(
             f"{n_followers} followers at D = {D:g} m are {spacing:.2f} m apart, inside {what} "
             f"({width:.2f} m wide): the formation cannot be reached; use a diameter of at least {need:.2f} m",

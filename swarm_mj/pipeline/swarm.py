@@ -128,7 +128,7 @@ class SwarmPhysics:
         self.seeded_starts = bool(seeded_starts) and sc.n_followers > 0 and sc.follower_starts is None
         # the leader's reference and D at every control instant (analytic, docs/interpretations.md §3)
         self.times = np.arange(K + 1) * T  # (K+1,)
-        self.reference = ref = sc.make_trajectory()(self.times)
+        self.reference = ref = sc.leader_reference()(self.times)  # its start joined where the rule plans it
         c = np.ascontiguousarray  # C-ordered float64: the records' types (swarm_mj/pipeline/records.py)
         self.D = c(DiameterSchedule(sc.diameter)(self.times), dtype=float)  # (K+1,)
         self.unit_offsets = c(polygon_offsets(n - 1, 1.0), dtype=float).reshape(n - 1, 3)  # (n-1, 3)

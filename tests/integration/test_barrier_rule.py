@@ -103,3 +103,28 @@ def test_the_reserve_is_counted_in_the_summary_and_the_stress_row(monkeypatch):
     assert row["reserve_periods"] == counts[0]
     table = {"barrier": stress.summarize_rule([row])}
     assert f"barrier reserve: {counts[0]} drone-periods in 1 of 1 starts" in stress.format_table(table, 5)
+
+
+def test_the_leaders_start_is_within_its_followers_capability():
+    """docs/barrier.md, "the leader's start": under ``barrier`` the leader joins its trajectory from rest,
+    so the leader MuJoCo flies accelerates horizontally within a third of the followers' limit (the
+    filter's horizontal limit), near its plan's peak; under ``jet-aware`` it dashes onto the circle
+    (over 10 m/s² measured)."""
+    import numpy as np
+
+    from swarm_mj.formation.barrier import BarrierParams
+
+    limit = BarrierParams().horizontal_limit(9.81)  # the followers' horizontal acceleration limit (m/s²)
+    peaks = {}
+    for rule in ("barrier", "jet-aware"):
+        res = run(stress_scenario(StressCase(rule, 3, 3, 2.5, 0.6, 5.0, aero="realistic")), progress=False)
+        log = res.log
+        v, t = log.vel[:, 0], log.t
+        acc = (v[5:] - v[:-5]) / (t[5:] - t[:-5])[:, None]  # the flown leader's, over 0.05 s
+        early = t[5:] <= 4.0
+        peaks[rule] = float(np.hypot(acc[early, 0], acc[early, 1]).max())
+        if rule == "barrier":
+            plan = res.scenario.leader_reference()(t[t <= 4.0])
+            planned = float(np.hypot(plan.acc[:, 0], plan.acc[:, 1]).max())
+    assert peaks["barrier"] < limit / 3.0 and peaks["barrier"] < 1.5 * planned
+    assert peaks["jet-aware"] > 2.0 * limit

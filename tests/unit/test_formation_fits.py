@@ -27,7 +27,7 @@ def test_a_formation_inside_the_keepout_is_refused_naming_the_diameter_that_fits
     with pytest.raises(UserError, match="at least") as e:
         check_formation_fits(12, 1.0, width, "the barrier's keep-out")
     need = float(str(e.value).rsplit("at least ", 1)[1].split(" m")[0])
-    check_formation_fits(12, need + 0.005, width, "the barrier's keep-out")  # that D (rounded up) fits
+    check_formation_fits(12, need, width, "the barrier's keep-out")  # the D it names (rounded up) fits
     with pytest.raises(UserError):
         check_formation_fits(12, need - 0.01, width, "the barrier's keep-out")
     check_formation_fits(5, 1.0, width, "the barrier's keep-out")  # the paper's pentagon fits

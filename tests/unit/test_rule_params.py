@@ -260,7 +260,12 @@ def test_each_preset_is_its_rules_own_record_and_the_default_is_written_once():
     changed = {k for k in record_keys(jet) if getattr(jet, k) != getattr(JetAwareParams(), k)}
     assert changed == {"max_speed", "max_accel", "formed_descent_accel"}
     bar = PRESETS["barrier"]
-    assert {k for k in record_keys(bar) if getattr(bar, k) != getattr(jet, k)} == {"descent_speed", "crossing_brake"}
+    assert {k for k in record_keys(bar) if getattr(bar, k) != getattr(jet, k)} == {
+        "descent_speed",
+        "crossing_brake",
+        "leader_join_s",
+        "leader_climb_s",
+    }
     # what the rules ask of the controller: the downwash feedforward, by the jet-aware rules
     assert set(CONTROLLER_PRESETS) == {"jet-aware", "barrier"}
     assert all(c == ControllerParams(downwash_feedforward=True) for c in CONTROLLER_PRESETS.values())
