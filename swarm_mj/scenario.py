@@ -195,11 +195,14 @@ class Scenario:
 
     def leader_reference(self):
         """The reference the leader flies: its trajectory, its start planned by the rule's planner where
-        the rule has one (:func:`~swarm_mj.formation.planner.leader_start`: joined from rest where the
-        record's ``leader_join_s``, ``leader_climb_s`` say; docs/barrier.md, "the leader's start")."""
+        there are followers and the rule has one (:func:`~swarm_mj.formation.planner.leader_start`: joined
+        from rest where the record's ``leader_join_s``, ``leader_climb_s`` say; docs/barrier.md, "the
+        leader's start")."""
         record = self.rule_params
         f = self.make_trajectory()
-        return leader_start(record, f, self.leader_start) if isinstance(record, LayersParams) else f
+        if self.n_followers == 0 or not isinstance(record, LayersParams):
+            return f  # no follower to plan it for, or no planner
+        return leader_start(record, f, self.leader_start)
 
     def initial_positions(self, seed: int | None = None) -> np.ndarray:
         """(n, 3) start positions: leader first, then followers (random ones drawn with their seed, or with

@@ -1,6 +1,6 @@
 """Subcommands of ``swarm-mj`` (one module each: ``add_parser(sub)`` and ``main(args)``)."""
 
-#: The anti-collision rules the command line offers: ``auto`` (the default: ``jet-aware`` where the
+#: The anti-collision rules the command line offers: ``auto`` (the default: ``barrier`` where the
 #: physics has downwash, ``layers`` under the paper's) and the keys of
 #: ``swarm_mj.formation.anticollision.ANTI_COLLISION_RULES``, which a test keeps equal; written
 #: here so that building the parser does not import the simulator.

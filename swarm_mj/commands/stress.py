@@ -51,7 +51,7 @@ def add_parser(sub) -> None:
         "--rule",
         action="append",
         choices=RULE_NAMES,
-        help="rule to fly (repeatable; default: auto, paper; auto is jet-aware under "
+        help="rule to fly (repeatable; default: auto, paper; auto is barrier under "
         "--aero realistic, layers under the paper's physics)",
     )
     p.add_argument("--starts", type=int, default=100, help="number of seeded starts (default 100)")

@@ -1,5 +1,5 @@
-"""The default rule under downwash (``jet-aware``; docs/interpretations.md §4, why and what was
-measured: docs/anticollision.md): the planner (:class:`~.planner.LayeredRule`) with the jet-aware
+"""The downwash-aware rule (``jet-aware``, the planner ``barrier`` guards; docs/interpretations.md §4,
+why and what was measured: docs/anticollision.md): the planner (:class:`~.planner.LayeredRule`) with the jet-aware
 separation of :mod:`.separation` and its preset's gentler paths."""
 
 from __future__ import annotations
@@ -23,8 +23,8 @@ from .separation import (
 
 
 class JetAwareRule(LayeredRule):
-    """``anti_collision = "jet-aware"``, the default wherever the physics has downwash
-    (``--aero realistic``; ``"auto"`` picks it): the layered rule made downwash-aware and its
+    """``anti_collision = "jet-aware"``, a planner for physics with downwash (``--aero realistic``;
+    ``barrier`` guards it, and ``"auto"`` picks that): the layered rule made downwash-aware and its
     formed phase made to settle.
 
     **What is the paper's** (Fig. 5, §4): as in :class:`~.planner.LayeredRule`. **What is the

@@ -32,7 +32,7 @@ def test_barrier_flies_a_random_start(aero):
     assert (line in format_summary(s, res.scenario)) == (aero == "realistic")
 
 
-@pytest.mark.parametrize(("aero", "chosen"), [("paper", "layers"), ("realistic", "jet-aware")])
+@pytest.mark.parametrize(("aero", "chosen"), [("paper", "layers"), ("realistic", "barrier")])
 def test_auto_says_which_rule_it_chose_and_why(aero, chosen):
     """``anti_collision = "auto"`` (the circle's): the summary names the rule auto chose for the
     physics (``AUTO_CHOICE``, by whether it has downwash, not by the scenario) and the reason, and

@@ -141,14 +141,19 @@ def test_a_record_built_in_code_is_checked_the_same_way():
 
 def test_the_barrier_planner_is_jet_awares_with_slower_descents_and_a_scenario_still_sets_them():
     """docs/barrier.md, "the planner's descent" and "the planner's crossing brake": the `barrier`
-    preset is `jet-aware`'s record but for `descent_speed` (0.75 m/s against 1.5) and
-    `crossing_brake` (off), and a scenario's ``[formation]`` keys override them."""
+    preset is `jet-aware`'s record but for `descent_speed` (0.75 m/s against 1.5), `crossing_brake` (off)
+    and the leader's start (docs/barrier.md, "the leader's start"), and a scenario's ``[formation]`` keys
+    override them."""
     jet = BacksteppingPolicy(parse_scenario(_scenario("jet-aware"))).rule.params
     bar = BacksteppingPolicy(parse_scenario(_scenario())).rule.params
     assert bar.descent_speed == 0.75 and jet.descent_speed == 1.5
     assert not bar.crossing_brake and jet.crossing_brake
-    assert replace(bar, descent_speed=jet.descent_speed, crossing_brake=True) == jet
+    assert bar.leader_join_s == 4.0 and bar.leader_climb_s == 2.5 and jet.leader_join_s == jet.leader_climb_s == 0.0
+    assert (
+        replace(bar, descent_speed=jet.descent_speed, crossing_brake=True, leader_join_s=0.0, leader_climb_s=0.0) == jet
+    )
     own = _scenario()
     own["formation"]["descent_speed"] = 1.5
     own["formation"]["crossing_brake"] = True
+    own["formation"]["leader_join_s"] = own["formation"]["leader_climb_s"] = 0.0
     assert BacksteppingPolicy(parse_scenario(own)).rule.params == jet

@@ -30,8 +30,8 @@ def _h(p: np.ndarray) -> np.ndarray:
     return d
 
 
-def test_auto_is_jet_aware_under_downwash_and_layers_otherwise():
-    assert resolve_rule("auto", downwash=True) == "jet-aware"
+def test_auto_is_barrier_under_downwash_and_layers_otherwise():
+    assert resolve_rule("auto", downwash=True) == "barrier"
     assert resolve_rule("auto", downwash=False) == "layers"
     assert resolve_rule("paper", downwash=True) == "paper"
     assert isinstance(make_rule("jet-aware", 3), JetAwareRule)

@@ -97,7 +97,7 @@ def test_defaults_of_a_minimal_scenario():
     # the rule and the mixer follow the physics (docs/interpretations.md §1, §4)
     assert sc.anti_collision == "auto" and sc.rule == "layers" and not sc.attitude_priority_on
     real = sc.with_overrides(aero=preset("realistic"))
-    assert real.rule == "jet-aware" and real.attitude_priority_on
+    assert real.rule == "barrier" and real.attitude_priority_on
     assert sc.with_overrides(mixer="attitude_priority").attitude_priority_on
     assert not real.with_overrides(mixer="clip").attitude_priority_on
     assert sc.rule_params.safety_distance == 0.8 and sc.rule_params.hop == 0.4  # paper Fig. 5
