@@ -26,7 +26,6 @@ from .control.backstepping import TABLE4_GAINS, check_gains, load_gains
 from .errors import UserError
 from .formation.anticollision import ANTI_COLLISION_RULES, AUTO, resolve_rule, rule_record
 from .formation.barrier import BarrierParams
-from .formation.planner import leader_start
 from .formation.rule_params import PARAM_TABLE, LayersParams, RuleRecord, check_overrides
 from .formation.slots import DiameterSchedule
 from .physics.aero.presets import PAPER, AeroConfig, parse_aero, preset, vehicle_lag, with_aero
@@ -192,17 +191,6 @@ class Scenario:
 
     def make_trajectory(self):
         return make_trajectory(self.trajectory, self.trajectory_params, where=f"{self.path}: leader.trajectory")
-
-    def leader_reference(self):
-        """The reference the leader flies: its trajectory, its start planned by the rule's planner where
-        there are followers and the rule has one (:func:`~swarm_mj.formation.planner.leader_start`: joined
-        from rest where the record's ``leader_join_s``, ``leader_climb_s`` say; docs/barrier.md, "the
-        leader's start")."""
-        record = self.rule_params
-        f = self.make_trajectory()
-        if self.n_followers == 0 or not isinstance(record, LayersParams):
-            return f  # no follower to plan it for, or no planner
-        return leader_start(record, f, self.leader_start)
 
     def initial_positions(self, seed: int | None = None) -> np.ndarray:
         """(n, 3) start positions: leader first, then followers (random ones drawn with their seed, or with

@@ -45,6 +45,7 @@ import numpy as np
 from .._jit import Bound, bind, jit
 from ..errors import UserError
 from ..experiments.parallel import ThreadTeam, check_count
+from ..formation.planner import leader_reference
 from ..formation.slots import DiameterSchedule, polygon_offsets
 from ..physics._mjstep import profiler_paused
 from ..physics.aero.ground import REST_HEIGHT, rest_positions
@@ -128,7 +129,7 @@ class SwarmPhysics:
         self.seeded_starts = bool(seeded_starts) and sc.n_followers > 0 and sc.follower_starts is None
         # the leader's reference and D at every control instant (analytic, docs/interpretations.md §3)
         self.times = np.arange(K + 1) * T  # (K+1,)
-        self.reference = ref = sc.leader_reference()(self.times)  # its start joined where the rule plans it
+        self.reference = ref = leader_reference(sc)(self.times)  # its start planned where the rule plans it
         c = np.ascontiguousarray  # C-ordered float64: the records' types (swarm_mj/pipeline/records.py)
         self.D = c(DiameterSchedule(sc.diameter)(self.times), dtype=float)  # (K+1,)
         self.unit_offsets = c(polygon_offsets(n - 1, 1.0), dtype=float).reshape(n - 1, 3)  # (n-1, 3)

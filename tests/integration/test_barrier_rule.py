@@ -113,6 +113,7 @@ def test_the_leaders_start_is_within_its_followers_capability():
     import numpy as np
 
     from swarm_mj.formation.barrier import BarrierParams
+    from swarm_mj.formation.planner import leader_reference
 
     limit = BarrierParams().horizontal_limit(9.81)  # the followers' horizontal acceleration limit (m/s²)
     peaks = {}
@@ -124,7 +125,7 @@ def test_the_leaders_start_is_within_its_followers_capability():
         early = t[5:] <= 4.0
         peaks[rule] = float(np.hypot(acc[early, 0], acc[early, 1]).max())
         if rule == "barrier":
-            plan = res.scenario.leader_reference()(t[t <= 4.0])
+            plan = leader_reference(res.scenario)(t[t <= 4.0])
             planned = float(np.hypot(plan.acc[:, 0], plan.acc[:, 1]).max())
     assert peaks["barrier"] < limit / 3.0 and peaks["barrier"] < 1.5 * planned
     assert peaks["jet-aware"] > 2.0 * limit

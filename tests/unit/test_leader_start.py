@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from swarm_mj.experiments.stress import StressCase, stress_scenario
-from swarm_mj.formation.planner import leader_start
+from swarm_mj.formation.planner import leader_reference, leader_start
 from swarm_mj.formation.rule_params import PRESETS
 from swarm_mj.trajectories import circle, hover, joined_from_rest
 
@@ -69,10 +69,10 @@ def test_the_planner_plans_the_leaders_start_only_where_its_record_says():
     # the scenario's leader flies its rule's plan; a [formation] key sets it
     case = StressCase("barrier", 3, 3, 2.5, 0.6, 8.0, aero="realistic")
     sc = stress_scenario(case)
-    assert np.array_equal(sc.leader_reference()(np.array([0.0])).pos[0], sc.leader_start)
+    assert np.array_equal(leader_reference(sc)(np.array([0.0])).pos[0], sc.leader_start)
     step = sc.with_overrides(anti_collision_params={"leader_join_s": 0.0, "leader_climb_s": 0.0})
-    assert np.array_equal(step.leader_reference()(np.array([0.0])).pos, f(np.array([0.0])).pos)
+    assert np.array_equal(leader_reference(step)(np.array([0.0])).pos, f(np.array([0.0])).pos)
     alone = stress_scenario(StressCase("barrier", 3, 0, 2.5, 0.6, 8.0, aero="realistic"))  # no follower: no plan
-    assert np.array_equal(alone.leader_reference()(np.array([0.0])).pos, f(np.array([0.0])).pos)
+    assert np.array_equal(leader_reference(alone)(np.array([0.0])).pos, f(np.array([0.0])).pos)
     jet = stress_scenario(StressCase("jet-aware", 3, 3, 2.5, 0.6, 8.0, aero="realistic"))
-    assert np.array_equal(jet.leader_reference()(np.array([0.0])).pos, f(np.array([0.0])).pos)
+    assert np.array_equal(leader_reference(jet)(np.array([0.0])).pos, f(np.array([0.0])).pos)
