@@ -46,7 +46,9 @@ if TYPE_CHECKING:
     from ..scenario import Scenario
 
 
-def leader_start(p: LayersParams, trajectory: Callable[[np.ndarray], Reference], start: np.ndarray):
+def leader_start(
+    p: LayersParams, trajectory: Callable[[np.ndarray], Reference], start: np.ndarray
+) -> Callable[[np.ndarray], Reference]:
     """The reference the planner has the leader fly from ``start`` (3,) (docs/barrier.md, "the leader's
     start"): ``trajectory`` joined from rest (:func:`~swarm_mj.trajectories.joined_from_rest`), its
     position over ``p.leader_join_s`` and its altitude over ``p.leader_climb_s``; with both 0 the
