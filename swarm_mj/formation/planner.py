@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -42,10 +42,6 @@ CLIMB, CROSS, FORMED = 0, 1, 2
 G = DEFAULT_PARAMS.g  # m/s², paper Table 1 (docs/interpretations.md §1)
 
 
-if TYPE_CHECKING:
-    from ..scenario import Scenario
-
-
 def leader_start(
     p: LayersParams, trajectory: Callable[[np.ndarray], Reference], start: np.ndarray
 ) -> Callable[[np.ndarray], Reference]:
@@ -56,16 +52,6 @@ def leader_start(
     if p.leader_join_s <= 0.0 and p.leader_climb_s <= 0.0:
         return trajectory
     return joined_from_rest(trajectory, start, p.leader_join_s, p.leader_climb_s)
-
-
-def leader_reference(sc: Scenario) -> Callable[[np.ndarray], Reference]:
-    """The reference the leader of ``sc`` flies: its trajectory, its start planned (:func:`leader_start`)
-    where it has followers to plan it for and its rule's record is a planner's (docs/barrier.md, "the
-    leader's start")."""
-    record, trajectory = sc.rule_params, sc.make_trajectory()
-    if sc.n_followers == 0 or not isinstance(record, LayersParams):
-        return trajectory
-    return leader_start(record, trajectory, sc.leader_start)
 
 
 @dataclass

@@ -38,14 +38,15 @@ observation       :meth:`observe` (one copy: :func:`swarm_mj.pipeline.period.obs
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from .._jit import Bound, bind, jit
 from ..errors import UserError
 from ..experiments.parallel import ThreadTeam, check_count
-from ..formation.planner import leader_reference
+from ..formation.planner import leader_start
+from ..formation.rule_params import LayersParams
 from ..formation.slots import DiameterSchedule, polygon_offsets
 from ..physics._mjstep import profiler_paused
 from ..physics.aero.ground import REST_HEIGHT, rest_positions
@@ -55,6 +56,7 @@ from ..physics.wind import WindConfig, WindField, WindSeries
 from ..physics.world import World, build_world
 from ..scenario import Scenario
 from ..task import CopyRefs, observe_copies
+from ..trajectories import Reference
 from .period import observe_into
 from .records import Obs, Refs
 
@@ -89,6 +91,16 @@ class Block:
         self.whole = False
         self.wind_rows: np.ndarray
         self.health_rows: np.ndarray
+
+
+def leader_reference(sc: Scenario) -> Callable[[np.ndarray], Reference]:
+    """The reference the leader of ``sc`` flies: its trajectory, its start planned by the rule's planner
+    (:func:`~swarm_mj.formation.planner.leader_start`) where it has followers to plan it for and its
+    rule's record is a planner's (docs/barrier.md, "the leader's start")."""
+    record, trajectory = sc.rule_params, sc.make_trajectory()
+    if sc.n_followers == 0 or not isinstance(record, LayersParams):
+        return trajectory
+    return leader_start(record, trajectory, sc.leader_start)
 
 
 class SwarmPhysics:

@@ -113,7 +113,7 @@ def test_the_leaders_start_is_within_its_followers_capability():
     import numpy as np
 
     from swarm_mj.formation.barrier import BarrierParams
-    from swarm_mj.formation.planner import leader_reference
+    from swarm_mj.pipeline.swarm import leader_reference
 
     limit = BarrierParams().horizontal_limit(9.81)  # the followers' horizontal acceleration limit (m/s²)
     peaks = {}

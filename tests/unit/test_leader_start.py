@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from swarm_mj.experiments.stress import StressCase, stress_scenario
-from swarm_mj.formation.planner import leader_reference, leader_start
+from swarm_mj.formation.planner import leader_start
 from swarm_mj.formation.rule_params import PRESETS
+from swarm_mj.pipeline.swarm import leader_reference
 from swarm_mj.trajectories import circle, hover, joined_from_rest
 
 START = np.array([0.3, -0.2, 0.0])
