@@ -1,6 +1,6 @@
 """The downwash-aware rule (``jet-aware``, the planner ``barrier`` guards; docs/interpretations.md §4,
-why and what was measured: docs/anticollision.md): the planner (:class:`~.planner.LayeredRule`) with the jet-aware
-separation of :mod:`.separation` and its preset's gentler paths."""
+why and what was measured: docs/anticollision.md): the planner (:class:`~.planner.LayeredRule`) with
+the jet-aware separation of :mod:`.separation` and its preset's gentler paths."""
 
 from __future__ import annotations
 

@@ -113,9 +113,10 @@ def test_the_leaders_start_is_within_its_followers_capability():
     import numpy as np
 
     from swarm_mj.formation.barrier import BarrierParams
+    from swarm_mj.physics.params import DEFAULT_PARAMS
     from swarm_mj.pipeline.swarm import leader_reference
 
-    limit = BarrierParams().horizontal_limit(9.81)  # the followers' horizontal acceleration limit (m/s²)
+    limit = BarrierParams().horizontal_limit(DEFAULT_PARAMS.g)  # the followers' horizontal limit (m/s²)
     peaks = {}
     for rule in ("barrier", "jet-aware"):
         res = run(stress_scenario(StressCase(rule, 3, 3, 2.5, 0.6, 5.0, aero="realistic")), progress=False)
