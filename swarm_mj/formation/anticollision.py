@@ -84,12 +84,13 @@ AUTO_CHOICE: dict[bool, tuple[str, str]] = {
     False: (
         "layers",
         "no downwash in this physics: the paper's reaction with the planner, contact-free on the fresh stress "
-        "starts and the fastest to settle (docs/barrier.md, auto)",
+        "starts, the paper's reproduction (docs/barrier.md, auto)",
     ),
     True: (
         "barrier",
         "downwash: the keep-out held (0 s, no contact or crash on the fresh stress starts, against 676 s and a "
-        "contact for jet-aware), settling within 1.04x (five) to 1.25x (eight) of jet-aware's (docs/barrier.md, auto)",
+        "contact for jet-aware), every start settled, at 0.92x (five) to 1.14x (eight) jet-aware's "
+        "(docs/barrier.md, auto)",
     ),
 }
 

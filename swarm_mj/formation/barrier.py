@@ -61,10 +61,12 @@ for ``escape_after_s`` escapes: its nominal's altitude is raised by ``escape_hei
 keep-out's vertical radius until it is within ``escape_done_m`` of the planner's reference. Only
 the nominal changes; the constraints and the limits filter it as any command.
 
-**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while its ρ to a
-drone of lower index or to an airborne one is below ``gate_rho``: the barrier cannot push a drone on
-the ground sideways, and lifting off inside a keep-out would start the pair with h < 0, where (B)
-only brings h back exponentially.
+**Take-off gate.** A follower still on the ground (below ``floor_m``) stays there while its ρ to an
+airborne drone is below ``gate_rho`` (now or predicted), or to a grounded drone of lower index below
+``gate_rho_ground``: the barrier cannot push a drone on the ground sideways, and lifting off inside a
+keep-out would start the pair with h < 0, where (B) only brings h back exponentially. Two grounded
+drones at ρ ≥ ``gate_rho_ground`` ≥ 1 lift off together: at rest, outside each other's keep-out
+(h ≥ 0, ḣ = 0, so ψ₁ ≥ 0: assumption (5) holds), and the barrier keeps them apart from there.
 
 **Tracking.** The filter works on the reference each drone's controller tracks (kept within
 ``leash_m`` of the drone); the real, lagged drone is off it by its tracking error, for which the

@@ -262,7 +262,8 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
     g, ref, ref_vel, u_nom = _nominals(rec, own, steer, positions, vel, pos_d, vel_d, acc_d)
     wait = np.zeros(n, dtype=np.bool_)
     takeoff_wait_kernel(positions, rec.radii, steer, vel, rec.sensed_acc, True, rec.floor_m, rec.gate_rho,
-                        rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way, rec.waited)  # fmt: skip
+                        rec.gate_rho_ground, rec.gate_horizon_s, wait, pos_d[0], rec.gate_leader_way,
+                        rec.waited)  # fmt: skip
     rec.waited[:] = wait
     filters, pair_filters, limits, hcost = _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d)
     u, active, relaxed, _, reserve, against = filter_accelerations(

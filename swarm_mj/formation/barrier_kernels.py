@@ -328,6 +328,7 @@ def takeoff_wait_kernel(
     predict: bool,
     floor: float,
     gate_rho: float,
+    gate_rho_ground: float,
     horizon: float,
     wait: np.ndarray,
     leader_goal: np.ndarray,
@@ -335,8 +336,9 @@ def takeoff_wait_kernel(
     held: np.ndarray,
 ) -> None:
     """The take-off gate (swarm_mj/formation/barrier.py's docstring), into ``wait`` (n,) bool: a filtering
-    drone on the ground (below ``floor``) whose ρ (``radii`` (3,)) to a drone of lower index or to an airborne drone is
-    below ``gate_rho`` holds where it is (and does not filter this period). With ``predict``: also
+    drone on the ground (below ``floor``) whose ρ (``radii`` (3,)) to an airborne drone is below ``gate_rho``, or
+    to a grounded drone of lower index below ``gate_rho_ground``, holds where it is (and does not filter this
+    period). With ``predict``: also
     when that airborne drone is predicted within ``gate_rho`` (at its ``velocities`` and
     ``accelerations`` (n, 3), sampled every 0.25 s over ``horizon`` s; a grounded one is taken where
     it stands). ``use_goal``: also inside the keep-out of the leader's way, the segment from drone 0
@@ -377,6 +379,6 @@ def takeoff_wait_kernel(
                 if np.sqrt(w2) < 1.0:
                     wait[i] = True
                     break
-            if np.sqrt(rho2) < gate_rho:
+            if np.sqrt(rho2) < (gate_rho if positions[j, 2] >= floor else gate_rho_ground):
                 wait[i] = True
                 break

@@ -84,6 +84,13 @@ class BarrierParams:
     arrive_angle: float = _p(0.15, "rad", "within this angle of its slot's ray a drone leaves its lane", 0.0, 3.14)
     lane_turn_gain: float = _p(2.0, "1/s", "lane speed ≤ this·r·|angle left| (it stops on its slot's ray)")
     gate_rho: float = _p(1.2, "", "a grounded follower lifts off only at ρ ≥ this from the drones it yields to")
+    gate_rho_ground: float = _p(
+        1.0,
+        "",
+        "a grounded follower lifts off only at ρ ≥ this from a grounded drone of lower index",
+        1.0,
+        open_lo=False,
+    )
     lane_inner: float = _p(1.2, "", "counter-clockwise lane: keep-out radii beyond the slot's distance")
     lane_outer: float = _p(2.4, "", "clockwise lane: keep-out radii beyond the slot's distance (> lane_inner)")
     both_states: bool = _p(True, "", "each constraint also on the drone's sensed state, not only its reference", None)
@@ -222,6 +229,7 @@ class BarrierRecord(NamedTuple):
     lanes: bool  # the params' guard_lanes: a guarded drone's nominal on the lanes
     accel_filter_s: float  # s
     gate_rho: float
+    gate_rho_ground: float  # the gate against a grounded drone of lower index
     gate_horizon_s: float  # s
     leash_m: float  # m
     leader_guard_m: float  # m

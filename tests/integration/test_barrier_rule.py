@@ -4,6 +4,7 @@ filter's relaxations counted in the summary and the stress row."""
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from swarm_mj.experiments import stress
@@ -130,3 +131,44 @@ def test_the_leaders_start_is_within_its_followers_capability():
             planned = float(np.hypot(plan.acc[:, 0], plan.acc[:, 1]).max())
     assert peaks["barrier"] < limit / 3.0 and peaks["barrier"] < 1.5 * planned
     assert peaks["jet-aware"] > 2.0 * limit
+
+
+def _lift_off_s(log, i: int, floor: float) -> float:
+    """The first logged time drone i is above ``floor``."""
+    return float(log.t[int(np.argmax(log.pos[:, i, 2] > floor))])
+
+
+def test_grounded_neighbours_outside_each_others_keep_out_lift_off_together():
+    """Two followers standing 0.80 m apart, 1.11 keep-out radii (ρ on the ground, outside the filter's
+    keep-out): with ``gate_rho_ground`` 1.0 (the default) both leave the ground in the same tenth of a
+    second, and the keep-out holds between them as they climb side by side (ρ recomputed here from the
+    log and the vehicle's radii); at 1.2 the higher index waits for the lower to climb away (docs/barrier.md,
+    "take-off gate")."""
+    from swarm_mj.formation.barrier import BarrierParams
+    from swarm_mj.physics.params import DEFAULT_PARAMS
+
+    bp = BarrierParams()
+    gap = 0.80
+    assert 1.0 < gap / bp.radii(DEFAULT_PARAMS)[0] < 1.2
+    data = {
+        "name": "grounded-pair",
+        "duration": 3.0,
+        "leader": {"trajectory": "hover", "start": [0.0, 0.0, 0.0]},
+        "followers": {"start": [[2.0, 0.0, 0.0], [2.0 + gap, 0.0, 0.0]]},
+        "formation": {"diameter": 1.0, "anti_collision": "barrier"},
+        "aero": {"model": "realistic"},
+    }
+    lifted = {}
+    for ground in (1.0, 1.2):
+        data["formation"]["barrier"] = {"gate_rho_ground": ground}
+        res = run(parse_scenario(data, "<test>"), progress=False)
+        log = res.log
+        lifted[ground] = [_lift_off_s(log, i, bp.floor_m) for i in (1, 2)]
+        radii = keepout_radii()
+        pair = np.linalg.norm((log.pos[:, 1] - log.pos[:, 2]) / radii, axis=1)
+        airborne = (log.pos[:, 1, 2] > bp.floor_m) & (log.pos[:, 2, 2] > bp.floor_m)
+        assert pair[airborne].min() >= 1.0
+        assert res.summary["keepout_time_s"] == 0.0 and res.summary["contacts"] == 0
+    together, waited = lifted[1.0], lifted[1.2]
+    assert abs(together[1] - together[0]) <= 0.1
+    assert waited[1] - waited[0] > 0.3

@@ -506,6 +506,37 @@ def test_filter_take_off_gate():
     assert o_a[2, 2] > 0.0
 
 
+@pytest.mark.parametrize("gap_rho", [0.9, 1.1])
+def test_take_off_gate_against_a_grounded_neighbour_and_an_airborne_one(gap_rho):
+    """Two followers on the ground ``gap_rho`` keep-out radii apart (level: ρ = gap_rho, computed here
+    from the radii): the higher index waits at ρ < ``gate_rho_ground`` (1.0) only, so both lift off
+    together at 1.1 (outside each other's keep-out, at rest: h ≥ 0 and ḣ = 0, the barrier's assumption
+    (5)). The same neighbour airborne, straight above its pad at the same ρ, holds it (ρ < ``gate_rho``,
+    1.2); with ``gate_rho_ground`` 1.2 the grounded one holds it too (the gate before this key)."""
+    from swarm_mj.formation.barrier import takeoff_wait_kernel
+
+    bp = BarrierParams()
+    radii = bp.radii()
+    filters = np.array([False, True, True])
+    z = np.zeros((3, 3))
+
+    def waits(pos: np.ndarray, ground: float) -> bool:
+        wait = np.zeros(3, dtype=np.bool_)
+        takeoff_wait_kernel(pos, radii, filters, z, z, True, bp.floor_m, bp.gate_rho, ground, bp.gate_horizon_s,
+                            wait, pos[0], False, np.zeros(3, dtype=np.bool_))  # fmt: skip
+        return bool(wait[2])
+
+    grounded = np.array([[9.0, 0.0, 0.05], [0.0, 0.0, 0.05], [gap_rho * radii[0], 0.0, 0.05]])
+    assert np.linalg.norm((grounded[2] - grounded[1]) / radii) == pytest.approx(gap_rho)
+    assert waits(grounded, bp.gate_rho_ground) == (gap_rho < 1.0)
+    assert waits(grounded, 1.2)  # both gaps are inside 1.2
+    # airborne at the same ρ: straight up from a pad gap_rho·a·cos(30°) away, ρ unchanged
+    up = grounded.copy()
+    up[1] = [grounded[2, 0] - gap_rho * radii[0] * np.cos(np.pi / 6), 0.0, 0.05 + gap_rho * radii[2] * 0.5]
+    assert np.linalg.norm((up[2] - up[1]) / radii) == pytest.approx(gap_rho)
+    assert waits(up, bp.gate_rho_ground)
+
+
 def _two_closing_followers(bp: BarrierParams):
     """Two followers closing head-on at 4 m/s, 0.9 m apart, the leader far: the filter of ``bp`` flown two
     periods on them. Returns (filter, positions, velocities, the last acceleration references)."""
@@ -637,8 +668,8 @@ def test_take_off_gate_keeps_off_the_leaders_way():
     goal = np.array([0.0, 3.0, 2.0])
     for use in (True, False):
         wait = np.zeros(3, dtype=np.bool_)
-        takeoff_wait_kernel(pos, radii, filters, z, z, True, bp.floor_m, bp.gate_rho, bp.gate_horizon_s, wait,
-                            goal, use, np.zeros(3, dtype=np.bool_))  # fmt: skip
+        takeoff_wait_kernel(pos, radii, filters, z, z, True, bp.floor_m, bp.gate_rho, bp.gate_rho_ground,
+                            bp.gate_horizon_s, wait, goal, use, np.zeros(3, dtype=np.bool_))  # fmt: skip
         assert wait[1] == use
         assert not wait[2]
 
