@@ -338,10 +338,9 @@ def takeoff_wait_kernel(
     """The take-off gate (swarm_mj/formation/barrier.py's docstring), into ``wait`` (n,) bool: a filtering
     drone on the ground (below ``floor``) whose ρ (``radii`` (3,)) to an airborne drone is below ``gate_rho``, or
     to a grounded drone of lower index below ``gate_rho_ground``, holds where it is (and does not filter this
-    period). With ``predict``: also
-    when that airborne drone is predicted within ``gate_rho`` (at its ``velocities`` and
-    ``accelerations`` (n, 3), sampled every 0.25 s over ``horizon`` s; a grounded one is taken where
-    it stands). ``use_goal``: also inside the keep-out of the leader's way, the segment from drone 0
+    period). With ``predict``: also when that airborne drone is predicted within ``gate_rho`` (at its
+    ``velocities`` and ``accelerations`` (n, 3), sampled every 0.25 s over ``horizon`` s; a grounded one
+    is taken where it stands). ``use_goal``: also inside the keep-out of the leader's way, the segment from drone 0
     to its reference ``leader_goal`` (3,). ``held`` (n,) bool: the drones the gate held at the last
     period, which it holds on while the condition holds, even risen above ``floor`` (lifted by the
     ground effect or a mispredicted downwash while held: it is still the gate's)."""

@@ -11,8 +11,11 @@ from swarm_mj.experiments import stress
 from swarm_mj.experiments.report_table import format_summary
 from swarm_mj.experiments.runner import run
 from swarm_mj.experiments.stress import StressCase, stress_data, stress_scenario
-from swarm_mj.formation.barrier import keepout_radii
+from swarm_mj.formation.anticollision import AUTO_CHOICE
+from swarm_mj.formation.barrier import BarrierParams, keepout_radii
 from swarm_mj.metrics import keepout_min_distance, keepout_time_s
+from swarm_mj.physics.params import DEFAULT_PARAMS
+from swarm_mj.pipeline.swarm import leader_reference
 from swarm_mj.scenario import parse_scenario
 
 pytestmark = pytest.mark.slow
@@ -38,9 +41,6 @@ def test_auto_says_which_rule_it_chose_and_why(aero, chosen):
     """``anti_collision = "auto"`` (the circle's): the summary names the rule auto chose for the
     physics (``AUTO_CHOICE``, by whether it has downwash, not by the scenario) and the reason, and
     the text summary prints it; a rule named explicitly has no such key."""
-    from swarm_mj.experiments.report_table import format_summary
-    from swarm_mj.formation.anticollision import AUTO_CHOICE
-
     res = run("circle", aero=aero, duration=0.5, progress=False)
     s = res.summary
     assert res.scenario.anti_collision == "auto"
@@ -111,12 +111,6 @@ def test_the_leaders_start_is_within_its_followers_capability():
     so the leader MuJoCo flies accelerates horizontally within a third of the followers' limit (the
     filter's horizontal limit), near its plan's peak; under ``jet-aware`` it dashes onto the circle
     (over 10 m/s² measured)."""
-    import numpy as np
-
-    from swarm_mj.formation.barrier import BarrierParams
-    from swarm_mj.physics.params import DEFAULT_PARAMS
-    from swarm_mj.pipeline.swarm import leader_reference
-
     limit = BarrierParams().horizontal_limit(DEFAULT_PARAMS.g)  # the followers' horizontal limit (m/s²)
     peaks = {}
     for rule in ("barrier", "jet-aware"):
@@ -144,10 +138,8 @@ def test_grounded_neighbours_outside_each_others_keep_out_lift_off_together():
     second, and the keep-out holds between them as they climb side by side (ρ recomputed here from the
     log and the vehicle's radii); at 1.2 the higher index waits for the lower to climb away (docs/barrier.md,
     "take-off gate")."""
-    from swarm_mj.formation.barrier import BarrierParams
-    from swarm_mj.physics.params import DEFAULT_PARAMS
-
     bp = BarrierParams()
+    radii = keepout_radii()  # the vehicle's keep-out, not the filter's (which adds the tracking margin)
     gap = 0.80
     assert 1.0 < gap / bp.radii(DEFAULT_PARAMS)[0] < 1.2
     data = {
@@ -164,7 +156,6 @@ def test_grounded_neighbours_outside_each_others_keep_out_lift_off_together():
         res = run(parse_scenario(data, "<test>"), progress=False)
         log = res.log
         lifted[ground] = [_lift_off_s(log, i, bp.floor_m) for i in (1, 2)]
-        radii = keepout_radii()
         pair = np.linalg.norm((log.pos[:, 1] - log.pos[:, 2]) / radii, axis=1)
         airborne = (log.pos[:, 1, 2] > bp.floor_m) & (log.pos[:, 2, 2] > bp.floor_m)
         assert pair[airborne].min() >= 1.0
