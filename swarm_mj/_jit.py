@@ -42,6 +42,7 @@ KERNEL_MODULES: tuple[str, ...] = (
     "swarm_mj.formation.layered",
     "swarm_mj.formation.keepout",
     "swarm_mj.formation.barrier_qp",
+    "swarm_mj.formation.barrier_joint",
     "swarm_mj.formation.barrier_params",
     "swarm_mj.formation.barrier_kernels",
     "swarm_mj.formation.barrier_filter",

@@ -137,6 +137,8 @@ class BacksteppingPolicy:
                     **(sc.barrier_params or {}),
                     "tracking_margin_m": filt.barrier.tracking_margin_m + 0.5 * self.margin.applied_m,
                 }
+                if self.margin.applied_m < self.margin.needed_m:  # the views disagree beyond the keep-out's
+                    table.setdefault("joint_fallback", False)  # widening: no joint fallback (docs/barrier.md)
                 self.rule = make_rule(name, self.n, vehicle=params, barrier=table, **rule_params)
             self.rule = OwnViewRule(self.rule)
         # the attitude and thrust packets the feedforward reads under a sensing model (swarm_mj.sensing.payload)

@@ -171,6 +171,8 @@ def _swarm_lines(s: dict, paper: bool, downwash: bool) -> list[str]:
         relaxed = f", {a['relaxations']} barrier relaxations ({vs} against the leader; docs/barrier.md)"
     if a.get("reserve_periods"):
         relaxed += f", {a['reserve_periods']} drone-periods on the barrier's reserve"
+    if a.get("joint_periods"):
+        relaxed += f", {a['joint_periods']} drone-periods in the barrier's joint fallback"
     lines.append(f"anti-collision rule '{a['rule']}': {a['events']} events, {a['yields']} altitude yields{relaxed}")
     auto = s.get("anti_collision_auto")
     if auto is not None:

@@ -476,6 +476,7 @@ def _swarm(log: RunLog, env: SwarmEnv, policy: BacksteppingPolicy, dist: np.ndar
                 "relaxations": 0,
                 "relaxations_vs_leader": 0,
                 "reserve_periods": 0,
+                "joint_periods": 0,
             },
         }
     t = log.t
@@ -515,7 +516,8 @@ def _formation(log: RunLog, changes: np.ndarray, on_ground: bool) -> dict:
 
 def _events(policy: BacksteppingPolicy) -> dict:
     """The anti-collision rule's events: all, the altitude yields, the barrier filter's relaxations
-    (constraints infeasible within the limits) and its drone-periods on the reserve (docs/barrier.md)."""
+    (constraints infeasible within the limits), its drone-periods on the reserve and those flown from a
+    cluster's joint QP (docs/barrier.md)."""
     ev = policy.events
     rule = policy.rule
     filters = [getattr(c, "separation_filter", None) for c in getattr(rule, "copies", [rule])]  # each drone's copy
@@ -527,6 +529,7 @@ def _events(policy: BacksteppingPolicy) -> dict:
         # … of which the row that asked most beyond the drone's limits was its pair with the leader
         "relaxations_vs_leader": sum(1 for e in ev if e["action"] == "relax" and e.get("other") == 0),
         "reserve_periods": sum(int(getattr(f, "reserve_periods", 0)) for f in filters),
+        "joint_periods": sum(int(getattr(f, "joint_periods", 0)) for f in filters),
     }
 
 

@@ -94,6 +94,7 @@ def fly_case(case: StressCase) -> dict:
         "relaxations": int(s["anti_collision"]["relaxations"]),
         "relaxations_vs_leader": int(s["anti_collision"]["relaxations_vs_leader"]),
         "reserve_periods": int(s["anti_collision"]["reserve_periods"]),
+        "joint_periods": int(s["anti_collision"].get("joint_periods", 0)),
         "stopped": s.get("stopped"),
         "crashes": int(s.get("crashes", 0)),
         "ground_contacts": int(s.get("ground_contacts", 0)),
@@ -144,6 +145,9 @@ def summarize_rule(rows: list[dict]) -> dict:
         # … and its drone-periods on the reserve's wider tilt (docs/barrier.md, "the reserve")
         "reserve_periods": sum(r.get("reserve_periods", 0) for r in rows),
         "starts_with_reserve": sum(r.get("reserve_periods", 0) > 0 for r in rows),
+        # … and its drone-periods flown from a boxed drone's cluster QP (docs/barrier.md, "the joint fallback")
+        "joint_periods": sum(r.get("joint_periods", 0) for r in rows),
+        "starts_with_joint": sum(r.get("joint_periods", 0) > 0 for r in rows),
         "path_per_follower_median_m": float(np.median([r.get("path_per_follower_m", np.nan) for r in rows]))
         if rows
         else float("nan"),
@@ -245,6 +249,11 @@ def format_table(table: dict, followers: int, sensing: str = "perfect") -> str:
             lines.append(
                 f"           barrier reserve: {r['reserve_periods']} drone-periods in {r['starts_with_reserve']} of "
                 f"{r['starts']} starts (a tilt up to the reserve's; docs/barrier.md)"
+            )
+        if r.get("joint_periods"):
+            lines.append(
+                f"           barrier joint fallback: {r['joint_periods']} drone-periods in {r['starts_with_joint']} of "
+                f"{r['starts']} starts (a boxed drone's cluster solved together; docs/barrier.md)"
             )
     return "\n".join(lines)
 

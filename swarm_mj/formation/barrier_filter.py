@@ -17,6 +17,7 @@ from .separation import Sensed
 BARRIER_MODULES = (
     "swarm_mj.formation.keepout",
     "swarm_mj.formation.barrier_qp",
+    "swarm_mj.formation.barrier_joint",
     "swarm_mj.formation.barrier_kernels",
     "swarm_mj.formation.barrier_filter",
 )
@@ -154,14 +155,16 @@ def _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d):
 
 
 @jit(inline=True)
-def _tally(rec, i, t, active, relaxed, reserve, against):
-    """Drone i's period in the counts (active, relaxed, on the reserve) and the record's flags; the first
+def _tally(rec, i, t, active, relaxed, reserve, against, joint):
+    """Drone i's period in the counts (active, relaxed, on the reserve, in a joint QP) and the record's flags; the first
     period of a relaxed stretch is a relax event in the record's buffer, with the neighbour whose row
     asked most (``against``)."""
     if active:
         rec.counts[0] += 1
     if reserve:
         rec.counts[5] += 1
+    if joint:
+        rec.counts[6] += 1
     if relaxed:
         rec.counts[1] += 1
         if not rec.was_relaxed[i]:  # the first period of a relaxed stretch: an event
@@ -266,14 +269,16 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
                         rec.waited)  # fmt: skip
     rec.waited[:] = wait
     filters, pair_filters, limits, hcost = _drone_limits(rec, own, steer, wait, positions, ref, ref_vel, vel_d)
-    u, active, relaxed, _, reserve, against = filter_accelerations(
+    u, active, relaxed, _, reserve, against, joint = filter_accelerations(
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
     for i in range(n):
         if rec.own_row >= 0 and i != rec.own_row:
             continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
-        _tally(rec, i, t, active[i], relaxed[i], reserve[i], against[i])
+        other = rec.tally_row >= 0 and i != rec.tally_row  # a copy computing every row counts its own drone's
+        kept, n_ev = rec.counts.copy(), rec.ev_count[0]
+        _tally(rec, i, t, active[i], relaxed[i], reserve[i], against[i], joint[i])
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
             _hold_at_gate(rec, i, positions)
@@ -287,6 +292,9 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         back = g[i] and not active[i] and _handed_back(rec, i, pos_d, vel_d)  # handed back to the planner
         rec.guarded[i] = (g[i] and not back) or wait[i]
         _escape_update(rec, i, rec.guarded[i] and steer[i] and not wait[i], active[i], pos_d, dt)  # followers
+        if other:  # another drone's row in this copy: its counts and events are not this copy's
+            rec.counts[:] = kept
+            rec.ev_count[0] = n_ev
     rec.prev_acc[:] = out_a
     return out_p, out_v, out_a
 
@@ -332,20 +340,24 @@ class BarrierFilter:
         self.radii = self.barrier.radii(vehicle)
         self.a_h = self.barrier.horizontal_limit(vehicle.g)
         self.own_row = -1  # every drone's row (restrict_to: one drone's copy)
+        self.tally_row = -1  # every drone's counts and events (restrict_to: one drone's copy)
         self.reset(0)
 
     def reset(self, n: int) -> None:
         """Start of a run of n drones: every drone free."""
-        self._rec = new_record(self.barrier, self.vehicle, n, True, self.own_row)
+        self._rec = new_record(self.barrier, self.vehicle, n, True, self.own_row, self.tally_row)
         self.events: list[dict] = []
 
     def restrict_to(self, i: int) -> None:
-        """From now on compute drone i's row only (the record's ``own_row``, :func:`barrier_step`): the
-        filter of drone i's own copy of the rule (swarm_mj/formation/own_view.py), whose other rows are
-        thrown away. Row i is the same bit for bit; the other rows are the planner's references, and
-        the tallies (:attr:`active_periods`...) and events are drone i's alone."""
-        self.own_row = int(i)
-        self._rec = self._rec._replace(own_row=self.own_row)
+        """From now on this is drone i's own copy of the rule (swarm_mj/formation/own_view.py), whose other
+        rows are thrown away: its tallies (:attr:`active_periods`...) and events are drone i's alone, and it
+        computes row i only (the record's ``own_row``, :func:`barrier_step`; row i the same bit for bit, the
+        other rows the planner's references). With ``joint_fallback`` it computes every row, its prediction
+        of the others' (a boxed drone's cluster needs the others' references and nominals, docs/barrier.md,
+        "the joint fallback")."""
+        self.tally_row = int(i)
+        self.own_row = -1 if self.barrier.joint_fallback else int(i)
+        self._rec = self._rec._replace(own_row=self.own_row, tally_row=self.tally_row)
 
     def record(self) -> BarrierRecord:
         """The filter's record (its arrays are the filter's state: :func:`barrier_step` updates them)."""
@@ -392,6 +404,12 @@ class BarrierFilter:
         """Drone-periods in which no input within the limits met the constraints and the reserve's wider tilt
         was tried (docs/barrier.md, "the reserve"); those it did not rescue are relaxed too."""
         return int(self._rec.counts[5])
+
+    @property
+    def joint_periods(self) -> int:
+        """Drone-periods whose command came from a boxed drone's cluster QP (docs/barrier.md, "the joint
+        fallback"); those it could not meet within the limits are relaxed too."""
+        return int(self._rec.counts[6])
 
     @property
     def escapes(self) -> int:

@@ -10,6 +10,7 @@ import numpy as np
 
 from .._jit import jit
 from ..physics.params import DEFAULT_PARAMS, QuadParams
+from .barrier_joint import joint_command
 from .barrier_params import BarrierParams, BarrierRecord, new_record
 from .barrier_qp import limit_rows, min_over_limits, project_polyhedron
 from .keepout import pair_row
@@ -143,6 +144,40 @@ def _project_command(A, b, m, ml, un, hcost_i, relax_weight, A4, b4, lim, reserv
     return w, relaxed, sh, reserve
 
 
+@jit(inline=True)
+def _clusters(rec, boxed, filters, sensed_pos):
+    """The clusters of the joint fallback (swarm_mj/formation/barrier_joint.py): the connected sets of the
+    graph joining each boxed drone (``boxed`` (n,): its split has no input within its limits) to every
+    filtering drone within its sensing range (sensed positions). Returns (cluster (n,) int, −1 for
+    none; the number of clusters)."""
+    n = sensed_pos.shape[0]
+    r2 = rec.sensing_range * rec.sensing_range
+    comp = np.full(n, -1, dtype=np.int64)
+    stack = np.empty(n, dtype=np.int64)
+    count = 0
+    for k0 in range(n):
+        if not boxed[k0] or comp[k0] >= 0:
+            continue
+        comp[k0] = count
+        stack[0] = k0
+        top = 1
+        while top > 0:
+            top -= 1
+            x = stack[top]
+            for l2 in range(n):
+                if filters[l2] and comp[l2] < 0 and (boxed[x] or boxed[l2]) and _dist2(sensed_pos, x, l2) <= r2:
+                    comp[l2] = count
+                    stack[top] = l2
+                    top += 1
+        count += 1
+    return comp, count
+
+
+@jit(inline=True)
+def _dist2(x, k, l2):
+    return (x[k, 0] - x[l2, 0]) ** 2 + (x[k, 1] - x[l2, 1]) ** 2 + (x[k, 2] - x[l2, 2]) ** 2
+
+
 def _filter_samples():
     z = np.zeros((2, 3))
     pos = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 1.0]])
@@ -190,13 +225,16 @@ def filter_accelerations(
     (n,) (the neighbour constraints kept after the exact pruning), reserve (n,) (infeasible within the
     limits, the horizontal one widened to ``reserve_a_h``: the reserve, docs/barrier.md), against (n,)
     int (a relaxed drone's neighbour whose row asked most beyond its limits, :func:`_most_asked`; −1
-    where not relaxed)."""
+    where not relaxed), joint (n,) (its command is its cluster's joint QP's, :func:`_joint_fallback`:
+    with ``joint_fallback``, where some drone's split had no input within its limits, and only where
+    every row is computed, ``own_row`` −1)."""
     n = pos.shape[0]
     u = u_nom.copy()
     active = np.zeros(n, dtype=np.bool_)
     relaxed = np.zeros(n, dtype=np.bool_)
     reserve = np.zeros(n, dtype=np.bool_)
     against = np.full(n, -1, dtype=np.int64)
+    joint = np.zeros(n, dtype=np.bool_)
     kept = np.zeros(n, dtype=np.int64)
     m_max = 2 * n + 10
     A = np.zeros((m_max, 3))
@@ -209,6 +247,7 @@ def filter_accelerations(
     a = np.empty(3)
     un = np.empty(3)
     only = rec.own_row
+    boxed = np.zeros(n, dtype=np.bool_)
     for i in range(n):
         if not filters[i] or (only >= 0 and i != only):
             continue
@@ -218,20 +257,46 @@ def filter_accelerations(
             rec, i, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, A, b, rj, un, p, v, a
         )
         kept[i] = m
-        if not violated:
-            continue  # the nominal satisfies every barrier constraint: unchanged
-        active[i] = True
-        ml = limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
-        w, relaxed_i, sh, reserve[i] = _project_command(
-            A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4, limits[i], rec.reserve_a_h
-        )
-        relaxed[i] = relaxed_i
-        if relaxed_i:  # the neighbour that asked most (the rows as the metric scaled them)
-            against[i] = _most_asked(A, b, rj, m, limits[i], rec.reserve_a_h, sh, p)
-        u[i, 0] = w[0] / sh
-        u[i, 1] = w[1] / sh
-        u[i, 2] = w[2]
-    return u, active, relaxed, kept, reserve, against
+        if violated:  # else the nominal satisfies every barrier constraint: unchanged
+            active[i] = True
+            ml = limit_rows(A[m:], b[m:], limits[i, 0], limits[i, 1], limits[i, 2])
+            w, relaxed_i, sh, reserve[i] = _project_command(
+                A, b, m, ml, un, hcost[i], rec.relax_weight, A4, b4, limits[i], rec.reserve_a_h
+            )
+            relaxed[i] = relaxed_i
+            boxed[i] = relaxed_i or reserve[i]
+            if relaxed_i:  # the neighbour that asked most (the rows as the metric scaled them)
+                against[i] = _most_asked(A, b, rj, m, limits[i], rec.reserve_a_h, sh, p)
+            u[i, 0] = w[0] / sh
+            u[i, 1] = w[1] / sh
+            u[i, 2] = w[2]
+    if rec.joint_fallback and only < 0 and boxed.any():
+        _joint_fallback(rec, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, hcost, boxed,
+                        u, active, relaxed, reserve, against, joint)  # fmt: skip
+    return u, active, relaxed, kept, reserve, against, joint
+
+
+@jit(inline=True)
+def _joint_fallback(rec, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits, hcost, boxed,
+                    u, active, relaxed, reserve, against, joint):  # fmt: skip
+    """Each cluster round a boxed drone (:func:`_clusters`) flies its joint QP's solution
+    (swarm_mj/formation/barrier_joint.py) in place of its members' split ones (u, active, relaxed,
+    reserve, against, joint (n, ...) updated; a cluster whose QP has no solution keeps the split's)."""
+    comp, count = _clusters(rec, boxed, filters, sensed_pos)
+    for c_i in range(count):
+        member = comp == c_i
+        uc, ok, res = joint_command(rec, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filters, limits,
+                                    hcost, member)  # fmt: skip
+        if not ok:
+            continue  # nothing meets the cluster's rows either: the split's commands, relaxed where they were
+        for k in range(comp.shape[0]):
+            if member[k]:
+                u[k] = uc[k]
+                joint[k] = True
+                active[k] = True
+                relaxed[k] = False
+                reserve[k] = res
+                against[k] = -1
 
 
 def apply_filter(
@@ -244,13 +309,13 @@ def apply_filter(
     vehicle: QuadParams = DEFAULT_PARAMS,
     limits: np.ndarray | None = None,
     hcost: np.ndarray | None = None,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`filter_accelerations` with the parameters of ``bp`` (the separation step's entry point).
 
     pos, vel, u_nom (n, 3); filters (n,) bool; sensed: (positions, velocities, accelerations) (n, 3)
     the others sense (default: pos, vel and zero); limits (n, 3): each drone's (a_h, a_up, a_down)
     (default: ``bp``'s for every drone); hcost (n,): each drone's cost of a horizontal change
-    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints, reserve, against)."""
+    (default 1: the plain projection). Returns (u, active, relaxed, n_constraints, reserve, against, joint)."""
     c = np.ascontiguousarray
     sp, sv, sa = (pos, vel, np.zeros_like(pos)) if sensed is None else sensed
     n = pos.shape[0]

@@ -94,6 +94,9 @@ class BarrierParams:
     lane_inner: float = _p(1.2, "", "counter-clockwise lane: keep-out radii beyond the slot's distance")
     lane_outer: float = _p(2.4, "", "clockwise lane: keep-out radii beyond the slot's distance (> lane_inner)")
     both_states: bool = _p(True, "", "each constraint also on the drone's sensed state, not only its reference", None)
+    joint_fallback: bool = _p(
+        True, "", "where a drone's split has no input within its limits, its cluster's joint QP (else relaxed)", None
+    )
     release_m: float = _p(
         0.02, "m", "a guarded drone is handed back within this of the planner's reference", 0.0, open_lo=False
     )
@@ -226,6 +229,7 @@ class BarrierRecord(NamedTuple):
     floor_m: float  # m
     priority_share: float
     both_states: bool
+    joint_fallback: bool  # a boxed drone's cluster solves its constraints together (barrier_joint.py)
     lanes: bool  # the params' guard_lanes: a guarded drone's nominal on the lanes
     accel_filter_s: float  # s
     gate_rho: float
@@ -252,6 +256,9 @@ class BarrierRecord(NamedTuple):
     #: the one drone whose row the filter computes (its copy under a sensing model: swarm_mj/formation/own_view.py);
     #: −1: every drone's. The other rows are returned as the planner's and their state is left as it was.
     own_row: int
+    #: the one drone whose counts and events the record keeps (−1: every drone's): a copy under a sensing
+    #: model with the joint fallback computes every row (its prediction of the others) and counts its own
+    tally_row: int
     guarded: np.ndarray  # (n,) bool: the filter flies this drone's reference
     ref: np.ndarray  # (n, 3) r of a guarded drone
     ref_vel: np.ndarray  # (n, 3) ṙ
@@ -266,7 +273,7 @@ class BarrierRecord(NamedTuple):
     escaping: np.ndarray  # (n,) bool: the drone escapes up (its nominal's altitude raised)
     pressed_s: np.ndarray  # (n,) s the drone has been pressed without progress (0: not counting)
     best_m: np.ndarray  # (n,) m its least horizontal distance to the planner's reference since then
-    counts: np.ndarray  # (6,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes; reserve
+    counts: np.ndarray  # (7,) int64: active, relaxed, guarded, rate-limited drone-periods; escapes; reserve; joint
     ev_t: np.ndarray  # (cap,) time of each relax event not yet handed to Python
     ev_drone: np.ndarray  # (cap,) int64 its drone
     ev_other: np.ndarray  # (cap,) int64 the neighbour whose row asked most beyond the drone's limits
@@ -278,10 +285,13 @@ class BarrierRecord(NamedTuple):
 EVENTS_PER_DRONE = 8
 
 
-def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row: int = -1) -> BarrierRecord:
+def new_record(
+    bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row: int = -1, tally_row: int | None = None
+) -> BarrierRecord:
     """A fresh record of n drones (every drone free, no state taken yet). Its scalar parameters are
     the fields of ``bp`` of the same name (as float or bool, their declared types); its ``lanes`` is
-    ``bp.guard_lanes``; ``own_row``: the one drone whose row it computes (−1: every drone's)."""
+    ``bp.guard_lanes``; ``own_row``: the one drone whose row it computes (−1: every drone's); ``tally_row``: the
+    one whose counts and events it keeps (default: ``own_row``)."""
     cast = {"float": float, "bool": bool}
     kw: dict[str, Any] = {
         f.name: cast[str(f.type)](getattr(bp, f.name)) for f in fields(bp) if f.name in BarrierRecord._fields
@@ -295,6 +305,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row
         reserve_a_h=bp.reserve_horizontal_limit(vehicle.g),
         lanes=bool(bp.guard_lanes),
         own_row=int(own_row),
+        tally_row=int(own_row if tally_row is None else tally_row),
         guarded=np.zeros(n, dtype=np.bool_),
         ref=np.zeros((n, 3)),
         ref_vel=np.zeros((n, 3)),
@@ -309,7 +320,7 @@ def new_record(bp: BarrierParams, vehicle: QuadParams, n: int, on: bool, own_row
         escaping=np.zeros(n, dtype=np.bool_),
         pressed_s=np.zeros(n),
         best_m=np.zeros(n),
-        counts=np.zeros(6, dtype=np.int64),
+        counts=np.zeros(7, dtype=np.int64),
         ev_t=np.zeros(cap),
         ev_drone=np.zeros(cap, dtype=np.int64),
         ev_other=np.full(cap, -1, dtype=np.int64),

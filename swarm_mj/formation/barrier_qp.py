@@ -13,8 +13,8 @@ _LAM_TOL = 1e-9  # a multiplier counts as non-negative above −this·(1 + max |
 
 
 @jit
-def _solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray, M: np.ndarray) -> bool:
-    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting (M (4, 5) the
+def solve_small(G: np.ndarray, r: np.ndarray, s: int, x: np.ndarray, M: np.ndarray) -> bool:
+    """Solve G[:s, :s]·x = r[:s] by Gaussian elimination with partial pivoting (M (≥ s, ≥ s + 1) the
     caller's work buffer); False if singular."""
     scale = 0.0
     for i in range(s):
@@ -65,7 +65,7 @@ def _kkt_point(w0, A, b, m, idx, s, w, lam, G, r, M) -> bool:
             for c in range(d):
                 g += A[idx[k], c] * A[idx[l2], c]
             G[k, l2] = g
-    if s > 0 and not _solve_small(G, r, s, lam, M):
+    if s > 0 and not solve_small(G, r, s, lam, M):
         return False
     big = 0.0
     for k in range(s):

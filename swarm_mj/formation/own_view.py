@@ -36,7 +36,9 @@ class OwnViewRule:
     compute for the others are thrown away here, and row i does not depend on them (the barrier's
     QP of drone i reads the others' sensed state and whether they filter, never their nominals or
     filtered commands: :func:`~.barrier_filter.barrier_step`), so every run is the same bit for bit,
-    for a sixth of the QPs with 6 drones (tests/unit/test_own_row.py checks it)."""
+    for a sixth of the QPs with 6 drones (tests/unit/test_own_row.py checks it). The barrier with its
+    joint fallback computes every row (a boxed drone's cluster reads the others' references and
+    nominals) and counts row i's alone (docs/barrier.md, "the joint fallback")."""
 
     #: copy i's separation filter computes drone i's row only (False: every row, as the rule itself)
     own_rows: bool = True

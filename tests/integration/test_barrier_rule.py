@@ -56,7 +56,9 @@ def test_relaxations_are_counted_in_the_summary_and_the_stress_row(monkeypatch):
     # (docs/barrier.md, "Infeasible under the limits: relaxation"), and the run says how often, on
     # both drivers
     data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
-    data["formation"]["barrier"] = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6, "reserve_tilt_deg": 0.0}
+    # the split's relaxations (the joint fallback meets these limits)
+    limits = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
+    data["formation"]["barrier"] = {**limits, "reserve_tilt_deg": 0.0, "joint_fallback": False}
     sc = parse_scenario(data, "<test>")
     runs = [run(sc, progress=False, fused=fused) for fused in (False, True)]
     for res in runs:
@@ -87,7 +89,8 @@ def test_the_reserve_is_counted_in_the_summary_and_the_stress_row(monkeypatch):
     # limits: the reserve"): it is used, counted the same on both drivers, said in the summary's line and
     # the stress row and table, and it leaves fewer relaxations than the same start without it
     data = stress_data(StressCase("barrier", 100033, 5, 3.0, 0.6, 6.0, aero="realistic"))
-    limits = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6}
+    # the split's reserve (the joint fallback meets these limits within the nominal ones)
+    limits = {"max_tilt_deg": 6.0, "accel_up": 0.6, "accel_down": 0.6, "joint_fallback": False}
     relaxations = {}
     for reserve in (0.0, 45.0):
         data["formation"]["barrier"] = {**limits, "reserve_tilt_deg": reserve}
@@ -163,3 +166,25 @@ def test_grounded_neighbours_outside_each_others_keep_out_lift_off_together():
     together, waited = lifted[1.0], lifted[1.2]
     assert abs(together[1] - together[0]) <= 0.1
     assert waited[1] - waited[0] > 0.3
+
+
+def test_the_joint_fallback_is_counted_and_removes_the_relaxation(monkeypatch):
+    # dev start 200522 (docs/barrier.md, "the joint fallback"): with the split alone a climbing follower
+    # between the leader and a follower is relaxed; with the fallback its cluster is solved together, no
+    # relaxation, the same count on both drivers, in the summary's line, the stress row and table
+    data = stress_data(StressCase("barrier", 200522, 5, 3.0, 0.6, 4.0, aero="realistic"))
+    found = {}
+    for joint in (False, True):
+        data["formation"]["barrier"] = {"joint_fallback": joint}
+        sc = parse_scenario(data, "<test>")
+        runs = [run(sc, progress=False, fused=fused) for fused in (False, True)]
+        found[joint] = [tuple(r.summary["anti_collision"][k] for k in ("joint_periods", "relaxations")) for r in runs]
+        assert found[joint][0] == found[joint][1]
+    assert found[False][0] == (0, 1) and found[True][0][0] > 0 and found[True][0][1] == 0
+    res, periods = runs[0], found[True][0][0]
+    assert f"{periods} drone-periods in the barrier's joint fallback" in format_summary(res.summary, res.scenario)
+    monkeypatch.setattr(stress, "stress_scenario", lambda case: sc)
+    row = stress.fly_case(StressCase("barrier", 200522, 5, 3.0, 0.6, 4.0))
+    assert row["joint_periods"] == periods
+    table = {"barrier": stress.summarize_rule([row])}
+    assert f"barrier joint fallback: {periods} drone-periods in 1 of 1 starts" in stress.format_table(table, 5)

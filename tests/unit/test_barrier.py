@@ -252,13 +252,15 @@ def test_filter_properties(n, seed, gain, tilt, up, down, spread, prio, track, c
         floor_m=-1e6,  # below every sampled altitude: no pair is "both on the ground" (the filter skips those)
         priority_share=prio,
         reserve_tilt_deg=reserve,
+        joint_fallback=False,  # the split alone (the joint fallback: tests/unit/test_barrier_joint.py)
     )
     radii, a_nominal = bp.radii(), bp.horizontal_limit()
     a_reserve = bp.reserve_horizontal_limit() or a_nominal
     # what the others sense: each drone off its own (reference) state by a tracking error
     sp, sv = pos + rng.normal(scale=track, size=(n, 3)), vel + rng.normal(scale=track, size=(n, 3))
     hcost = np.where(rng.random(n) < 0.5, cost, 1.0)  # the descent's metric on some of the drones
-    u, active, relaxed, _, used, _ = apply_filter(bp, pos, vel, u_nom, filters, (sp, sv, np.zeros((n, 3))), hcost=hcost)
+    sensed = (sp, sv, np.zeros((n, 3)))
+    u, active, relaxed, _, used, _, _ = apply_filter(bp, pos, vel, u_nom, filters, sensed, hcost=hcost)
     for i in range(n):
         rows = [
             _constraint(own_p, own_v, sp[j], sv[j], radii, gain, _share(i, j, filters, prio))
@@ -302,7 +304,7 @@ def test_relaxation_is_used_and_flagged():
     pos = np.array([[0.0, 0.0, 2.0], [0.9, 0.0, 2.0]])
     vel = np.array([[2.0, 0.0, 0.0], [-2.0, 0.0, 0.0]])
     bp = BarrierParams(max_tilt_deg=5.0, priority_share=0.5, reserve_tilt_deg=0.0)
-    u, active, relaxed, _, _, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
+    u, active, relaxed, _, _, _, _ = apply_filter(bp, pos, vel, np.zeros((2, 3)), np.ones(2, dtype=np.bool_))
     assert active.all() and relaxed.all()
     for i in range(2):
         assert _limits_ok(u[i], bp.horizontal_limit(), bp.accel_up, bp.accel_down)
@@ -326,7 +328,7 @@ def _fly(pos0, goal, bp, T=12.0, dt=0.01, kp=2.0, kd=2.5, leader=None):
         nh = np.linalg.norm(u_nom[:, :2], axis=1, keepdims=True)
         u_nom[:, :2] *= np.minimum(1.0, 0.9 * a_h / np.maximum(nh, 1e-12))
         u_nom[:, 2] = np.clip(u_nom[:, 2], -bp.accel_down, bp.accel_up)
-        u, _, relaxed, _, _, _ = apply_filter(bp, pos, vel, u_nom, filters)
+        u, _, relaxed, _, _, _, _ = apply_filter(bp, pos, vel, u_nom, filters)
         n_relaxed += int(relaxed.sum())
         vel += u * dt
         pos += vel * dt
@@ -581,7 +583,7 @@ def test_a_relaxation_names_the_neighbour_that_asked_most():
     acc = np.array([[8.0, 0.0, 0.0], [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]])
     filters = np.array([False, True, True])
     bp = BarrierParams(tiebreak=0.0, priority_share=0.5)
-    u, active, relaxed, _, _, against = apply_filter(bp, pos, vel, np.zeros((3, 3)), filters, (pos, vel, acc))
+    u, active, relaxed, _, _, against, _ = apply_filter(bp, pos, vel, np.zeros((3, 3)), filters, (pos, vel, acc))
     assert relaxed[1] and against[1] == 0 and against[0] == -1
     radii, a_h = bp.radii(), bp.horizontal_limit()
     excess = {}

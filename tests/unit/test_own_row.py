@@ -48,7 +48,8 @@ def _fly(seed: int, n: int, periods: int, bp: BarrierParams):
     steer[0] = False  # the leader flies its trajectory
     goal = pos[::-1].copy() + rng.normal(0.0, 0.2, (n, 3))  # each drone's reference through the others
     full = new_record(bp, DEFAULT_PARAMS, n, True)
-    own = [new_record(bp, DEFAULT_PARAMS, n, True, own_row=i) for i in range(n)]
+    # with the joint fallback a drone's copy computes every row and counts its own (BarrierFilter.restrict_to)
+    own = [new_record(bp, DEFAULT_PARAMS, n, True, *((-1, i) if bp.joint_fallback else (i,))) for i in range(n)]
     for k in range(periods):
         t = k * dt
         pos_d = pos + np.clip(goal - pos, -0.4, 0.4)
@@ -71,9 +72,10 @@ def _fly(seed: int, n: int, periods: int, bp: BarrierParams):
     lanes=st.booleans(),
     both_states=st.booleans(),
     jerk=st.sampled_from([0.0, 40.0]),
+    joint=st.booleans(),
 )
 def test_a_filter_restricted_to_one_row_gives_that_row_bit_for_bit(
-    seed, n, leader_filters, leader_yields, lanes, both_states, jerk
+    seed, n, leader_filters, leader_yields, lanes, both_states, jerk, joint
 ):
     bp = BarrierParams(
         leader_filters=leader_filters,
@@ -83,13 +85,14 @@ def test_a_filter_restricted_to_one_row_gives_that_row_bit_for_bit(
         vertical_jerk_limit=jerk,
         escape_after_s=0.2,  # the deadlock escape's state within the flight
         escape_min_m=0.05,
+        joint_fallback=joint,
     )
     for full, out, own, outs, refs, events, own_events in _fly(seed, n, 60, bp):
         for i, (rec, o, ev) in enumerate(zip(own, outs, own_events)):
             for c in range(3):  # (pos, vel, acc): row i as the full filter's; the others the planner's
                 assert np.array_equal(_bits(o[c][i]), _bits(out[c][i]))
-                others = np.arange(n) != i
-                assert np.array_equal(_bits(o[c][others]), _bits(refs[c][others]))
+                others = np.arange(n) != i  # the planner's; with the joint fallback its prediction, the full's
+                assert np.array_equal(_bits(o[c][others]), _bits((out if joint else refs)[c][others]))
             for name in _ROW_STATE:
                 assert np.array_equal(getattr(rec, name)[i], getattr(full, name)[i]), name
             for name in _SHARED_STATE:
@@ -111,8 +114,11 @@ def test_the_restricted_filters_share_the_full_filters_work():
 
 
 def test_restrict_to_sets_the_row_through_a_reset():
-    f = BarrierFilter()
-    f.restrict_to(2)
-    assert f.record().own_row == 2
-    f.reset(4)  # a run's start: a new record, the same drone
-    assert f.record().own_row == 2 and BarrierFilter().record().own_row == -1
+    """A drone's copy counts its own drone; it computes that row only, or with the joint fallback every row."""
+    for joint, computed in ((False, 2), (True, -1)):
+        f = BarrierFilter(BarrierParams(joint_fallback=joint))
+        f.restrict_to(2)
+        assert (f.record().own_row, f.record().tally_row) == (computed, 2)
+        f.reset(4)  # a run's start: a new record, the same drone
+        assert (f.record().own_row, f.record().tally_row) == (computed, 2)
+    assert (BarrierFilter().record().own_row, BarrierFilter().record().tally_row) == (-1, -1)
