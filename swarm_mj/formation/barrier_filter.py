@@ -273,11 +273,14 @@ def barrier_step(rec, t, positions, vel, dt, pos_d, vel_d, acc_d, steer):
         rec, ref, ref_vel, positions, vel, rec.sensed_acc, u_nom, pair_filters, limits, hcost
     )
     out_p, out_v, out_a = pos_d.copy(), vel_d.copy(), acc_d.copy()
+    kept, n_ev = np.empty_like(rec.counts), 0
     for i in range(n):
         if rec.own_row >= 0 and i != rec.own_row:
             continue  # not this record's drone: its row the planner's, its state as it was (see own_row)
         other = rec.tally_row >= 0 and i != rec.tally_row  # a copy computing every row counts its own drone's
-        kept, n_ev = rec.counts.copy(), rec.ev_count[0]
+        if other:
+            kept[:] = rec.counts
+            n_ev = rec.ev_count[0]
         _tally(rec, i, t, active[i], relaxed[i], reserve[i], against[i], joint[i])
         g[i] = (g[i] or active[i]) and filters[i]
         if wait[i]:  # the take-off gate: held where it stands, at most its start altitude
@@ -408,7 +411,7 @@ class BarrierFilter:
     @property
     def joint_periods(self) -> int:
         """Drone-periods whose command came from a boxed drone's cluster QP (docs/barrier.md, "the joint
-        fallback"); those it could not meet within the limits are relaxed too."""
+        fallback"); a cluster whose QP has no solution keeps the split's commands and is not counted."""
         return int(self._rec.counts[6])
 
     @property
