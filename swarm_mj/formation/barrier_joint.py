@@ -28,7 +28,7 @@ import numpy as np
 
 from .._jit import jit
 from .barrier_qp import limit_rows, solve_small
-from .keepout import pair_row
+from .keepout import pair_row, split_rhs
 
 _TOL = 1e-9  # feasibility tolerance of a row, relative to (1 + |b|)
 
@@ -153,15 +153,11 @@ def _pair_rows(rec, pos, vel, sensed_pos, sensed_vel, sensed_acc, filters, membe
                 bs, _, _ = pair_row(p, v, rec.radii, rec.gain, a)
                 for c in range(G.shape[1]):
                     G[m, c] = 0.0
-                if not filters[l2]:  # it does not give way: all of it, against its acceleration
-                    bs += a[0] * sensed_acc[l2, 0] + a[1] * sensed_acc[l2, 1] + a[2] * sensed_acc[l2, 2]
-                elif member[l2]:  # inside the cluster: the full constraint on the two commands
+                if filters[l2] and member[l2]:  # inside the cluster: the full constraint on the two commands
                     for c in range(3):
                         G[m, 3 * slot[l2] + c] = -a[c] / (sh[l2] if c < 2 else 1.0)
-                elif bs > 0.0:  # with a drone outside: the split's share, which it keeps
-                    bs *= rec.priority_share if k < l2 else 1.0 - rec.priority_share
-                else:
-                    bs *= 0.5
+                else:  # the split's share, which a drone outside keeps (all of it against the leader)
+                    bs = split_rhs(bs, k, l2, filters, rec.priority_share, a, sensed_acc)
                 for c in range(3):
                     G[m, 3 * slot[k] + c] = a[c] / (sh[k] if c < 2 else 1.0)
                 h[m] = bs
@@ -209,7 +205,7 @@ def joint_command(rec, pos, vel, sensed_pos, sensed_vel, sensed_acc, u_nom, filt
         if gi_project(x0, G, h, m, x):
             _unpack(x, slot, sh, u)
             return u, True, wide
-    return u, False, rec.reserve_a_h > rec.a_h
+    return u, False, False
 
 
 @jit

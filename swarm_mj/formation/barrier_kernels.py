@@ -13,7 +13,7 @@ from ..physics.params import DEFAULT_PARAMS, QuadParams
 from .barrier_joint import joint_command
 from .barrier_params import BarrierParams, BarrierRecord, new_record
 from .barrier_qp import limit_rows, min_over_limits, project_polyhedron
-from .keepout import pair_row
+from .keepout import pair_row, split_rhs
 
 
 @jit(inline=True)
@@ -49,17 +49,7 @@ def _neighbour_rows(
             if d2 > r2 or (sensed_pos[i, 2] < floor and sensed_pos[j, 2] < floor):
                 continue
             bs, h, hd = pair_row(p, v, radii, gain, a)
-            # the split (docs/barrier.md): against a drone that does not filter, all of it; a burden
-            # (b > 0) by priority, the lower index taking priority_share; room (b ≤ 0) in halves
-            if not filters[j]:
-                share = 1.0
-            elif bs > 0.0:
-                share = priority_share if i < j else 1.0 - priority_share
-            else:
-                share = 0.5
-            bs *= share
-            if not filters[j]:
-                bs += a[0] * sensed_acc[j, 0] + a[1] * sensed_acc[j, 1] + a[2] * sensed_acc[j, 2]
+            bs = split_rhs(bs, i, j, filters, priority_share, a, sensed_acc)  # drone i's share
             lhs = a[0] * u_nom[i, 0] + a[1] * u_nom[i, 1] + a[2] * u_nom[i, 2]
             if lhs >= bs and min_over_limits(a, max(limits[i, 0], rec.reserve_a_h), limits[i, 1], limits[i, 2]) >= bs:
                 continue  # no input within the limits (the reserve's) can violate it, nor does the nominal: redundant

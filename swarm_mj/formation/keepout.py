@@ -46,6 +46,19 @@ def pair_row(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, A: np
     return b, h, hd
 
 
+@jit
+def split_rhs(b, i, j, filters, priority_share, A, sensed_acc):
+    """Drone i's side of the split of pair (i, j)'s (B) (docs/barrier.md, "Decentralised split"), the
+    right-hand side of A·u_i ≥ it: against a drone j that does not filter, all of it plus A·â_j (its
+    acceleration: it does not give way); a burden (b > 0) by priority, the lower index taking
+    ``priority_share``; room (b ≤ 0) in halves."""
+    if not filters[j]:
+        return b + A[0] * sensed_acc[j, 0] + A[1] * sensed_acc[j, 1] + A[2] * sensed_acc[j, 2]
+    if b > 0.0:
+        return b * (priority_share if i < j else 1.0 - priority_share)
+    return b * 0.5
+
+
 @jit(on_demand=True, samples=lambda: [(np.array([1.0, 0, 0]), np.zeros(3), np.ones(3), 3.0, 0.5)])
 def pair_constraint(p: np.ndarray, v: np.ndarray, radii: np.ndarray, gain: float, share: float):
     """One drone's half-space of (B) for a pair: (A (3,), b_share, h, ḣ) with A·u_i ≥ b_share.
